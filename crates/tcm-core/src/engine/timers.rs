@@ -1,0 +1,97 @@
+//! The timer queue of the agenda: a binary heap ordered by (deadline, sequence number), so timers
+//! due at the same time fire in the order they were set (FIFO, catalogue §3.6).
+//!
+//! Timers are never removed when they stop mattering (their node completed, was terminated or
+//! reclaimed); they are skipped when they surface, and the heap is compacted when stale entries
+//! could outnumber live ones, so memory stays proportional to live timers.
+
+use crate::ids::NodeId;
+use crate::time::Time;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use tcm_trace::Facet;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum TimerKind {
+    /// One enablement constraint of the target's facet is satisfied.
+    Enable { target: NodeId, facet: Facet },
+    /// Terminate the target.
+    Terminate { target: NodeId },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Entry {
+    at: Time,
+    seq: u64,
+    kind: TimerKind,
+}
+
+impl Ord for Entry {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        (self.at, self.seq).cmp(&(other.at, other.seq))
+    }
+}
+
+impl PartialOrd for Entry {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// Compaction runs when the heap holds more than this many entries and twice the live count
+/// measured at the last compaction: the amortised cost per timer stays O(log n).
+const COMPACT_MIN: usize = 4096;
+
+#[derive(Default)]
+pub(crate) struct Timers {
+    heap: BinaryHeap<Reverse<Entry>>,
+    seq: u64,
+    compact_at: usize,
+}
+
+impl Timers {
+    pub(crate) fn push(&mut self, at: Time, kind: TimerKind) {
+        let seq = self.seq;
+        self.seq += 1;
+        self.heap.push(Reverse(Entry { at, seq, kind }));
+    }
+
+    fn compact(&mut self, live: impl Fn(&TimerKind) -> bool) {
+        if self.heap.len() > COMPACT_MIN.max(self.compact_at) {
+            let entries = std::mem::take(&mut self.heap).into_vec();
+            self.heap = entries.into_iter().filter(|e| live(&e.0.kind)).collect();
+            self.compact_at = self.heap.len() * 2;
+        }
+    }
+
+    /// The earliest deadline among live timers; stale timers on top are dropped.
+    pub(crate) fn next_deadline(&mut self, live: impl Fn(&TimerKind) -> bool) -> Option<Time> {
+        self.compact(&live);
+        while let Some(Reverse(top)) = self.heap.peek() {
+            if live(&top.kind) {
+                return Some(top.at);
+            }
+            self.heap.pop();
+        }
+        None
+    }
+
+    /// Removes and returns the earliest live timer due at or before `now`.
+    pub(crate) fn pop_due(
+        &mut self,
+        now: Time,
+        live: impl Fn(&TimerKind) -> bool,
+    ) -> Option<TimerKind> {
+        while let Some(Reverse(top)) = self.heap.peek() {
+            if top.at > now {
+                return None;
+            }
+            let kind = top.kind;
+            self.heap.pop();
+            if live(&kind) {
+                return Some(kind);
+            }
+        }
+        None
+    }
+}

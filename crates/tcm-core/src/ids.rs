@@ -1,0 +1,37 @@
+//! Identifiers handed out by the core.
+//!
+//! A [`NodeId`] names a node of one run: it carries the run's number, so a handle from another run is
+//! refused rather than silently aliased, and a generation, so a handle to a reclaimed node can never
+//! reach the node that reuses its slot.
+
+use std::fmt;
+
+/// A handle to a task-tree node of one run. Copyable; it stays valid (and harmless) after the node is
+/// reclaimed: the engine then answers from the node's recorded fate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct NodeId {
+    pub(crate) run: u32,
+    pub(crate) idx: u32,
+    pub(crate) generation: u32,
+}
+
+impl NodeId {
+    /// The number of the run this node belongs to.
+    pub fn run(self) -> u32 {
+        self.run
+    }
+}
+
+impl fmt::Display for NodeId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "node#{}.{}@run{}", self.idx, self.generation, self.run)
+    }
+}
+
+/// A named external event (or a manual signal gate), interned by the engine.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct ExternalId(pub(crate) u32);
+
+/// A token the shell chooses when it asks to be told about an event (`Engine::watch`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct WatchToken(pub u64);
