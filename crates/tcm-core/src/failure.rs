@@ -61,3 +61,13 @@ impl fmt::Display for FatalFailure {
         )
     }
 }
+
+impl<E: std::error::Error + 'static> From<E> for Failure {
+    /// Any error fails the action with an exception named after the error's type, so `?` works in
+    /// action bodies.
+    fn from(e: E) -> Failure {
+        let full = std::any::type_name::<E>();
+        let short = full.rsplit("::").next().unwrap_or(full);
+        Failure::new(short.to_string(), e.to_string())
+    }
+}

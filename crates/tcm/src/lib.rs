@@ -1,1 +1,67 @@
-//! Placeholder.
+//! TCM, the task-tree runtime of TDL, for Rust: async actions on tokio over a deterministic core.
+//!
+//! A [`Task`] is a goal or a command with an async action. [`Runtime::run`] inserts it as the
+//! top-level task and drives the tree until its execution completes. Goals spawn children through
+//! their [`Ctx`], with the synchronisation constraints of the TDL paper (Figure 5) given on a
+//! [`Spawner`]; commands await their hardware. Returning completes a node's handling, an error fails
+//! it (this replaces TDL's POSTPONE/Resume), and a panicking action fails its node while the run
+//! goes on.
+//!
+//! Actions run truly concurrently on tokio's workers. Under tokio's paused clock
+//! (`#[tokio::test(start_paused = true)]`, or [`block_on_virtual`]) time is virtual: a 30 s timeout
+//! passes instantly, and the same program yields the same trace on every run.
+//!
+//! Every transition is a trace record ([`TraceEvent`]); sinks write it as JSON lines
+//! ([`JsonLines`]), TCM's text log ([`TextLogSink`]) or keep it ([`Recorder`]).
+//!
+//! The semantics live in `tcm-core` (the engine); see its documentation and `ARCHITECTURE.md`.
+#![warn(missing_docs)]
+
+mod ctx;
+mod runtime;
+mod sink;
+mod task;
+
+pub use ctx::{Ctx, Spawner};
+pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
+pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink};
+pub use task::{Action, ActionFuture, Task, Value};
+pub use tcm_core::{
+    Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy, FatalFailure,
+    NodeId, NodeKind, NodeRef, Point, State, Stats, TerminateWhen, Time, Until, WatchOutcome,
+};
+pub use tcm_trace::{TraceEvent, TraceKind};
+
+/// Errors of the runtime API. Inside an action, `?` turns them into a failure of the node.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The engine refused the request (bad handle, too late for a constraint, …).
+    #[error(transparent)]
+    Engine(#[from] EngineError),
+    /// The run ended before the awaited node finished.
+    #[error("the run ended before the awaited node finished")]
+    RunEnded,
+    /// A panic inside the engine poisoned the runtime; the run cannot go on.
+    #[error("the runtime was poisoned by a panic inside the engine")]
+    Poisoned,
+    /// The awaited child failed.
+    #[error("the awaited child failed: {0}")]
+    ChildFailed(Failure),
+    /// The awaited child was terminated (or never spawned).
+    #[error("the awaited child was terminated before it completed")]
+    ChildTerminated,
+    /// The awaited child returned no value of the expected type.
+    #[error("the awaited child returned no value of type {0}")]
+    NoValue(&'static str),
+}
+
+/// Runs `fut` on a new single-threaded tokio runtime whose clock is paused: virtual time, which
+/// jumps to the next timer whenever every task waits. For simulations and demos.
+pub fn block_on_virtual<F: std::future::Future>(fut: F) -> std::io::Result<F::Output> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_time()
+        .start_paused(true)
+        .build()?;
+    Ok(rt.block_on(fut))
+}

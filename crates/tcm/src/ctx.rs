@@ -1,0 +1,247 @@
+//! The context an action gets: its own node, and the means to spawn, wait for, constrain and
+//! terminate nodes of its run.
+
+use crate::runtime::{Shared, lock};
+use crate::task::{Action, Task, Value};
+use crate::Error;
+use std::sync::Arc;
+use std::time::Duration;
+use tcm_core::{
+    Constraint, Event, ExternalId, Facet, NodeId, NodeRef, OnTerminate, Point, Spawn, TerminateWhen,
+    Until, WatchOutcome, WatchToken,
+};
+use tokio::sync::oneshot;
+
+/// What an action sees of the runtime. Cheap to clone; usable from any task or thread of the run.
+#[derive(Clone)]
+pub struct Ctx {
+    pub(crate) shared: Arc<Shared>,
+    pub(crate) node: NodeId,
+}
+
+impl Ctx {
+    /// This action's node.
+    pub fn node(&self) -> NodeId {
+        self.node
+    }
+
+    /// Virtual time since the run started.
+    pub fn now(&self) -> Duration {
+        self.shared.now().since_start()
+    }
+
+    /// Starts building a spawn of `task` as a child of this node.
+    pub fn spawn(&self, task: Task) -> Spawner<'_> {
+        let mut spec = Spawn::new(self.node, task.kind, task.name, task.action);
+        spec.constraints = task.constraints;
+        Spawner { ctx: self, spec }
+    }
+
+    /// Reserves a child for a later spawn, so constraints can name it now (a forward reference).
+    /// If this action ends without spawning it (through [`Spawner::fulfils`]), it is dead.
+    pub fn reserve(&self, name: &'static str) -> Result<NodeId, Error> {
+        let mut inner = lock(&self.shared)?;
+        let now = self.shared.now();
+        let id = inner.engine.reserve(now, self.node, name)?;
+        Ok(id)
+    }
+
+    /// Waits until `node`'s execution completes (the node and its whole subtree), as TDL's `wait`.
+    pub async fn wait(&self, node: NodeId) -> Result<WatchOutcome, Error> {
+        let rx = {
+            let mut inner = lock(&self.shared)?;
+            let token = inner.next_token();
+            let (tx, rx) = oneshot::channel();
+            inner.watchers.insert(token, tx);
+            let now = self.shared.now();
+            inner.engine.watch(now, Event::on(node, Facet::Execution, Point::Completed), WatchToken(token))?;
+            rx
+        };
+        self.shared.wake.notify_one();
+        rx.await.map_err(|_| Error::RunEnded)
+    }
+
+    /// Applies a constraint to an existing node (termination constraints at any time; enablement
+    /// constraints only before the facet is enabled).
+    pub fn constrain(&self, node: NodeId, c: Constraint) -> Result<(), Error> {
+        self.with_engine(|e, now| e.constrain(now, node, c))
+    }
+
+    /// Terminates `node` and its subtree.
+    pub fn terminate(&self, node: NodeId) -> Result<(), Error> {
+        self.with_engine(|e, now| e.terminate(now, node))
+    }
+
+    /// Terminates every child of `node`.
+    pub fn terminate_children(&self, node: NodeId) -> Result<(), Error> {
+        self.with_engine(|e, now| e.terminate_children(now, node))
+    }
+
+    /// Terminates every sibling of `node`.
+    pub fn terminate_siblings(&self, node: NodeId) -> Result<(), Error> {
+        self.with_engine(|e, now| e.terminate_siblings(now, node))
+    }
+
+    /// Suspends `node` and its subtree: nothing new starts there until [`Ctx::unsuspend`].
+    pub fn suspend(&self, node: NodeId) -> Result<(), Error> {
+        self.with_engine(|e, now| e.suspend(now, node))
+    }
+
+    /// Unsuspends `node` and its subtree.
+    pub fn unsuspend(&self, node: NodeId) -> Result<(), Error> {
+        self.with_engine(|e, now| e.unsuspend(now, node))
+    }
+
+    /// The id of a named external event, for constraints.
+    pub fn external(&self, name: &str) -> Result<ExternalId, Error> {
+        let mut inner = lock(&self.shared)?;
+        Ok(inner.engine.external(name))
+    }
+
+    /// Raises a named external event.
+    pub fn raise(&self, name: &str) -> Result<(), Error> {
+        self.with_engine(|e, now| {
+            let id = e.external(name);
+            e.raise(now, id);
+            Ok(())
+        })
+    }
+
+    fn with_engine<T>(
+        &self,
+        f: impl FnOnce(&mut tcm_core::Engine<Action>, tcm_core::Time) -> Result<T, tcm_core::EngineError>,
+    ) -> Result<T, Error> {
+        let res = {
+            let mut inner = lock(&self.shared)?;
+            let now = self.shared.now();
+            f(&mut inner.engine, now)?
+        };
+        self.shared.wake.notify_one();
+        Ok(res)
+    }
+}
+
+/// A spawn being built: add constraints, then [`Spawner::start`] it or [`Spawner::wait`] for it.
+#[must_use = "a spawn does nothing until `start` or `wait` is called"]
+pub struct Spawner<'a> {
+    ctx: &'a Ctx,
+    spec: Spawn<Action>,
+}
+
+impl Spawner<'_> {
+    /// Adds any constraint.
+    pub fn with(mut self, c: Constraint) -> Self {
+        self.spec.constraints.push(c);
+        self
+    }
+
+    /// `sequential <facet> <reference>`.
+    pub fn sequential(self, facet: Facet, of: impl Into<NodeRef>) -> Self {
+        self.with(Constraint::Sequential(facet, of.into()))
+    }
+
+    /// `serial <reference>`.
+    pub fn serial(self, of: impl Into<NodeRef>) -> Self {
+        self.with(Constraint::Serial(of.into()))
+    }
+
+    /// `expand first`.
+    pub fn expand_first(self) -> Self {
+        self.with(Constraint::ExpandFirst)
+    }
+
+    /// `delay expansion`.
+    pub fn delay_expansion(self) -> Self {
+        self.with(Constraint::DelayExpansion)
+    }
+
+    /// `disable <facet> until <event>`.
+    pub fn disable_until(self, facet: Facet, event: Event) -> Self {
+        self.with(Constraint::Disable(facet, Until::Event(event)))
+    }
+
+    /// `disable <facet> for <duration>`.
+    pub fn disable_for(self, facet: Facet, d: Duration) -> Self {
+        self.with(Constraint::Disable(facet, Until::For(d)))
+    }
+
+    /// `terminate at <event>`.
+    pub fn terminate_at(self, event: Event) -> Self {
+        self.with(Constraint::Terminate(TerminateWhen::Event(event)))
+    }
+
+    /// `terminate in <duration>`.
+    pub fn terminate_in(self, d: Duration) -> Self {
+        self.with(Constraint::Terminate(TerminateWhen::In(d)))
+    }
+
+    /// Keep the node after it completes (not reclaimed).
+    pub fn persistent(mut self) -> Self {
+        self.spec.persistent = true;
+        self
+    }
+
+    /// `on terminate spawn <task>`: run `task` as a child if this node is terminated while its action
+    /// runs; it runs to completion.
+    pub fn on_terminate(mut self, task: Task) -> Self {
+        self.spec.on_terminate.push(OnTerminate {
+            kind: task.kind,
+            name: task.name,
+            action: task.action,
+        });
+        self
+    }
+
+    /// Fulfils a reservation made with [`Ctx::reserve`].
+    pub fn fulfils(mut self, reserved: NodeId) -> Self {
+        self.spec.fulfils = Some(reserved);
+        self
+    }
+
+    /// Inserts the node under another parent than the spawning action's node (TDL's `parent`).
+    pub fn under(mut self, parent: NodeId) -> Self {
+        self.spec.parent = parent;
+        self
+    }
+
+    /// Inserts the node; returns at once (TDL's non-blocking `spawn`).
+    pub fn start(self) -> Result<NodeId, Error> {
+        let id = {
+            let mut inner = lock(&self.ctx.shared)?;
+            let now = self.ctx.shared.now();
+            inner.engine.spawn(now, self.spec)?
+        };
+        self.ctx.shared.wake.notify_one();
+        Ok(id)
+    }
+
+    /// Inserts the node and waits until its execution completes (TDL's `with wait`).
+    pub async fn wait(self) -> Result<WatchOutcome, Error> {
+        let ctx = self.ctx;
+        let id = self.start()?;
+        ctx.wait(id).await
+    }
+
+    /// Inserts the node, waits for it, and returns the value its action returned.
+    pub async fn wait_value<T: 'static>(self) -> Result<T, Error> {
+        let ctx = self.ctx;
+        let id = {
+            let mut inner = lock(&ctx.shared)?;
+            let now = ctx.shared.now();
+            let id = inner.engine.spawn(now, self.spec)?;
+            inner.values.insert(id, None);
+            id
+        };
+        ctx.shared.wake.notify_one();
+        let outcome = ctx.wait(id).await?;
+        let value: Option<Value> = lock(&ctx.shared)?.values.remove(&id).flatten();
+        match outcome {
+            WatchOutcome::Reached => match value.map(|v| v.downcast::<T>()) {
+                Some(Ok(v)) => Ok(*v),
+                _ => Err(Error::NoValue(std::any::type_name::<T>())),
+            },
+            WatchOutcome::Failed(f) => Err(Error::ChildFailed(f)),
+            WatchOutcome::Terminated | WatchOutcome::Dead => Err(Error::ChildTerminated),
+        }
+    }
+}
