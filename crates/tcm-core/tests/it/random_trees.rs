@@ -1,0 +1,197 @@
+//! Property test: random trees with random constraints run on virtual time and always pass the
+//! trace checker, and the same program always gives the same trace.
+
+use proptest::prelude::*;
+use std::rc::Rc;
+use std::time::Duration;
+use tcm_core::sim::{Body, Outcome, Sim, body};
+use tcm_core::{Constraint, Engine, Event, Facet, Failure, NodeId, NodeKind, NodeRef, Point, Spawn, TerminateWhen, Time, Until};
+
+#[derive(Clone, Debug)]
+enum C {
+    Sequential(Facet, Target),
+    Serial(Target),
+    DisableFor(Facet, u8),
+    DisableAt(Facet, u8),
+    DisableAfter(Facet, u8, Target, Point),
+    DisableUntil(Facet, Target, Facet, Point),
+    TerminateIn(u8),
+    TerminateAt(Target, Point),
+    TerminateInAfter(u8, Target, Point),
+    ExpandFirst,
+    DelayExpansion,
+}
+
+/// Which node a constraint names, relative to the node being spawned (its index `i` among siblings).
+#[derive(Clone, Copy, Debug)]
+enum Target {
+    Previous,
+    /// Sibling `i - k` (void if there is none).
+    Back(u8),
+    /// Sibling `i + k`, spawned later: a forward reference (dead if there is none).
+    Ahead(u8),
+    Parent,
+}
+
+#[derive(Clone, Debug)]
+struct Plan {
+    goal: bool,
+    secs: u8,
+    fail: bool,
+    never: bool,
+    constraints: Vec<C>,
+    children: Vec<Plan>,
+}
+
+fn facet() -> impl Strategy<Value = Facet> {
+    prop_oneof![Just(Facet::Handling), Just(Facet::Expansion), Just(Facet::Execution)]
+}
+
+fn point() -> impl Strategy<Value = Point> {
+    prop_oneof![Just(Point::Enabled), Just(Point::Active), Just(Point::Completed)]
+}
+
+fn target() -> impl Strategy<Value = Target> {
+    prop_oneof![
+        3 => Just(Target::Previous),
+        2 => (1u8..3).prop_map(Target::Back),
+        2 => (1u8..3).prop_map(Target::Ahead),
+        1 => Just(Target::Parent),
+    ]
+}
+
+fn constraint() -> impl Strategy<Value = C> {
+    prop_oneof![
+        4 => (facet(), target()).prop_map(|(f, t)| C::Sequential(f, t)),
+        2 => target().prop_map(C::Serial),
+        1 => (facet(), 0u8..6).prop_map(|(f, s)| C::DisableFor(f, s)),
+        1 => (facet(), 0u8..12).prop_map(|(f, s)| C::DisableAt(f, s)),
+        1 => (facet(), 0u8..4, target(), point()).prop_map(|(f, s, t, p)| C::DisableAfter(f, s, t, p)),
+        2 => (facet(), target(), facet(), point()).prop_map(|(f, t, g, p)| C::DisableUntil(f, t, g, p)),
+        1 => (1u8..10).prop_map(C::TerminateIn),
+        1 => (target(), point()).prop_map(|(t, p)| C::TerminateAt(t, p)),
+        1 => (0u8..4, target(), point()).prop_map(|(s, t, p)| C::TerminateInAfter(s, t, p)),
+        1 => Just(C::ExpandFirst),
+        1 => Just(C::DelayExpansion),
+    ]
+}
+
+fn leaf() -> impl Strategy<Value = Plan> {
+    (any::<bool>(), 0u8..4, prop::bool::weighted(0.1), prop::bool::weighted(0.05), prop::collection::vec(constraint(), 0..3))
+        .prop_map(|(goal, secs, fail, never, constraints)| Plan { goal, secs, fail, never, constraints, children: vec![] })
+}
+
+fn plan() -> impl Strategy<Value = Plan> {
+    leaf().prop_recursive(3, 40, 5, |inner| {
+        (leaf(), prop::collection::vec(inner, 1..5)).prop_map(|(mut p, children)| {
+            p.goal = true;
+            p.children = children;
+            p
+        })
+    })
+}
+
+fn lower(c: &C, resolve: &dyn Fn(Target) -> Option<NodeRef>) -> Option<Constraint> {
+    let s = |n: u8| Duration::from_secs(u64::from(n));
+    Some(match c {
+        C::Sequential(f, t) => Constraint::Sequential(*f, resolve(*t)?),
+        C::Serial(t) => Constraint::Serial(resolve(*t)?),
+        C::DisableFor(f, n) => Constraint::Disable(*f, Until::For(s(*n))),
+        C::DisableAt(f, n) => Constraint::Disable(*f, Until::Time(Time::ZERO + s(*n))),
+        C::DisableAfter(f, n, t, p) => Constraint::Disable(*f, Until::ForAfter(s(*n), Event::new(resolve(*t)?, *p))),
+        C::DisableUntil(f, t, g, p) => Constraint::Disable(*f, Until::Event(Event::on(resolve(*t)?, *g, *p))),
+        C::TerminateIn(n) => Constraint::Terminate(TerminateWhen::In(s(*n))),
+        C::TerminateAt(t, p) => Constraint::Terminate(TerminateWhen::Event(Event::new(resolve(*t)?, *p))),
+        C::TerminateInAfter(n, t, p) => Constraint::Terminate(TerminateWhen::InAfter(s(*n), Event::new(resolve(*t)?, *p))),
+        C::ExpandFirst => Constraint::ExpandFirst,
+        C::DelayExpansion => Constraint::DelayExpansion,
+    })
+}
+
+fn action(plan: Rc<Plan>) -> Body {
+    body(move |e: &mut Engine<Body>, me: NodeId, now: Time| {
+        let n = plan.children.len();
+        // Reserve every child named by an earlier sibling's forward reference, plus one extra
+        // reservation per forward reference past the end (a dead reference).
+        let mut ids: Vec<Option<NodeId>> = vec![None; n];
+        let mut dead: Option<NodeId> = None;
+        for (i, child) in plan.children.iter().enumerate() {
+            for c in &child.constraints {
+                let t = match c {
+                    C::Sequential(_, t) | C::Serial(t) | C::DisableAfter(_, _, t, _) | C::DisableUntil(_, t, _, _) => *t,
+                    C::TerminateAt(t, _) | C::TerminateInAfter(_, t, _) => *t,
+                    _ => continue,
+                };
+                if let Target::Ahead(k) = t {
+                    let j = i + usize::from(k);
+                    if j < n {
+                        if ids[j].is_none() {
+                            ids[j] = Some(e.reserve(now, me, "reserved").expect("reserve"));
+                        }
+                    } else if dead.is_none() {
+                        dead = Some(e.reserve(now, me, "never").expect("reserve"));
+                    }
+                }
+            }
+        }
+        for (i, child) in plan.children.iter().enumerate() {
+            let resolve = |t: Target| -> Option<NodeRef> {
+                match t {
+                    Target::Previous => Some(NodeRef::Previous),
+                    Target::Parent => Some(NodeRef::Parent),
+                    Target::Back(k) => i.checked_sub(usize::from(k)).and_then(|j| ids[j]).map(NodeRef::Node),
+                    Target::Ahead(k) => ids.get(i + usize::from(k)).copied().flatten().or(dead).map(NodeRef::Node),
+                }
+            };
+            let kind = if child.goal { NodeKind::Goal } else { NodeKind::Command };
+            let mut spec = Spawn::new(me, kind, if child.goal { "g" } else { "c" }, action(Rc::new(child.clone())));
+            let mut has_first = false;
+            for c in &child.constraints {
+                if let Some(lc) = lower(c, &resolve) {
+                    // `expand first` with `delay expansion` is refused by the engine; keep one.
+                    match lc {
+                        Constraint::ExpandFirst => has_first = true,
+                        Constraint::DelayExpansion if has_first => continue,
+                        _ => {}
+                    }
+                    if lc == Constraint::DelayExpansion && child.constraints.iter().any(|c| matches!(c, C::ExpandFirst)) {
+                        continue;
+                    }
+                    spec.constraints.push(lc);
+                }
+            }
+            spec.fulfils = ids[i];
+            let id = e.spawn(now, spec).expect("spawn");
+            ids[i] = Some(id);
+        }
+        if plan.never {
+            return Outcome::Never;
+        }
+        let res = if plan.fail { Err(Failure::new("Random", "planned failure")) } else { Ok(()) };
+        Outcome::After(Duration::from_secs(u64::from(plan.secs)), res)
+    })
+}
+
+fn run(plan: &Plan) -> Vec<tcm_trace::TraceEvent> {
+    let mut sim = Sim::new();
+    let root = sim.engine.root();
+    let spec = Spawn::new(root, NodeKind::Goal, "top", action(Rc::new(plan.clone())));
+    sim.engine.spawn(Time::ZERO, spec).expect("spawn top");
+    sim.run_until(Time::ZERO + Duration::from_secs(600));
+    sim.trace().to_vec()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_programs_pass_the_trace_checker(plan in plan()) {
+        let trace = run(&plan);
+        if let Err(violations) = tcm_trace::check(&trace) {
+            let lines: Vec<String> = trace.iter().map(tcm_trace::to_line).collect();
+            let v: Vec<String> = violations.iter().map(ToString::to_string).collect();
+            prop_assert!(false, "violations:\n{}\n\ntrace:\n{}", v.join("\n"), lines.join("\n"));
+        }
+        prop_assert_eq!(run(&plan), trace, "same program, same trace");
+    }
+}
