@@ -1,2 +1,232 @@
-//! Placeholder.
-fn main() {}
+//! `tcm-bench`: workloads of the TCM runtime, each printed beside a floor measured in the same
+//! process, so the ratio survives a noisy machine.
+//!
+//! `cargo run --release -p tcm-bench -- --json` prints one JSON object per line:
+//! `{"workload","layer","n","ns_per_node","floor_ns_per_node","ratio","high_water"}`.
+//! The floor is the same number of boxed no-op closures run through a `VecDeque`.
+//! `layer` is `core` (the engine driven synchronously, actions finishing at once) or `shell`
+//! (the full async runtime on tokio: one task per action, with tracing off).
+//!
+//! Workloads: W1 a root spawns N no-op commands, each `serial previous`; W2 N unordered no-op
+//! commands; W3 a goal spawning the same goal recursively to depth N, each child sequential on the
+//! previous one. W1 also runs at 10k, 100k and 1M to show the per-node cost does not grow.
+
+use std::collections::VecDeque;
+use std::time::Instant;
+use tcm::{Constraint, Facet, NodeRef, Runtime, Task};
+use tcm_core::{Effect, Engine, NodeKind, Spawn, Time};
+
+/// Repetitions of each measurement; the best is kept (least disturbed by the machine).
+const REPEATS: usize = 3;
+
+fn floor(n: usize) -> f64 {
+    best(|| {
+        let mut q: VecDeque<Box<dyn FnOnce() -> usize>> = VecDeque::with_capacity(16);
+        let start = Instant::now();
+        let mut acc = 0usize;
+        for i in 0..n {
+            q.push_back(Box::new(move || std::hint::black_box(i)));
+            if let Some(f) = q.pop_front() {
+                acc = acc.wrapping_add(f());
+            }
+        }
+        std::hint::black_box(acc);
+        start.elapsed().as_nanos() as f64 / n as f64
+    })
+}
+
+fn best(mut f: impl FnMut() -> f64) -> f64 {
+    (0..REPEATS).map(|_| f()).fold(f64::INFINITY, f64::min)
+}
+
+/// Drives an engine whose actions finish as soon as they start. Returns the high-water mark.
+fn drain(engine: &mut Engine<u8>) {
+    while let Some(effect) = engine.poll_effect() {
+        if let Effect::Start { node, .. } = effect {
+            let _ = engine.action_finished(Time::ZERO, node, Ok(()));
+        }
+    }
+}
+
+fn core_flat(n: usize, chained: bool) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = best(|| {
+        let mut e: Engine<u8> = Engine::new(1);
+        e.set_tracing(false);
+        let root = e.root();
+        let start = Instant::now();
+        let top = e
+            .spawn(Time::ZERO, Spawn::new(root, NodeKind::Goal, "top", 0))
+            .expect("spawn");
+        // The top goal's action runs "inline": it spawns all children before finishing.
+        let _ = e.poll_effect();
+        for _ in 0..n {
+            let mut spec = Spawn::new(top, NodeKind::Command, "noop", 0);
+            if chained {
+                spec.constraints.push(Constraint::Serial(NodeRef::Previous));
+            }
+            e.spawn(Time::ZERO, spec).expect("spawn");
+            drain(&mut e);
+        }
+        let _ = e.action_finished(Time::ZERO, top, Ok(()));
+        drain(&mut e);
+        let el = start.elapsed().as_nanos() as f64 / n as f64;
+        assert_eq!(e.stats().live_nodes, 1, "everything reclaimed");
+        hw = e.stats().high_water;
+        el
+    });
+    (ns, hw)
+}
+
+fn core_recursive(depth: usize) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = best(|| {
+        // The action payload is the goal's remaining depth; 0 marks a command.
+        let mut e: Engine<usize> = Engine::new(1);
+        e.set_tracing(false);
+        let root = e.root();
+        let start = Instant::now();
+        e.spawn(Time::ZERO, Spawn::new(root, NodeKind::Goal, "g", depth))
+            .expect("spawn");
+        while let Some(effect) = e.poll_effect() {
+            let Effect::Start { node, action: d } = effect else {
+                continue;
+            };
+            if d > 1 {
+                let c = e
+                    .spawn(Time::ZERO, Spawn::new(node, NodeKind::Command, "c", 0))
+                    .expect("spawn");
+                let spec = Spawn::new(node, NodeKind::Goal, "g", d - 1)
+                    .with(Constraint::Sequential(Facet::Execution, c.into()));
+                e.spawn(Time::ZERO, spec).expect("spawn");
+            }
+            let _ = e.action_finished(Time::ZERO, node, Ok(()));
+        }
+        let el = start.elapsed().as_nanos() as f64 / (2 * depth) as f64;
+        assert_eq!(e.stats().live_nodes, 1, "everything reclaimed");
+        hw = e.stats().high_water;
+        el
+    });
+    (ns, hw)
+}
+
+fn shell<F: FnOnce() -> Task>(nodes: usize, make: F) -> (f64, usize) {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_time()
+        .build()
+        .expect("tokio runtime");
+    let start = Instant::now();
+    let report = rt.block_on(Runtime::new().run(make())).expect("run");
+    let ns = start.elapsed().as_nanos() as f64 / nodes as f64;
+    (ns, report.stats.high_water)
+}
+
+fn shell_flat(n: usize, chained: bool) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = best(|| {
+        let (ns, h) = shell(n, || {
+            Task::goal("top", move |ctx| async move {
+                for _ in 0..n {
+                    let s = ctx.spawn(Task::command("noop", |_| async { Ok(()) }));
+                    let s = if chained {
+                        s.serial(NodeRef::Previous)
+                    } else {
+                        s
+                    };
+                    s.start()?;
+                }
+                Ok(())
+            })
+        });
+        hw = h;
+        ns
+    });
+    (ns, hw)
+}
+
+fn recursive(depth: usize) -> Task {
+    Task::goal("g", move |ctx| async move {
+        if depth > 1 {
+            let c = ctx
+                .spawn(Task::command("c", |_| async { Ok(()) }))
+                .start()?;
+            ctx.spawn(recursive(depth - 1))
+                .sequential(Facet::Execution, c)
+                .start()?;
+        }
+        Ok(())
+    })
+}
+
+fn shell_recursive(depth: usize) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = best(|| {
+        let (ns, h) = shell(2 * depth, || recursive(depth));
+        hw = h;
+        ns
+    });
+    (ns, hw)
+}
+
+fn report(
+    json: bool,
+    workload: &str,
+    layer: &str,
+    n: usize,
+    (ns, hw): (f64, usize),
+    floor_ns: f64,
+) {
+    let ratio = ns / floor_ns;
+    if json {
+        let v = serde_json::json!({
+            "workload": workload,
+            "layer": layer,
+            "n": n,
+            "ns_per_node": (ns * 10.0).round() / 10.0,
+            "floor_ns_per_node": (floor_ns * 10.0).round() / 10.0,
+            "ratio": (ratio * 10.0).round() / 10.0,
+            "high_water": hw,
+        });
+        println!("{v}");
+    } else {
+        println!(
+            "{workload:<4} {layer:<6} n={n:<9} {ns:>9.1} ns/node   floor {floor_ns:>6.1} ns   ratio {ratio:>7.1}   high-water {hw}"
+        );
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let json = args.iter().any(|a| a == "--json");
+    let quick = args.iter().any(|a| a == "--quick");
+    if let Some(bad) = args
+        .iter()
+        .find(|a| !matches!(a.as_str(), "--json" | "--quick"))
+    {
+        eprintln!("unknown argument {bad:?}\nusage: tcm-bench [--json] [--quick]");
+        std::process::exit(2);
+    }
+    if cfg!(debug_assertions) {
+        eprintln!("note: a debug build; run with --release for meaningful figures");
+    }
+    let n = if quick { 10_000 } else { 100_000 };
+    let depth = if quick { 1_000 } else { 10_000 };
+    let f = floor(n);
+    report(json, "W1", "core", n, core_flat(n, true), f);
+    report(json, "W1", "shell", n, shell_flat(n, true), f);
+    report(json, "W2", "core", n, core_flat(n, false), f);
+    report(json, "W2", "shell", n, shell_flat(n, false), f);
+    let fd = floor(2 * depth);
+    report(json, "W3", "core", 2 * depth, core_recursive(depth), fd);
+    report(json, "W3", "shell", 2 * depth, shell_recursive(depth), fd);
+    let sizes: &[usize] = if quick {
+        &[1_000, 10_000]
+    } else {
+        &[10_000, 100_000, 1_000_000]
+    };
+    for &s in sizes {
+        let fs = floor(s);
+        report(json, "W1-scale", "core", s, core_flat(s, true), fs);
+        report(json, "W1-scale", "shell", s, shell_flat(s, true), fs);
+    }
+}

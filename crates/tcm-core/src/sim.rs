@@ -31,8 +31,11 @@ impl Outcome {
     }
 }
 
+/// The closure of a scripted action.
+type BodyFn = dyn FnOnce(&mut Engine<Body>, NodeId, Time) -> Outcome;
+
 /// A scripted action.
-pub struct Body(Box<dyn FnOnce(&mut Engine<Body>, NodeId, Time) -> Outcome>);
+pub struct Body(Box<BodyFn>);
 
 /// Wraps a closure as a [`Body`].
 pub fn body(f: impl FnOnce(&mut Engine<Body>, NodeId, Time) -> Outcome + 'static) -> Body {
@@ -120,8 +123,34 @@ impl Sim {
     }
 
     fn drain(&mut self) {
-        while let Some(effect) = self.engine.poll_effect() {
+        while let Some(first) = self.engine.poll_effect() {
+            // A node may be started and terminated in one settle: then it must not run at all.
+            let mut batch = vec![first];
+            while let Some(e) = self.engine.poll_effect() {
+                batch.push(e);
+            }
+            let cancelled: Vec<NodeId> = batch
+                .iter()
+                .filter_map(|e| match e {
+                    Effect::Cancel { node } => Some(*node),
+                    _ => None,
+                })
+                .collect();
+            for effect in batch {
+                self.apply(effect, &cancelled);
+            }
+        }
+        if self.keep_trace {
+            while let Some(ev) = self.engine.poll_trace() {
+                self.trace.push(ev);
+            }
+        }
+    }
+
+    fn apply(&mut self, effect: Effect<Body>, cancelled: &[NodeId]) {
+        {
             match effect {
+                Effect::Start { node, .. } if cancelled.contains(&node) => {}
                 Effect::Start { node, action } => {
                     match (action.0)(&mut self.engine, node, self.now) {
                         Outcome::After(d, res) => {
@@ -146,11 +175,6 @@ impl Sim {
                         self.notes.push((token, outcome));
                     }
                 }
-            }
-        }
-        if self.keep_trace {
-            while let Some(ev) = self.engine.poll_trace() {
-                self.trace.push(ev);
             }
         }
     }

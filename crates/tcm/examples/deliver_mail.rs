@@ -32,6 +32,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .run(fig4::deliver_mail(7, world))
             .await
     })??;
-    eprintln!("outcome: {:?} after {:?} of virtual time", report.outcome, report.elapsed);
+    eprintln!(
+        "outcome: {:?} after {:?} of virtual time",
+        report.outcome, report.elapsed
+    );
     Ok(())
 }

@@ -1,14 +1,14 @@
 //! The context an action gets: its own node, and the means to spawn, wait for, constrain and
 //! terminate nodes of its run.
 
+use crate::Error;
 use crate::runtime::{Shared, lock};
 use crate::task::{Action, Task, Value};
-use crate::Error;
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::{
-    Constraint, Event, ExternalId, Facet, NodeId, NodeRef, OnTerminate, Point, Spawn, TerminateWhen,
-    Until, WatchOutcome, WatchToken,
+    Constraint, Event, ExternalId, Facet, NodeId, NodeRef, OnTerminate, Point, Spawn,
+    TerminateWhen, Until, WatchOutcome, WatchToken,
 };
 use tokio::sync::oneshot;
 
@@ -40,7 +40,7 @@ impl Ctx {
     /// Reserves a child for a later spawn, so constraints can name it now (a forward reference).
     /// If this action ends without spawning it (through [`Spawner::fulfils`]), it is dead.
     pub fn reserve(&self, name: &'static str) -> Result<NodeId, Error> {
-        let mut inner = lock(&self.shared)?;
+        let mut inner = self.shared.enter()?;
         let now = self.shared.now();
         let id = inner.engine.reserve(now, self.node, name)?;
         Ok(id)
@@ -49,15 +49,18 @@ impl Ctx {
     /// Waits until `node`'s execution completes (the node and its whole subtree), as TDL's `wait`.
     pub async fn wait(&self, node: NodeId) -> Result<WatchOutcome, Error> {
         let rx = {
-            let mut inner = lock(&self.shared)?;
+            let mut inner = self.shared.enter()?;
             let token = inner.next_token();
             let (tx, rx) = oneshot::channel();
             inner.watchers.insert(token, tx);
             let now = self.shared.now();
-            inner.engine.watch(now, Event::on(node, Facet::Execution, Point::Completed), WatchToken(token))?;
+            inner.engine.watch(
+                now,
+                Event::on(node, Facet::Execution, Point::Completed),
+                WatchToken(token),
+            )?;
             rx
         };
-        self.shared.wake.notify_one();
         rx.await.map_err(|_| Error::RunEnded)
     }
 
@@ -94,7 +97,7 @@ impl Ctx {
 
     /// The id of a named external event, for constraints.
     pub fn external(&self, name: &str) -> Result<ExternalId, Error> {
-        let mut inner = lock(&self.shared)?;
+        let mut inner = self.shared.enter()?;
         Ok(inner.engine.external(name))
     }
 
@@ -109,15 +112,14 @@ impl Ctx {
 
     fn with_engine<T>(
         &self,
-        f: impl FnOnce(&mut tcm_core::Engine<Action>, tcm_core::Time) -> Result<T, tcm_core::EngineError>,
+        f: impl FnOnce(
+            &mut tcm_core::Engine<Action>,
+            tcm_core::Time,
+        ) -> Result<T, tcm_core::EngineError>,
     ) -> Result<T, Error> {
-        let res = {
-            let mut inner = lock(&self.shared)?;
-            let now = self.shared.now();
-            f(&mut inner.engine, now)?
-        };
-        self.shared.wake.notify_one();
-        Ok(res)
+        let mut inner = self.shared.enter()?;
+        let now = self.shared.now();
+        Ok(f(&mut inner.engine, now)?)
     }
 }
 
@@ -206,13 +208,9 @@ impl Spawner<'_> {
 
     /// Inserts the node; returns at once (TDL's non-blocking `spawn`).
     pub fn start(self) -> Result<NodeId, Error> {
-        let id = {
-            let mut inner = lock(&self.ctx.shared)?;
-            let now = self.ctx.shared.now();
-            inner.engine.spawn(now, self.spec)?
-        };
-        self.ctx.shared.wake.notify_one();
-        Ok(id)
+        let mut inner = self.ctx.shared.enter()?;
+        let now = self.ctx.shared.now();
+        Ok(inner.engine.spawn(now, self.spec)?)
     }
 
     /// Inserts the node and waits until its execution completes (TDL's `with wait`).
@@ -226,13 +224,12 @@ impl Spawner<'_> {
     pub async fn wait_value<T: 'static>(self) -> Result<T, Error> {
         let ctx = self.ctx;
         let id = {
-            let mut inner = lock(&ctx.shared)?;
+            let mut inner = ctx.shared.enter()?;
             let now = ctx.shared.now();
             let id = inner.engine.spawn(now, self.spec)?;
             inner.values.insert(id, None);
             id
         };
-        ctx.shared.wake.notify_one();
         let outcome = ctx.wait(id).await?;
         let value: Option<Value> = lock(&ctx.shared)?.values.remove(&id).flatten();
         match outcome {

@@ -27,8 +27,9 @@ pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink};
 pub use task::{Action, ActionFuture, Task, Value};
 pub use tcm_core::{
-    Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy, FatalFailure,
-    NodeId, NodeKind, NodeRef, Point, State, Stats, TerminateWhen, Time, Until, WatchOutcome,
+    Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,
+    FatalFailure, NodeId, NodeKind, NodeRef, Point, State, Stats, TerminateWhen, Time, Until,
+    WatchOutcome,
 };
 pub use tcm_trace::{TraceEvent, TraceKind};
 

@@ -6,28 +6,41 @@
 //! the engine (spawn, terminate, raise …), or the next timer is due. The engine itself sits behind a
 //! mutex so that actions, on any worker thread, call it directly and briefly.
 
+use crate::Error;
 use crate::ctx::Ctx;
 use crate::sink::TraceSink;
 use crate::task::{Action, Task, Value};
-use crate::Error;
+use std::any::Any;
 use std::collections::{BTreeMap, HashMap};
+use std::future::Future;
+use std::panic::AssertUnwindSafe;
+use std::pin::Pin;
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 use tcm_core::{
-    Blocked, Effect, Engine, Event, FailurePolicy, FatalFailure, Failure, NodeId, Spawn, Stats, Time,
-    WatchOutcome, WatchToken,
+    Blocked, Effect, Engine, Event, Failure, FailurePolicy, FatalFailure, NodeId, Spawn, Stats,
+    Time, WatchOutcome, WatchToken,
 };
 use tcm_trace::{Facet, Point};
 use tokio::sync::{Notify, oneshot};
-use tokio::task::{AbortHandle, JoinSet};
+use tokio::task::AbortHandle;
 
 pub(crate) struct Inner {
     pub(crate) engine: Engine<Action>,
     pub(crate) watchers: BTreeMap<u64, oneshot::Sender<WatchOutcome>>,
     // Nodes whose action's value someone waits for; filled when the action returns.
     pub(crate) values: BTreeMap<NodeId, Option<Value>>,
+    // Running actions, to abort on cancellation. Only looked up, never iterated in an order that
+    // shows in the trace, so a hash map keeps determinism.
+    aborts: HashMap<NodeId, AbortHandle>,
     next_token: u64,
+    // Where actions are spawned: the tokio runtime of `Runtime::run`.
+    spawner: Option<tokio::runtime::Handle>,
+    // How the top-level task ended, once it did.
+    top_done: Option<WatchOutcome>,
+    // The deadline the driver sleeps until; an earlier timer must wake it.
+    armed: Option<Time>,
 }
 
 impl Inner {
@@ -54,6 +67,93 @@ impl Shared {
 
 pub(crate) fn lock(shared: &Shared) -> Result<MutexGuard<'_, Inner>, Error> {
     shared.inner.lock().map_err(|_| Error::Poisoned)
+}
+
+/// Exclusive access to the engine. When it ends, the engine's effects are carried out at once, by
+/// whoever changed the engine (an action, a handle, the driver): actions start, cancelled ones are
+/// aborted, waiters are answered. The driver is woken only for what only it can do: hand trace
+/// records to the sinks, re-arm the timer, end the run.
+pub(crate) struct Session<'a> {
+    guard: MutexGuard<'a, Inner>,
+    shared: &'a Arc<Shared>,
+}
+
+impl Shared {
+    pub(crate) fn enter(self: &Arc<Shared>) -> Result<Session<'_>, Error> {
+        Ok(Session {
+            guard: lock(self)?,
+            shared: self,
+        })
+    }
+}
+
+impl std::ops::Deref for Session<'_> {
+    type Target = Inner;
+    fn deref(&self) -> &Inner {
+        &self.guard
+    }
+}
+
+impl std::ops::DerefMut for Session<'_> {
+    fn deref_mut(&mut self) -> &mut Inner {
+        &mut self.guard
+    }
+}
+
+impl Drop for Session<'_> {
+    fn drop(&mut self) {
+        if pump(self.shared, &mut self.guard) {
+            self.shared.wake.notify_one();
+        }
+    }
+}
+
+/// Carries out the engine's effects; returns whether the driver must wake.
+fn pump(shared: &Arc<Shared>, inner: &mut Inner) -> bool {
+    let mut wake = false;
+    while let Some(effect) = inner.engine.poll_effect() {
+        match effect {
+            Effect::Start { node, action } => {
+                // Spawned under the lock: the task's own completion takes the lock, so its abort
+                // handle is recorded before it can finish.
+                let ctx = Ctx {
+                    shared: shared.clone(),
+                    node,
+                };
+                let fut = action(ctx);
+                let sh = shared.clone();
+                let task = async move {
+                    let res = CatchUnwind(fut).await;
+                    finish(&sh, node, res);
+                };
+                let h = match &inner.spawner {
+                    Some(rt) => rt.spawn(task),
+                    None => tokio::spawn(task),
+                };
+                inner.aborts.insert(node, h.abort_handle());
+            }
+            Effect::Cancel { node } => {
+                if let Some(h) = inner.aborts.remove(&node) {
+                    h.abort();
+                }
+            }
+            Effect::Notify { token, outcome } if token.0 == TOP => {
+                inner.top_done = Some(outcome);
+                wake = true;
+            }
+            Effect::Notify { token, outcome } => {
+                if let Some(tx) = inner.watchers.remove(&token.0) {
+                    let _ = tx.send(outcome);
+                }
+            }
+        }
+    }
+    wake = wake || inner.engine.fatal().is_some() || inner.engine.has_trace();
+    let deadline = inner.engine.poll_timeout();
+    if let Some(t) = deadline {
+        wake = wake || inner.armed.is_none_or(|a| t < a);
+    }
+    wake || (inner.aborts.is_empty() && inner.engine.is_idle())
 }
 
 /// The token of the watch on the top-level task.
@@ -97,13 +197,10 @@ pub struct EventHandle {
 impl EventHandle {
     /// Raises the event `name` (latched: constraints applied later find it raised).
     pub fn raise(&self, name: &str) -> Result<(), Error> {
-        {
-            let mut inner = lock(&self.shared)?;
-            let now = self.shared.now();
-            let id = inner.engine.external(name);
-            inner.engine.raise(now, id);
-        }
-        self.shared.wake.notify_one();
+        let mut s = self.shared.enter()?;
+        let now = self.shared.now();
+        let id = s.engine.external(name);
+        s.engine.raise(now, id);
         Ok(())
     }
 }
@@ -171,7 +268,11 @@ impl Runtime {
                     engine: Engine::new(run),
                     watchers: BTreeMap::new(),
                     values: BTreeMap::new(),
+                    aborts: HashMap::new(),
                     next_token: TOP,
+                    spawner: None,
+                    top_done: None,
+                    armed: None,
                 }),
                 wake: Notify::new(),
                 start: tokio::time::Instant::now(),
@@ -208,13 +309,20 @@ impl Runtime {
     pub async fn run(mut self, task: Task) -> Result<Report, Error> {
         let shared = self.shared.clone();
         let top = {
-            let mut inner = lock(&shared)?;
+            let mut inner = shared.enter()?;
+            inner.spawner = Some(tokio::runtime::Handle::current());
+            // Nobody reads the trace: do not build it.
+            inner.engine.set_tracing(!self.sinks.is_empty());
             let now = shared.now();
             let root = inner.engine.root();
             let mut spec = Spawn::new(root, task.kind, task.name, task.action);
             spec.constraints = task.constraints;
             let top = inner.engine.spawn(now, spec)?;
-            inner.engine.watch(now, Event::on(top, Facet::Execution, Point::Completed), WatchToken(TOP))?;
+            inner.engine.watch(
+                now,
+                Event::on(top, Facet::Execution, Point::Completed),
+                WatchToken(TOP),
+            )?;
             top
         };
         let _ = top;
@@ -234,139 +342,128 @@ impl Runtime {
 
 struct Driver {
     shared: Arc<Shared>,
-    tasks: JoinSet<Result<Value, Failure>>,
-    nodes: HashMap<tokio::task::Id, NodeId>,
-    aborts: BTreeMap<NodeId, AbortHandle>,
 }
 
 impl Driver {
     fn new(shared: Arc<Shared>) -> Driver {
-        Driver {
-            shared,
-            tasks: JoinSet::new(),
-            nodes: HashMap::new(),
-            aborts: BTreeMap::new(),
-        }
+        Driver { shared }
     }
 
     /// The driver loop. It is the one intentionally endless loop of the runtime: each turn ends in
     /// an await on the next thing that can change the engine.
-    async fn drive(mut self, sinks: &mut [Box<dyn TraceSink>]) -> Result<RunOutcome, Error> {
+    async fn drive(self, sinks: &mut [Box<dyn TraceSink>]) -> Result<RunOutcome, Error> {
         let mut trace = Vec::new();
-        loop {
-            let mut starts = Vec::new();
-            let mut cancels = Vec::new();
-            let mut answers = Vec::new();
-            let mut top_done = None;
-            let (deadline, idle, fatal, blocked) = {
-                let mut inner = lock(&self.shared)?;
-                while let Some(effect) = inner.engine.poll_effect() {
-                    match effect {
-                        Effect::Start { node, action } => starts.push((node, action)),
-                        Effect::Cancel { node } => cancels.push(node),
-                        Effect::Notify { token, outcome } if token.0 == TOP => top_done = Some(outcome),
-                        Effect::Notify { token, outcome } => {
-                            if let Some(tx) = inner.watchers.remove(&token.0) {
-                                answers.push((tx, outcome));
-                            }
-                        }
-                    }
-                }
+        let result = loop {
+            let (deadline, idle, running, fatal, blocked, top_done) = {
+                let mut inner = self.shared.enter()?;
+                pump(&self.shared, &mut inner);
                 while let Some(ev) = inner.engine.poll_trace() {
                     trace.push(ev);
                 }
                 let idle = inner.engine.is_idle();
-                let blocked = if idle { inner.engine.blocked() } else { Vec::new() };
-                (inner.engine.poll_timeout(), idle, inner.engine.fatal().cloned(), blocked)
+                let blocked = if idle {
+                    inner.engine.blocked()
+                } else {
+                    Vec::new()
+                };
+                let running = !inner.aborts.is_empty();
+                let deadline = inner.engine.poll_timeout();
+                inner.armed = deadline;
+                let fatal = inner.engine.fatal().cloned();
+                (
+                    deadline,
+                    idle,
+                    running,
+                    fatal,
+                    blocked,
+                    inner.top_done.clone(),
+                )
             };
             for ev in trace.drain(..) {
                 for s in sinks.iter_mut() {
                     s.record(&ev);
                 }
             }
-            for node in cancels {
-                if let Some(h) = self.aborts.remove(&node) {
-                    h.abort();
-                }
-            }
-            for (tx, outcome) in answers {
-                let _ = tx.send(outcome);
-            }
-            for (node, action) in starts {
-                let ctx = Ctx {
-                    shared: self.shared.clone(),
-                    node,
-                };
-                let h = self.tasks.spawn(action(ctx));
-                self.nodes.insert(h.id(), node);
-                self.aborts.insert(node, h);
-            }
             if let Some(f) = fatal {
-                self.tasks.abort_all();
-                return Ok(RunOutcome::Fatal(f));
+                break RunOutcome::Fatal(f);
             }
             if let Some(outcome) = top_done {
-                self.tasks.abort_all();
-                return Ok(match outcome {
+                break match outcome {
                     WatchOutcome::Reached => RunOutcome::Completed,
                     WatchOutcome::Failed(f) => RunOutcome::TaskFailed(f),
                     WatchOutcome::Terminated | WatchOutcome::Dead => RunOutcome::Terminated,
-                });
+                };
             }
-            if idle && self.tasks.is_empty() && self.shared.handles.load(Ordering::SeqCst) == 0 {
-                return Ok(RunOutcome::Stuck(blocked));
+            if idle && !running && self.shared.handles.load(Ordering::SeqCst) == 0 {
+                break RunOutcome::Stuck(blocked);
             }
             let sleep = deadline.map(|t| self.shared.start + t.since_start());
             tokio::select! {
                 biased;
-                Some(done) = self.tasks.join_next_with_id() => self.finished(done)?,
                 () = self.shared.wake.notified() => {}
                 () = sleep_until(sleep), if sleep.is_some() => {
-                    let mut inner = lock(&self.shared)?;
+                    let mut inner = self.shared.enter()?;
                     let now = self.shared.now();
+                    inner.armed = None;
                     inner.engine.handle_timeout(now);
                 }
             }
-        }
-    }
-
-    fn finished(
-        &mut self,
-        done: Result<(tokio::task::Id, Result<Value, Failure>), tokio::task::JoinError>,
-    ) -> Result<(), Error> {
-        let (id, result) = match done {
-            Ok((id, result)) => (id, result),
-            Err(e) if e.is_cancelled() => {
-                self.nodes.remove(&e.id());
-                return Ok(());
-            }
-            Err(e) => {
-                let id = e.id();
-                let message = match e.try_into_panic() {
-                    Ok(p) => panic_message(p.as_ref()),
-                    Err(e) => e.to_string(),
-                };
-                (id, Err(Failure::new("ActionPanicked", message)))
-            }
         };
-        let Some(node) = self.nodes.remove(&id) else {
-            return Ok(());
-        };
-        self.aborts.remove(&node);
+        // Whatever still runs belongs to a run that is over.
         let mut inner = lock(&self.shared)?;
-        let now = self.shared.now();
-        let result = match result {
-            Ok(value) => {
-                if let Some(slot) = inner.values.get_mut(&node) {
-                    *slot = Some(value);
-                }
-                Ok(())
+        for (_, h) in inner.aborts.drain() {
+            h.abort();
+        }
+        Ok(result)
+    }
+}
+
+/// A running action ended: record it in the engine (under the lock) and wake the driver.
+fn finish(
+    shared: &Arc<Shared>,
+    node: NodeId,
+    res: Result<Result<Value, Failure>, Box<dyn Any + Send>>,
+) {
+    let result = match res {
+        Ok(r) => r,
+        Err(panic) => Err(Failure::new(
+            "ActionPanicked",
+            panic_message(panic.as_ref()),
+        )),
+    };
+    let Ok(mut inner) = shared.enter() else {
+        return;
+    };
+    inner.aborts.remove(&node);
+    let now = shared.now();
+    let result = match result {
+        Ok(value) => {
+            if let Some(slot) = inner.values.get_mut(&node) {
+                *slot = Some(value);
             }
-            Err(f) => Err(f),
-        };
-        // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
-        let _ = inner.engine.action_finished(now, node, result);
-        Ok(())
+            Ok(())
+        }
+        Err(f) => Err(f),
+    };
+    // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
+    let _ = inner.engine.action_finished(now, node, result);
+}
+
+/// Polls a future, turning a panic into an error (a panicking action fails its node).
+struct CatchUnwind<F>(F);
+
+impl<F: Future + Unpin> Future for CatchUnwind<F> {
+    type Output = Result<F::Output, Box<dyn Any + Send>>;
+    fn poll(
+        mut self: Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<Self::Output> {
+        let fut = &mut self.0;
+        match std::panic::catch_unwind(AssertUnwindSafe(|| Pin::new(fut).poll(cx))) {
+            Ok(std::task::Poll::Pending) => std::task::Poll::Pending,
+            Ok(std::task::Poll::Ready(v)) => std::task::Poll::Ready(Ok(v)),
+            Err(panic) => std::task::Poll::Ready(Err(panic)),
+        }
     }
 }
 

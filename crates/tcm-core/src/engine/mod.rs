@@ -638,6 +638,11 @@ impl<A> Engine<A> {
         self.trace.pop_front()
     }
 
+    /// Whether trace records wait to be polled.
+    pub fn has_trace(&self) -> bool {
+        !self.trace.is_empty()
+    }
+
     /// The earliest pending timer that still matters.
     pub fn poll_timeout(&mut self) -> Option<Time> {
         let nodes = &self.nodes;

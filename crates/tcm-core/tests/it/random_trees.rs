@@ -5,7 +5,10 @@ use proptest::prelude::*;
 use std::rc::Rc;
 use std::time::Duration;
 use tcm_core::sim::{Body, Outcome, Sim, body};
-use tcm_core::{Constraint, Engine, Event, Facet, Failure, NodeId, NodeKind, NodeRef, Point, Spawn, TerminateWhen, Time, Until};
+use tcm_core::{
+    Constraint, Engine, Event, Facet, Failure, NodeId, NodeKind, NodeRef, Point, Spawn,
+    TerminateWhen, Time, Until,
+};
 
 #[derive(Clone, Debug)]
 enum C {
@@ -44,11 +47,19 @@ struct Plan {
 }
 
 fn facet() -> impl Strategy<Value = Facet> {
-    prop_oneof![Just(Facet::Handling), Just(Facet::Expansion), Just(Facet::Execution)]
+    prop_oneof![
+        Just(Facet::Handling),
+        Just(Facet::Expansion),
+        Just(Facet::Execution)
+    ]
 }
 
 fn point() -> impl Strategy<Value = Point> {
-    prop_oneof![Just(Point::Enabled), Just(Point::Active), Just(Point::Completed)]
+    prop_oneof![
+        Just(Point::Enabled),
+        Just(Point::Active),
+        Just(Point::Completed)
+    ]
 }
 
 fn target() -> impl Strategy<Value = Target> {
@@ -77,8 +88,21 @@ fn constraint() -> impl Strategy<Value = C> {
 }
 
 fn leaf() -> impl Strategy<Value = Plan> {
-    (any::<bool>(), 0u8..4, prop::bool::weighted(0.1), prop::bool::weighted(0.05), prop::collection::vec(constraint(), 0..3))
-        .prop_map(|(goal, secs, fail, never, constraints)| Plan { goal, secs, fail, never, constraints, children: vec![] })
+    (
+        any::<bool>(),
+        0u8..4,
+        prop::bool::weighted(0.1),
+        prop::bool::weighted(0.05),
+        prop::collection::vec(constraint(), 0..3),
+    )
+        .prop_map(|(goal, secs, fail, never, constraints)| Plan {
+            goal,
+            secs,
+            fail,
+            never,
+            constraints,
+            children: vec![],
+        })
 }
 
 fn plan() -> impl Strategy<Value = Plan> {
@@ -98,11 +122,19 @@ fn lower(c: &C, resolve: &dyn Fn(Target) -> Option<NodeRef>) -> Option<Constrain
         C::Serial(t) => Constraint::Serial(resolve(*t)?),
         C::DisableFor(f, n) => Constraint::Disable(*f, Until::For(s(*n))),
         C::DisableAt(f, n) => Constraint::Disable(*f, Until::Time(Time::ZERO + s(*n))),
-        C::DisableAfter(f, n, t, p) => Constraint::Disable(*f, Until::ForAfter(s(*n), Event::new(resolve(*t)?, *p))),
-        C::DisableUntil(f, t, g, p) => Constraint::Disable(*f, Until::Event(Event::on(resolve(*t)?, *g, *p))),
+        C::DisableAfter(f, n, t, p) => {
+            Constraint::Disable(*f, Until::ForAfter(s(*n), Event::new(resolve(*t)?, *p)))
+        }
+        C::DisableUntil(f, t, g, p) => {
+            Constraint::Disable(*f, Until::Event(Event::on(resolve(*t)?, *g, *p)))
+        }
         C::TerminateIn(n) => Constraint::Terminate(TerminateWhen::In(s(*n))),
-        C::TerminateAt(t, p) => Constraint::Terminate(TerminateWhen::Event(Event::new(resolve(*t)?, *p))),
-        C::TerminateInAfter(n, t, p) => Constraint::Terminate(TerminateWhen::InAfter(s(*n), Event::new(resolve(*t)?, *p))),
+        C::TerminateAt(t, p) => {
+            Constraint::Terminate(TerminateWhen::Event(Event::new(resolve(*t)?, *p)))
+        }
+        C::TerminateInAfter(n, t, p) => {
+            Constraint::Terminate(TerminateWhen::InAfter(s(*n), Event::new(resolve(*t)?, *p)))
+        }
         C::ExpandFirst => Constraint::ExpandFirst,
         C::DelayExpansion => Constraint::DelayExpansion,
     })
@@ -118,7 +150,10 @@ fn action(plan: Rc<Plan>) -> Body {
         for (i, child) in plan.children.iter().enumerate() {
             for c in &child.constraints {
                 let t = match c {
-                    C::Sequential(_, t) | C::Serial(t) | C::DisableAfter(_, _, t, _) | C::DisableUntil(_, t, _, _) => *t,
+                    C::Sequential(_, t)
+                    | C::Serial(t)
+                    | C::DisableAfter(_, _, t, _)
+                    | C::DisableUntil(_, t, _, _) => *t,
                     C::TerminateAt(t, _) | C::TerminateInAfter(_, t, _) => *t,
                     _ => continue,
                 };
@@ -139,12 +174,29 @@ fn action(plan: Rc<Plan>) -> Body {
                 match t {
                     Target::Previous => Some(NodeRef::Previous),
                     Target::Parent => Some(NodeRef::Parent),
-                    Target::Back(k) => i.checked_sub(usize::from(k)).and_then(|j| ids[j]).map(NodeRef::Node),
-                    Target::Ahead(k) => ids.get(i + usize::from(k)).copied().flatten().or(dead).map(NodeRef::Node),
+                    Target::Back(k) => i
+                        .checked_sub(usize::from(k))
+                        .and_then(|j| ids[j])
+                        .map(NodeRef::Node),
+                    Target::Ahead(k) => ids
+                        .get(i + usize::from(k))
+                        .copied()
+                        .flatten()
+                        .or(dead)
+                        .map(NodeRef::Node),
                 }
             };
-            let kind = if child.goal { NodeKind::Goal } else { NodeKind::Command };
-            let mut spec = Spawn::new(me, kind, if child.goal { "g" } else { "c" }, action(Rc::new(child.clone())));
+            let kind = if child.goal {
+                NodeKind::Goal
+            } else {
+                NodeKind::Command
+            };
+            let mut spec = Spawn::new(
+                me,
+                kind,
+                if child.goal { "g" } else { "c" },
+                action(Rc::new(child.clone())),
+            );
             let mut has_first = false;
             for c in &child.constraints {
                 if let Some(lc) = lower(c, &resolve) {
@@ -154,7 +206,12 @@ fn action(plan: Rc<Plan>) -> Body {
                         Constraint::DelayExpansion if has_first => continue,
                         _ => {}
                     }
-                    if lc == Constraint::DelayExpansion && child.constraints.iter().any(|c| matches!(c, C::ExpandFirst)) {
+                    if lc == Constraint::DelayExpansion
+                        && child
+                            .constraints
+                            .iter()
+                            .any(|c| matches!(c, C::ExpandFirst))
+                    {
                         continue;
                     }
                     spec.constraints.push(lc);
@@ -167,7 +224,11 @@ fn action(plan: Rc<Plan>) -> Body {
         if plan.never {
             return Outcome::Never;
         }
-        let res = if plan.fail { Err(Failure::new("Random", "planned failure")) } else { Ok(()) };
+        let res = if plan.fail {
+            Err(Failure::new("Random", "planned failure"))
+        } else {
+            Ok(())
+        };
         Outcome::After(Duration::from_secs(u64::from(plan.secs)), res)
     })
 }

@@ -57,7 +57,10 @@ impl World {
         })
     }
 
-    fn read_door(&self) -> i32 {
+    /// The sensor reading when looking for the door of the room at `(x, y)` (the simulation
+    /// ignores where: it replays its list).
+    fn read_door(&self, x: f64, y: f64) -> i32 {
+        debug_assert!(x.is_finite() && y.is_finite());
         match self.door_readings.lock() {
             Ok(mut q) => q.pop_front().unwrap_or(self.forever),
             Err(_) => self.forever,
@@ -105,7 +108,9 @@ pub fn deliver_mail(room: u32, world: Arc<World>) -> Task {
 pub fn navigate_to_locn(_x: f64, _y: f64) -> Task {
     Task::goal("navigateToLocn", |ctx| async move {
         for _ in 0..3 {
-            ctx.spawn(busy("move", secs(2))).sequential(Facet::Execution, NodeRef::Previous).start()?;
+            ctx.spawn(busy("move", secs(2)))
+                .sequential(Facet::Execution, NodeRef::Previous)
+                .start()?;
         }
         Ok(())
     })
@@ -118,7 +123,7 @@ pub fn center_on_door(x: f64, y: f64, world: Arc<World>) -> Task {
         let which_side: i32 = ctx
             .spawn(Task::command("lookForDoor", move |_| async move {
                 tokio::time::sleep(secs(1)).await;
-                Ok(w.read_door())
+                Ok(w.read_door(x, y))
             }))
             .wait_value()
             .await?;
@@ -127,7 +132,11 @@ pub fn center_on_door(x: f64, y: f64, world: Arc<World>) -> Task {
             ctx.spawn(center_on_door(x, y, world))
                 .with(Constraint::Disable(
                     Facet::Execution,
-                    Until::Event(Event::on(NodeRef::Previous, Facet::Execution, Point::Completed)),
+                    Until::Event(Event::on(
+                        NodeRef::Previous,
+                        Facet::Execution,
+                        Point::Completed,
+                    )),
                 ))
                 .start()?;
         }

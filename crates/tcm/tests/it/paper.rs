@@ -6,7 +6,11 @@ use tcm::{RunOutcome, Runtime};
 
 #[tokio::test(start_paused = true)]
 async fn deliver_mail_runs_in_the_papers_order() {
-    let (report, trace) = run_checked(Runtime::new(), fig4::deliver_mail(7, fig4::World::nominal())).await;
+    let (report, trace) = run_checked(
+        Runtime::new(),
+        fig4::deliver_mail(7, fig4::World::nominal()),
+    )
+    .await;
     assert_eq!(report.outcome, RunOutcome::Completed);
     let st = story(&trace);
     // Navigation: three legs in sequence (0-6 s). Then centring: look, move, look, move, look,
@@ -37,13 +41,27 @@ async fn deliver_mail_runs_in_the_papers_order() {
         ],
     );
     let centring = only(&st, &["centerOnDoor handling active"]);
-    assert_eq!(centring, ["6 centerOnDoor handling active", "8 centerOnDoor handling active", "10 centerOnDoor handling active"]);
-    assert!(!st.iter().any(|l| l.contains("centerOnDoor terminating")), "the 30 s timeout must not fire when centring converges");
+    assert_eq!(
+        centring,
+        [
+            "6 centerOnDoor handling active",
+            "8 centerOnDoor handling active",
+            "10 centerOnDoor handling active"
+        ]
+    );
+    assert!(
+        !st.iter().any(|l| l.contains("centerOnDoor terminating")),
+        "the 30 s timeout must not fire when centring converges"
+    );
 }
 
 #[tokio::test(start_paused = true)]
 async fn the_30s_timeout_cuts_a_door_search_that_never_converges() {
-    let (report, trace) = run_checked(Runtime::new(), fig4::deliver_mail(7, fig4::World::never_centred())).await;
+    let (report, trace) = run_checked(
+        Runtime::new(),
+        fig4::deliver_mail(7, fig4::World::never_centred()),
+    )
+    .await;
     assert_eq!(report.outcome, RunOutcome::Completed);
     let st = story(&trace);
     // centerOnDoor was spawned at 0 with `terminate in 30s`: at 30 s its whole recursion is
@@ -60,13 +78,24 @@ async fn the_30s_timeout_cuts_a_door_search_that_never_converges() {
             "35 deliverMail execution completed",
         ],
     );
-    assert!(only(&st, &["lookForDoor handling active"]).len() >= 10, "the search kept going until the timeout");
+    assert!(
+        only(&st, &["lookForDoor handling active"]).len() >= 10,
+        "the search kept going until the timeout"
+    );
 }
 
 #[tokio::test(start_paused = true)]
 async fn the_same_program_gives_the_same_trace_every_time() {
-    let (_, a) = run_checked(Runtime::new(), fig4::deliver_mail(7, fig4::World::never_centred())).await;
-    let (_, b) = run_checked(Runtime::new(), fig4::deliver_mail(7, fig4::World::never_centred())).await;
+    let (_, a) = run_checked(
+        Runtime::new(),
+        fig4::deliver_mail(7, fig4::World::never_centred()),
+    )
+    .await;
+    let (_, b) = run_checked(
+        Runtime::new(),
+        fig4::deliver_mail(7, fig4::World::never_centred()),
+    )
+    .await;
     let lines = |t: &[tcm::TraceEvent]| -> Vec<String> {
         // Run numbers differ between runs; everything else must be identical.
         t.iter().skip(1).map(tcm_trace::to_line).collect()

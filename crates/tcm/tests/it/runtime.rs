@@ -6,8 +6,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 use tcm::{
-    Constraint, Error, Event, Facet, Failure, FailurePolicy, NodeRef, Point, RunOutcome, Runtime, Task,
-    TerminateWhen, Until, WatchOutcome,
+    Constraint, Error, Event, Facet, Failure, FailurePolicy, NodeRef, Point, RunOutcome, Runtime,
+    Task, TerminateWhen, Until, WatchOutcome,
 };
 
 fn secs(s: u64) -> Duration {
@@ -32,14 +32,26 @@ async fn a_panicking_action_fails_its_node_and_the_run_goes_on() {
             Ok(())
         }))
         .start()?;
-        ctx.spawn(sleeper("after", secs(1))).sequential(Facet::Execution, NodeRef::Previous).start()?;
+        ctx.spawn(sleeper("after", secs(1)))
+            .sequential(Facet::Execution, NodeRef::Previous)
+            .start()?;
         Ok(())
     });
     let (report, trace) = run_checked(Runtime::new(), task).await;
     assert_eq!(report.outcome, RunOutcome::Completed);
-    assert!(trace.iter().any(|e| matches!(&e.kind, tcm::TraceKind::Failed { exception, message, .. }
-        if exception == "ActionPanicked" && message == "gripper exploded")));
-    assert_order(&story(&trace), &["1 boom failed ActionPanicked", "1 boom handling completed", "1 after handling active", "2 g execution completed"]);
+    assert!(trace.iter().any(
+        |e| matches!(&e.kind, tcm::TraceKind::Failed { exception, message, .. }
+        if exception == "ActionPanicked" && message == "gripper exploded")
+    ));
+    assert_order(
+        &story(&trace),
+        &[
+            "1 boom failed ActionPanicked",
+            "1 boom handling completed",
+            "1 after handling active",
+            "2 g execution completed",
+        ],
+    );
 }
 
 #[tokio::test(start_paused = true)]
@@ -49,19 +61,31 @@ async fn an_error_fails_the_node_and_fatal_policy_ends_the_run_naming_it() {
     struct NoPath;
     let task = || {
         Task::goal("navigate", |ctx| async move {
-            ctx.spawn(Task::command("plan", |_| async move { Err::<(), _>(Failure::from(NoPath)) })).start()?;
+            ctx.spawn(Task::command("plan", |_| async move {
+                Err::<(), _>(Failure::from(NoPath))
+            }))
+            .start()?;
             ctx.spawn(sleeper("wander", secs(5))).start()?;
             Ok(())
         })
     };
     let (report, _) = run_checked(Runtime::new(), task()).await;
-    assert_eq!(report.outcome, RunOutcome::Completed, "default policy: warn and go on");
-    let (report, _) = run_checked(Runtime::new().failure_policy(FailurePolicy::Fatal), task()).await;
+    assert_eq!(
+        report.outcome,
+        RunOutcome::Completed,
+        "default policy: warn and go on"
+    );
+    let (report, _) =
+        run_checked(Runtime::new().failure_policy(FailurePolicy::Fatal), task()).await;
     match report.outcome {
         RunOutcome::Fatal(f) => {
             assert_eq!(f.failure.exception, "NoPath");
             assert_eq!(f.path, "navigate/plan");
-            assert_eq!(report.elapsed, Duration::ZERO, "the run ends at the failure, not after wander");
+            assert_eq!(
+                report.elapsed,
+                Duration::ZERO,
+                "the run ends at the failure, not after wander"
+            );
         }
         other => panic!("expected a fatal outcome, got {other:?}"),
     }
@@ -95,21 +119,52 @@ async fn terminating_a_running_command_drops_its_future_and_runs_its_cleanup() {
     });
     let (report, trace) = run_checked(Runtime::new(), task).await;
     assert_eq!(report.outcome, RunOutcome::Completed);
-    assert!(dropped.load(Ordering::SeqCst), "the cancelled action's future was dropped");
-    assert!(cleaned.load(Ordering::SeqCst), "the on-terminate task ran to completion");
-    assert_order(&story(&trace), &["3 grip terminating", "3 release handling active", "5 release handling completed", "5 grip terminated"]);
+    assert!(
+        dropped.load(Ordering::SeqCst),
+        "the cancelled action's future was dropped"
+    );
+    assert!(
+        cleaned.load(Ordering::SeqCst),
+        "the on-terminate task ran to completion"
+    );
+    assert_order(
+        &story(&trace),
+        &[
+            "3 grip terminating",
+            "3 release handling active",
+            "5 release handling completed",
+            "5 grip terminated",
+        ],
+    );
 }
 
 #[tokio::test(start_paused = true)]
 async fn wait_reports_how_the_child_ended_and_yields_values() {
     let task = Task::goal("g", |ctx| async move {
-        let v: u32 = ctx.spawn(Task::command("measure", |_| async { Ok(42u32) })).wait_value().await?;
+        let v: u32 = ctx
+            .spawn(Task::command("measure", |_| async { Ok(42u32) }))
+            .wait_value()
+            .await?;
         assert_eq!(v, 42);
-        let out = ctx.spawn(sleeper("slow", secs(10))).terminate_in(secs(1)).wait().await?;
+        let out = ctx
+            .spawn(sleeper("slow", secs(10)))
+            .terminate_in(secs(1))
+            .wait()
+            .await?;
         assert_eq!(out, WatchOutcome::Terminated);
-        let out = ctx.spawn(Task::command("bad", |_| async { Err::<(), _>(Failure::new("Oops", "no")) })).wait().await?;
+        let out = ctx
+            .spawn(Task::command("bad", |_| async {
+                Err::<(), _>(Failure::new("Oops", "no"))
+            }))
+            .wait()
+            .await?;
         assert!(matches!(out, WatchOutcome::Failed(f) if f.exception == "Oops"));
-        let err = ctx.spawn(Task::command("bad2", |_| async { Err::<u8, _>(Failure::new("Oops", "no")) })).wait_value::<u8>().await;
+        let err = ctx
+            .spawn(Task::command("bad2", |_| async {
+                Err::<u8, _>(Failure::new("Oops", "no"))
+            }))
+            .wait_value::<u8>()
+            .await;
         assert!(matches!(err, Err(Error::ChildFailed(_))));
         Ok(())
     });
@@ -125,7 +180,9 @@ async fn external_events_from_a_handle_gate_and_terminate() {
     let task = Task::goal("g", |ctx| async move {
         let door = ctx.external("door_open")?;
         let stop = ctx.external("stop")?;
-        ctx.spawn(sleeper("enter", secs(1))).with(Constraint::Disable(Facet::Handling, Until::External(door))).start()?;
+        ctx.spawn(sleeper("enter", secs(1)))
+            .with(Constraint::Disable(Facet::Handling, Until::External(door)))
+            .start()?;
         ctx.spawn(Task::command("patrol", |_| async move {
             std::future::pending::<()>().await;
             Ok(())
@@ -142,15 +199,29 @@ async fn external_events_from_a_handle_gate_and_terminate() {
     });
     let (report, trace) = run_checked(rt, task).await;
     assert_eq!(report.outcome, RunOutcome::Completed);
-    assert_order(&story(&trace), &["4 enter handling active", "5 enter handling completed", "8 patrol terminating", "8 g execution completed"]);
+    assert_order(
+        &story(&trace),
+        &[
+            "4 enter handling active",
+            "5 enter handling completed",
+            "8 patrol terminating",
+            "8 g execution completed",
+        ],
+    );
 }
 
 #[tokio::test(start_paused = true)]
 async fn a_run_that_can_never_progress_ends_stuck_with_a_report() {
     let task = Task::goal("g", |ctx| async move {
         let b = ctx.reserve("b")?;
-        let a = ctx.spawn(sleeper("a", secs(1))).sequential(Facet::Execution, b).start()?;
-        ctx.spawn(sleeper("b", secs(1))).sequential(Facet::Execution, a).fulfils(b).start()?;
+        let a = ctx
+            .spawn(sleeper("a", secs(1)))
+            .sequential(Facet::Execution, b)
+            .start()?;
+        ctx.spawn(sleeper("b", secs(1)))
+            .sequential(Facet::Execution, a)
+            .fulfils(b)
+            .start()?;
         Ok(())
     });
     let (report, _) = run_checked(Runtime::new(), task).await;
@@ -158,7 +229,13 @@ async fn a_run_that_can_never_progress_ends_stuck_with_a_report() {
         panic!("expected stuck, got {:?}", report.outcome);
     };
     let text: Vec<String> = blocked.iter().map(ToString::to_string).collect();
-    assert_eq!(text, ["b {2} execution waits for a {3} execution completed", "a {3} execution waits for b {2} execution completed"]);
+    assert_eq!(
+        text,
+        [
+            "b {2} execution waits for a {3} execution completed",
+            "a {3} execution waits for b {2} execution completed"
+        ]
+    );
 }
 
 #[tokio::test(start_paused = true)]
@@ -178,9 +255,21 @@ async fn misuse_is_an_error_not_a_panic_or_a_hang() {
     let other = foreign.lock().expect("lock").take().expect("node");
     let task = Task::goal("second", move |ctx| async move {
         let err = ctx.spawn(sleeper("x", secs(1))).serial(other).start();
-        assert!(matches!(err, Err(Error::Engine(tcm::EngineError::ForeignNode { .. }))), "{err:?}");
+        assert!(
+            matches!(
+                err,
+                Err(Error::Engine(tcm::EngineError::ForeignNode { .. }))
+            ),
+            "{err:?}"
+        );
         let err = ctx.terminate(other);
-        assert!(matches!(err, Err(Error::Engine(tcm::EngineError::ForeignNode { .. }))), "{err:?}");
+        assert!(
+            matches!(
+                err,
+                Err(Error::Engine(tcm::EngineError::ForeignNode { .. }))
+            ),
+            "{err:?}"
+        );
         Ok(())
     });
     let (report, _) = run_checked(Runtime::new(), task).await;
@@ -200,25 +289,37 @@ async fn terminating_the_root_is_refused() {
     assert_eq!(report.outcome, RunOutcome::Completed);
     let mut engine: tcm_core::Engine<()> = tcm_core::Engine::new(99);
     let root = engine.root();
-    assert_eq!(engine.terminate(tcm::Time::ZERO, root), Err(tcm::EngineError::Root("terminated")));
+    assert_eq!(
+        engine.terminate(tcm::Time::ZERO, root),
+        Err(tcm::EngineError::Root("terminated"))
+    );
 }
 
 #[tokio::test(start_paused = true)]
 async fn suspension_holds_children_until_unsuspended() {
     let task = Task::goal("g", |ctx| async move {
-        let worker = ctx.spawn(Task::goal("worker", |ctx| async move {
-            ctx.spawn(sleeper("step", secs(1))).start()?;
-            Ok(())
-        }))
-        .disable_for(Facet::Handling, secs(1))
-        .start()?;
+        let worker = ctx
+            .spawn(Task::goal("worker", |ctx| async move {
+                ctx.spawn(sleeper("step", secs(1))).start()?;
+                Ok(())
+            }))
+            .disable_for(Facet::Handling, secs(1))
+            .start()?;
         ctx.suspend(worker)?;
         tokio::time::sleep(secs(5)).await;
         ctx.unsuspend(worker)?;
         Ok(())
     });
     let (_, trace) = run_checked(Runtime::new(), task).await;
-    assert_order(&story(&trace), &["0 worker suspended", "5 worker unsuspended", "5 worker handling active", "6 step handling completed"]);
+    assert_order(
+        &story(&trace),
+        &[
+            "0 worker suspended",
+            "5 worker unsuspended",
+            "5 worker handling active",
+            "6 step handling completed",
+        ],
+    );
 }
 
 #[tokio::test(start_paused = true)]
@@ -228,19 +329,29 @@ async fn many_waited_children_keep_the_tree_small() {
     const N: usize = 20_000;
     let task = Task::goal("spawner", |ctx| async move {
         for _ in 0..N {
-            ctx.spawn(Task::command("child", |_| async { Ok(()) })).wait().await?;
+            ctx.spawn(Task::command("child", |_| async { Ok(()) }))
+                .wait()
+                .await?;
         }
         Ok(())
     });
     let report = Runtime::new().run(task).await.expect("run");
     assert_eq!(report.outcome, RunOutcome::Completed);
-    assert!(report.stats.high_water < 10, "high-water mark {}", report.stats.high_water);
+    assert!(
+        report.stats.high_water < 10,
+        "high-water mark {}",
+        report.stats.high_water
+    );
     assert_eq!(report.stats.created, N as u64 + 1);
 }
 
 #[test]
 fn actions_run_truly_concurrently_on_real_time() {
-    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_time().build().expect("runtime");
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_time()
+        .build()
+        .expect("runtime");
     let inside = Arc::new(AtomicUsize::new(0));
     let max_seen = Arc::new(AtomicUsize::new(0));
     let worker = |name: &'static str, inside: Arc<AtomicUsize>, max_seen: Arc<AtomicUsize>| {
@@ -269,25 +380,50 @@ fn actions_run_truly_concurrently_on_real_time() {
         })
         .expect("run");
     assert_eq!(report.outcome, RunOutcome::Completed);
-    assert_eq!(max_seen.load(Ordering::SeqCst), 2, "both actions ran at the same time");
+    assert_eq!(
+        max_seen.load(Ordering::SeqCst),
+        2,
+        "both actions ran at the same time"
+    );
 }
 
 #[tokio::test(start_paused = true)]
 async fn every_constraint_form_through_the_api() {
     let task = Task::goal("g", |ctx| async move {
         let a = ctx.spawn(sleeper("a", secs(2))).start()?;
-        ctx.spawn(sleeper("seq_handling", secs(1))).sequential(Facet::Handling, a).start()?;
+        ctx.spawn(sleeper("seq_handling", secs(1)))
+            .sequential(Facet::Handling, a)
+            .start()?;
         ctx.spawn(sleeper("serial", secs(1))).serial(a).start()?;
-        ctx.spawn(sleeper("until_active", secs(1))).disable_until(Facet::Handling, Event::new(a, Point::Active)).start()?;
+        ctx.spawn(sleeper("until_active", secs(1)))
+            .disable_until(Facet::Handling, Event::new(a, Point::Active))
+            .start()?;
         ctx.spawn(sleeper("for_after", secs(1)))
-            .with(Constraint::Disable(Facet::Handling, Until::ForAfter(secs(3), Event::new(a, Point::Completed))))
+            .with(Constraint::Disable(
+                Facet::Handling,
+                Until::ForAfter(secs(3), Event::new(a, Point::Completed)),
+            ))
             .start()?;
-        ctx.spawn(sleeper("at_time", secs(1))).with(Constraint::Disable(Facet::Handling, Until::Time(tcm::Time::ZERO + secs(7)))).start()?;
-        ctx.spawn(sleeper("killed_at", secs(100))).with(Constraint::Terminate(TerminateWhen::Time(tcm::Time::ZERO + secs(4)))).start()?;
+        ctx.spawn(sleeper("at_time", secs(1)))
+            .with(Constraint::Disable(
+                Facet::Handling,
+                Until::Time(tcm::Time::ZERO + secs(7)),
+            ))
+            .start()?;
+        ctx.spawn(sleeper("killed_at", secs(100)))
+            .with(Constraint::Terminate(TerminateWhen::Time(
+                tcm::Time::ZERO + secs(4),
+            )))
+            .start()?;
         ctx.spawn(sleeper("killed_after", secs(100)))
-            .with(Constraint::Terminate(TerminateWhen::InAfter(secs(1), Event::new(a, Point::Completed))))
+            .with(Constraint::Terminate(TerminateWhen::InAfter(
+                secs(1),
+                Event::new(a, Point::Completed),
+            )))
             .start()?;
-        ctx.spawn(sleeper("killed_now", secs(100))).with(Constraint::Terminate(TerminateWhen::Now)).start()?;
+        ctx.spawn(sleeper("killed_now", secs(100)))
+            .with(Constraint::Terminate(TerminateWhen::Now))
+            .start()?;
         ctx.spawn(Task::goal("ef", |ctx| async move {
             ctx.spawn(sleeper("ef_child", secs(1))).start()?;
             tokio::time::sleep(secs(2)).await;
@@ -295,7 +431,9 @@ async fn every_constraint_form_through_the_api() {
         }))
         .expand_first()
         .start()?;
-        ctx.spawn(sleeper("parallel", secs(1))).with(Constraint::Parallel).start()?;
+        ctx.spawn(sleeper("parallel", secs(1)))
+            .with(Constraint::Parallel)
+            .start()?;
         Ok(())
     });
     let (report, trace) = run_checked(Runtime::new(), task).await;
@@ -321,5 +459,12 @@ async fn every_constraint_form_through_the_api() {
         "{}",
         st.join("\n")
     );
-    assert_order(&st, &["0 killed_now terminating", "3 killed_after terminating", "4 killed_at terminating"]);
+    assert_order(
+        &st,
+        &[
+            "0 killed_now terminating",
+            "3 killed_after terminating",
+            "4 killed_at terminating",
+        ],
+    );
 }

@@ -19,7 +19,11 @@ pub(crate) fn assert_checked(trace: &[TraceEvent]) {
         Ok(report) => assert!(report.n_transitions > 0, "the checker saw no transitions"),
         Err(violations) => {
             let text: Vec<String> = violations.iter().map(|v| format!("{v}")).collect();
-            panic!("trace checker found violations:\n{}\n\nstory:\n{}", text.join("\n"), story(trace).join("\n"));
+            panic!(
+                "trace checker found violations:\n{}\n\nstory:\n{}",
+                text.join("\n"),
+                story(trace).join("\n")
+            );
         }
     }
 }
@@ -30,16 +34,22 @@ pub(crate) fn story(trace: &[TraceEvent]) -> Vec<String> {
     let mut out = Vec::new();
     for ev in trace {
         let t = ev.t as f64 / 1e9;
-        let n = |names: &BTreeMap<u64, String>, id: &u64| names.get(id).cloned().unwrap_or_else(|| format!("#{id}"));
+        let n = |names: &BTreeMap<u64, String>, id: &u64| {
+            names.get(id).cloned().unwrap_or_else(|| format!("#{id}"))
+        };
         let line = match &ev.kind {
             TraceKind::Spawned { node, name, .. } | TraceKind::Reserved { node, name, .. } => {
                 names.insert(*node, name.clone());
                 continue;
             }
-            TraceKind::Transition { node, facet, to, .. } => format!("{} {facet} {to}", n(&names, node)),
+            TraceKind::Transition {
+                node, facet, to, ..
+            } => format!("{} {facet} {to}", n(&names, node)),
             TraceKind::Terminating { node } => format!("{} terminating", n(&names, node)),
             TraceKind::Terminated { node } => format!("{} terminated", n(&names, node)),
-            TraceKind::Failed { node, exception, .. } => format!("{} failed {exception}", n(&names, node)),
+            TraceKind::Failed {
+                node, exception, ..
+            } => format!("{} failed {exception}", n(&names, node)),
             TraceKind::Suspended { node } => format!("{} suspended", n(&names, node)),
             TraceKind::Unsuspended { node } => format!("{} unsuspended", n(&names, node)),
             _ => continue,
@@ -54,11 +64,19 @@ pub(crate) fn story(trace: &[TraceEvent]) -> Vec<String> {
 pub(crate) fn assert_order(lines: &[String], needles: &[&str]) {
     let mut it = lines.iter();
     for n in needles {
-        assert!(it.any(|l| l == n), "missing or out of order: {n:?}\nstory:\n{}", lines.join("\n"));
+        assert!(
+            it.any(|l| l == n),
+            "missing or out of order: {n:?}\nstory:\n{}",
+            lines.join("\n")
+        );
     }
 }
 
 /// The lines mentioning any of `words`.
 pub(crate) fn only(lines: &[String], words: &[&str]) -> Vec<String> {
-    lines.iter().filter(|l| words.iter().any(|w| l.contains(w))).cloned().collect()
+    lines
+        .iter()
+        .filter(|l| words.iter().any(|w| l.contains(w)))
+        .cloned()
+        .collect()
 }

@@ -1,0 +1,54 @@
+//! The trace of a TCM run: its schema and the tools that read it.
+//!
+//! The engine (`tcm-core`) emits one [`TraceEvent`] per state transition and per decision. This crate
+//! defines those records and everything that reads them without needing the engine:
+//!
+//! - [`jsonl`]: the JSON-lines codec ([`write_line`], [`read_jsonl`]), schema in `docs/trace-format.md`;
+//! - [`Replay`]: the task tree rebuilt record by record, shared by all the readers below;
+//! - [`TextLog`]: TCM's terminal log (catalogue §5.1, §5.2), column for column;
+//! - [`dump_tcm`] and [`dump_modern`]: tree dumps (catalogue §5.4);
+//! - [`check`]: the trace checker every runtime test runs, with its [`Rule`]s.
+//!
+//! Viewers and the CLI depend on this crate only.
+//!
+//! ```
+//! use tcm_trace::{NodeKind, TraceEvent, TraceKind, TextLog, TextLogOptions, TRACE_FORMAT_VERSION};
+//!
+//! let trace = vec![
+//!     TraceEvent { seq: 0, t: 0, kind: TraceKind::RunStarted { version: TRACE_FORMAT_VERSION, run: 0 } },
+//!     TraceEvent {
+//!         seq: 1,
+//!         t: 0,
+//!         kind: TraceKind::Spawned { node: 1, parent: 0, kind: NodeKind::Goal, name: "A".into() },
+//!     },
+//! ];
+//! let text = TextLog::render(TextLogOptions::default(), &trace);
+//! assert_eq!(text, "Goal                    A {1}:        TCM {0} --> ON HOLD         (Inactive)\n");
+//! assert!(tcm_trace::check(&trace).is_ok());
+//! let line = tcm_trace::jsonl::to_line(&trace[1]);
+//! assert_eq!(tcm_trace::read_jsonl(line.as_bytes()).ok(), Some(vec![trace[1].clone()]));
+//! ```
+//!
+//! Architecture Invariants: this crate has no dependency on the engine and does no I/O of its own (the
+//! codecs take a reader or writer); reading a trace never panics on bad input, it returns an error that
+//! names the line.
+#![warn(missing_docs)]
+
+mod check;
+mod dump;
+mod event;
+pub mod jsonl;
+mod replay;
+mod state;
+mod textlog;
+
+#[cfg(test)]
+mod test_util;
+
+pub use check::{CheckReport, Checker, MAX_VIOLATIONS, Rule, Violation, check};
+pub use dump::{dump_modern, dump_tcm};
+pub use event::{TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent, TraceEventRef, TraceKind};
+pub use jsonl::{JsonlReader, ReadError, read_jsonl, to_line, write_line};
+pub use replay::{ROOT_NAME, Replay, ReplayError, ReplayNode};
+pub use state::{Facet, NodeKind, Point, State, Termination};
+pub use textlog::{TextLog, TextLogOptions, tcm_state_word, time_suffix};

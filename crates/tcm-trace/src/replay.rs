@@ -1,0 +1,579 @@
+//! A model of the task tree rebuilt from a trace, one record at a time.
+//!
+//! [`Replay`] is what every reader of a trace shares: the TCM text log asks it for names and states, the
+//! tree dump walks it, and the checker (`check.rs`) reads the state just before each record and the
+//! aggregates kept here (open children, started descendants) to verify the Figure 3 axioms in amortised
+//! constant time per record. Nodes are kept after they are reclaimed (flagged), so a viewer can still show
+//! them and a constraint can still name them.
+
+use crate::event::{TraceConstraint, TraceEvent, TraceKind};
+use crate::state::{Facet, NodeKind, Point, State, Termination};
+use std::collections::BTreeMap;
+
+#[cfg(test)]
+mod tests;
+
+/// Display name of the implicit root, as TCM prints it.
+pub const ROOT_NAME: &str = "Root Node";
+
+/// Why a record could not be applied to a [`Replay`]; the replay is left unchanged.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReplayError {
+    /// The record names a node that was never reserved or spawned.
+    #[error("node {node} was never reserved or spawned")]
+    UnknownNode {
+        /// The node.
+        node: u64,
+    },
+    /// The record needs a spawned node, but the node is only reserved, or dead.
+    #[error("node {node} is not spawned")]
+    NotSpawned {
+        /// The node.
+        node: u64,
+    },
+    /// A node number was reserved or spawned twice.
+    #[error("node {node} already exists")]
+    Duplicate {
+        /// The node.
+        node: u64,
+    },
+    /// The parent of a new node is unknown or not spawned.
+    #[error("parent {parent} of node {node} is not a spawned node")]
+    UnknownParent {
+        /// The node.
+        node: u64,
+        /// Its parent.
+        parent: u64,
+    },
+    /// The record would change the implicit root.
+    #[error("the root (node 0) is implicit and never changes")]
+    Root,
+    /// A facet would move backwards or stay in place.
+    #[error("node {node}: {facet} cannot move from {from} to {to}")]
+    Backwards {
+        /// The node.
+        node: u64,
+        /// The facet.
+        facet: Facet,
+        /// Its current state.
+        from: State,
+        /// The requested state.
+        to: State,
+    },
+    /// Termination would move backwards or skip Terminating.
+    #[error("node {node}: termination cannot move from {from:?} to {to:?}")]
+    Termination {
+        /// The node.
+        node: u64,
+        /// Its current termination state.
+        from: Termination,
+        /// The requested termination state.
+        to: Termination,
+    },
+}
+
+/// One node of a [`Replay`].
+#[derive(Clone, Debug)]
+pub struct ReplayNode {
+    number: u64,
+    // Invariant: `None` exactly while the node is reserved and not spawned (or dead).
+    kind: Option<NodeKind>,
+    name: String,
+    parent: Option<u64>,
+    children: Vec<u64>,
+    facets: [State; 3],
+    termination: Termination,
+    suspended: bool,
+    failed: bool,
+    reclaimed: bool,
+    reserved: bool,
+    dead: bool,
+    constraints: Vec<TraceConstraint>,
+    spawned_t: Option<u64>,
+    dead_t: Option<u64>,
+    // Time each (facet, point) was first reached; index [facet][point].
+    reached_t: [[Option<u64>; 3]; 3],
+    // Whether the node was no longer alive when it reached (facet, point).
+    reached_terminating: [[bool; 3]; 3],
+    // Aggregates, maintained by `Replay::apply`.
+    // Invariant: children whose execution is not completed.
+    pub(crate) n_children_exec_open: usize,
+    // Invariant: children neither terminated nor execution-completed.
+    pub(crate) n_children_unsettled: usize,
+    // Invariant: spawned children not yet reclaimed.
+    pub(crate) n_children_live: usize,
+    // Invariant: children whose subtree still has a goal-like node with handling not completed.
+    pub(crate) n_children_goals_open: usize,
+    // Invariant: some goal-like node of the subtree has handling >= active.
+    pub(crate) goal_started_below: bool,
+    // Invariant: some command-like node of the subtree has handling >= active.
+    pub(crate) command_started_below: bool,
+}
+
+fn point_index(point: Point) -> usize {
+    match point {
+        Point::Enabled => 0,
+        Point::Active => 1,
+        Point::Completed => 2,
+    }
+}
+
+const POINTS: [Point; 3] = [Point::Enabled, Point::Active, Point::Completed];
+
+impl ReplayNode {
+    fn new(number: u64, name: String, parent: Option<u64>) -> ReplayNode {
+        ReplayNode {
+            number,
+            kind: None,
+            name,
+            parent,
+            children: Vec::new(),
+            facets: [State::Disabled; 3],
+            termination: Termination::Alive,
+            suspended: false,
+            failed: false,
+            reclaimed: false,
+            reserved: false,
+            dead: false,
+            constraints: Vec::new(),
+            spawned_t: None,
+            dead_t: None,
+            reached_t: [[None; 3]; 3],
+            reached_terminating: [[false; 3]; 3],
+            n_children_exec_open: 0,
+            n_children_unsettled: 0,
+            n_children_live: 0,
+            n_children_goals_open: 0,
+            goal_started_below: false,
+            command_started_below: false,
+        }
+    }
+
+    fn root() -> ReplayNode {
+        let mut it = ReplayNode::new(0, ROOT_NAME.to_string(), None);
+        it.kind = Some(NodeKind::Root);
+        it.facets = [State::Active; 3];
+        it.spawned_t = Some(0);
+        for f in 0..3 {
+            it.reached_t[f] = [Some(0), Some(0), None];
+        }
+        it
+    }
+
+    /// Display number.
+    pub fn number(&self) -> u64 {
+        self.number
+    }
+    /// Kind, once spawned (`None` while only reserved, or dead).
+    pub fn kind(&self) -> Option<NodeKind> {
+        self.kind
+    }
+    /// Instance name (the reservation's name until spawned).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Parent's display number (`None` for the root).
+    pub fn parent(&self) -> Option<u64> {
+        self.parent
+    }
+    /// Children, in spawn order (reclaimed ones included).
+    pub fn children(&self) -> &[u64] {
+        &self.children
+    }
+    /// State of one facet.
+    pub fn state(&self, facet: Facet) -> State {
+        self.facets[facet.index()]
+    }
+    /// Termination state.
+    pub fn termination(&self) -> Termination {
+        self.termination
+    }
+    /// Whether the node is suspended (between `suspended` and `unsuspended`).
+    pub fn is_suspended(&self) -> bool {
+        self.suspended
+    }
+    /// Whether a `failed` record was seen for the node.
+    pub fn is_failed(&self) -> bool {
+        self.failed
+    }
+    /// Whether the node was reclaimed.
+    pub fn is_reclaimed(&self) -> bool {
+        self.reclaimed
+    }
+    /// Whether the node is reserved and neither spawned nor dead yet.
+    pub fn is_reserved(&self) -> bool {
+        self.reserved && self.kind.is_none() && !self.dead
+    }
+    /// Whether the node was reserved before it was spawned (a forward reference).
+    pub fn was_reserved(&self) -> bool {
+        self.reserved
+    }
+    /// Whether the node is spawned (false while reserved, or dead; true for the root).
+    pub fn is_spawned(&self) -> bool {
+        self.kind.is_some()
+    }
+    /// Whether the reservation died: the node will never be spawned.
+    pub fn is_dead(&self) -> bool {
+        self.dead
+    }
+    /// Constraints applied to the node, in order.
+    pub fn constraints(&self) -> &[TraceConstraint] {
+        &self.constraints
+    }
+    /// Time the node was spawned.
+    pub fn spawned_at(&self) -> Option<u64> {
+        self.spawned_t
+    }
+    /// Time the reservation was found dead.
+    pub fn dead_at(&self) -> Option<u64> {
+        self.dead_t
+    }
+    /// Time `facet` first reached `point` (a facet that skips states reaches the skipped points too).
+    pub fn reached_at(&self, facet: Facet, point: Point) -> Option<u64> {
+        self.reached_t[facet.index()][point_index(point)]
+    }
+    /// Whether `facet` reached `point` while the node was terminating or terminated.
+    pub fn reached_while_terminating(&self, facet: Facet, point: Point) -> bool {
+        self.reached_terminating[facet.index()][point_index(point)]
+    }
+    /// Whether the node is goal-like (its handling belongs to its expansion).
+    pub fn expands(&self) -> bool {
+        self.kind.is_some_and(NodeKind::expands)
+    }
+
+    // Whether every goal-like node of the subtree has completed handling.
+    pub(crate) fn goals_done(&self) -> bool {
+        (!self.expands() || self.facets[0] == State::Completed) && self.n_children_goals_open == 0
+    }
+}
+
+/// The task tree as rebuilt from the records applied so far.
+#[derive(Clone, Debug)]
+pub struct Replay {
+    nodes: BTreeMap<u64, ReplayNode>,
+    run: Option<u32>,
+    n_records: u64,
+    last_t: u64,
+}
+
+impl Default for Replay {
+    fn default() -> Self {
+        Replay::new()
+    }
+}
+
+impl Replay {
+    /// An empty tree: only the implicit root, node 0, with its three facets active.
+    pub fn new() -> Replay {
+        let mut nodes = BTreeMap::new();
+        nodes.insert(0, ReplayNode::root());
+        Replay {
+            nodes,
+            run: None,
+            n_records: 0,
+            last_t: 0,
+        }
+    }
+
+    /// The node with display number `number`, in any condition (reserved, dead, reclaimed).
+    pub fn node(&self, number: u64) -> Option<&ReplayNode> {
+        self.nodes.get(&number)
+    }
+
+    /// The implicit root.
+    pub fn root(&self) -> &ReplayNode {
+        // Invariant: node 0 is inserted by `new` and never removed.
+        match self.nodes.get(&0) {
+            Some(it) => it,
+            None => unreachable!("the root is never removed"),
+        }
+    }
+
+    /// Every node ever seen, by display number.
+    pub fn nodes(&self) -> impl Iterator<Item = &ReplayNode> {
+        self.nodes.values()
+    }
+
+    /// The run number of the `run_started` record, if one was applied.
+    pub fn run(&self) -> Option<u32> {
+        self.run
+    }
+
+    /// How many records were applied successfully.
+    pub fn n_records(&self) -> u64 {
+        self.n_records
+    }
+
+    /// Time of the last record applied.
+    pub fn last_t(&self) -> u64 {
+        self.last_t
+    }
+
+    fn spawned(&self, node: u64) -> Result<&ReplayNode, ReplayError> {
+        if node == 0 {
+            return Err(ReplayError::Root);
+        }
+        match self.nodes.get(&node) {
+            None => Err(ReplayError::UnknownNode { node }),
+            Some(it) if !it.is_spawned() => Err(ReplayError::NotSpawned { node }),
+            Some(it) => Ok(it),
+        }
+    }
+
+    fn node_mut(&mut self, node: u64) -> Result<&mut ReplayNode, ReplayError> {
+        self.spawned(node)?;
+        self.nodes
+            .get_mut(&node)
+            .ok_or(ReplayError::UnknownNode { node })
+    }
+
+    fn check_parent(&self, node: u64, parent: u64) -> Result<(), ReplayError> {
+        match self.nodes.get(&parent) {
+            Some(it) if it.is_spawned() && !it.reclaimed => Ok(()),
+            _ => Err(ReplayError::UnknownParent { node, parent }),
+        }
+    }
+
+    /// Applies one record. On error nothing changes.
+    pub fn apply(&mut self, ev: &TraceEvent) -> Result<(), ReplayError> {
+        let t = ev.t;
+        match &ev.kind {
+            TraceKind::RunStarted { run, .. } => self.run = Some(*run),
+            TraceKind::Reserved { node, parent, name } => {
+                if *node == 0 {
+                    return Err(ReplayError::Root);
+                }
+                if self.nodes.contains_key(node) {
+                    return Err(ReplayError::Duplicate { node: *node });
+                }
+                self.check_parent(*node, *parent)?;
+                let mut it = ReplayNode::new(*node, name.clone(), Some(*parent));
+                it.reserved = true;
+                self.nodes.insert(*node, it);
+            }
+            TraceKind::Spawned {
+                node,
+                parent,
+                kind,
+                name,
+            } => self.apply_spawned(t, *node, *parent, *kind, name)?,
+            TraceKind::Constrained { node, constraint } => {
+                self.node_mut(*node)?.constraints.push(constraint.clone());
+            }
+            TraceKind::ConstraintVoid { node, .. } => {
+                if !self.nodes.contains_key(node) {
+                    return Err(ReplayError::UnknownNode { node: *node });
+                }
+            }
+            TraceKind::Transition {
+                node, facet, to, ..
+            } => self.apply_transition(t, *node, *facet, *to)?,
+            TraceKind::Terminating { node } => {
+                let it = self.node_mut(*node)?;
+                if it.termination != Termination::Alive {
+                    return Err(ReplayError::Termination {
+                        node: *node,
+                        from: it.termination,
+                        to: Termination::Terminating,
+                    });
+                }
+                it.termination = Termination::Terminating;
+            }
+            TraceKind::Terminated { node } => self.apply_terminated(*node)?,
+            TraceKind::Suspended { node } => self.node_mut(*node)?.suspended = true,
+            TraceKind::Unsuspended { node } => self.node_mut(*node)?.suspended = false,
+            TraceKind::Failed { node, .. } => self.node_mut(*node)?.failed = true,
+            TraceKind::Dead { node } => {
+                let it = self
+                    .nodes
+                    .get_mut(node)
+                    .ok_or(ReplayError::UnknownNode { node: *node })?;
+                if !it.is_reserved() {
+                    return Err(ReplayError::Duplicate { node: *node });
+                }
+                it.dead = true;
+                it.dead_t = Some(t);
+            }
+            TraceKind::External { .. } | TraceKind::Warning { .. } => {}
+            TraceKind::Reclaimed { node } => {
+                let it = self.node_mut(*node)?;
+                if it.reclaimed {
+                    return Err(ReplayError::Duplicate { node: *node });
+                }
+                it.reclaimed = true;
+                let parent = it.parent;
+                if let Some(p) = parent.and_then(|p| self.nodes.get_mut(&p)) {
+                    p.n_children_live = p.n_children_live.saturating_sub(1);
+                }
+            }
+        }
+        self.n_records += 1;
+        self.last_t = t;
+        Ok(())
+    }
+
+    fn apply_spawned(
+        &mut self,
+        t: u64,
+        node: u64,
+        parent: u64,
+        kind: NodeKind,
+        name: &str,
+    ) -> Result<(), ReplayError> {
+        if node == 0 || kind == NodeKind::Root {
+            return Err(ReplayError::Root);
+        }
+        if let Some(it) = self.nodes.get(&node) {
+            if !it.is_reserved() {
+                return Err(ReplayError::Duplicate { node });
+            }
+        }
+        self.check_parent(node, parent)?;
+        let it = self
+            .nodes
+            .entry(node)
+            .or_insert_with(|| ReplayNode::new(node, String::new(), Some(parent)));
+        it.kind = Some(kind);
+        it.name = name.to_string();
+        it.parent = Some(parent);
+        it.spawned_t = Some(t);
+        if !kind.expands() {
+            // A node that does not expand has its expansion completed from the start (paper, footnote 1).
+            it.facets[Facet::Expansion.index()] = State::Completed;
+            it.reached_t[Facet::Expansion.index()] = [Some(t); 3];
+        }
+        if let Some(p) = self.nodes.get_mut(&parent) {
+            p.children.push(node);
+            p.n_children_exec_open += 1;
+            p.n_children_unsettled += 1;
+            p.n_children_live += 1;
+        }
+        // An absent child counted as "goals done"; the new one may not be.
+        self.propagate_goals_done(node, true);
+        Ok(())
+    }
+
+    fn apply_transition(
+        &mut self,
+        t: u64,
+        node: u64,
+        facet: Facet,
+        to: State,
+    ) -> Result<(), ReplayError> {
+        let it = self.node_mut(node)?;
+        let from = it.facets[facet.index()];
+        if to <= from {
+            return Err(ReplayError::Backwards {
+                node,
+                facet,
+                from,
+                to,
+            });
+        }
+        let goals_done_before = it.goals_done();
+        let terminating = it.termination != Termination::Alive;
+        it.facets[facet.index()] = to;
+        for p in POINTS {
+            if from < p.state() && p.state() <= to {
+                it.reached_t[facet.index()][point_index(p)] = Some(t);
+                it.reached_terminating[facet.index()][point_index(p)] = terminating;
+            }
+        }
+        let expands = it.expands();
+        let parent = it.parent;
+        let exec_settled_now = facet == Facet::Execution
+            && to == State::Completed
+            && it.termination != Termination::Terminated;
+        match facet {
+            Facet::Handling => {
+                if from < State::Active && State::Active <= to {
+                    self.mark_started(node, expands);
+                }
+                if to == State::Completed && expands {
+                    self.propagate_goals_done(node, goals_done_before);
+                }
+            }
+            Facet::Execution if to == State::Completed => {
+                if let Some(p) = parent.and_then(|p| self.nodes.get_mut(&p)) {
+                    p.n_children_exec_open = p.n_children_exec_open.saturating_sub(1);
+                    if exec_settled_now {
+                        p.n_children_unsettled = p.n_children_unsettled.saturating_sub(1);
+                    }
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn apply_terminated(&mut self, node: u64) -> Result<(), ReplayError> {
+        let it = self.node_mut(node)?;
+        if it.termination != Termination::Terminating {
+            return Err(ReplayError::Termination {
+                node,
+                from: it.termination,
+                to: Termination::Terminated,
+            });
+        }
+        it.termination = Termination::Terminated;
+        let settled_now = it.facets[Facet::Execution.index()] != State::Completed;
+        let parent = it.parent;
+        if settled_now {
+            if let Some(p) = parent.and_then(|p| self.nodes.get_mut(&p)) {
+                p.n_children_unsettled = p.n_children_unsettled.saturating_sub(1);
+            }
+        }
+        Ok(())
+    }
+
+    // Sets the "started below" flag on `node` and its ancestors. Each flag is set once, so the walk stops
+    // at the first ancestor that already has it: amortised O(1) per transition.
+    fn mark_started(&mut self, node: u64, goal: bool) {
+        let mut cur = Some(node);
+        while let Some(n) = cur {
+            let Some(it) = self.nodes.get_mut(&n) else {
+                return;
+            };
+            let flag = if goal {
+                &mut it.goal_started_below
+            } else {
+                &mut it.command_started_below
+            };
+            if *flag {
+                return;
+            }
+            *flag = true;
+            cur = it.parent;
+        }
+    }
+
+    // Re-evaluates `goals_done` of `node` (which was `before`) and carries a change up to the ancestors.
+    // A node flips at most once per spawn or handling completion below it, so this is amortised O(1).
+    fn propagate_goals_done(&mut self, node: u64, before: bool) {
+        let (mut cur, mut before) = (node, before);
+        loop {
+            let Some(it) = self.nodes.get(&cur) else {
+                return;
+            };
+            let after = it.goals_done();
+            let Some(parent) = it.parent else {
+                return;
+            };
+            if before == after {
+                return;
+            }
+            let Some(p) = self.nodes.get_mut(&parent) else {
+                return;
+            };
+            let parent_before = p.goals_done();
+            if after {
+                p.n_children_goals_open = p.n_children_goals_open.saturating_sub(1);
+            } else {
+                p.n_children_goals_open += 1;
+            }
+            cur = parent;
+            before = parent_before;
+        }
+    }
+}

@@ -1,0 +1,250 @@
+//! TCM's terminal log, rendered from trace records (catalogue §5.1, and §5.2 in trace mode).
+//!
+//! [`TextLog`] keeps a [`Replay`] and turns each record into the lines TCM's default logger would have
+//! printed, with TCM's column layout, so logs can be compared textually with the original's:
+//!
+//! ```text
+//! Goal                    A {1}:        TCM {0} --> ON HOLD         (Inactive)
+//! Goal                    A {1}:  ON HOLD  --> TCM             (Sent)
+//!   Success               A {1}:
+//! ```
+//!
+//! Mapping from our records (decision 6 in `decisions.md`: TCM's words appear only here):
+//!
+//! - `spawned` prints the "ON HOLD (Inactive)" line.
+//! - Handling entering *enabled* prints "ON HOLD --> TCM (Sent)": TCM printed it when the node was queued,
+//!   which is our enabled point. Handling entering *completed* prints `  Success `, `  Failure ` (a
+//!   `failed` record for the node came first) or ` Complete ` (monitors). Both are suppressed when the
+//!   node is already terminating, as in TCM.
+//! - `terminating`, `terminated`, `suspended`, `unsuspended` and `warning` print their TCM lines.
+//! - In trace mode ([`TextLogOptions::trace`]), every facet transition also prints
+//!   `<name> transitioning from <Old> to <New>` (before the standard line, if any), with TCM's words:
+//!   handling Unhandled (disabled) / Handling (enabled, active) / Handled (completed); expansion
+//!   Unplanned (disabled, enabled) / Planning (active) / Planned (completed); execution Unachieved
+//!   (disabled, enabled) / Achieving (active) / Achieved (completed). A transition whose two states map to
+//!   the same word (handling enabled to active) prints nothing. Termination prints
+//!   `<name> transitioning from Alive to Terminating` and `... from Terminating to Terminated`,
+//!   `failed` prints `Raising exception "<exception>" from <name>`, `reclaimed` prints `Deleting <name>`.
+//!
+//! Known differences from TCM:
+//!
+//! - Nodes released by the same event start in spawn order; TCM started them in reverse registration
+//!   order (decision 2 in `decisions.md`), so such lines may appear in a different order.
+//! - Time (with [`TextLogOptions::time`]) is virtual time since the run started, rendered
+//!   ` HHH:MM:SS.hh` (hours right-justified in 3), not the wall-clock time of day.
+//! - TCM's `WARNING: _displayStatus` lines for odd transitions are not produced; the trace checker reports
+//!   such transitions instead.
+//! - Records TCM had no line for (`reserved`, `dead`, `constrained`, `constraint_void`, `external`) print
+//!   nothing.
+
+use crate::event::{TraceEvent, TraceKind};
+use crate::replay::{Replay, ReplayNode};
+use crate::state::{Facet, NodeKind, State, Termination};
+use std::io::{self, Write};
+
+#[cfg(test)]
+mod tests;
+
+/// What the text log prints besides the standard lines.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TextLogOptions {
+    /// Append the time since the run started, ` HHH:MM:SS.hh`, to every line.
+    pub time: bool,
+    /// Also print TCM's TRACE lines (catalogue §5.2) for every facet and termination transition.
+    pub trace: bool,
+}
+
+/// Renders records as TCM's text log; feed it every record of a trace, in order.
+#[derive(Clone, Debug, Default)]
+pub struct TextLog {
+    replay: Replay,
+    options: TextLogOptions,
+}
+
+/// TCM's word for a facet state (see the module doc for the mapping).
+pub fn tcm_state_word(facet: Facet, state: State) -> &'static str {
+    match (facet, state) {
+        (Facet::Handling, State::Disabled) => "Unhandled",
+        (Facet::Handling, State::Enabled | State::Active) => "Handling",
+        (Facet::Handling, State::Completed) => "Handled",
+        (Facet::Expansion, State::Disabled | State::Enabled) => "Unplanned",
+        (Facet::Expansion, State::Active) => "Planning",
+        (Facet::Expansion, State::Completed) => "Planned",
+        (Facet::Execution, State::Disabled | State::Enabled) => "Unachieved",
+        (Facet::Execution, State::Active) => "Achieving",
+        (Facet::Execution, State::Completed) => "Achieved",
+    }
+}
+
+/// Virtual time since the start as TCM's ` HHH:MM:SS.hh` suffix (with its leading space).
+pub fn time_suffix(t_ns: u64) -> String {
+    let hundredths = t_ns / 10_000_000;
+    let (h, rest) = (hundredths / 360_000, hundredths % 360_000);
+    let (m, rest) = (rest / 6_000, rest % 6_000);
+    let (s, cs) = (rest / 100, rest % 100);
+    format!(" {h:>3}:{m:02}:{s:02}.{cs:02}")
+}
+
+fn class(node: &ReplayNode) -> &'static str {
+    node.kind().map_or("Node", NodeKind::tcm_class)
+}
+
+impl TextLog {
+    /// A text log with the given options.
+    pub fn new(options: TextLogOptions) -> TextLog {
+        TextLog {
+            replay: Replay::new(),
+            options,
+        }
+    }
+
+    /// The tree as rebuilt from the records pushed so far.
+    pub fn replay(&self) -> &Replay {
+        &self.replay
+    }
+
+    /// Renders one record: the lines it prints, joined by `\n` without a final newline, or `None`.
+    pub fn push(&mut self, ev: &TraceEvent) -> Option<String> {
+        let lines = self.lines(ev);
+        // A record the replay refuses (a malformed trace) still got its best-effort lines; the checker
+        // is the tool that says what is wrong with it.
+        let _ = self.replay.apply(ev);
+        if lines.is_empty() {
+            return None;
+        }
+        let suffix = if self.options.time {
+            time_suffix(ev.t)
+        } else {
+            String::new()
+        };
+        let mut out = String::new();
+        for (i, line) in lines.iter().enumerate() {
+            if i > 0 {
+                out.push('\n');
+            }
+            out.push_str(line);
+            out.push_str(&suffix);
+        }
+        Some(out)
+    }
+
+    /// Renders one record and writes its lines, each with a newline.
+    pub fn write(&mut self, ev: &TraceEvent, w: &mut impl Write) -> io::Result<()> {
+        match self.push(ev) {
+            Some(mut text) => {
+                text.push('\n');
+                w.write_all(text.as_bytes())
+            }
+            None => Ok(()),
+        }
+    }
+
+    /// Renders a whole trace.
+    pub fn render(options: TextLogOptions, trace: &[TraceEvent]) -> String {
+        let mut log = TextLog::new(options);
+        let mut out = String::new();
+        for ev in trace {
+            if let Some(text) = log.push(ev) {
+                out.push_str(&text);
+                out.push('\n');
+            }
+        }
+        out
+    }
+
+    fn lines(&self, ev: &TraceEvent) -> Vec<String> {
+        let trace = self.options.trace;
+        let node = ev.kind.node().and_then(|n| self.replay.node(n));
+        let mut lines = Vec::new();
+        match (&ev.kind, node) {
+            (
+                TraceKind::Spawned {
+                    node,
+                    parent,
+                    kind,
+                    name,
+                },
+                _,
+            ) => lines.push(format!(
+                "{:<9} {:>15} {{{node}}}: {:>10} {{{parent}}} --> ON HOLD         (Inactive)",
+                kind.tcm_class(),
+                name,
+                "TCM"
+            )),
+            (
+                TraceKind::Transition {
+                    node: number,
+                    facet,
+                    from,
+                    to,
+                },
+                Some(n),
+            ) => {
+                let (old, new) = (tcm_state_word(*facet, *from), tcm_state_word(*facet, *to));
+                if trace && old != new {
+                    lines.push(format!("{} transitioning from {old} to {new}", n.name()));
+                }
+                let alive = n.termination() == Termination::Alive;
+                if *facet == Facet::Handling && alive {
+                    if *from < State::Enabled && State::Enabled <= *to && *to < State::Completed {
+                        lines.push(format!(
+                            "{:<9} {:>15} {{{number}}}:  ON HOLD  --> {:<15} (Sent)",
+                            class(n),
+                            n.name(),
+                            "TCM"
+                        ));
+                    }
+                    if *to == State::Completed {
+                        let word = if n.is_failed() {
+                            "  Failure "
+                        } else if n.kind() == Some(NodeKind::Monitor) {
+                            " Complete "
+                        } else {
+                            "  Success "
+                        };
+                        lines.push(format!("{word}{:>15} {{{number}}}:", n.name()));
+                    }
+                }
+            }
+            (TraceKind::Terminating { node: number }, Some(n)) => {
+                if trace {
+                    lines.push(format!(
+                        "{} transitioning from Alive to Terminating",
+                        n.name()
+                    ));
+                }
+                lines.push(format!(
+                    "Will Terminate {} {{{number}}} when all references to it are released",
+                    n.name()
+                ));
+            }
+            (TraceKind::Terminated { node: number }, Some(n)) => {
+                if trace {
+                    lines.push(format!(
+                        "{} transitioning from Terminating to Terminated",
+                        n.name()
+                    ));
+                }
+                lines.push(format!("Terminated {} {{{number}}}", n.name()));
+            }
+            (TraceKind::Suspended { node: number }, Some(n)) => {
+                lines.push(format!("Suspended {} {{{number}}}", n.name()));
+            }
+            (TraceKind::Unsuspended { node: number }, Some(n)) => {
+                lines.push(format!("Unsuspended {} {{{number}}}", n.name()));
+            }
+            (TraceKind::Failed { exception, .. }, Some(n)) if trace => {
+                lines.push(format!(
+                    "Raising exception \"{exception}\" from {}",
+                    n.name()
+                ));
+            }
+            (TraceKind::Reclaimed { .. }, Some(n)) if trace => {
+                lines.push(format!("Deleting {}", n.name()));
+            }
+            (TraceKind::Warning { message, .. }, _) => lines.push(format!("WARNING: {message}")),
+            _ => {}
+        }
+        lines
+    }
+}
