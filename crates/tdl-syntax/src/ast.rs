@@ -1,0 +1,615 @@
+//! The TDL syntax tree: items (tasks, exceptions, plain Rust), task bodies as statement trees, and
+//! constraints.
+//!
+//! The tree is plain data with public fields so a code generator can walk it with `match`.
+//! Rust fragments are kept as `syn` nodes (types, expressions, patterns, items) or, for ordinary
+//! statements, as their token streams with spans intact. Every TDL node carries the [`Span`] used
+//! by diagnostics. The parser that builds it is `parser.rs`; the checks over it are `check.rs`.
+
+#![allow(
+    clippy::large_enum_variant,
+    reason = "the tree is built once and walked by `match`; boxing variants would only add noise"
+)]
+
+use proc_macro2::{Ident, Span, TokenStream};
+
+/// A parsed TDL file or `tdl!{}` invocation.
+#[derive(Clone, Debug, Default)]
+pub struct Ast {
+    /// Top-level items in source order.
+    pub items: Vec<Item>,
+}
+
+/// A top-level item.
+#[derive(Clone, Debug)]
+pub enum Item {
+    /// `goal`, `command`, `monitor` or `handler`.
+    Task(Task),
+    /// `exception Name [: Parent] (; | { fields })`.
+    Exception(ExceptionDecl),
+    /// Any Rust item (`fn`, `use`, `struct`, ...), passed through verbatim.
+    Rust(Box<syn::Item>),
+}
+
+/// The kind of a task definition (catalogue §1.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum TaskKind {
+    /// `goal`: expands into children.
+    Goal,
+    /// `command`: an executable leaf.
+    Command,
+    /// `monitor`: a body run once per activation.
+    Monitor,
+    /// `handler ... handles Exc`: an exception handler.
+    Handler,
+}
+
+impl TaskKind {
+    /// The keyword: `goal`, `command`, `monitor` or `handler`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TaskKind::Goal => "goal",
+            TaskKind::Command => "command",
+            TaskKind::Monitor => "monitor",
+            TaskKind::Handler => "handler",
+        }
+    }
+}
+
+/// A task definition: `[pub] [persistent] goal name(args) [-> T] [with constraints] { body }`.
+#[derive(Clone, Debug)]
+pub struct Task {
+    /// Outer attributes, including doc comments.
+    pub attrs: Vec<syn::Attribute>,
+    /// Visibility of the generated task type.
+    pub vis: syn::Visibility,
+    /// The `persistent` qualifier: the node is kept after completion.
+    pub persistent: bool,
+    /// Goal, command, monitor or handler.
+    pub kind: TaskKind,
+    /// Task name.
+    pub name: Ident,
+    /// Arguments, copied into the node when it is created.
+    pub args: Vec<Arg>,
+    /// `-> T`: the value a waited spawn of this task yields.
+    pub result: Option<syn::Type>,
+    /// For handlers: the exception handled (`handles Exc`).
+    pub handles: Option<Ident>,
+    /// Task-level constraints (catalogue §1.3).
+    pub constraints: Vec<TaskConstraint>,
+    /// The body.
+    pub body: Block,
+    /// Span of the task name.
+    pub span: Span,
+}
+
+/// A task argument `[mut] name: Type`.
+#[derive(Clone, Debug)]
+pub struct Arg {
+    /// `mut` was written.
+    pub mutable: bool,
+    /// Argument name.
+    pub name: Ident,
+    /// Argument type.
+    pub ty: syn::Type,
+}
+
+/// `exception Name [: Parent] ( ; | { field: Type, ... } )`.
+#[derive(Clone, Debug)]
+pub struct ExceptionDecl {
+    /// Outer attributes, including doc comments.
+    pub attrs: Vec<syn::Attribute>,
+    /// Visibility of the generated exception type.
+    pub vis: syn::Visibility,
+    /// Exception name.
+    pub name: Ident,
+    /// Parent exception: a handler of the parent also handles this one.
+    pub parent: Option<Ident>,
+    /// Data fields.
+    pub fields: Vec<Field>,
+    /// Span of the name.
+    pub span: Span,
+}
+
+/// An exception data field `name: Type`.
+#[derive(Clone, Debug)]
+pub struct Field {
+    /// Field name.
+    pub name: Ident,
+    /// Field type.
+    pub ty: syn::Type,
+}
+
+/// A task-level constraint with its span.
+#[derive(Clone, Debug)]
+pub struct TaskConstraint {
+    /// What the constraint says.
+    pub kind: TaskConstraintKind,
+    /// Where it is written.
+    pub span: Span,
+}
+
+/// Task-level constraints (catalogue §1.3). Which kinds allow which is checked in `check.rs`.
+#[derive(Clone, Debug)]
+pub enum TaskConstraintKind {
+    /// `expand first`.
+    ExpandFirst,
+    /// `delay expansion`.
+    DelayExpansion,
+    /// `exception handler H(args) [maximum activate N]`.
+    ExceptionHandler(HandlerRef),
+    /// `on terminate [spawn] T(args)`.
+    OnTerminate(OnTerminate),
+    /// `persistent name: Type [= init]`.
+    Persistent(Persistent),
+    /// `maximum activate N` (monitors and handlers).
+    MaximumActivate(Count),
+    /// `maximum trigger N` (monitors).
+    MaximumTrigger(Count),
+    /// `period T` (monitors).
+    Period(RelTime),
+    /// `initial wait`: skip the first periodic activation (monitors).
+    InitialWait,
+    /// `serial`: each activation waits for the previous one (monitors).
+    Serial,
+    /// `sequential expansion|execution` between activations (monitors).
+    Sequential(Facet),
+}
+
+/// `persistent name: Type [= init]`: per-instance state surviving across activations.
+#[derive(Clone, Debug)]
+pub struct Persistent {
+    /// Variable name.
+    pub name: Ident,
+    /// Variable type.
+    pub ty: syn::Type,
+    /// Initial value; `Default::default()` when absent.
+    pub init: Option<syn::Expr>,
+}
+
+/// `exception handler H(args) [maximum activate N]`.
+///
+/// The maximum number of uses of the handler instance is written after the arguments, without a
+/// comma: `exception handler retry_move(3) maximum activate 2`.
+#[derive(Clone, Debug)]
+pub struct HandlerRef {
+    /// Handler task name.
+    pub name: Ident,
+    /// Arguments, evaluated when the task instance is created.
+    pub args: Vec<syn::Expr>,
+    /// How many times this handler instance may be used.
+    pub max_activate: Option<Count>,
+}
+
+/// `on terminate [label:]* [spawn] T(args)`.
+#[derive(Clone, Debug)]
+pub struct OnTerminate {
+    /// Labels naming the on-terminate task, usable as tags.
+    pub labels: Vec<Ident>,
+    /// Task to spawn when the node is terminated while running.
+    pub task: Ident,
+    /// Its arguments.
+    pub args: Vec<syn::Expr>,
+}
+
+/// A block of statements `{ ... }`.
+#[derive(Clone, Debug)]
+pub struct Block {
+    /// Statements in order.
+    pub stmts: Vec<Stmt>,
+    /// Span of the braces.
+    pub span: Span,
+}
+
+/// A statement of a task body: Rust, TDL, or Rust control flow containing TDL statements.
+#[derive(Clone, Debug)]
+pub enum Stmt {
+    /// Any Rust statement (or a tail expression), kept as tokens.
+    Rust(RustStmt),
+    /// `[label:]* spawn task(args) [with constraints];` or `let pat = spawn ... with wait;`.
+    Spawn(Spawn),
+    /// `[label:]* with (constraints) { ... }`.
+    With(WithGroup),
+    /// `TAG constraint;`.
+    Constrain(ConstraintStmt),
+    /// `succeed;`.
+    Succeed(Span),
+    /// `fail [Exc [{ field: value, ... }]];`.
+    Fail(Fail),
+    /// `bypass;` (handlers only).
+    Bypass(Span),
+    /// `trigger;` (monitors only).
+    Trigger(Span),
+    /// `if cond { ... } [else ...]`.
+    If(If),
+    /// `['label:] for pat in expr { ... }`.
+    For(For),
+    /// `['label:] while cond { ... }`.
+    While(While),
+    /// `['label:] loop { ... }`.
+    Loop(Loop),
+    /// `match expr { arms }`.
+    Match(Match),
+    /// A nested `{ ... }` block.
+    Block(Block),
+}
+
+/// A Rust statement kept verbatim.
+#[derive(Clone, Debug)]
+pub struct RustStmt {
+    /// The statement's tokens, including its `;` if it has one.
+    pub tokens: TokenStream,
+    /// Span of the first token.
+    pub span: Span,
+}
+
+/// A spawn statement.
+#[derive(Clone, Debug)]
+pub struct Spawn {
+    /// Labels `l1: l2: spawn ...`, usable as tags.
+    pub labels: Vec<Ident>,
+    /// `let pat [: T] = spawn ...`: where the child's result value goes (needs `wait`).
+    pub binding: Option<Binding>,
+    /// The task spawned.
+    pub task: Ident,
+    /// Its arguments.
+    pub args: Vec<syn::Expr>,
+    /// Constraints after `with`.
+    pub constraints: Vec<Constraint>,
+    /// Span of the `spawn` keyword.
+    pub span: Span,
+}
+
+/// `let pat [: T] =` in front of a waited spawn.
+#[derive(Clone, Debug)]
+pub struct Binding {
+    /// The pattern bound.
+    pub pat: syn::Pat,
+    /// Optional type annotation.
+    pub ty: Option<syn::Type>,
+}
+
+/// `[label:]* with (constraints) { body }`: constraints applied to every spawn inside; a nested
+/// group counts as one entity for the outer constraints (TDL paper, "with/do").
+#[derive(Clone, Debug)]
+pub struct WithGroup {
+    /// Labels naming the whole group as a tag.
+    pub labels: Vec<Ident>,
+    /// The group's constraints.
+    pub constraints: Vec<Constraint>,
+    /// The body.
+    pub body: Block,
+    /// Span of the `with` keyword.
+    pub span: Span,
+}
+
+/// `TAG constraint;`: a constraint on an earlier or later spawn.
+#[derive(Clone, Debug)]
+pub struct ConstraintStmt {
+    /// The constrained task.
+    pub tag: Tag,
+    /// The constraint.
+    pub constraint: Constraint,
+    /// Span of the tag.
+    pub span: Span,
+}
+
+/// `fail [Exc [{ field: value, ... }]];`.
+#[derive(Clone, Debug)]
+pub struct Fail {
+    /// The exception raised; `None` for a bare `fail;`.
+    pub exception: Option<Ident>,
+    /// Field values.
+    pub fields: Vec<syn::FieldValue>,
+    /// Span of the `fail` keyword.
+    pub span: Span,
+}
+
+/// `if cond { ... } [else ...]`.
+#[derive(Clone, Debug)]
+pub struct If {
+    /// The condition (may be a `let` expression).
+    pub cond: syn::Expr,
+    /// The `then` block.
+    pub then_branch: Block,
+    /// `else if ...` or `else { ... }`.
+    pub else_branch: Option<Box<Else>>,
+    /// Span of the `if` keyword.
+    pub span: Span,
+}
+
+/// The `else` part of an [`If`].
+#[derive(Clone, Debug)]
+pub enum Else {
+    /// `else if ...`.
+    If(If),
+    /// `else { ... }`.
+    Block(Block),
+}
+
+/// `['label:] for pat in expr { ... }`.
+#[derive(Clone, Debug)]
+pub struct For {
+    /// Loop label.
+    pub label: Option<syn::Lifetime>,
+    /// The loop pattern.
+    pub pat: syn::Pat,
+    /// The iterated expression.
+    pub expr: syn::Expr,
+    /// The body.
+    pub body: Block,
+    /// Span of the `for` keyword.
+    pub span: Span,
+}
+
+/// `['label:] while cond { ... }`.
+#[derive(Clone, Debug)]
+pub struct While {
+    /// Loop label.
+    pub label: Option<syn::Lifetime>,
+    /// The condition (may be a `let` expression).
+    pub cond: syn::Expr,
+    /// The body.
+    pub body: Block,
+    /// Span of the `while` keyword.
+    pub span: Span,
+}
+
+/// `['label:] loop { ... }`.
+#[derive(Clone, Debug)]
+pub struct Loop {
+    /// Loop label.
+    pub label: Option<syn::Lifetime>,
+    /// The body.
+    pub body: Block,
+    /// Span of the `loop` keyword.
+    pub span: Span,
+}
+
+/// `match expr { arms }`.
+#[derive(Clone, Debug)]
+pub struct Match {
+    /// The scrutinee.
+    pub expr: syn::Expr,
+    /// The arms.
+    pub arms: Vec<Arm>,
+    /// Span of the `match` keyword.
+    pub span: Span,
+}
+
+/// `pat [if guard] => body`. An expression body is kept as a block holding one Rust statement.
+#[derive(Clone, Debug)]
+pub struct Arm {
+    /// The pattern.
+    pub pat: syn::Pat,
+    /// The guard.
+    pub guard: Option<syn::Expr>,
+    /// The body.
+    pub body: Block,
+}
+
+/// A constraint with its span.
+#[derive(Clone, Debug)]
+pub struct Constraint {
+    /// What the constraint says.
+    pub kind: ConstraintKind,
+    /// Where it is written (its first keyword).
+    pub span: Span,
+}
+
+/// Spawn, `with` group and constraint-statement constraints (TDL paper Fig. 5, catalogue §1.4).
+#[derive(Clone, Debug)]
+pub enum ConstraintKind {
+    /// `expand first`.
+    ExpandFirst,
+    /// `delay expansion`.
+    DelayExpansion,
+    /// `sequential handling|expansion|execution [tag]`; `None` means `previous`.
+    Sequential {
+        /// Which interval waits for the same interval of the tag.
+        facet: Facet,
+        /// The tag waited for.
+        tag: Option<Tag>,
+    },
+    /// `serial [tag]`; `None` means `previous`.
+    Serial {
+        /// The tag waited for.
+        tag: Option<Tag>,
+    },
+    /// `parallel` (no constraint; forms a group).
+    Parallel,
+    /// `wait`: the spawn blocks until the child's execution completes.
+    Wait,
+    /// `disable [facet] until EVENT|TIME`.
+    DisableUntil {
+        /// Interval disabled; `None` means handling.
+        facet: Option<Facet>,
+        /// When it becomes enabled.
+        until: When,
+    },
+    /// `disable [facet] for REL [after EVENT]`.
+    DisableFor {
+        /// Interval disabled; `None` means handling.
+        facet: Option<Facet>,
+        /// How long.
+        delay: RelTime,
+        /// Counted from this event; from now when absent.
+        after: Option<Event>,
+    },
+    /// `terminate`: terminate now.
+    Terminate,
+    /// `terminate at EVENT|TIME`.
+    TerminateAt(When),
+    /// `terminate in REL [after EVENT]`.
+    TerminateIn {
+        /// How long.
+        delay: RelTime,
+        /// Counted from this event; from now when absent.
+        after: Option<Event>,
+    },
+    /// `activate` (monitors): one activation now.
+    Activate,
+    /// `activate at EVENT|TIME` (monitors).
+    ActivateAt(When),
+    /// `activate in REL [after EVENT]` (monitors).
+    ActivateIn {
+        /// How long.
+        delay: RelTime,
+        /// Counted from this event; from now when absent.
+        after: Option<Event>,
+    },
+    /// `maximum activate N` (monitors).
+    MaximumActivate(Count),
+    /// `maximum trigger N` (monitors).
+    MaximumTrigger(Count),
+    /// `period REL` (monitors).
+    Period(RelTime),
+    /// `exception handler H(args) [maximum activate N]` (not in `with`).
+    ExceptionHandler(HandlerRef),
+    /// `on terminate [label:]* [spawn] T(args)` (not in `with`).
+    OnTerminate(OnTerminate),
+    /// `name "instance name"`.
+    Name(syn::Expr),
+    /// `on AGENT`: rejected until distributed agents exist.
+    OnAgent(syn::Expr),
+}
+
+/// An event or an absolute time of day.
+#[derive(Clone, Debug)]
+pub enum When {
+    /// `TAG [facet] state`.
+    Event(Event),
+    /// `H:M:S[.frac]` time of day.
+    Time(TimeOfDay),
+}
+
+/// `TAG [facet] state`: a state transition of a node.
+#[derive(Clone, Debug)]
+pub struct Event {
+    /// The node.
+    pub tag: Tag,
+    /// The interval; `None`: handling for enabled/active, execution for completed.
+    pub facet: Option<Facet>,
+    /// The state reached.
+    pub state: State,
+}
+
+/// A reference to a node from a constraint.
+#[derive(Clone, Debug)]
+pub struct Tag {
+    /// Which node.
+    pub kind: TagKind,
+    /// Where the tag is written.
+    pub span: Span,
+}
+
+/// The kinds of tag (catalogue §1.6).
+#[derive(Clone, Debug)]
+pub enum TagKind {
+    /// A task name spawned in this body or a label, with iteration indexes `name[i][j]`.
+    Named {
+        /// Task name or label.
+        name: Ident,
+        /// Iteration indexes, outermost loop first.
+        indexes: Vec<TagIndex>,
+    },
+    /// `previous`: the spawn or group executed just before, resolved at run time.
+    Previous,
+    /// `self` or `child`: the node being spawned.
+    Child,
+    /// `parent` or `this`: the enclosing task.
+    Parent,
+}
+
+/// One iteration index of a tag.
+#[derive(Clone, Debug)]
+pub enum TagIndex {
+    /// `[expr]`.
+    Expr(syn::Expr),
+    /// `[.]`: the current iteration of that loop level.
+    Current,
+}
+
+/// An interval of a node (TDL paper, "Task Trees").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Facet {
+    /// The node itself (`handling`).
+    Handling,
+    /// All goals of the subtree (`expansion`, synonym `planning`).
+    Expansion,
+    /// All commands of the subtree (`execution`, synonym `achievement`).
+    Execution,
+}
+
+impl Facet {
+    /// The keyword.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Facet::Handling => "handling",
+            Facet::Expansion => "expansion",
+            Facet::Execution => "execution",
+        }
+    }
+}
+
+/// The state an [`Event`] waits for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum State {
+    /// `enabled`.
+    Enabled,
+    /// `active`.
+    Active,
+    /// `completed`.
+    Completed,
+}
+
+impl State {
+    /// The keyword.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            State::Enabled => "enabled",
+            State::Active => "active",
+            State::Completed => "completed",
+        }
+    }
+}
+
+/// A relative time.
+#[derive(Clone, Debug)]
+pub enum RelTime {
+    /// A constant: `30s`, `1.5s`, `200ms`, `2min`, `0:0:30.0`, `0.5`.
+    Nanos(u64),
+    /// `(expr)`: a Rust expression in seconds (an `f64`).
+    Seconds(syn::Expr),
+}
+
+/// An absolute time of day `H:M:S[.frac]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TimeOfDay {
+    /// Hour, 0-23.
+    pub hour: u8,
+    /// Minute, 0-59.
+    pub minute: u8,
+    /// Second, 0-59.
+    pub second: u8,
+    /// Fraction of the second, in nanoseconds.
+    pub nanos: u32,
+}
+
+impl TimeOfDay {
+    /// Nanoseconds since midnight.
+    pub fn nanos_since_midnight(self) -> u64 {
+        ((u64::from(self.hour) * 60 + u64::from(self.minute)) * 60 + u64::from(self.second))
+            * 1_000_000_000
+            + u64::from(self.nanos)
+    }
+}
+
+/// A count such as `maximum activate N`.
+#[derive(Clone, Debug)]
+pub enum Count {
+    /// An integer literal.
+    Const(u64),
+    /// Any other expression.
+    Expr(syn::Expr),
+}

@@ -1,0 +1,394 @@
+//! A compact, indented text dump of the syntax tree, one node per line.
+//!
+//! Used by the parser snapshot tests (`tests/it/data.rs`) and handy when debugging the parser:
+//! constraints print in canonical TDL spelling (joined keywords and synonyms resolved), times in
+//! nanosecond-exact units, and Rust fragments as their token text.
+
+use std::fmt::Write as _;
+
+use quote::ToTokens;
+
+use crate::ast::{
+    Ast, Block, Constraint, ConstraintKind, Count, Else, Event, HandlerRef, If, Item, Match,
+    OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind, TimeOfDay,
+    When,
+};
+use crate::time::format_nanos;
+
+/// Dumps the tree as indented text.
+pub fn dump(ast: &Ast) -> String {
+    let mut out = String::new();
+    for item in &ast.items {
+        match item {
+            Item::Task(task) => dump_task(&mut out, task),
+            Item::Exception(exc) => {
+                let parent = exc
+                    .parent
+                    .as_ref()
+                    .map(|it| format!(" : {it}"))
+                    .unwrap_or_default();
+                let fields: Vec<String> = exc
+                    .fields
+                    .iter()
+                    .map(|it| format!("{}: {}", it.name, tokens(&it.ty)))
+                    .collect();
+                let _ = writeln!(
+                    out,
+                    "exception {}{parent} {{{}}}",
+                    exc.name,
+                    fields.join(", ")
+                );
+            }
+            Item::Rust(item) => {
+                let _ = writeln!(out, "rust item: {}", tokens(item.as_ref()));
+            }
+        }
+    }
+    out
+}
+
+fn tokens(it: &impl ToTokens) -> String {
+    it.to_token_stream().to_string()
+}
+
+fn exprs(args: &[syn::Expr]) -> String {
+    args.iter().map(tokens).collect::<Vec<_>>().join(", ")
+}
+
+fn dump_task(out: &mut String, task: &Task) {
+    let args: Vec<String> = task
+        .args
+        .iter()
+        .map(|it| {
+            let mutable = if it.mutable { "mut " } else { "" };
+            format!("{mutable}{}: {}", it.name, tokens(&it.ty))
+        })
+        .collect();
+    let persistent = if task.persistent { "persistent " } else { "" };
+    let vis = match task.vis {
+        syn::Visibility::Inherited => String::new(),
+        ref vis => format!("{} ", tokens(vis)),
+    };
+    let result = task
+        .result
+        .as_ref()
+        .map(|it| format!(" -> {}", tokens(it)))
+        .unwrap_or_default();
+    let handles = task
+        .handles
+        .as_ref()
+        .map(|it| format!(" handles {it}"))
+        .unwrap_or_default();
+    let _ = writeln!(
+        out,
+        "{vis}{persistent}{} {}({}){result}{handles}",
+        task.kind.as_str(),
+        task.name,
+        args.join(", ")
+    );
+    for constraint in &task.constraints {
+        let text = match &constraint.kind {
+            TaskConstraintKind::ExpandFirst => "expand first".to_owned(),
+            TaskConstraintKind::DelayExpansion => "delay expansion".to_owned(),
+            TaskConstraintKind::ExceptionHandler(it) => handler(it),
+            TaskConstraintKind::OnTerminate(it) => on_terminate(it),
+            TaskConstraintKind::Persistent(it) => {
+                let init = it
+                    .init
+                    .as_ref()
+                    .map(|it| format!(" = {}", tokens(it)))
+                    .unwrap_or_default();
+                format!("persistent {}: {}{init}", it.name, tokens(&it.ty))
+            }
+            TaskConstraintKind::MaximumActivate(it) => format!("maximum activate {}", count(it)),
+            TaskConstraintKind::MaximumTrigger(it) => format!("maximum trigger {}", count(it)),
+            TaskConstraintKind::Period(it) => format!("period {}", rel(it)),
+            TaskConstraintKind::InitialWait => "initial wait".to_owned(),
+            TaskConstraintKind::Serial => "serial".to_owned(),
+            TaskConstraintKind::Sequential(facet) => format!("sequential {}", facet.as_str()),
+        };
+        let _ = writeln!(out, "  | {text}");
+    }
+    dump_block(out, &task.body, 1);
+}
+
+fn line(out: &mut String, depth: usize, text: &str) {
+    let _ = writeln!(out, "{:width$}{text}", "", width = depth * 2);
+}
+
+fn labels(labels: &[proc_macro2::Ident]) -> String {
+    labels.iter().map(|it| format!("{it}: ")).collect()
+}
+
+fn dump_block(out: &mut String, block: &Block, depth: usize) {
+    for stmt in &block.stmts {
+        dump_stmt(out, stmt, depth);
+    }
+}
+
+fn dump_constraints(out: &mut String, constraints: &[Constraint], depth: usize) {
+    for it in constraints {
+        line(out, depth, &format!("| {}", constraint(it)));
+    }
+}
+
+fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
+    match stmt {
+        Stmt::Rust(it) => line(out, depth, &format!("rust: {}", it.tokens)),
+        Stmt::Spawn(it) => dump_spawn(out, it, depth),
+        Stmt::With(it) => {
+            let list: Vec<String> = it.constraints.iter().map(constraint).collect();
+            line(
+                out,
+                depth,
+                &format!("{}with ({})", labels(&it.labels), list.join(", ")),
+            );
+            dump_block(out, &it.body, depth + 1);
+        }
+        Stmt::Constrain(it) => {
+            line(
+                out,
+                depth,
+                &format!("constrain {} {}", tag(&it.tag), constraint(&it.constraint)),
+            );
+        }
+        Stmt::Succeed(_) => line(out, depth, "succeed"),
+        Stmt::Fail(it) => {
+            let exc = it
+                .exception
+                .as_ref()
+                .map(|it| format!(" {it}"))
+                .unwrap_or_default();
+            let fields: Vec<String> = it.fields.iter().map(tokens).collect();
+            let fields = if fields.is_empty() {
+                String::new()
+            } else {
+                format!(" {{ {} }}", fields.join(", "))
+            };
+            line(out, depth, &format!("fail{exc}{fields}"));
+        }
+        Stmt::Bypass(_) => line(out, depth, "bypass"),
+        Stmt::Trigger(_) => line(out, depth, "trigger"),
+        Stmt::If(it) => dump_if(out, it, depth, "if"),
+        Stmt::For(it) => {
+            let label = it
+                .label
+                .as_ref()
+                .map(|it| format!("{it}: "))
+                .unwrap_or_default();
+            line(
+                out,
+                depth,
+                &format!("{label}for {} in {}", tokens(&it.pat), tokens(&it.expr)),
+            );
+            dump_block(out, &it.body, depth + 1);
+        }
+        Stmt::While(it) => {
+            let label = it
+                .label
+                .as_ref()
+                .map(|it| format!("{it}: "))
+                .unwrap_or_default();
+            line(out, depth, &format!("{label}while {}", tokens(&it.cond)));
+            dump_block(out, &it.body, depth + 1);
+        }
+        Stmt::Loop(it) => {
+            let label = it
+                .label
+                .as_ref()
+                .map(|it| format!("{it}: "))
+                .unwrap_or_default();
+            line(out, depth, &format!("{label}loop"));
+            dump_block(out, &it.body, depth + 1);
+        }
+        Stmt::Match(it) => dump_match(out, it, depth),
+        Stmt::Block(it) => {
+            line(out, depth, "block");
+            dump_block(out, it, depth + 1);
+        }
+    }
+}
+
+fn dump_spawn(out: &mut String, it: &Spawn, depth: usize) {
+    let binding = match &it.binding {
+        Some(binding) => {
+            let ty = binding
+                .ty
+                .as_ref()
+                .map(|it| format!(": {}", tokens(it)))
+                .unwrap_or_default();
+            format!("let {}{ty} = ", tokens(&binding.pat))
+        }
+        None => String::new(),
+    };
+    let text = format!(
+        "{}{binding}spawn {}({})",
+        labels(&it.labels),
+        it.task,
+        exprs(&it.args)
+    );
+    line(out, depth, &text);
+    dump_constraints(out, &it.constraints, depth + 1);
+}
+
+fn dump_match(out: &mut String, it: &Match, depth: usize) {
+    line(out, depth, &format!("match {}", tokens(&it.expr)));
+    for arm in &it.arms {
+        let guard = arm
+            .guard
+            .as_ref()
+            .map(|it| format!(" if {}", tokens(it)))
+            .unwrap_or_default();
+        line(
+            out,
+            depth + 1,
+            &format!("arm {}{guard} =>", tokens(&arm.pat)),
+        );
+        dump_block(out, &arm.body, depth + 2);
+    }
+}
+
+fn dump_if(out: &mut String, it: &If, depth: usize, keyword: &str) {
+    line(out, depth, &format!("{keyword} {}", tokens(&it.cond)));
+    dump_block(out, &it.then_branch, depth + 1);
+    match it.else_branch.as_deref() {
+        Some(Else::If(next)) => dump_if(out, next, depth, "else if"),
+        Some(Else::Block(block)) => {
+            line(out, depth, "else");
+            dump_block(out, block, depth + 1);
+        }
+        None => {}
+    }
+}
+
+fn count(it: &Count) -> String {
+    match it {
+        Count::Const(n) => n.to_string(),
+        Count::Expr(expr @ syn::Expr::Paren(_)) => tokens(expr),
+        Count::Expr(expr) => format!("({})", tokens(expr)),
+    }
+}
+
+fn rel(it: &RelTime) -> String {
+    match it {
+        RelTime::Nanos(nanos) => format_nanos(*nanos),
+        RelTime::Seconds(expr) => format!("({}) s", tokens(expr)),
+    }
+}
+
+fn time_of_day(it: &TimeOfDay) -> String {
+    let frac = if it.nanos == 0 {
+        String::new()
+    } else {
+        format!(".{:09}", it.nanos).trim_end_matches('0').to_owned()
+    };
+    format!("{:02}:{:02}:{:02}{frac}", it.hour, it.minute, it.second)
+}
+
+fn tag(it: &Tag) -> String {
+    match &it.kind {
+        TagKind::Named { name, indexes } => {
+            let mut text = name.to_string();
+            for index in indexes {
+                match index {
+                    TagIndex::Expr(expr) => {
+                        let _ = write!(text, "[{}]", tokens(expr));
+                    }
+                    TagIndex::Current => text.push_str("[.]"),
+                }
+            }
+            text
+        }
+        TagKind::Previous => "previous".to_owned(),
+        TagKind::Child => "self".to_owned(),
+        TagKind::Parent => "parent".to_owned(),
+    }
+}
+
+fn event(it: &Event) -> String {
+    let facet = it
+        .facet
+        .map(|it| format!(" {}", it.as_str()))
+        .unwrap_or_default();
+    format!("{}{facet} {}", tag(&it.tag), it.state.as_str())
+}
+
+fn when(it: &When) -> String {
+    match it {
+        When::Event(it) => event(it),
+        When::Time(it) => time_of_day(it),
+    }
+}
+
+fn after(it: Option<&Event>) -> String {
+    it.map(|it| format!(" after {}", event(it)))
+        .unwrap_or_default()
+}
+
+fn handler(it: &HandlerRef) -> String {
+    let max = it
+        .max_activate
+        .as_ref()
+        .map(|it| format!(" maximum activate {}", count(it)))
+        .unwrap_or_default();
+    format!("exception handler {}({}){max}", it.name, exprs(&it.args))
+}
+
+fn on_terminate(it: &OnTerminate) -> String {
+    format!(
+        "on terminate {}spawn {}({})",
+        labels(&it.labels),
+        it.task,
+        exprs(&it.args)
+    )
+}
+
+/// A constraint in canonical TDL spelling.
+fn constraint(it: &Constraint) -> String {
+    let facet = |it: Option<crate::ast::Facet>| {
+        it.map(|it| format!(" {}", it.as_str())).unwrap_or_default()
+    };
+    let opt_tag = |it: Option<&Tag>| it.map(|it| format!(" {}", tag(it))).unwrap_or_default();
+    match &it.kind {
+        ConstraintKind::ExpandFirst => "expand first".to_owned(),
+        ConstraintKind::DelayExpansion => "delay expansion".to_owned(),
+        ConstraintKind::Sequential { facet, tag } => {
+            format!("sequential {}{}", facet.as_str(), opt_tag(tag.as_ref()))
+        }
+        ConstraintKind::Serial { tag } => format!("serial{}", opt_tag(tag.as_ref())),
+        ConstraintKind::Parallel => "parallel".to_owned(),
+        ConstraintKind::Wait => "wait".to_owned(),
+        ConstraintKind::DisableUntil { facet: f, until } => {
+            format!("disable{} until {}", facet(*f), when(until))
+        }
+        ConstraintKind::DisableFor {
+            facet: f,
+            delay,
+            after: a,
+        } => {
+            format!(
+                "disable{} for {}{}",
+                facet(*f),
+                rel(delay),
+                after(a.as_ref())
+            )
+        }
+        ConstraintKind::Terminate => "terminate".to_owned(),
+        ConstraintKind::TerminateAt(w) => format!("terminate at {}", when(w)),
+        ConstraintKind::TerminateIn { delay, after: a } => {
+            format!("terminate in {}{}", rel(delay), after(a.as_ref()))
+        }
+        ConstraintKind::Activate => "activate".to_owned(),
+        ConstraintKind::ActivateAt(w) => format!("activate at {}", when(w)),
+        ConstraintKind::ActivateIn { delay, after: a } => {
+            format!("activate in {}{}", rel(delay), after(a.as_ref()))
+        }
+        ConstraintKind::MaximumActivate(n) => format!("maximum activate {}", count(n)),
+        ConstraintKind::MaximumTrigger(n) => format!("maximum trigger {}", count(n)),
+        ConstraintKind::Period(t) => format!("period {}", rel(t)),
+        ConstraintKind::ExceptionHandler(h) => handler(h),
+        ConstraintKind::OnTerminate(t) => on_terminate(t),
+        ConstraintKind::Name(e) => format!("name {}", tokens(e)),
+        ConstraintKind::OnAgent(e) => format!("on {}", tokens(e)),
+    }
+}

@@ -1,0 +1,142 @@
+//! `tdl-syntax`: the TDL front end shared by the `tdl!` macro, `tdl-build` and the `tdl` CLI.
+//!
+//! TDL (Simmons & Apfelbaum, 1998) is a language for task-level robot control: tasks (`goal`,
+//! `command`, `monitor`, `handler`), `spawn` with synchronisation constraints, `with (...)` groups,
+//! exceptions and monitors. Here it is written with Rust bodies.
+//!
+//! Key types, in the order data flows through them:
+//! - [`parse_str`] / [`parse_tokens`] turn a `.tdl` file or a macro's tokens into a [`Parse`]:
+//!   the [`Ast`] plus every [`Diagnostic`] found. Parsing never fails; it recovers at item and
+//!   statement boundaries (the parser is `parser.rs`).
+//! - The [`ast`] module is the tree: [`Item`]s, task bodies as trees of [`Stmt`]s, and
+//!   [`Constraint`]s over [`Tag`]s and [`Event`]s. A code generator walks it with `match`.
+//! - The static checks of catalogue §1.6 (unknown and ambiguous tags, duplicate labels, `wait` on
+//!   a forward reference, ...) run as part of parsing and add to the same diagnostics (`check.rs`).
+//! - [`Diagnostic::render`] prints `file:line:col: error: message`, the source line, a caret and a
+//!   `= help:` hint; [`dump`] prints the tree compactly (used by the snapshot tests).
+//!
+//! ```
+//! let src = "
+//! goal deliver_mail(room: u32) {
+//!     let (x, y) = get_room_coordinates(room);
+//!     spawn navigate_to_locn(x, y);
+//!     spawn center_on_door(x, y) with sequential execution previous, terminate in 30s;
+//!     spawn speak(\"Xavier here with your mail\")
+//!         with sequential execution center_on_door, terminate at monitor_pickup completed;
+//!     spawn monitor_pickup() with sequential execution center_on_door;
+//! }
+//! ";
+//! let parse = tdl_syntax::parse_str("deliver.tdl", src);
+//! assert!(parse.diagnostics.is_empty());
+//! let tdl_syntax::Item::Task(task) = &parse.file.items[0] else { panic!() };
+//! assert_eq!(task.name, "deliver_mail");
+//!
+//! let bad = tdl_syntax::parse_str("bad.tdl", "goal g() { spawn a() with serial nowhere; }");
+//! let text = bad.render("bad.tdl", Some("goal g() { spawn a() with serial nowhere; }"));
+//! assert!(text.starts_with("bad.tdl:1:34: error: unknown tag `nowhere`"));
+//! ```
+//!
+//! Language choices (the full reference is planned for `docs/language.md`):
+//! - TDL keywords keep TDL's words. Constraint keywords are case-insensitive and two-word ones may
+//!   be joined with underscores (`expand_first`, `disable_until`); `planning` ≡ `expansion`,
+//!   `achievement` ≡ `execution`. Statement and item keywords are lowercase.
+//! - A handler's use limit is written after its arguments: `exception handler h(x) maximum activate 3`.
+//! - Times: `30s`, `1.5s`, `200ms`, `2min`, `0:0:30.0`, or `(expr)` in seconds; times of day `13:00:00`.
+//! - `let v = spawn t(args) with wait;` yields the child's result (`command t() -> T`).
+//!
+//! Architecture Invariants: this crate never names `proc_macro`, only `proc_macro2` and `syn`, so
+//! every consumer shares it; and no input makes it panic (a property test feeds it random tokens).
+
+#![warn(missing_docs)]
+
+pub mod ast;
+mod check;
+mod diagnostic;
+mod dump;
+mod keyword;
+mod parser;
+mod time;
+
+use std::str::FromStr;
+
+use proc_macro2::{Span, TokenStream, TokenTree};
+use syn::parse::{ParseStream, Parser};
+
+pub use ast::*;
+pub use diagnostic::{Diagnostic, Label, LineCol, Severity, render_all};
+pub use dump::dump;
+pub use time::format_nanos;
+
+/// The result of parsing: the tree and every diagnostic, errors and warnings, in source order.
+#[derive(Clone, Debug)]
+pub struct Parse {
+    /// The syntax tree; items or statements with errors are left out.
+    pub file: Ast,
+    /// Everything found, sorted by position.
+    pub diagnostics: Vec<Diagnostic>,
+}
+
+impl Parse {
+    /// True when any diagnostic is an error.
+    pub fn has_errors(&self) -> bool {
+        self.diagnostics.iter().any(Diagnostic::is_error)
+    }
+
+    /// Renders all diagnostics (see [`Diagnostic::render`]).
+    pub fn render(&self, file_name: &str, source: Option<&str>) -> String {
+        render_all(&self.diagnostics, file_name, source)
+    }
+}
+
+/// Parses the text of a `.tdl` file. `file_name` is only used to name the input in messages from
+/// the lexer; diagnostics carry line and column, and [`Parse::render`] takes the name again.
+pub fn parse_str(file_name: &str, src: &str) -> Parse {
+    let _ = file_name;
+    match TokenStream::from_str(src) {
+        Ok(tokens) => {
+            let eof = last_span(&tokens);
+            parse_with(tokens, eof)
+        }
+        Err(err) => {
+            let diag = Diagnostic::error(
+                err.span(),
+                "cannot read the input as Rust tokens: unbalanced delimiter, unterminated literal or stray character",
+            )
+            .with_hint("check for an unclosed `{`, `(` or `[`, a missing closing quote, or a character Rust does not accept");
+            Parse {
+                file: Ast::default(),
+                diagnostics: vec![diag],
+            }
+        }
+    }
+}
+
+/// Parses tokens, e.g. the input of the `tdl!{}` macro.
+pub fn parse_tokens(tokens: TokenStream) -> Parse {
+    parse_with(tokens, None)
+}
+
+fn parse_with(tokens: TokenStream, eof: Option<Span>) -> Parse {
+    let mut cx = parser::Cx::new(eof);
+    let res = (|input: ParseStream| Ok(parser::parse_file(input, &mut cx))).parse2(tokens);
+    let file = match res {
+        Ok(file) => file,
+        Err(err) => {
+            cx.syn_error(err, None);
+            Ast::default()
+        }
+    };
+    let mut diagnostics = cx.diags;
+    check::check(&file, &mut diagnostics);
+    diagnostics.sort_by_key(|it| (it.start(), it.severity()));
+    Parse { file, diagnostics }
+}
+
+/// The span of the last token, looking inside groups.
+fn last_span(tokens: &TokenStream) -> Option<Span> {
+    let last = tokens.clone().into_iter().last()?;
+    if let TokenTree::Group(group) = &last {
+        return Some(group.span_close());
+    }
+    Some(last.span())
+}

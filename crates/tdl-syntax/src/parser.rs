@@ -1,0 +1,394 @@
+//! The parser: token stream to [`Ast`] plus diagnostics, never failing.
+//!
+//! It runs on `syn`'s `ParseStream`. Each item and each statement is parsed speculatively on a fork
+//! (see [`attempt`]); on an error the diagnostic is recorded and the input skips to the next item or
+//! statement boundary, so one mistake gives one diagnostic and parsing goes on. Brace and paren
+//! groups are parsed as fresh token streams ([`parse_group`]), so an error inside a group never
+//! leaks into the enclosing parse. Statements are in `parser/stmt.rs`, constraints in
+//! `parser/constraint.rs`; the checks run afterwards in `check.rs`.
+
+mod constraint;
+mod stmt;
+
+use proc_macro2::{Delimiter, Ident, Span, TokenStream, TokenTree};
+use syn::ext::IdentExt;
+use syn::parse::discouraged::Speculative;
+use syn::parse::{ParseStream, Parser};
+use syn::punctuated::Punctuated;
+use syn::{Token, Type};
+
+use crate::ast::{Arg, Ast, Block, ExceptionDecl, Field, Item, Task, TaskKind};
+use crate::diagnostic::Diagnostic;
+
+pub(crate) use constraint::parse_task_constraints;
+
+/// Parsing context: the diagnostics found so far.
+pub(crate) struct Cx {
+    pub(crate) diags: Vec<Diagnostic>,
+    /// Hint for the error being returned, set by the innermost parser that knows one.
+    pub(crate) hint: Option<&'static str>,
+    /// Where "unexpected end of input" points: the closing delimiter of the group being parsed,
+    /// or the last token of the file.
+    eof: Option<Span>,
+    /// Parsing text (not a macro's tokens): a span with no source text is the call site.
+    str_mode: bool,
+}
+
+impl Cx {
+    pub(crate) fn new(eof: Option<Span>) -> Cx {
+        Cx {
+            diags: Vec::new(),
+            hint: None,
+            str_mode: eof.is_some(),
+            eof,
+        }
+    }
+
+    /// True for the call-site span `syn` gives errors at the end of a parsed stream.
+    fn is_call_site(&self, span: Span) -> bool {
+        if self.str_mode {
+            // Spans of parsed text always have source text; the call site has none.
+            span.source_text().is_none()
+        } else {
+            format!("{span:?}") == format!("{:?}", Span::call_site())
+        }
+    }
+
+    /// Records a `syn` error as diagnostics, with `hint` if given.
+    pub(crate) fn syn_error(&mut self, err: syn::Error, hint: Option<&str>) {
+        for part in err {
+            let mut span = part.span();
+            if let Some(eof) = self.eof {
+                if self.is_call_site(span) {
+                    span = eof;
+                }
+            }
+            let mut diag = Diagnostic::error(span, part.to_string());
+            if let Some(hint) = hint {
+                diag = diag.with_hint(hint);
+            }
+            self.diags.push(diag);
+        }
+    }
+}
+
+/// Runs `f` on a fork of `input`; on success the input advances past what `f` consumed, on
+/// failure nothing is consumed and the diagnostics `f` pushed are dropped.
+pub(crate) fn attempt<T>(
+    input: ParseStream,
+    cx: &mut Cx,
+    f: impl FnOnce(ParseStream, &mut Cx) -> syn::Result<T>,
+) -> syn::Result<T> {
+    let mark = cx.diags.len();
+    let fork = input.fork();
+    match f(&fork, cx) {
+        Ok(it) => {
+            input.advance_to(&fork);
+            Ok(it)
+        }
+        Err(err) => {
+            cx.diags.truncate(mark);
+            Err(err)
+        }
+    }
+}
+
+/// A delimited group taken from the input.
+pub(crate) struct Group {
+    /// The tokens inside the delimiters.
+    pub(crate) tokens: TokenStream,
+    /// Span of the whole group.
+    pub(crate) span: Span,
+    /// Span of the closing delimiter, where "unexpected end of input" errors point.
+    pub(crate) close: Span,
+}
+
+fn is_end_of_input(err: &syn::Error) -> bool {
+    err.to_string().starts_with("unexpected end of input")
+}
+
+/// Points "unexpected end of input" errors from a group's own parse at its closing delimiter
+/// (`syn` only knows the call site there).
+fn at_close(err: syn::Error, close: Span) -> syn::Error {
+    let mut parts = err.into_iter().map(|part| {
+        if is_end_of_input(&part) {
+            syn::Error::new(close, part.to_string())
+        } else {
+            part
+        }
+    });
+    let Some(mut first) = parts.next() else {
+        return syn::Error::new(close, "unexpected end of input");
+    };
+    for part in parts {
+        first.combine(part);
+    }
+    first
+}
+
+/// Parses a group's tokens with `f`, which must consume all of them.
+pub(crate) fn parse_group<T>(
+    group: Group,
+    cx: &mut Cx,
+    f: impl FnOnce(ParseStream, &mut Cx) -> syn::Result<T>,
+) -> syn::Result<T> {
+    let outer_eof = cx.eof.replace(group.close);
+    let res = (|input: ParseStream| f(input, &mut *cx))
+        .parse2(group.tokens)
+        .map_err(|err| at_close(err, group.close));
+    cx.eof = outer_eof;
+    res
+}
+
+/// Parses a group's tokens as one `T`.
+pub(crate) fn parse_group_as<T: syn::parse::Parse>(group: Group) -> syn::Result<T> {
+    syn::parse2(group.tokens).map_err(|err| at_close(err, group.close))
+}
+
+/// Consumes a delimited group.
+pub(crate) fn take_group(
+    input: ParseStream,
+    delimiter: Delimiter,
+    what: &str,
+) -> syn::Result<Group> {
+    input.step(|cursor| match cursor.group(delimiter) {
+        Some((inner, span, rest)) => Ok((
+            Group {
+                tokens: inner.token_stream(),
+                span: span.join(),
+                close: span.close(),
+            },
+            rest,
+        )),
+        None => Err(cursor.error(format!("expected {what}"))),
+    })
+}
+
+/// Consumes one token tree.
+pub(crate) fn skip_token(input: ParseStream) -> Option<TokenTree> {
+    input.parse::<TokenTree>().ok()
+}
+
+/// Consumes tokens up to and including the next `;`, or up to and including a brace group (and a
+/// `;` right after it), whichever comes first; always consumes at least one token.
+pub(crate) fn recover(input: ParseStream) {
+    while let Some(tt) = skip_token(input) {
+        match tt {
+            TokenTree::Punct(p) if p.as_char() == ';' => return,
+            TokenTree::Group(g) if g.delimiter() == Delimiter::Brace => {
+                if input.peek(Token![;]) {
+                    skip_token(input);
+                }
+                if !input.peek(Token![else]) {
+                    return;
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Parses a whole file.
+pub(crate) fn parse_file(input: ParseStream, cx: &mut Cx) -> Ast {
+    let mut items = Vec::new();
+    while !input.is_empty() {
+        let is_task = tdl_item_keyword(input).is_some();
+        cx.hint = None;
+        match attempt(input, cx, item) {
+            Ok(it) => items.push(it),
+            Err(err) => {
+                let hint = cx.hint.take().or(is_task.then_some(TASK_HINT));
+                cx.syn_error(err, hint);
+                recover(input);
+            }
+        }
+    }
+    Ast { items }
+}
+
+const TASK_HINT: &str = "a task reads `goal name(arg: Type, ...) [-> Type] [with constraint, ...] { ... }`; \
+     items are `goal`, `command`, `monitor`, `handler NAME(...) handles Exc`, `exception NAME;` or Rust items";
+
+/// The TDL item keyword at the input, after attributes, visibility and qualifiers.
+fn tdl_item_keyword(input: ParseStream) -> Option<String> {
+    let fork = input.fork();
+    let _ = fork.call(syn::Attribute::parse_outer);
+    let _ = fork.parse::<syn::Visibility>();
+    let ident = fork.call(Ident::parse_any).ok()?;
+    let word = ident.to_string();
+    let word = if word == "persistent" {
+        fork.call(Ident::parse_any).ok()?.to_string()
+    } else {
+        word
+    };
+    matches!(
+        word.as_str(),
+        "goal" | "command" | "monitor" | "handler" | "exception"
+    )
+    .then_some(word)
+}
+
+fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
+    if tdl_item_keyword(input).is_none() {
+        if input.peek(syn::Ident)
+            && input.peek2(syn::Ident)
+            && input.peek3(syn::token::Paren)
+            && input.fork().parse::<syn::Item>().is_err()
+        {
+            let ident: Ident = input.fork().call(Ident::parse_any)?;
+            cx.hint = Some(TASK_HINT);
+            return Err(syn::Error::new(
+                ident.span(),
+                format!(
+                    "unknown item kind `{ident}`; a task starts with `goal`, `command`, \
+                     `monitor` or `handler`"
+                ),
+            ));
+        }
+        return input
+            .parse::<syn::Item>()
+            .map(|it| Item::Rust(Box::new(it)));
+    }
+    let attrs = input.call(syn::Attribute::parse_outer)?;
+    let vis: syn::Visibility = input.parse()?;
+    let mut persistent = false;
+    let mut keyword = input.call(Ident::parse_any)?;
+    if keyword == "persistent" {
+        persistent = true;
+        keyword = input.call(Ident::parse_any)?;
+    }
+    let kind = match keyword.to_string().as_str() {
+        "goal" => TaskKind::Goal,
+        "command" => TaskKind::Command,
+        "monitor" => TaskKind::Monitor,
+        "handler" => TaskKind::Handler,
+        _ => return exception(input, attrs, vis, persistent, keyword.span(), cx),
+    };
+    task(input, cx, attrs, vis, persistent, kind)
+}
+
+fn exception(
+    input: ParseStream,
+    attrs: Vec<syn::Attribute>,
+    vis: syn::Visibility,
+    persistent: bool,
+    keyword_span: Span,
+    cx: &mut Cx,
+) -> syn::Result<Item> {
+    if persistent {
+        cx.diags.push(
+            Diagnostic::error(keyword_span, "an exception cannot be `persistent`")
+                .with_hint("remove `persistent`"),
+        );
+    }
+    let name: Ident = input.parse()?;
+    let parent = if input.peek(Token![:]) {
+        input.parse::<Token![:]>()?;
+        Some(input.parse::<Ident>()?)
+    } else {
+        None
+    };
+    let fields = if input.peek(syn::token::Brace) {
+        let group = take_group(input, Delimiter::Brace, "`{`")?;
+        parse_group(group, cx, |input, _| {
+            let fields = Punctuated::<Field, Token![,]>::parse_terminated_with(input, |input| {
+                let name: Ident = input.parse()?;
+                input.parse::<Token![:]>()?;
+                let ty: Type = input.parse()?;
+                Ok(Field { name, ty })
+            })?;
+            Ok(fields.into_iter().collect())
+        })?
+    } else {
+        if !input.peek(Token![;]) {
+            return Err(
+                input.error("expected `;` or `{ field: Type, ... }` after the exception name")
+            );
+        }
+        input.parse::<Token![;]>()?;
+        Vec::new()
+    };
+    let span = name.span();
+    Ok(Item::Exception(ExceptionDecl {
+        attrs,
+        vis,
+        name,
+        parent,
+        fields,
+        span,
+    }))
+}
+
+fn task(
+    input: ParseStream,
+    cx: &mut Cx,
+    attrs: Vec<syn::Attribute>,
+    vis: syn::Visibility,
+    persistent: bool,
+    kind: TaskKind,
+) -> syn::Result<Item> {
+    let name: Ident = input.parse()?;
+    let args_group = take_group(
+        input,
+        Delimiter::Parenthesis,
+        "`(` and the task's arguments",
+    )?;
+    let args = parse_group(args_group, cx, |input, _| {
+        let args = Punctuated::<Arg, Token![,]>::parse_terminated_with(input, |input| {
+            let mutable = input.parse::<Option<Token![mut]>>()?.is_some();
+            let name: Ident = input.parse()?;
+            input.parse::<Token![:]>()?;
+            let ty: Type = input.parse()?;
+            Ok(Arg { mutable, name, ty })
+        })?;
+        Ok(args.into_iter().collect())
+    })?;
+    let result = if input.peek(Token![->]) {
+        input.parse::<Token![->]>()?;
+        Some(input.call(Type::without_plus)?)
+    } else {
+        None
+    };
+    let handles = if kind == TaskKind::Handler {
+        if !input.peek(syn::Ident) || input.fork().call(Ident::parse_any)? != "handles" {
+            return Err(
+                input.error("expected `handles ExceptionName` after the handler's arguments")
+            );
+        }
+        input.call(Ident::parse_any)?;
+        Some(input.parse::<Ident>()?)
+    } else {
+        None
+    };
+    let constraints = parse_task_constraints(input, cx)?;
+    let body_group = take_group(input, Delimiter::Brace, "`{` and the task body")?;
+    let body = parse_block(body_group, cx);
+    let span = name.span();
+    Ok(Item::Task(Task {
+        attrs,
+        vis,
+        persistent,
+        kind,
+        name,
+        args,
+        result,
+        handles,
+        constraints,
+        body,
+        span,
+    }))
+}
+
+/// Parses the inside of a brace group as a block; never fails.
+pub(crate) fn parse_block(group: Group, cx: &mut Cx) -> Block {
+    let span = group.span;
+    let res = parse_group(group, cx, |input, cx| Ok(stmt::parse_stmts(input, cx)));
+    let stmts = match res {
+        Ok(stmts) => stmts,
+        Err(err) => {
+            cx.syn_error(err, None);
+            Vec::new()
+        }
+    };
+    Block { stmts, span }
+}

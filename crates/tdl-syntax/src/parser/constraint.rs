@@ -1,0 +1,443 @@
+//! Parsing of constraints (TDL paper Fig. 5, catalogue §1.3-§1.6): spawn constraints, task-level
+//! constraints, tags, events and counts.
+//!
+//! Constraint keywords go through `keyword.rs`, so joined and synonym forms are accepted
+//! everywhere. Which constraint is allowed where is mostly decided later, in `check.rs`; only the
+//! task-level list is narrowed here because it has its own AST type.
+
+use proc_macro2::{Delimiter, Ident, TokenTree};
+use syn::ext::IdentExt;
+use syn::punctuated::Punctuated;
+use syn::{Token, Type};
+
+use super::{Cx, parse_group, parse_group_as, take_group};
+use crate::ast::{
+    Constraint, ConstraintKind, Count, Event, Facet, HandlerRef, OnTerminate, Persistent, State,
+    Tag, TagIndex, TagKind, TaskConstraint, TaskConstraintKind, When,
+};
+use crate::keyword::{expect_phrase, peek_phrase, peek_words, take_words};
+use crate::time::{TIME_HINT, parse_rel_time, parse_time_of_day, peek_time_of_day};
+use syn::parse::ParseStream;
+
+/// Hint attached to errors in constraint lists.
+pub(crate) const CONSTRAINT_HINT: &str = "constraints are comma separated, e.g. \
+     `sequential execution previous`, `serial t1`, `wait`, `terminate in 30s`, \
+     `disable until t1 execution completed`, `terminate at monitor_pickup completed`";
+
+fn facet_of(word: Option<&str>) -> Option<Facet> {
+    match word? {
+        "handling" => Some(Facet::Handling),
+        "expansion" => Some(Facet::Expansion),
+        "execution" => Some(Facet::Execution),
+        _ => None,
+    }
+}
+
+fn state_of(word: Option<&str>) -> Option<State> {
+    match word? {
+        "enabled" => Some(State::Enabled),
+        "active" => Some(State::Active),
+        "completed" => Some(State::Completed),
+        _ => None,
+    }
+}
+
+/// Parses `c1, c2, ...`; stops before the first token that is not `,` after a constraint.
+pub(crate) fn parse_constraint_list(
+    input: ParseStream,
+    cx: &mut Cx,
+) -> syn::Result<Vec<Constraint>> {
+    let mut out = vec![parse_constraint(input, cx)?];
+    while input.peek(Token![,]) {
+        input.parse::<Token![,]>()?;
+        if input.is_empty() || input.peek(Token![;]) {
+            break;
+        }
+        out.push(parse_constraint(input, cx)?);
+    }
+    Ok(out)
+}
+
+/// Parses one constraint; on an error, sets the hint to the constraint or time syntax.
+pub(crate) fn parse_constraint(input: ParseStream, cx: &mut Cx) -> syn::Result<Constraint> {
+    parse_constraint_inner(input, cx).inspect_err(|err| {
+        let text = err.to_string();
+        cx.hint = Some(if text.contains("time") || text.contains("H:M:S") {
+            TIME_HINT
+        } else {
+            CONSTRAINT_HINT
+        });
+    })
+}
+
+fn parse_constraint_inner(input: ParseStream, cx: &mut Cx) -> syn::Result<Constraint> {
+    let span = input.span();
+    let words = peek_words(input.cursor(), 4);
+    let at = |i: usize| words.get(i).and_then(|it| it.text);
+    let kind = match at(0) {
+        Some("expand") => {
+            expect_phrase(input, &["expand", "first"])?;
+            ConstraintKind::ExpandFirst
+        }
+        Some("delay") => {
+            expect_phrase(input, &["delay", "expansion"])?;
+            ConstraintKind::DelayExpansion
+        }
+        Some("sequential") => {
+            let Some(facet) = facet_of(at(1)) else {
+                return Err(syn::Error::new(
+                    span,
+                    "expected `handling`, `expansion` or `execution` after `sequential`",
+                ));
+            };
+            take_words(input, 2)?;
+            let tag = optional_tag(input)?;
+            ConstraintKind::Sequential { facet, tag }
+        }
+        Some("serial") => {
+            take_words(input, 1)?;
+            ConstraintKind::Serial {
+                tag: optional_tag(input)?,
+            }
+        }
+        Some("parallel") => {
+            take_words(input, 1)?;
+            ConstraintKind::Parallel
+        }
+        Some("wait") => {
+            take_words(input, 1)?;
+            ConstraintKind::Wait
+        }
+        Some("disable") => disable(input, cx, at(1), at(2))?,
+        Some(word @ ("terminate" | "activate")) => timed(input, cx, word == "activate", at(1))?,
+        Some("maximum") => match at(1) {
+            Some("activate") => {
+                take_words(input, 2)?;
+                ConstraintKind::MaximumActivate(parse_count(input)?)
+            }
+            Some("trigger") => {
+                take_words(input, 2)?;
+                ConstraintKind::MaximumTrigger(parse_count(input)?)
+            }
+            _ => {
+                return Err(syn::Error::new(
+                    span,
+                    "expected `activate` or `trigger` after `maximum`",
+                ));
+            }
+        },
+        Some("period") => {
+            take_words(input, 1)?;
+            ConstraintKind::Period(parse_rel_time(input)?)
+        }
+        Some("exception") => {
+            expect_phrase(input, &["exception", "handler"])?;
+            ConstraintKind::ExceptionHandler(handler_ref(input, cx)?)
+        }
+        Some("handler") => {
+            take_words(input, 1)?;
+            ConstraintKind::ExceptionHandler(handler_ref(input, cx)?)
+        }
+        Some("on") if at(1) == Some("terminate") => {
+            take_words(input, 2)?;
+            ConstraintKind::OnTerminate(on_terminate(input, cx)?)
+        }
+        Some("on") => {
+            take_words(input, 1)?;
+            ConstraintKind::OnAgent(input.call(syn::Expr::parse_without_eager_brace)?)
+        }
+        Some("name") => {
+            take_words(input, 1)?;
+            ConstraintKind::Name(input.call(syn::Expr::parse_without_eager_brace)?)
+        }
+        _ => {
+            let what = match input.cursor().token_tree() {
+                Some((tt, _)) => format!("`{tt}`"),
+                None => "end of input".to_owned(),
+            };
+            return Err(syn::Error::new(
+                span,
+                format!("expected a constraint, found {what}"),
+            ));
+        }
+    };
+    Ok(Constraint { kind, span })
+}
+
+/// `terminate`/`activate`, optionally followed by `at WHEN` or `in REL [after EVENT]`.
+fn timed(
+    input: ParseStream,
+    cx: &mut Cx,
+    activate: bool,
+    second: Option<&'static str>,
+) -> syn::Result<ConstraintKind> {
+    Ok(match second {
+        Some("at") => {
+            take_words(input, 2)?;
+            let when = parse_when(input, cx)?;
+            if activate {
+                ConstraintKind::ActivateAt(when)
+            } else {
+                ConstraintKind::TerminateAt(when)
+            }
+        }
+        Some("in") => {
+            take_words(input, 2)?;
+            let delay = parse_rel_time(input)?;
+            let after = optional_after(input)?;
+            if activate {
+                ConstraintKind::ActivateIn { delay, after }
+            } else {
+                ConstraintKind::TerminateIn { delay, after }
+            }
+        }
+        _ => {
+            take_words(input, 1)?;
+            if activate {
+                ConstraintKind::Activate
+            } else {
+                ConstraintKind::Terminate
+            }
+        }
+    })
+}
+
+fn disable(
+    input: ParseStream,
+    cx: &mut Cx,
+    second: Option<&'static str>,
+    third: Option<&'static str>,
+) -> syn::Result<ConstraintKind> {
+    let span = input.span();
+    let (facet, next) = match facet_of(second) {
+        Some(facet) => (Some(facet), third),
+        None => (None, second),
+    };
+    let n_words = if facet.is_some() { 3 } else { 2 };
+    match next {
+        Some("until") => {
+            take_words(input, n_words)?;
+            Ok(ConstraintKind::DisableUntil {
+                facet,
+                until: parse_when(input, cx)?,
+            })
+        }
+        Some("for") => {
+            take_words(input, n_words)?;
+            let delay = parse_rel_time(input)?;
+            let after = optional_after(input)?;
+            Ok(ConstraintKind::DisableFor {
+                facet,
+                delay,
+                after,
+            })
+        }
+        _ => Err(syn::Error::new(
+            span,
+            "expected `until` or `for` after `disable [handling|expansion|execution]`",
+        )),
+    }
+}
+
+fn optional_after(input: ParseStream) -> syn::Result<Option<Event>> {
+    if peek_phrase(input, &["after"]) {
+        take_words(input, 1)?;
+        Ok(Some(parse_event(input)?))
+    } else {
+        Ok(None)
+    }
+}
+
+fn optional_tag(input: ParseStream) -> syn::Result<Option<Tag>> {
+    if input.cursor().ident().is_some() {
+        Ok(Some(parse_tag(input)?))
+    } else {
+        Ok(None)
+    }
+}
+
+fn parse_when(input: ParseStream, cx: &mut Cx) -> syn::Result<When> {
+    if peek_time_of_day(input) {
+        Ok(When::Time(parse_time_of_day(input, &mut cx.diags)?))
+    } else {
+        Ok(When::Event(parse_event(input)?))
+    }
+}
+
+/// Parses `TAG [handling|expansion|execution] (enabled|active|completed)`.
+pub(crate) fn parse_event(input: ParseStream) -> syn::Result<Event> {
+    let tag = parse_tag(input)?;
+    let words = peek_words(input.cursor(), 2);
+    let at = |i: usize| words.get(i).and_then(|it| it.text);
+    let (facet, state, n_words) = match facet_of(at(0)) {
+        Some(facet) => (Some(facet), state_of(at(1)), 2),
+        None => (None, state_of(at(0)), 1),
+    };
+    let Some(state) = state else {
+        return Err(input.error(
+            "expected `enabled`, `active` or `completed` after the tag, as in `t1 execution completed`",
+        ));
+    };
+    take_words(input, n_words)?;
+    Ok(Event { tag, facet, state })
+}
+
+/// Parses a tag: a name with optional `[index]`s, `previous`, `self`/`child` or `parent`/`this`.
+pub(crate) fn parse_tag(input: ParseStream) -> syn::Result<Tag> {
+    let span = input.span();
+    let name = input.call(Ident::parse_any)?;
+    let kind = match name.to_string().as_str() {
+        "previous" => TagKind::Previous,
+        "self" | "child" => TagKind::Child,
+        "parent" | "this" => TagKind::Parent,
+        _ => {
+            let mut indexes = Vec::new();
+            while input.peek(syn::token::Bracket) {
+                let group = take_group(input, Delimiter::Bracket, "`[`")?;
+                let mut iter = group.tokens.clone().into_iter();
+                let index = match (iter.next(), iter.next()) {
+                    (Some(TokenTree::Punct(p)), None) if p.as_char() == '.' => TagIndex::Current,
+                    _ => TagIndex::Expr(parse_group_as(group)?),
+                };
+                indexes.push(index);
+            }
+            TagKind::Named { name, indexes }
+        }
+    };
+    if !matches!(kind, TagKind::Named { .. }) && input.peek(syn::token::Bracket) {
+        return Err(input.error("only a task name or a label takes iteration indexes"));
+    }
+    Ok(Tag { kind, span })
+}
+
+fn parse_count(input: ParseStream) -> syn::Result<Count> {
+    let expr = input.call(syn::Expr::parse_without_eager_brace)?;
+    if let syn::Expr::Lit(syn::ExprLit {
+        lit: syn::Lit::Int(lit),
+        ..
+    }) = &expr
+    {
+        if lit.suffix().is_empty() {
+            return Ok(Count::Const(lit.base10_parse::<u64>()?));
+        }
+    }
+    Ok(Count::Expr(expr))
+}
+
+/// Parses `(args)` as comma-separated expressions.
+pub(crate) fn call_args(input: ParseStream, cx: &mut Cx) -> syn::Result<Vec<syn::Expr>> {
+    let group = take_group(input, Delimiter::Parenthesis, "`(` and the arguments")?;
+    parse_group(group, cx, |input, _| {
+        let args = Punctuated::<syn::Expr, Token![,]>::parse_terminated(input)?;
+        Ok(args.into_iter().collect())
+    })
+}
+
+fn handler_ref(input: ParseStream, cx: &mut Cx) -> syn::Result<HandlerRef> {
+    let name: Ident = input.parse()?;
+    let args = call_args(input, cx)?;
+    let max_activate = if peek_phrase(input, &["maximum", "activate"]) {
+        take_words(input, 2)?;
+        Some(parse_count(input)?)
+    } else {
+        None
+    };
+    Ok(HandlerRef {
+        name,
+        args,
+        max_activate,
+    })
+}
+
+fn on_terminate(input: ParseStream, cx: &mut Cx) -> syn::Result<OnTerminate> {
+    let mut labels = Vec::new();
+    while input.peek(syn::Ident) && input.peek2(Token![:]) && !input.peek2(Token![::]) {
+        labels.push(input.parse::<Ident>()?);
+        input.parse::<Token![:]>()?;
+    }
+    if input.peek(syn::Ident) && input.peek2(syn::Ident) {
+        let kw = input.call(Ident::parse_any)?;
+        if kw != "spawn" {
+            return Err(syn::Error::new(
+                kw.span(),
+                "expected `spawn` or a task name",
+            ));
+        }
+    }
+    let task: Ident = input.parse()?;
+    let args = call_args(input, cx)?;
+    Ok(OnTerminate { labels, task, args })
+}
+
+/// Parses the task-level constraints between a task's arguments and its body (catalogue §1.3).
+pub(crate) fn parse_task_constraints(
+    input: ParseStream,
+    cx: &mut Cx,
+) -> syn::Result<Vec<TaskConstraint>> {
+    let mut out = Vec::new();
+    if input.peek(syn::token::Brace) {
+        return Ok(out);
+    }
+    if input.peek(syn::Ident) && input.fork().call(Ident::parse_any)? == "with" {
+        input.call(Ident::parse_any)?;
+    }
+    loop {
+        out.push(task_constraint(input, cx)?);
+        if !input.peek(Token![,]) {
+            break;
+        }
+        input.parse::<Token![,]>()?;
+        if input.peek(syn::token::Brace) {
+            break;
+        }
+    }
+    Ok(out)
+}
+
+fn task_constraint(input: ParseStream, cx: &mut Cx) -> syn::Result<TaskConstraint> {
+    let span = input.span();
+    if peek_phrase(input, &["persistent"]) {
+        take_words(input, 1)?;
+        let name: Ident = input.parse()?;
+        input.parse::<Token![:]>()?;
+        let ty: Type = input.parse()?;
+        let init = if input.peek(Token![=]) {
+            input.parse::<Token![=]>()?;
+            Some(input.call(syn::Expr::parse_without_eager_brace)?)
+        } else {
+            None
+        };
+        let kind = TaskConstraintKind::Persistent(Persistent { name, ty, init });
+        return Ok(TaskConstraint { kind, span });
+    }
+    if peek_phrase(input, &["initial", "wait"]) {
+        take_words(input, 2)?;
+        let kind = TaskConstraintKind::InitialWait;
+        return Ok(TaskConstraint { kind, span });
+    }
+    let constraint = parse_constraint(input, cx)?;
+    let kind = match constraint.kind {
+        ConstraintKind::ExpandFirst => TaskConstraintKind::ExpandFirst,
+        ConstraintKind::DelayExpansion => TaskConstraintKind::DelayExpansion,
+        ConstraintKind::ExceptionHandler(it) => TaskConstraintKind::ExceptionHandler(it),
+        ConstraintKind::OnTerminate(it) => TaskConstraintKind::OnTerminate(it),
+        ConstraintKind::MaximumActivate(it) => TaskConstraintKind::MaximumActivate(it),
+        ConstraintKind::MaximumTrigger(it) => TaskConstraintKind::MaximumTrigger(it),
+        ConstraintKind::Period(it) => TaskConstraintKind::Period(it),
+        ConstraintKind::Serial { tag: None } => TaskConstraintKind::Serial,
+        ConstraintKind::Sequential { facet, tag: None } => TaskConstraintKind::Sequential(facet),
+        _ => {
+            return Err(syn::Error::new(
+                span,
+                "this constraint only applies to a spawn; a task definition takes `expand first`, \
+                 `delay expansion`, `exception handler`, `on terminate`, `persistent` and, for \
+                 monitors, `maximum activate`, `maximum trigger`, `period`, `initial wait`, \
+                 `serial`, `sequential expansion|execution`",
+            ));
+        }
+    };
+    Ok(TaskConstraint {
+        kind,
+        span: constraint.span,
+    })
+}

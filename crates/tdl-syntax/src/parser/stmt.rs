@@ -1,0 +1,592 @@
+//! Parsing of task-body statements: TDL statements, the Rust control flow that contains them, and
+//! plain Rust statements kept as tokens.
+//!
+//! A statement is recognised by its first tokens (catalogue §1.7): `[label:]* spawn T`,
+//! `[label:]* with (...)`, `let p = spawn T`, `succeed;`, `fail ...;`, `bypass;`, `trigger;`, and
+//! `TAG constraint;` (in Rust, `ident ident` never starts a statement). `if`, `for`, `while`,
+//! `loop`, `match` and blocks are walked only when they contain a TDL statement; otherwise they
+//! stay Rust tokens, so their value and typing are exactly Rust's.
+
+use proc_macro2::{Delimiter, Ident, Span, TokenStream, TokenTree};
+use syn::buffer::Cursor;
+use syn::ext::IdentExt;
+use syn::parse::ParseStream;
+use syn::parse::discouraged::Speculative;
+use syn::punctuated::Punctuated;
+use syn::{Token, Type};
+
+use super::constraint::{
+    CONSTRAINT_HINT, call_args, parse_constraint, parse_constraint_list, parse_tag,
+};
+use super::{Cx, attempt, parse_block, parse_group, recover, take_group};
+use crate::ast::{
+    Arm, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match, RustStmt, Spawn, Stmt,
+    While, WithGroup,
+};
+use crate::keyword::{peek_words, starts_constraint};
+
+/// Rust keywords that can start a statement followed by an identifier, so `kw ident` is Rust.
+const RUST_KEYWORDS: &[&str] = &[
+    "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum", "extern",
+    "false", "fn", "for", "if", "impl", "in", "let", "loop", "macro", "match", "mod", "move",
+    "mut", "pub", "ref", "return", "static", "struct", "super", "trait", "true", "type", "union",
+    "unsafe", "use", "where", "while", "yield", "Self",
+];
+
+/// Parses statements until the end of `input`; never fails.
+pub(crate) fn parse_stmts(input: ParseStream, cx: &mut Cx) -> Vec<Stmt> {
+    let mut out = Vec::new();
+    while !input.is_empty() {
+        if input.peek(Token![;]) {
+            let _ = input.parse::<Token![;]>();
+            continue;
+        }
+        let hint = stmt_hint(input);
+        cx.hint = None;
+        match attempt(input, cx, stmt) {
+            Ok(it) => out.push(it),
+            Err(err) => {
+                let hint = cx.hint.take().or(hint);
+                cx.syn_error(err, hint);
+                recover(input);
+            }
+        }
+    }
+    out
+}
+
+fn first_ident(cursor: Cursor<'_>) -> Option<(String, Cursor<'_>)> {
+    cursor
+        .ident()
+        .map(|(ident, rest)| (ident.to_string(), rest))
+}
+
+fn stmt_hint(input: ParseStream) -> Option<&'static str> {
+    let mut cursor = input.cursor();
+    while let Some((_, rest)) = cursor.ident() {
+        match rest.punct() {
+            Some((p, after))
+                if p.as_char() == ':' && after.punct().is_none_or(|(q, _)| q.as_char() != ':') =>
+            {
+                cursor = after;
+            }
+            _ => break,
+        }
+    }
+    match first_ident(cursor)?.0.as_str() {
+        "spawn" | "let" => Some(
+            "a spawn reads `[label:] spawn task(args) [with constraint, ...];`; \
+             a waited spawn `let v = spawn task(args) with wait;`",
+        ),
+        "with" => Some("a group reads `[label:] with (constraint, ...) { ... }`"),
+        "fail" => Some("write `fail;`, `fail Exc;` or `fail Exc { field: value, ... };`"),
+        _ if is_constraint_stmt(input.cursor()) => Some(CONSTRAINT_HINT),
+        _ => None,
+    }
+}
+
+/// True when the cursor is at `keyword` followed by an identifier.
+fn is_keyword_then_ident(cursor: Cursor<'_>, keyword: &str) -> bool {
+    match first_ident(cursor) {
+        Some((word, rest)) => word == keyword && rest.ident().is_some(),
+        None => false,
+    }
+}
+
+/// True when the cursor is at `with (...)` followed by `{` or `spawn`.
+fn is_with(cursor: Cursor<'_>) -> bool {
+    let Some((word, rest)) = first_ident(cursor) else {
+        return false;
+    };
+    let Some((_, _, after)) = (word == "with")
+        .then(|| rest.group(Delimiter::Parenthesis))
+        .flatten()
+    else {
+        return false;
+    };
+    after.group(Delimiter::Brace).is_some() || is_keyword_then_ident(after, "spawn")
+}
+
+/// True when the cursor is at `TAG constraint`: an identifier (not a Rust keyword other than
+/// `self`), optional `[index]` groups, then an identifier starting a constraint.
+fn is_constraint_stmt(cursor: Cursor<'_>) -> bool {
+    let Some((word, mut rest)) = first_ident(cursor) else {
+        return false;
+    };
+    if word != "self" && RUST_KEYWORDS.contains(&word.as_str()) {
+        return false;
+    }
+    while let Some((_, _, after)) = rest.group(Delimiter::Bracket) {
+        rest = after;
+    }
+    peek_words(rest, 1)
+        .first()
+        .and_then(|it| it.text)
+        .is_some_and(starts_constraint)
+}
+
+/// True when the cursor is at `word ;`.
+fn is_bare(cursor: Cursor<'_>, keyword: &str) -> bool {
+    match first_ident(cursor) {
+        Some((word, rest)) => {
+            word == keyword && rest.punct().is_some_and(|(p, _)| p.as_char() == ';')
+        }
+        None => false,
+    }
+}
+
+fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
+    let mut labels = Vec::new();
+    while input.peek(syn::Ident) && input.peek2(Token![:]) && !input.peek2(Token![::]) {
+        labels.push(input.parse::<Ident>()?);
+        input.parse::<Token![:]>()?;
+    }
+    let cursor = input.cursor();
+    if is_keyword_then_ident(cursor, "spawn") {
+        return spawn(input, cx, labels, None).map(Stmt::Spawn);
+    }
+    if let Some((word, rest)) = first_ident(cursor) {
+        let ends = rest.eof() || rest.punct().is_some_and(|(p, _)| p.as_char() == ';');
+        if word == "spawn" && ends {
+            return Err(input.error("expected a task name after `spawn`"));
+        }
+    }
+    if is_with(cursor) {
+        return with_group(input, cx, labels).map(Stmt::With);
+    }
+    if let Some(label) = labels.first() {
+        return Err(syn::Error::new(
+            label.span(),
+            format!("expected `spawn` or `with` after the label `{label}:`"),
+        ));
+    }
+    if input.peek(Token![let]) {
+        if let Some(binding) = let_spawn(input)? {
+            return spawn(input, cx, Vec::new(), Some(binding)).map(Stmt::Spawn);
+        }
+    }
+    for (keyword, make) in [
+        ("succeed", Stmt::Succeed as fn(Span) -> Stmt),
+        ("bypass", Stmt::Bypass),
+        ("trigger", Stmt::Trigger),
+    ] {
+        if is_bare(cursor, keyword) {
+            let ident = input.call(Ident::parse_any)?;
+            input.parse::<Token![;]>()?;
+            return Ok(make(ident.span()));
+        }
+    }
+    if is_bare(cursor, "fail") || is_keyword_then_ident(cursor, "fail") {
+        return fail(input, cx).map(Stmt::Fail);
+    }
+    if is_constraint_stmt(cursor) {
+        return constraint_stmt(input, cx).map(Stmt::Constrain);
+    }
+    if let Some(it) = control_flow(input, cx)? {
+        return Ok(it);
+    }
+    rust_stmt(input, cx).map(Stmt::Rust)
+}
+
+/// Parses `let pat [: T] =` when a `spawn TASK` follows; otherwise consumes nothing.
+fn let_spawn(input: ParseStream) -> syn::Result<Option<Binding>> {
+    let fork = input.fork();
+    let parsed = (|| -> syn::Result<Binding> {
+        fork.parse::<Token![let]>()?;
+        let pat = fork.call(syn::Pat::parse_single)?;
+        let ty = if fork.peek(Token![:]) {
+            fork.parse::<Token![:]>()?;
+            Some(fork.parse::<Type>()?)
+        } else {
+            None
+        };
+        fork.parse::<Token![=]>()?;
+        Ok(Binding { pat, ty })
+    })();
+    match parsed {
+        Ok(binding) if is_keyword_then_ident(fork.cursor(), "spawn") => {
+            input.advance_to(&fork);
+            Ok(Some(binding))
+        }
+        _ => Ok(None),
+    }
+}
+
+fn spawn(
+    input: ParseStream,
+    cx: &mut Cx,
+    labels: Vec<Ident>,
+    binding: Option<Binding>,
+) -> syn::Result<Spawn> {
+    let keyword = input.call(Ident::parse_any)?;
+    let task: Ident = input.parse()?;
+    let args = call_args(input, cx)?;
+    let mut constraints = Vec::new();
+    if first_ident(input.cursor()).is_some_and(|(word, _)| word == "with") {
+        input.call(Ident::parse_any)?;
+        constraints = parse_constraint_list(input, cx)?;
+        if !input.peek(Token![;]) {
+            return Err(input.error("expected `,` or `;` after a constraint"));
+        }
+    } else if !input.peek(Token![;]) {
+        return Err(input.error("expected `with` or `;` after the spawned task's arguments"));
+    }
+    input.parse::<Token![;]>()?;
+    Ok(Spawn {
+        labels,
+        binding,
+        task,
+        args,
+        constraints,
+        span: keyword.span(),
+    })
+}
+
+fn with_group(input: ParseStream, cx: &mut Cx, labels: Vec<Ident>) -> syn::Result<WithGroup> {
+    let keyword = input.call(Ident::parse_any)?;
+    let group = take_group(input, Delimiter::Parenthesis, "`(`")?;
+    let paren_span = group.span;
+    let constraints = parse_group(group, cx, |input, cx| {
+        if input.is_empty() {
+            return Err(syn::Error::new(
+                paren_span,
+                "expected at least one constraint in `with (...)`",
+            ));
+        }
+        let list = parse_constraint_list(input, cx)?;
+        if !input.is_empty() {
+            return Err(input.error("expected `,` between constraints"));
+        }
+        Ok(list)
+    })?;
+    let body = if input.peek(syn::token::Brace) {
+        parse_block(take_group(input, Delimiter::Brace, "`{`")?, cx)
+    } else {
+        let span = input.span();
+        let single = spawn(input, cx, Vec::new(), None)?;
+        Block {
+            stmts: vec![Stmt::Spawn(single)],
+            span,
+        }
+    };
+    Ok(WithGroup {
+        labels,
+        constraints,
+        body,
+        span: keyword.span(),
+    })
+}
+
+fn fail(input: ParseStream, cx: &mut Cx) -> syn::Result<Fail> {
+    let keyword = input.call(Ident::parse_any)?;
+    let mut exception = None;
+    let mut fields = Vec::new();
+    if !input.peek(Token![;]) {
+        exception = Some(input.parse::<Ident>()?);
+        if input.peek(syn::token::Brace) {
+            let group = take_group(input, Delimiter::Brace, "`{`")?;
+            fields = parse_group(group, cx, |input, _| {
+                let list = Punctuated::<syn::FieldValue, Token![,]>::parse_terminated(input)?;
+                Ok(list.into_iter().collect())
+            })?;
+        }
+        if !input.peek(Token![;]) {
+            return Err(input.error("expected `;` after `fail Exception { ... }`"));
+        }
+    }
+    input.parse::<Token![;]>()?;
+    Ok(Fail {
+        exception,
+        fields,
+        span: keyword.span(),
+    })
+}
+
+fn constraint_stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<ConstraintStmt> {
+    let span = input.span();
+    let tag = parse_tag(input)?;
+    let constraint = parse_constraint(input, cx)?;
+    if !input.peek(Token![;]) {
+        return Err(input
+            .error("expected `;` after the constraint statement (one constraint per statement)"));
+    }
+    input.parse::<Token![;]>()?;
+    Ok(ConstraintStmt {
+        tag,
+        constraint,
+        span,
+    })
+}
+
+/// True when `stmt` is or contains a TDL statement.
+fn has_tdl(stmt: &Stmt) -> bool {
+    fn block(it: &Block) -> bool {
+        it.stmts.iter().any(has_tdl)
+    }
+    fn if_(it: &If) -> bool {
+        block(&it.then_branch)
+            || match it.else_branch.as_deref() {
+                Some(Else::If(it)) => if_(it),
+                Some(Else::Block(it)) => block(it),
+                None => false,
+            }
+    }
+    match stmt {
+        Stmt::Rust(_) => false,
+        Stmt::If(it) => if_(it),
+        Stmt::For(it) => block(&it.body),
+        Stmt::While(it) => block(&it.body),
+        Stmt::Loop(it) => block(&it.body),
+        Stmt::Match(it) => it.arms.iter().any(|arm| block(&arm.body)),
+        Stmt::Block(it) => block(it),
+        _ => true,
+    }
+}
+
+/// Parses `if`/`for`/`while`/`loop`/`match`/`{}` structurally when it contains a TDL statement.
+fn control_flow(input: ParseStream, cx: &mut Cx) -> syn::Result<Option<Stmt>> {
+    let starts = input.peek(Token![if])
+        || input.peek(Token![for])
+        || input.peek(Token![while])
+        || input.peek(Token![loop])
+        || input.peek(Token![match])
+        || input.peek(syn::token::Brace)
+        || (input.peek(syn::Lifetime) && input.peek2(Token![:]));
+    if !starts {
+        return Ok(None);
+    }
+    let mark = cx.diags.len();
+    let fork = input.fork();
+    let parsed = control_flow_structural(&fork, cx);
+    match parsed {
+        Ok(it) if has_tdl(&it) || cx.diags.len() > mark => {
+            if fork.peek(Token![;]) {
+                fork.parse::<Token![;]>()?;
+            }
+            input.advance_to(&fork);
+            Ok(Some(it))
+        }
+        Ok(_) => {
+            cx.diags.truncate(mark);
+            Ok(None)
+        }
+        Err(err) => {
+            cx.diags.truncate(mark);
+            // A condition Rust itself cannot parse: report it from the structural parse.
+            if input.fork().parse::<syn::Stmt>().is_err() {
+                Err(err)
+            } else {
+                Ok(None)
+            }
+        }
+    }
+}
+
+fn block(input: ParseStream, cx: &mut Cx) -> syn::Result<Block> {
+    Ok(parse_block(take_group(input, Delimiter::Brace, "`{`")?, cx))
+}
+
+fn control_flow_structural(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
+    let label = if input.peek(syn::Lifetime) {
+        let label: syn::Lifetime = input.parse()?;
+        input.parse::<Token![:]>()?;
+        Some(label)
+    } else {
+        None
+    };
+    let span = input.span();
+    if input.peek(Token![for]) {
+        input.parse::<Token![for]>()?;
+        let pat = input.call(syn::Pat::parse_multi_with_leading_vert)?;
+        input.parse::<Token![in]>()?;
+        let expr = input.call(syn::Expr::parse_without_eager_brace)?;
+        let body = block(input, cx)?;
+        return Ok(Stmt::For(For {
+            label,
+            pat,
+            expr,
+            body,
+            span,
+        }));
+    }
+    if input.peek(Token![while]) {
+        input.parse::<Token![while]>()?;
+        let cond = input.call(syn::Expr::parse_without_eager_brace)?;
+        let body = block(input, cx)?;
+        return Ok(Stmt::While(While {
+            label,
+            cond,
+            body,
+            span,
+        }));
+    }
+    if input.peek(Token![loop]) {
+        input.parse::<Token![loop]>()?;
+        let body = block(input, cx)?;
+        return Ok(Stmt::Loop(Loop { label, body, span }));
+    }
+    if label.is_some() {
+        return Err(input.error("expected `for`, `while` or `loop` after a loop label"));
+    }
+    if input.peek(Token![if]) {
+        return if_stmt(input, cx).map(Stmt::If);
+    }
+    if input.peek(Token![match]) {
+        return match_stmt(input, cx).map(Stmt::Match);
+    }
+    block(input, cx).map(Stmt::Block)
+}
+
+fn if_stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<If> {
+    let span = input.span();
+    input.parse::<Token![if]>()?;
+    let cond = input.call(syn::Expr::parse_without_eager_brace)?;
+    let then_branch = block(input, cx)?;
+    let else_branch = if input.peek(Token![else]) {
+        input.parse::<Token![else]>()?;
+        if input.peek(Token![if]) {
+            Some(Box::new(Else::If(if_stmt(input, cx)?)))
+        } else {
+            Some(Box::new(Else::Block(block(input, cx)?)))
+        }
+    } else {
+        None
+    };
+    Ok(If {
+        cond,
+        then_branch,
+        else_branch,
+        span,
+    })
+}
+
+fn match_stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Match> {
+    let span = input.span();
+    input.parse::<Token![match]>()?;
+    let expr = input.call(syn::Expr::parse_without_eager_brace)?;
+    let group = take_group(input, Delimiter::Brace, "`{`")?;
+    let arms = parse_group(group, cx, |input, cx| {
+        let mut arms = Vec::new();
+        while !input.is_empty() {
+            arms.push(arm(input, cx)?);
+        }
+        Ok(arms)
+    })?;
+    Ok(Match { expr, arms, span })
+}
+
+fn arm(input: ParseStream, cx: &mut Cx) -> syn::Result<Arm> {
+    let _attrs = input.call(syn::Attribute::parse_outer)?;
+    let pat = input.call(syn::Pat::parse_multi_with_leading_vert)?;
+    let guard = if input.peek(Token![if]) {
+        input.parse::<Token![if]>()?;
+        Some(input.parse::<syn::Expr>()?)
+    } else {
+        None
+    };
+    input.parse::<Token![=>]>()?;
+    if is_keyword_then_ident(input.cursor(), "spawn") {
+        cx.hint = Some("write `pat => { spawn task(args); }`");
+        return Err(input.error("a spawn in a match arm needs braces"));
+    }
+    let body = if input.peek(syn::token::Brace) {
+        let body = block(input, cx)?;
+        if input.peek(Token![,]) {
+            input.parse::<Token![,]>()?;
+        }
+        body
+    } else {
+        let span = input.span();
+        let fork = input.fork();
+        fork.parse::<syn::Expr>()?;
+        let tokens = tokens_between(input.cursor(), fork.cursor());
+        input.advance_to(&fork);
+        if !input.is_empty() {
+            input.parse::<Token![,]>()?;
+        }
+        Block {
+            stmts: vec![Stmt::Rust(RustStmt { tokens, span })],
+            span,
+        }
+    };
+    Ok(Arm { pat, guard, body })
+}
+
+/// The tokens from `start` up to (not including) `end`, which must come after `start` in the
+/// same buffer.
+fn tokens_between(start: Cursor<'_>, end: Cursor<'_>) -> TokenStream {
+    let mut out = TokenStream::new();
+    let mut cursor = start;
+    while cursor != end {
+        let Some((tt, rest)) = cursor.token_tree() else {
+            break;
+        };
+        out.extend([tt]);
+        cursor = rest;
+    }
+    out
+}
+
+/// Finds `spawn IDENT` anywhere in `tokens`: a spawn hidden in a Rust expression.
+fn find_spawn(tokens: TokenStream) -> Option<Span> {
+    let mut prev_spawn: Option<Span> = None;
+    for tt in tokens {
+        match &tt {
+            TokenTree::Ident(ident) => {
+                if prev_spawn.is_some() {
+                    return prev_spawn;
+                }
+                prev_spawn = (ident == "spawn").then(|| ident.span());
+            }
+            TokenTree::Group(group) => {
+                if let Some(span) = find_spawn(group.stream()) {
+                    return Some(span);
+                }
+                prev_spawn = None;
+            }
+            TokenTree::Punct(_) | TokenTree::Literal(_) => prev_spawn = None,
+        }
+    }
+    None
+}
+
+/// The tokens from the cursor up to the next `;` at this level.
+fn tokens_to_semicolon(mut cursor: Cursor<'_>) -> TokenStream {
+    let mut out = TokenStream::new();
+    while let Some((tt, rest)) = cursor.token_tree() {
+        if matches!(&tt, TokenTree::Punct(p) if p.as_char() == ';') {
+            break;
+        }
+        out.extend([tt]);
+        cursor = rest;
+    }
+    out
+}
+
+/// Parses one Rust statement (or a tail expression) and keeps its tokens.
+fn rust_stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<RustStmt> {
+    let span = input.span();
+    let fork = input.fork();
+    if let Err(err) = fork.parse::<syn::Stmt>() {
+        if let Some(spawn) = find_spawn(tokens_to_semicolon(input.cursor())) {
+            cx.hint = Some(
+                "make the spawn a statement of its own; a waited spawn that yields the child's \
+                 result reads `let v = spawn task(args) with wait;`",
+            );
+            return Err(syn::Error::new(
+                spawn,
+                "`spawn` inside a Rust expression is not supported",
+            ));
+        }
+        let tail = input.fork();
+        if tail.parse::<syn::Expr>().is_err() || !tail.is_empty() {
+            return Err(err);
+        }
+        let tokens = tokens_between(input.cursor(), tail.cursor());
+        input.advance_to(&tail);
+        return Ok(RustStmt { tokens, span });
+    }
+    let tokens = tokens_between(input.cursor(), fork.cursor());
+    input.advance_to(&fork);
+    Ok(RustStmt { tokens, span })
+}

@@ -1,0 +1,120 @@
+//! The public entry points: `parse_str`, `parse_tokens`, rendering, and the AST shape a code
+//! generator relies on.
+
+use std::str::FromStr;
+
+use tdl_syntax::{ConstraintKind, Facet, Item, RelTime, Severity, Stmt, TagKind};
+
+#[test]
+fn renders_file_line_column_source_caret_and_hint() {
+    let src = "goal g() {\n    spawn a() with on robot2;\n}\n";
+    let parse = tdl_syntax::parse_str("robot.tdl", src);
+    let text = parse.render("robot.tdl", Some(src));
+    assert_eq!(
+        text,
+        "robot.tdl:2:20: error: distributed agents are not supported yet\n  |\n2 |     spawn a() with on robot2;\n  |                    ^^\n  = help: remove `on ...`: every task runs in this process until distributed agents exist\n"
+    );
+    let diag = &parse.diagnostics[0];
+    assert_eq!(
+        (diag.line(), diag.column(), diag.severity()),
+        (2, 20, Severity::Error)
+    );
+}
+
+#[test]
+fn parse_tokens_matches_parse_str() {
+    let src = "goal g() { t1: spawn a() with wait; spawn b() with serial t2; }";
+    let tokens = proc_macro2::TokenStream::from_str(src).expect("valid tokens");
+    let from_tokens = tdl_syntax::parse_tokens(tokens);
+    let from_str = tdl_syntax::parse_str("g.tdl", src);
+    assert_eq!(
+        tdl_syntax::dump(&from_tokens.file),
+        tdl_syntax::dump(&from_str.file)
+    );
+    let messages: Vec<&str> = from_tokens
+        .diagnostics
+        .iter()
+        .map(|it| it.message())
+        .collect();
+    assert_eq!(messages, ["unknown tag `t2`"]);
+}
+
+#[test]
+fn lexer_errors_become_diagnostics() {
+    let parse = tdl_syntax::parse_str("bad.tdl", "goal g() {\n    spawn a(\"oops);\n}\n");
+    assert!(parse.has_errors());
+    assert!(
+        parse.diagnostics[0]
+            .message()
+            .starts_with("cannot read the input as Rust tokens")
+    );
+    assert_eq!(parse.diagnostics[0].line(), 2);
+}
+
+#[test]
+fn one_mistake_per_statement_and_parsing_goes_on() {
+    let src = "goal g() {\n    spawn a() with bogus;\n    spawn b() with wait wait;\n    spawn c();\n}\ngoal h() { spawn d(); }\n";
+    let parse = tdl_syntax::parse_str("g.tdl", src);
+    let lines: Vec<usize> = parse.diagnostics.iter().map(|it| it.line()).collect();
+    assert_eq!(lines, [2, 3]);
+    assert_eq!(parse.file.items.len(), 2);
+    let Item::Task(g) = &parse.file.items[0] else {
+        panic!("expected a task")
+    };
+    assert_eq!(g.body.stmts.len(), 1, "the good spawn is kept");
+}
+
+#[test]
+fn joined_keywords_and_synonyms_give_the_same_tree() {
+    let spelled = tdl_syntax::parse_str(
+        "a.tdl",
+        "goal g() { spawn a(); spawn b() with sequential expansion a, disable execution until a execution completed, terminate at a completed; }",
+    );
+    let joined = tdl_syntax::parse_str(
+        "b.tdl",
+        "goal g() { spawn a(); spawn b() with SEQUENTIAL_PLANNING a, disable_achievement_until a achievement_completed, terminateAt a completed; }",
+    );
+    assert!(spelled.diagnostics.is_empty() && joined.diagnostics.is_empty());
+    assert_eq!(
+        tdl_syntax::dump(&spelled.file),
+        tdl_syntax::dump(&joined.file)
+    );
+    let Item::Task(task) = &joined.file.items[0] else {
+        panic!("expected a task")
+    };
+    let Stmt::Spawn(spawn) = &task.body.stmts[1] else {
+        panic!("expected a spawn")
+    };
+    let ConstraintKind::Sequential {
+        facet,
+        tag: Some(tag),
+    } = &spawn.constraints[0].kind
+    else {
+        panic!("expected sequential")
+    };
+    assert_eq!(*facet, Facet::Expansion);
+    assert!(matches!(&tag.kind, TagKind::Named { name, .. } if name == "a"));
+}
+
+#[test]
+fn waited_spawn_binds_the_result_and_times_are_nanos() {
+    let parse = tdl_syntax::parse_str(
+        "a.tdl",
+        "goal g() { let (l, r): (i32, i32) = spawn look() with wait, terminate in 1.5s; }",
+    );
+    assert!(parse.diagnostics.is_empty());
+    let Item::Task(task) = &parse.file.items[0] else {
+        panic!("expected a task")
+    };
+    let Stmt::Spawn(spawn) = &task.body.stmts[0] else {
+        panic!("expected a spawn")
+    };
+    assert!(spawn.binding.as_ref().is_some_and(|it| it.ty.is_some()));
+    assert!(matches!(
+        spawn.constraints[1].kind,
+        ConstraintKind::TerminateIn {
+            delay: RelTime::Nanos(1_500_000_000),
+            after: None
+        }
+    ));
+}
