@@ -7,8 +7,8 @@ use crate::task::{Action, Task, Value};
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::{
-    Constraint, Event, ExternalId, Facet, NodeId, NodeRef, OnTerminate, Point, Spawn,
-    TerminateWhen, Until, WatchOutcome, WatchToken,
+    Constraint, Event, ExternalId, Facet, NodeId, NodeRef, Point, Spawn, TerminateWhen, Until,
+    WatchOutcome, WatchToken,
 };
 use tokio::sync::oneshot;
 
@@ -30,11 +30,19 @@ impl Ctx {
         self.shared.now().since_start()
     }
 
+    /// The engine time of the next occurrence of a time of day (`secs` since midnight, UTC), for
+    /// `disable until` / `terminate at` an absolute time (decision 4: resolved against the wall clock
+    /// now; a time already past today is due at once).
+    pub fn time_of_day(&self, secs: f64) -> tcm_core::Time {
+        self.shared.time_of_day(secs)
+    }
+
     /// Starts building a spawn of `task` as a child of this node.
     pub fn spawn(&self, task: Task) -> Spawner<'_> {
-        let mut spec = Spawn::new(self.node, task.kind, task.name, task.action);
-        spec.constraints = task.constraints;
-        Spawner { ctx: self, spec }
+        Spawner {
+            ctx: self,
+            spec: task.into_spawn(self.node),
+        }
     }
 
     /// Reserves a child for a later spawn, so constraints can name it now (a forward reference).
@@ -186,11 +194,7 @@ impl Spawner<'_> {
     /// `on terminate spawn <task>`: run `task` as a child if this node is terminated while its action
     /// runs; it runs to completion.
     pub fn on_terminate(mut self, task: Task) -> Self {
-        self.spec.on_terminate.push(OnTerminate {
-            kind: task.kind,
-            name: task.name,
-            action: task.action,
-        });
+        self.spec.on_terminate.push(task.into_cleanup());
         self
     }
 

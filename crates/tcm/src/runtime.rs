@@ -19,8 +19,8 @@ use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 use tcm_core::{
-    Blocked, Effect, Engine, Event, Failure, FailurePolicy, FatalFailure, NodeId, Spawn, Stats,
-    Time, WatchOutcome, WatchToken,
+    Blocked, Effect, Engine, Event, Failure, FailurePolicy, FatalFailure, NodeId, Stats, Time,
+    WatchOutcome, WatchToken,
 };
 use tcm_trace::{Facet, Point};
 use tokio::sync::{Notify, oneshot};
@@ -54,6 +54,8 @@ pub(crate) struct Shared {
     pub(crate) inner: Mutex<Inner>,
     pub(crate) wake: Notify,
     start: tokio::time::Instant,
+    // The wall clock when the run's time zero was taken, for times of day.
+    wall_start: std::time::SystemTime,
     handles: AtomicUsize,
 }
 
@@ -62,6 +64,21 @@ impl Shared {
     pub(crate) fn now(&self) -> Time {
         let d = tokio::time::Instant::now().saturating_duration_since(self.start);
         Time::from_nanos(u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+    }
+}
+
+impl Shared {
+    /// See [`Ctx::time_of_day`].
+    pub(crate) fn time_of_day(&self, secs: f64) -> Time {
+        const DAY: f64 = 86_400.0;
+        let now = self.now();
+        let wall = self.wall_start + now.since_start();
+        let since_epoch = wall
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let today = since_epoch - since_epoch.rem_euclid(DAY);
+        let ahead = (today + secs.clamp(0.0, DAY) - since_epoch).max(0.0);
+        now + Duration::from_secs_f64(ahead)
     }
 }
 
@@ -276,6 +293,7 @@ impl Runtime {
                 }),
                 wake: Notify::new(),
                 start: tokio::time::Instant::now(),
+                wall_start: std::time::SystemTime::now(),
                 handles: AtomicUsize::new(0),
             }),
             sinks: Vec::new(),
@@ -315,9 +333,7 @@ impl Runtime {
             inner.engine.set_tracing(!self.sinks.is_empty());
             let now = shared.now();
             let root = inner.engine.root();
-            let mut spec = Spawn::new(root, task.kind, task.name, task.action);
-            spec.constraints = task.constraints;
-            let top = inner.engine.spawn(now, spec)?;
+            let top = inner.engine.spawn(now, task.into_spawn(root))?;
             inner.engine.watch(
                 now,
                 Event::on(top, Facet::Execution, Point::Completed),

@@ -4,7 +4,7 @@ use crate::ctx::Ctx;
 use std::any::Any;
 use std::future::Future;
 use std::pin::Pin;
-use tcm_core::{Constraint, Failure, Name, NodeKind};
+use tcm_core::{Constraint, Failure, Name, NodeId, NodeKind, OnTerminate, Spawn};
 
 /// A value an action returns, handed to whoever waits for the node ([`crate::Spawner::wait_value`]).
 pub type Value = Box<dyn Any + Send>;
@@ -21,6 +21,7 @@ pub struct Task {
     pub(crate) name: Name,
     pub(crate) action: Action,
     pub(crate) constraints: Vec<Constraint>,
+    pub(crate) on_terminate: Vec<Task>,
 }
 
 impl Task {
@@ -38,6 +39,7 @@ impl Task {
                 Box::pin(async move { f(ctx).await.map(|v| Box::new(v) as Value) })
             }),
             constraints: Vec::new(),
+            on_terminate: Vec::new(),
         }
     }
 
@@ -76,6 +78,33 @@ impl Task {
     pub fn with(mut self, c: Constraint) -> Task {
         self.constraints.push(c);
         self
+    }
+
+    /// Adds a task-level `on terminate` task: spawned as a child if a node of this task is terminated
+    /// while its action runs; it runs to completion.
+    pub fn on_terminate(mut self, cleanup: Task) -> Task {
+        self.on_terminate.push(cleanup);
+        self
+    }
+
+    /// The engine's spawn request for this task under `parent`.
+    pub(crate) fn into_spawn(self, parent: NodeId) -> Spawn<Action> {
+        let mut spec = Spawn::new(parent, self.kind, self.name, self.action);
+        spec.constraints = self.constraints;
+        spec.on_terminate = self
+            .on_terminate
+            .into_iter()
+            .map(Task::into_cleanup)
+            .collect();
+        spec
+    }
+
+    pub(crate) fn into_cleanup(self) -> OnTerminate<Action> {
+        OnTerminate {
+            kind: self.kind,
+            name: self.name,
+            action: self.action,
+        }
     }
 
     /// Renames the instance (TDL's `name` constraint).
