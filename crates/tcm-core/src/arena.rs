@@ -18,9 +18,9 @@ pub(crate) enum Fate {
     Dead,
 }
 
-struct Slot<A> {
+struct Slot<A, F> {
     generation: u32,
-    node: Option<Node<A>>,
+    node: Option<Node<A, F>>,
     // Invariant: meaningful only while `node` is None and generation > 0.
     fate: Fate,
 }
@@ -33,16 +33,16 @@ pub(crate) enum Lookup {
     Gone(Fate),
 }
 
-pub(crate) struct Arena<A> {
+pub(crate) struct Arena<A, F> {
     run: u32,
-    slots: Vec<Slot<A>>,
+    slots: Vec<Slot<A, F>>,
     free: Vec<u32>,
     live: usize,
     high_water: usize,
 }
 
-impl<A> Arena<A> {
-    pub(crate) fn new(run: u32) -> Arena<A> {
+impl<A, F> Arena<A, F> {
+    pub(crate) fn new(run: u32) -> Arena<A, F> {
         Arena {
             run,
             slots: Vec::new(),
@@ -52,7 +52,7 @@ impl<A> Arena<A> {
         }
     }
 
-    pub(crate) fn insert(&mut self, node: Node<A>) -> NodeId {
+    pub(crate) fn insert(&mut self, node: Node<A, F>) -> NodeId {
         self.live += 1;
         self.high_water = self.high_water.max(self.live);
         if let Some(idx) = self.free.pop() {
@@ -79,7 +79,7 @@ impl<A> Arena<A> {
         }
     }
 
-    pub(crate) fn remove(&mut self, id: NodeId, fate: Fate) -> Option<Node<A>> {
+    pub(crate) fn remove(&mut self, id: NodeId, fate: Fate) -> Option<Node<A, F>> {
         let slot = self.slots.get_mut(id.idx as usize)?;
         if slot.generation != id.generation {
             return None;
@@ -91,7 +91,7 @@ impl<A> Arena<A> {
         Some(node)
     }
 
-    pub(crate) fn get(&self, id: NodeId) -> Option<&Node<A>> {
+    pub(crate) fn get(&self, id: NodeId) -> Option<&Node<A, F>> {
         let slot = self.slots.get(id.idx as usize)?;
         if slot.generation != id.generation {
             return None;
@@ -99,7 +99,7 @@ impl<A> Arena<A> {
         slot.node.as_ref()
     }
 
-    pub(crate) fn get_mut(&mut self, id: NodeId) -> Option<&mut Node<A>> {
+    pub(crate) fn get_mut(&mut self, id: NodeId) -> Option<&mut Node<A, F>> {
         let slot = self.slots.get_mut(id.idx as usize)?;
         if slot.generation != id.generation {
             return None;
@@ -127,7 +127,7 @@ impl<A> Arena<A> {
         self.high_water
     }
 
-    pub(crate) fn iter(&self) -> impl Iterator<Item = (NodeId, &Node<A>)> {
+    pub(crate) fn iter(&self) -> impl Iterator<Item = (NodeId, &Node<A, F>)> {
         let run = self.run;
         self.slots
             .iter()

@@ -101,6 +101,23 @@ pub enum TerminateWhen {
     External(ExternalId),
 }
 
+/// When an `activate` constraint activates a monitor (catalogue §1.4, monitors only).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ActivateWhen {
+    /// As soon as the monitor's handling is active.
+    Now,
+    /// When an event happens (also when its node reached it by being terminated).
+    Event(Event),
+    /// At an absolute time.
+    Time(Time),
+    /// A duration from when the constraint is applied.
+    In(Duration),
+    /// A duration after an event happens.
+    InAfter(Duration, Event),
+    /// Every time a named external event is raised.
+    External(ExternalId),
+}
+
 /// A synchronisation constraint on one node.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Constraint {
@@ -118,6 +135,8 @@ pub enum Constraint {
     Disable(Facet, Until),
     /// `terminate …`.
     Terminate(TerminateWhen),
+    /// `activate …` (monitors only).
+    Activate(ActivateWhen),
 }
 
 impl Constraint {
@@ -128,6 +147,9 @@ impl Constraint {
 
     /// Whether this constraint may still be applied to a node whose handling has started.
     pub fn applies_after_start(&self) -> bool {
-        matches!(self, Constraint::Terminate(_) | Constraint::Parallel)
+        matches!(
+            self,
+            Constraint::Terminate(_) | Constraint::Activate(_) | Constraint::Parallel
+        )
     }
 }

@@ -4,16 +4,46 @@
 //! ancestors (for handler matching, exceptions issue) and a message. The shell keeps the typed value.
 
 use crate::Name;
+use std::any::Any;
 use std::fmt;
+use std::sync::Arc;
 
 /// Why an action failed.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone)]
 pub struct Failure {
     /// The exception's type name, e.g. `NoPath`.
     pub exception: Name,
     /// A human-readable description.
     pub message: String,
+    /// The exception type's ancestors, nearest first (`EngineOnFire` : `EngineFailure` :
+    /// `HardwareFailure` gives `["EngineFailure", "HardwareFailure"]`): a handler of any of them
+    /// takes this failure.
+    pub ancestry: Vec<Name>,
+    /// The exception value itself, for handlers to read (the core never looks inside).
+    pub data: Option<Arc<dyn Any + Send + Sync>>,
 }
+
+impl fmt::Debug for Failure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Failure")
+            .field("exception", &self.exception)
+            .field("message", &self.message)
+            .field("ancestry", &self.ancestry)
+            .field("data", &self.data.as_ref().map(|_| ".."))
+            .finish()
+    }
+}
+
+/// Failures compare by type, message and ancestry; the carried value is not compared.
+impl PartialEq for Failure {
+    fn eq(&self, other: &Failure) -> bool {
+        self.exception == other.exception
+            && self.message == other.message
+            && self.ancestry == other.ancestry
+    }
+}
+
+impl Eq for Failure {}
 
 impl Failure {
     /// A failure of the given exception type.
@@ -21,7 +51,25 @@ impl Failure {
         Failure {
             exception: exception.into(),
             message: message.into(),
+            ancestry: Vec::new(),
+            data: None,
         }
+    }
+
+    /// The carried exception value, if it is an `E`.
+    pub fn data<E: Any + Send + Sync>(&self) -> Option<Arc<E>> {
+        self.data.clone().and_then(|d| d.downcast::<E>().ok())
+    }
+
+    /// Sets the exception type's ancestors, nearest first.
+    pub fn with_ancestry(mut self, ancestry: Vec<Name>) -> Failure {
+        self.ancestry = ancestry;
+        self
+    }
+
+    /// Whether this failure is of exception type `name` or of a type derived from it.
+    pub fn is_a(&self, name: &str) -> bool {
+        self.exception == name || self.ancestry.iter().any(|a| a == name)
     }
 }
 
@@ -62,12 +110,19 @@ impl fmt::Display for FatalFailure {
     }
 }
 
-impl<E: std::error::Error + 'static> From<E> for Failure {
-    /// Any error fails the action with an exception named after the error's type, so `?` works in
-    /// action bodies.
+/// The short name of a type: `NoPath` for `robot::errors::NoPath`.
+pub fn short_type_name<T: ?Sized>() -> &'static str {
+    let full = std::any::type_name::<T>();
+    let base = full.split('<').next().unwrap_or(full);
+    base.rsplit("::").next().unwrap_or(base)
+}
+
+impl<E: std::error::Error + Send + Sync + 'static> From<E> for Failure {
+    /// Any error fails the action with an exception named after the error's type and carrying the
+    /// error, so `?` works in action bodies.
     fn from(e: E) -> Failure {
-        let full = std::any::type_name::<E>();
-        let short = full.rsplit("::").next().unwrap_or(full);
-        Failure::new(short.to_string(), e.to_string())
+        let mut f = Failure::new(short_type_name::<E>(), e.to_string());
+        f.data = Some(Arc::new(e));
+        f
     }
 }

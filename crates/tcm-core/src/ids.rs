@@ -35,3 +35,16 @@ pub struct ExternalId(pub(crate) u32);
 /// A token the shell chooses when it asks to be told about an event (`Engine::watch`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct WatchToken(pub u64);
+
+/// A wiretap registered with `Engine::wiretap`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct WiretapId(pub(crate) u32);
+
+/// When a wiretap runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum TapWhen {
+    /// When a tapped node is about to start its action: a failing check fails the node instead.
+    Before,
+    /// When a tapped node's action returned successfully: a failing check fails the node.
+    After,
+}

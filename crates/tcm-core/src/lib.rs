@@ -42,12 +42,13 @@ mod time;
 #[cfg(test)]
 mod tests;
 
-pub use constraint::{Constraint, Event, NodeRef, TerminateWhen, Until};
+pub use constraint::{ActivateWhen, Constraint, Event, NodeRef, TerminateWhen, Until};
 pub use engine::{
-    Blocked, Effect, Engine, EngineError, NodeInfo, OnTerminate, Spawn, Stats, WatchOutcome,
+    Blocked, EachActivation, Effect, Engine, EngineError, HandlerSpec, MonitorSpec, NodeInfo,
+    OnTerminate, Purpose, Spawn, Stats, WatchOutcome,
 };
-pub use failure::{Failure, FailurePolicy, FatalFailure};
-pub use ids::{ExternalId, NodeId, WatchToken};
+pub use failure::{Failure, FailurePolicy, FatalFailure, short_type_name};
+pub use ids::{ExternalId, NodeId, TapWhen, WatchToken, WiretapId};
 pub use tcm_trace::{Facet, NodeKind, Point, State, Termination};
 pub use time::Time;
 

@@ -2,12 +2,14 @@
 //!
 //! Each action is a [`Body`]: a closure called when the node starts, with the engine (to spawn
 //! children, add constraints, terminate nodes) and the node, returning when and how the action
-//! ends. [`Sim::run`] then plays the agenda: it starts actions, finishes them at their time, fires
+//! ends. Monitor bodies, exception handlers, retries and wiretaps are [`Factory`]s, called once per
+//! use. [`Sim::run`] then plays the agenda: it starts actions, finishes them at their time, fires
 //! timers, and collects the trace. Used by this crate's tests, property tests and benchmarks; the
 //! tokio shell in `tcm` does the same with real async actions.
 
-use crate::{Effect, Engine, Failure, NodeId, Time, WatchOutcome, WatchToken};
+use crate::{Effect, Engine, Failure, NodeId, Purpose, Time, WatchOutcome, WatchToken, WiretapId};
 use std::collections::BTreeMap;
+use std::rc::Rc;
 use std::time::Duration;
 use tcm_trace::TraceEvent;
 
@@ -15,6 +17,8 @@ use tcm_trace::TraceEvent;
 pub enum Outcome {
     /// It ends after this long, with this result.
     After(Duration, Result<(), Failure>),
+    /// A handler passes its exception on after this long.
+    Bypass(Duration),
     /// It never ends by itself (only termination stops it).
     Never,
 }
@@ -29,17 +33,44 @@ impl Outcome {
     pub fn after(d: Duration) -> Outcome {
         Outcome::After(d, Ok(()))
     }
+
+    /// Fails after `d` with an exception of type `exception`.
+    pub fn fail(d: Duration, exception: &'static str) -> Outcome {
+        Outcome::After(d, Err(Failure::new(exception, "scripted failure")))
+    }
 }
 
+/// The engine as the simulator drives it.
+pub type SimEngine = Engine<Body, Factory>;
+
 /// The closure of a scripted action.
-type BodyFn = dyn FnOnce(&mut Engine<Body>, NodeId, Time) -> Outcome;
+type BodyFn = dyn FnOnce(&mut SimEngine, NodeId, Time) -> Outcome;
 
 /// A scripted action.
 pub struct Body(Box<BodyFn>);
 
+/// The closure of a factory: called with the node it runs for and why.
+type FactoryFn = dyn Fn(&mut SimEngine, NodeId, Time, &Purpose) -> Outcome;
+
+/// A reusable scripted action: a monitor body, a handler, a retry, a wiretap check.
+#[derive(Clone)]
+pub struct Factory(Rc<FactoryFn>);
+
+impl Factory {
+    /// Calls the factory, as the simulator does for an invocation.
+    pub fn call(&self, e: &mut SimEngine, node: NodeId, now: Time, purpose: &Purpose) -> Outcome {
+        (self.0)(e, node, now, purpose)
+    }
+}
+
 /// Wraps a closure as a [`Body`].
-pub fn body(f: impl FnOnce(&mut Engine<Body>, NodeId, Time) -> Outcome + 'static) -> Body {
+pub fn body(f: impl FnOnce(&mut SimEngine, NodeId, Time) -> Outcome + 'static) -> Body {
     Body(Box::new(f))
+}
+
+/// Wraps a closure as a [`Factory`].
+pub fn factory(f: impl Fn(&mut SimEngine, NodeId, Time, &Purpose) -> Outcome + 'static) -> Factory {
+    Factory(Rc::new(f))
 }
 
 /// An action that succeeds after `d`.
@@ -52,12 +83,21 @@ pub fn noop() -> Body {
     body(|_, _, _| Outcome::done())
 }
 
+enum Finish {
+    Action(NodeId, Result<(), Failure>),
+    Bypass(NodeId),
+    Tap(NodeId, WiretapId, Result<(), Failure>),
+}
+
+/// Called for each watch notification, with the engine, so a "waiting" body can continue.
+pub type NotifyHook = Box<dyn FnMut(&mut SimEngine, WatchToken, &WatchOutcome, Time)>;
+
 /// The driver.
 pub struct Sim {
     /// The engine under test.
-    pub engine: Engine<Body>,
+    pub engine: SimEngine,
     now: Time,
-    pending: BTreeMap<(Time, u64), (NodeId, Result<(), Failure>)>,
+    pending: BTreeMap<(Time, u64), Finish>,
     by_node: BTreeMap<NodeId, (Time, u64)>,
     seq: u64,
     trace: Vec<TraceEvent>,
@@ -65,9 +105,6 @@ pub struct Sim {
     keep_trace: bool,
     on_notify: Option<NotifyHook>,
 }
-
-/// Called for each watch notification, with the engine, so a "waiting" body can continue.
-pub type NotifyHook = Box<dyn FnMut(&mut Engine<Body>, WatchToken, &WatchOutcome, Time)>;
 
 impl Default for Sim {
     fn default() -> Self {
@@ -101,7 +138,7 @@ impl Sim {
     /// Calls `hook` on every watch notification (the continuation of a waiting body).
     pub fn on_notify(
         mut self,
-        hook: impl FnMut(&mut Engine<Body>, WatchToken, &WatchOutcome, Time) + 'static,
+        hook: impl FnMut(&mut SimEngine, WatchToken, &WatchOutcome, Time) + 'static,
     ) -> Sim {
         self.on_notify = Some(Box::new(hook));
         self
@@ -120,6 +157,15 @@ impl Sim {
     /// Watch notifications received so far.
     pub fn notes(&self) -> &[(WatchToken, WatchOutcome)] {
         &self.notes
+    }
+
+    fn schedule(&mut self, d: Duration, finish: Finish, cancellable: Option<NodeId>) {
+        let key = (self.now + d, self.seq);
+        self.seq += 1;
+        self.pending.insert(key, finish);
+        if let Some(node) = cancellable {
+            self.by_node.insert(node, key);
+        }
     }
 
     fn drain(&mut self) {
@@ -147,35 +193,55 @@ impl Sim {
         }
     }
 
-    fn apply(&mut self, effect: Effect<Body>, cancelled: &[NodeId]) {
-        {
-            match effect {
-                Effect::Start { node, .. } if cancelled.contains(&node) => {}
-                Effect::Start { node, action } => {
-                    match (action.0)(&mut self.engine, node, self.now) {
-                        Outcome::After(d, res) => {
-                            let key = (self.now + d, self.seq);
-                            self.seq += 1;
-                            self.pending.insert(key, (node, res));
-                            self.by_node.insert(node, key);
-                        }
-                        Outcome::Never => {}
-                    }
-                }
-                Effect::Cancel { node } => {
-                    if let Some(key) = self.by_node.remove(&node) {
-                        self.pending.remove(&key);
-                    }
-                }
-                Effect::Notify { token, outcome } => {
-                    if let Some(hook) = self.on_notify.as_mut() {
-                        hook(&mut self.engine, token, &outcome, self.now);
-                    }
-                    if self.keep_trace {
-                        self.notes.push((token, outcome));
-                    }
+    fn apply(&mut self, effect: Effect<Body, Factory>, cancelled: &[NodeId]) {
+        match effect {
+            Effect::Start { node, .. } | Effect::Invoke { node, .. }
+                if cancelled.contains(&node) => {}
+            Effect::Start { node, action } => {
+                let outcome = (action.0)(&mut self.engine, node, self.now);
+                self.outcome(node, outcome, None);
+            }
+            Effect::Invoke {
+                node,
+                body,
+                purpose,
+            } => {
+                let outcome = (body.0)(&mut self.engine, node, self.now, &purpose);
+                let tap = match purpose {
+                    Purpose::Tap { tap, .. } => Some(tap),
+                    _ => None,
+                };
+                self.outcome(node, outcome, tap);
+            }
+            Effect::Cancel { node } => {
+                if let Some(key) = self.by_node.remove(&node) {
+                    self.pending.remove(&key);
                 }
             }
+            Effect::Notify { token, outcome } => {
+                if let Some(hook) = self.on_notify.as_mut() {
+                    hook(&mut self.engine, token, &outcome, self.now);
+                }
+                if self.keep_trace {
+                    self.notes.push((token, outcome));
+                }
+            }
+        }
+    }
+
+    fn outcome(&mut self, node: NodeId, outcome: Outcome, tap: Option<WiretapId>) {
+        match (outcome, tap) {
+            (Outcome::Never, _) => {}
+            (Outcome::After(d, res), Some(tap)) => {
+                self.schedule(d, Finish::Tap(node, tap, res), None);
+            }
+            (Outcome::Bypass(_), Some(tap)) => {
+                self.schedule(Duration::ZERO, Finish::Tap(node, tap, Ok(())), None)
+            }
+            (Outcome::After(d, res), None) => {
+                self.schedule(d, Finish::Action(node, res), Some(node))
+            }
+            (Outcome::Bypass(d), None) => self.schedule(d, Finish::Bypass(node), Some(node)),
         }
     }
 
@@ -197,10 +263,21 @@ impl Sim {
             }
             self.now = next;
             if next_action == Some(next) {
-                if let Some(((_, _), (node, res))) = self.pending.pop_first() {
-                    self.by_node.remove(&node);
+                if let Some((_, finish)) = self.pending.pop_first() {
                     // The node may have been terminated meanwhile; the engine ignores it then.
-                    let _ = self.engine.action_finished(self.now, node, res);
+                    let _ = match finish {
+                        Finish::Action(node, res) => {
+                            self.by_node.remove(&node);
+                            self.engine.action_finished(self.now, node, res)
+                        }
+                        Finish::Bypass(node) => {
+                            self.by_node.remove(&node);
+                            self.engine.bypass(self.now, node)
+                        }
+                        Finish::Tap(node, tap, res) => {
+                            self.engine.tap_finished(self.now, node, tap, res)
+                        }
+                    };
                 }
             } else {
                 self.engine.handle_timeout(self.now);

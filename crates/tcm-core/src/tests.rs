@@ -3,7 +3,7 @@
 //! Each test builds a small tree with scripted actions, runs it, and asserts on the order of the
 //! trace, rendered compactly by [`story`]: one line per transition, `<seconds> <name> <what>`.
 
-use crate::sim::{Body, Outcome, Sim, body, noop, takes};
+use crate::sim::{Body, Outcome, Sim, SimEngine, body, noop, takes};
 use crate::*;
 use std::collections::BTreeMap;
 use std::time::Duration;
@@ -70,7 +70,7 @@ fn assert_order(lines: &[String], needles: &[&str]) {
 }
 
 fn cmd(
-    e: &mut Engine<Body>,
+    e: &mut SimEngine,
     parent: NodeId,
     name: &'static str,
     b: Body,
@@ -82,7 +82,7 @@ fn cmd(
 }
 
 fn goal(
-    e: &mut Engine<Body>,
+    e: &mut SimEngine,
     parent: NodeId,
     name: &'static str,
     b: Body,
@@ -1001,4 +1001,23 @@ fn a_million_waited_children_keep_the_tree_small() {
         stats.high_water
     );
     assert_eq!(stats.created, N + 1);
+}
+
+mod exceptions;
+mod monitors;
+
+/// Asserts the trace passes the trace checker, which looked at something.
+#[track_caller]
+fn assert_checked(trace: &[TraceEvent]) {
+    match tcm_trace::check(trace) {
+        Ok(r) => assert!(r.n_transitions > 0),
+        Err(v) => {
+            let v: Vec<String> = v.iter().map(ToString::to_string).collect();
+            panic!(
+                "trace checker:\n{}\nstory:\n{}",
+                v.join("\n"),
+                story(trace).join("\n")
+            );
+        }
+    }
 }

@@ -119,6 +119,17 @@ pub enum Rule {
     /// Not terminating by the end of the records at the time the external event was raised (at once if
     /// it had been raised before the constraint was applied).
     TerminateAtExternal,
+    /// A monitor activation while the monitor's handling is not active (or it is terminating), out of
+    /// sequence, past its maximum, or not under its monitor.
+    Activation,
+    /// A monitor's handling completed before reaching its maximum activations or triggers, while it was
+    /// not terminating.
+    MonitorComplete,
+    /// A handler was chosen for a node that did not fail, or its node is not under the failing node
+    /// (or under a bypassing handler node).
+    Handler,
+    /// A retry not under a handler node, or a bypass from a node that is not a handler node.
+    Retry,
 }
 
 impl Rule {
@@ -163,6 +174,10 @@ impl Rule {
             Rule::TerminateAtTime => "terminate-at-time",
             Rule::TerminateInAfter => "terminate-in-after",
             Rule::TerminateAtExternal => "terminate-at-external",
+            Rule::Activation => "activation",
+            Rule::MonitorComplete => "monitor-complete",
+            Rule::Handler => "handler",
+            Rule::Retry => "retry",
         }
     }
 }
@@ -361,6 +376,7 @@ impl Checker {
             TraceKind::Constrained { .. }
                 | TraceKind::ConstraintVoid { .. }
                 | TraceKind::Suspended { .. }
+                | TraceKind::MonitorParams { .. }
         ) && node == self.window;
         if !keeps_window {
             self.window = None;
@@ -508,7 +524,94 @@ impl Checker {
             }
             TraceKind::Terminated { node } => self.check_terminated(seq, *node),
             TraceKind::Reclaimed { node } => self.check_reclaimed(seq, *node),
+            TraceKind::Activated {
+                monitor,
+                node,
+                number,
+            } => self.check_activated(seq, *monitor, *node, *number),
+            TraceKind::HandlerChosen { node, failing, .. } => {
+                self.check_handler(seq, *node, *failing)
+            }
+            TraceKind::Retried { node, .. } | TraceKind::Bypassed { node, .. } => {
+                let parent_or_self = match &ev.kind {
+                    TraceKind::Retried { .. } => self.replay.node(*node).and_then(|n| n.parent()),
+                    _ => Some(*node),
+                };
+                let ok = parent_or_self
+                    .and_then(|p| self.replay.node(p))
+                    .is_some_and(|p| p.handler_for().is_some());
+                if !ok {
+                    let msg = format!(
+                        "{} is not (under) an exception handler node",
+                        self.name(*node)
+                    );
+                    self.flag(seq, Some(*node), Rule::Retry, msg);
+                }
+            }
             _ => {}
+        }
+    }
+
+    fn check_activated(&mut self, seq: u64, monitor: u64, node: u64, number: u32) {
+        let Some(m) = self.replay.node(monitor) else {
+            return;
+        };
+        let mut problems = Vec::new();
+        if m.state(Facet::Handling) != State::Active || m.termination() != Termination::Alive {
+            problems.push(format!(
+                "the monitor's handling is {}",
+                m.state(Facet::Handling)
+            ));
+        }
+        match m.monitor() {
+            None => problems.push("no `monitor_params` record came before".into()),
+            Some(info) => {
+                if number != info.activations + 1 {
+                    problems.push(format!(
+                        "activation {number} follows activation {}",
+                        info.activations
+                    ));
+                }
+                if info.max_activations.is_some_and(|max| number > max) {
+                    problems.push(format!(
+                        "past the maximum of {:?} activations",
+                        info.max_activations
+                    ));
+                }
+            }
+        }
+        if self.replay.node(node).and_then(|n| n.parent()) != Some(monitor) {
+            problems.push("the activation node is not a child of the monitor".into());
+        }
+        if !problems.is_empty() {
+            let msg = format!(
+                "activation {number} of {}: {}",
+                self.name(monitor),
+                problems.join("; ")
+            );
+            self.flag(seq, Some(node), Rule::Activation, msg);
+        }
+    }
+
+    fn check_handler(&mut self, seq: u64, node: u64, failing: u64) {
+        let failed = self.replay.node(failing).is_some_and(|n| n.is_failed());
+        let parent = self.replay.node(node).and_then(|n| n.parent());
+        let parent_ok = parent == Some(failing)
+            || parent
+                .and_then(|p| self.replay.node(p))
+                .is_some_and(|p| p.handler_for().is_some());
+        if !failed || !parent_ok {
+            let msg = format!(
+                "handler {} for {}: {}",
+                self.name(node),
+                self.name(failing),
+                if failed {
+                    "it is not under the failing node or a bypassing handler"
+                } else {
+                    "that node never failed"
+                }
+            );
+            self.flag(seq, Some(node), Rule::Handler, msg);
         }
     }
 
@@ -557,6 +660,11 @@ impl Checker {
                 | TraceConstraint::TerminateAtTime { .. }
                 | TraceConstraint::TerminateInAfter { .. }
                 | TraceConstraint::TerminateAtExternal { .. }
+                | TraceConstraint::ActivateNow
+                | TraceConstraint::ActivateAtEvent { .. }
+                | TraceConstraint::ActivateAtTime { .. }
+                | TraceConstraint::ActivateInAfter { .. }
+                | TraceConstraint::ActivateAtExternal { .. }
         );
         if !is_terminate && self.window != Some(node) {
             let msg = format!(
@@ -747,6 +855,19 @@ impl Checker {
         }
         if to == State::Completed {
             self.completion(n, facet, &mut found);
+            if let (Facet::Handling, Some(info), true) = (facet, n.monitor(), alive) {
+                let reached = info.max_activations.is_some_and(|m| info.activations >= m)
+                    || info.max_triggers.is_some_and(|m| info.triggers >= m);
+                if !reached {
+                    found.push((
+                        Rule::MonitorComplete,
+                        format!(
+                            "the monitor completed after {} activations and {} triggers, below its maxima ({:?}, {:?})",
+                            info.activations, info.triggers, info.max_activations, info.max_triggers
+                        ),
+                    ));
+                }
+            }
         }
         self.report.n_enablement_checks += n_checked;
         for (rule, msg) in found {

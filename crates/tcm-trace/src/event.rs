@@ -97,6 +97,30 @@ pub enum TraceConstraint {
         /// Name of the external event.
         name: String,
     },
+    /// Activate the monitor as soon as its handling is active.
+    ActivateNow,
+    /// Activate the monitor when `event` happens (also by termination).
+    ActivateAtEvent {
+        /// Triggering event.
+        event: TraceEventRef,
+    },
+    /// Activate the monitor at time `at` (ns).
+    ActivateAtTime {
+        /// Absolute time (ns).
+        at: u64,
+    },
+    /// Activate the monitor `delay_ns` after `event`.
+    ActivateInAfter {
+        /// Delay (ns).
+        delay_ns: u64,
+        /// Event the delay counts from.
+        event: TraceEventRef,
+    },
+    /// Activate the monitor every time the external event is raised.
+    ActivateAtExternal {
+        /// Name of the external event.
+        name: String,
+    },
 }
 
 /// The body of a trace record.
@@ -199,6 +223,72 @@ pub enum TraceKind {
         /// Node.
         node: u64,
     },
+    /// A monitor's parameters; right after its `spawned` record.
+    MonitorParams {
+        /// The monitor.
+        node: u64,
+        /// Maximum activations, if any.
+        max_activations: Option<u32>,
+        /// Maximum triggers, if any.
+        max_triggers: Option<u32>,
+        /// Polling period (ns), if polling.
+        period_ns: Option<u64>,
+        /// Whether the polling activation at start is skipped.
+        initial_wait: bool,
+    },
+    /// A monitor was activated: `node` is the new activation node (its `spawned` record precedes).
+    Activated {
+        /// The monitor.
+        monitor: u64,
+        /// The activation node.
+        node: u64,
+        /// Activation number, from 1.
+        number: u32,
+    },
+    /// A monitor counted a trigger.
+    Triggered {
+        /// The monitor.
+        monitor: u64,
+        /// Triggers so far.
+        count: u32,
+    },
+    /// A handler was chosen for a failure: `node` is the new handler node (its `spawned` record
+    /// precedes).
+    HandlerChosen {
+        /// The handler node.
+        node: u64,
+        /// The node whose action failed.
+        failing: u64,
+        /// The node the handler was attached to.
+        attached: u64,
+        /// The exception type.
+        exception: String,
+        /// The handler's name.
+        handler: String,
+    },
+    /// A handler node passed its exception on.
+    Bypassed {
+        /// The bypassing handler node.
+        node: u64,
+        /// The exception type.
+        exception: String,
+    },
+    /// A handler asked for a fresh run of a failed task: `node` is the new node.
+    Retried {
+        /// The new node.
+        node: u64,
+        /// The node that failed.
+        of: u64,
+    },
+    /// A wiretap check started on a node.
+    Tapped {
+        /// The tapped node.
+        node: u64,
+        /// The wiretap's number.
+        tap: u32,
+        /// `before` (the action has not started) or `after` (it returned successfully).
+        when: String,
+    },
     /// Something worth a person's attention; the run goes on.
     Warning {
         /// Node concerned, if any.
@@ -225,7 +315,14 @@ impl TraceKind {
             | TraceKind::Unsuspended { node }
             | TraceKind::Failed { node, .. }
             | TraceKind::Dead { node }
-            | TraceKind::Reclaimed { node } => Some(*node),
+            | TraceKind::Reclaimed { node }
+            | TraceKind::MonitorParams { node, .. }
+            | TraceKind::Activated { node, .. }
+            | TraceKind::HandlerChosen { node, .. }
+            | TraceKind::Bypassed { node, .. }
+            | TraceKind::Retried { node, .. }
+            | TraceKind::Tapped { node, .. } => Some(*node),
+            TraceKind::Triggered { monitor, .. } => Some(*monitor),
         }
     }
 }

@@ -49,6 +49,6 @@ pub use check::{CheckReport, Checker, MAX_VIOLATIONS, Rule, Violation, check};
 pub use dump::{dump_modern, dump_tcm};
 pub use event::{TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent, TraceEventRef, TraceKind};
 pub use jsonl::{JsonlReader, ReadError, read_jsonl, to_line, write_line};
-pub use replay::{ROOT_NAME, Replay, ReplayError, ReplayNode};
+pub use replay::{MonitorInfo, ROOT_NAME, Replay, ReplayError, ReplayNode};
 pub use state::{Facet, NodeKind, Point, State, Termination};
 pub use textlog::{TextLog, TextLogOptions, tcm_state_word, time_suffix};

@@ -109,6 +109,24 @@ pub struct ReplayNode {
     pub(crate) goal_started_below: bool,
     // Invariant: some command-like node of the subtree has handling >= active.
     pub(crate) command_started_below: bool,
+    monitor: Option<MonitorInfo>,
+    activation_of: Option<u64>,
+    handler_for: Option<u64>,
+}
+
+/// What the trace says of a monitor: its parameters and counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MonitorInfo {
+    /// Maximum activations, if any.
+    pub max_activations: Option<u32>,
+    /// Maximum triggers, if any.
+    pub max_triggers: Option<u32>,
+    /// Polling period (ns), if polling.
+    pub period_ns: Option<u64>,
+    /// Activations so far.
+    pub activations: u32,
+    /// Triggers so far.
+    pub triggers: u32,
 }
 
 fn point_index(point: Point) -> usize {
@@ -147,6 +165,9 @@ impl ReplayNode {
             n_children_goals_open: 0,
             goal_started_below: false,
             command_started_below: false,
+            monitor: None,
+            activation_of: None,
+            handler_for: None,
         }
     }
 
@@ -192,6 +213,18 @@ impl ReplayNode {
     /// Whether the node is suspended (between `suspended` and `unsuspended`).
     pub fn is_suspended(&self) -> bool {
         self.suspended
+    }
+    /// For a monitor: its parameters and counts so far.
+    pub fn monitor(&self) -> Option<&MonitorInfo> {
+        self.monitor.as_ref()
+    }
+    /// For an activation node: its monitor.
+    pub fn activation_of(&self) -> Option<u64> {
+        self.activation_of
+    }
+    /// For a handler node: the node whose failure it handles.
+    pub fn handler_for(&self) -> Option<u64> {
+        self.handler_for
     }
     /// Whether a `failed` record was seen for the node.
     pub fn is_failed(&self) -> bool {
@@ -395,7 +428,43 @@ impl Replay {
                 it.dead = true;
                 it.dead_t = Some(t);
             }
-            TraceKind::External { .. } | TraceKind::Warning { .. } => {}
+            TraceKind::External { .. } | TraceKind::Warning { .. } | TraceKind::Tapped { .. } => {}
+            TraceKind::MonitorParams {
+                node,
+                max_activations,
+                max_triggers,
+                period_ns,
+                ..
+            } => {
+                self.node_mut(*node)?.monitor = Some(MonitorInfo {
+                    max_activations: *max_activations,
+                    max_triggers: *max_triggers,
+                    period_ns: *period_ns,
+                    activations: 0,
+                    triggers: 0,
+                });
+            }
+            TraceKind::Activated {
+                monitor,
+                node,
+                number,
+            } => {
+                self.node_mut(*node)?.activation_of = Some(*monitor);
+                if let Some(m) = self.node_mut(*monitor)?.monitor.as_mut() {
+                    m.activations = *number;
+                }
+            }
+            TraceKind::Triggered { monitor, count } => {
+                if let Some(m) = self.node_mut(*monitor)?.monitor.as_mut() {
+                    m.triggers = *count;
+                }
+            }
+            TraceKind::HandlerChosen { node, failing, .. } => {
+                self.node_mut(*node)?.handler_for = Some(*failing);
+            }
+            TraceKind::Bypassed { node, .. } | TraceKind::Retried { node, .. } => {
+                self.node_mut(*node)?;
+            }
             TraceKind::Reclaimed { node } => {
                 let it = self.node_mut(*node)?;
                 if it.reclaimed {

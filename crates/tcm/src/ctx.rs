@@ -1,14 +1,16 @@
 //! The context an action gets: its own node, and the means to spawn, wait for, constrain and
-//! terminate nodes of its run.
+//! terminate nodes of its run; in a monitor activation, to trigger; in a handler, to read the
+//! exception, bypass it or retry the failed task.
 
 use crate::Error;
 use crate::runtime::{Shared, lock};
-use crate::task::{Action, Task, Value};
+use crate::task::{Action, Factory, Handler, Task, Value};
+use std::any::Any;
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::{
-    Constraint, Event, ExternalId, Facet, NodeId, NodeRef, Point, Spawn, TerminateWhen, Until,
-    WatchOutcome, WatchToken,
+    ActivateWhen, Constraint, Event, ExternalId, Facet, Failure, NodeId, NodeRef, Point, Purpose,
+    Spawn, TerminateWhen, Until, WatchOutcome, WatchToken,
 };
 use tokio::sync::oneshot;
 
@@ -17,6 +19,7 @@ use tokio::sync::oneshot;
 pub struct Ctx {
     pub(crate) shared: Arc<Shared>,
     pub(crate) node: NodeId,
+    pub(crate) purpose: Option<Arc<Purpose>>,
 }
 
 impl Ctx {
@@ -39,19 +42,18 @@ impl Ctx {
 
     /// Starts building a spawn of `task` as a child of this node.
     pub fn spawn(&self, task: Task) -> Spawner<'_> {
+        let (spec, n_task_handlers) = task.into_spawn(self.node);
         Spawner {
             ctx: self,
-            spec: task.into_spawn(self.node),
+            spec,
+            n_task_handlers,
         }
     }
 
     /// Reserves a child for a later spawn, so constraints can name it now (a forward reference).
     /// If this action ends without spawning it (through [`Spawner::fulfils`]), it is dead.
     pub fn reserve(&self, name: &'static str) -> Result<NodeId, Error> {
-        let mut inner = self.shared.enter()?;
-        let now = self.shared.now();
-        let id = inner.engine.reserve(now, self.node, name)?;
-        Ok(id)
+        self.with_engine(|e, now| e.reserve(now, self.node, name))
     }
 
     /// Waits until `node`'s execution completes (the node and its whole subtree), as TDL's `wait`.
@@ -72,8 +74,8 @@ impl Ctx {
         rx.await.map_err(|_| Error::RunEnded)
     }
 
-    /// Applies a constraint to an existing node (termination constraints at any time; enablement
-    /// constraints only before the facet is enabled).
+    /// Applies a constraint to an existing node (termination and activation constraints at any
+    /// time; enablement constraints only before the facet is enabled).
     pub fn constrain(&self, node: NodeId, c: Constraint) -> Result<(), Error> {
         self.with_engine(|e, now| e.constrain(now, node, c))
     }
@@ -118,10 +120,92 @@ impl Ctx {
         })
     }
 
+    // ---- Monitors.
+
+    /// In a monitor activation: this activation's number (from 1) and the triggers counted when it
+    /// was created.
+    pub fn activation(&self) -> Option<(u32, u32)> {
+        match self.purpose.as_deref() {
+            Some(Purpose::Activation {
+                number, triggers, ..
+            }) => Some((*number, *triggers)),
+            _ => None,
+        }
+    }
+
+    /// In a monitor activation: counts a trigger of the monitor (TDL's `trigger`); at the maximum,
+    /// the monitor completes.
+    pub fn trigger(&self) -> Result<(), Error> {
+        self.with_engine(|e, now| e.trigger(now, self.node))
+    }
+
+    /// Activates a monitor now; returns the activation node (`None` past its maximum).
+    pub fn activate(&self, monitor: NodeId) -> Result<Option<NodeId>, Error> {
+        self.with_engine(|e, now| e.activate(now, monitor))
+    }
+
+    /// The activations and triggers a monitor counted so far (from the monitor or an activation).
+    pub fn monitor_counts(&self, node: NodeId) -> Result<Option<(u32, u32)>, Error> {
+        Ok(lock(&self.shared)?.engine.monitor_counts(node))
+    }
+
+    // ---- Exception handlers.
+
+    /// In a handler: the failure being handled.
+    pub fn failure(&self) -> Option<&Failure> {
+        match self.purpose.as_deref() {
+            Some(Purpose::Handler { failure, .. }) => Some(failure),
+            _ => None,
+        }
+    }
+
+    /// In a handler: the exception value, if it is an `E`.
+    pub fn caught<E: Any + Send + Sync>(&self) -> Option<Arc<E>> {
+        self.failure().and_then(|f| f.data::<E>())
+    }
+
+    /// In a handler: the node whose action failed.
+    pub fn failing_node(&self) -> Option<NodeId> {
+        match self.purpose.as_deref() {
+            Some(Purpose::Handler { failing, .. }) => Some(*failing),
+            _ => None,
+        }
+    }
+
+    /// In a handler: the node the handler was attached to.
+    pub fn attached_node(&self) -> Option<NodeId> {
+        match self.purpose.as_deref() {
+            Some(Purpose::Handler { attached, .. }) => Some(*attached),
+            _ => None,
+        }
+    }
+
+    /// In a handler: passes the exception on to the next handler up the tree (TDL's `bypass`).
+    /// Return its result from the handler body: `return ctx.bypass();`.
+    pub fn bypass(&self) -> Result<(), Failure> {
+        match (self.failure(), self.shared.enter()) {
+            (Some(_), Ok(mut inner)) => {
+                inner.bypassed.insert(self.node);
+                Ok(())
+            }
+            (None, _) => Err(Failure::new(
+                "NotAHandler",
+                "`bypass` outside an exception handler",
+            )),
+            (_, Err(e)) => Err(Failure::from(e)),
+        }
+    }
+
+    /// In a handler: runs the failed task again (a fresh node with the same arguments, under this
+    /// handler). The task must be [`Task::retryable`]. Wait for the returned node to see how it went.
+    pub fn retry(&self) -> Result<NodeId, Error> {
+        self.with_engine(|e, now| e.retry(now, self.node))
+    }
+
     fn with_engine<T>(
         &self,
         f: impl FnOnce(
-            &mut tcm_core::Engine<Action>,
+            &mut tcm_core::Engine<Action, Factory>,
             tcm_core::Time,
         ) -> Result<T, tcm_core::EngineError>,
     ) -> Result<T, Error> {
@@ -135,7 +219,8 @@ impl Ctx {
 #[must_use = "a spawn does nothing until `start` or `wait` is called"]
 pub struct Spawner<'a> {
     ctx: &'a Ctx,
-    spec: Spawn<Action>,
+    spec: Spawn<Action, Factory>,
+    n_task_handlers: usize,
 }
 
 impl Spawner<'_> {
@@ -185,6 +270,42 @@ impl Spawner<'_> {
         self.with(Constraint::Terminate(TerminateWhen::In(d)))
     }
 
+    /// `activate …` (monitors).
+    pub fn activate(self, when: ActivateWhen) -> Self {
+        self.with(Constraint::Activate(when))
+    }
+
+    /// Overrides the monitor's maximum activations for this spawn.
+    pub fn max_activations(mut self, n: u32) -> Self {
+        if let Some(m) = self.spec.monitor.as_mut() {
+            m.max_activations = Some(n);
+        }
+        self
+    }
+
+    /// Overrides the monitor's maximum triggers for this spawn.
+    pub fn max_triggers(mut self, n: u32) -> Self {
+        if let Some(m) = self.spec.monitor.as_mut() {
+            m.max_triggers = Some(n);
+        }
+        self
+    }
+
+    /// Overrides the monitor's polling period for this spawn.
+    pub fn period(mut self, d: Duration) -> Self {
+        if let Some(m) = self.spec.monitor.as_mut() {
+            m.period = Some(d);
+        }
+        self
+    }
+
+    /// Attaches a spawn-level exception handler (tried after the task-level ones; among spawn-level
+    /// handlers, the last attached first).
+    pub fn handler(mut self, h: Handler) -> Self {
+        self.spec.handlers.insert(self.n_task_handlers, h.spec);
+        self
+    }
+
     /// Keep the node after it completes (not reclaimed).
     pub fn persistent(mut self) -> Self {
         self.spec.persistent = true;
@@ -194,7 +315,9 @@ impl Spawner<'_> {
     /// `on terminate spawn <task>`: run `task` as a child if this node is terminated while its action
     /// runs; it runs to completion.
     pub fn on_terminate(mut self, task: Task) -> Self {
-        self.spec.on_terminate.push(task.into_cleanup());
+        if let Some(ot) = task.into_cleanup() {
+            self.spec.on_terminate.push(ot);
+        }
         self
     }
 
@@ -241,7 +364,7 @@ impl Spawner<'_> {
                 Some(Ok(v)) => Ok(*v),
                 _ => Err(Error::NoValue(std::any::type_name::<T>())),
             },
-            WatchOutcome::Failed(f) => Err(Error::ChildFailed(f)),
+            WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => Err(Error::ChildFailed(f)),
             WatchOutcome::Terminated | WatchOutcome::Dead => Err(Error::ChildTerminated),
         }
     }

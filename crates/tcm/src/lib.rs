@@ -25,7 +25,8 @@ mod task;
 pub use ctx::{Ctx, Spawner};
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink};
-pub use task::{Action, ActionFuture, Task, Value};
+pub use task::{Action, ActionFuture, Exception, Factory, Handler, Monitor, Task, Value, factory};
+pub use tcm_core::{ActivateWhen, EachActivation, TapWhen, WiretapId};
 pub use tcm_core::{
     Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,
     FatalFailure, NodeId, NodeKind, NodeRef, Point, State, Stats, TerminateWhen, Time, Until,

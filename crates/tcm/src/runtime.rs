@@ -9,7 +9,7 @@
 use crate::Error;
 use crate::ctx::Ctx;
 use crate::sink::TraceSink;
-use crate::task::{Action, Task, Value};
+use crate::task::{Action, Factory, Task, Value};
 use std::any::Any;
 use std::collections::{BTreeMap, HashMap};
 use std::future::Future;
@@ -22,12 +22,13 @@ use tcm_core::{
     Blocked, Effect, Engine, Event, Failure, FailurePolicy, FatalFailure, NodeId, Stats, Time,
     WatchOutcome, WatchToken,
 };
+use tcm_core::{Purpose, TapWhen, WiretapId};
 use tcm_trace::{Facet, Point};
 use tokio::sync::{Notify, oneshot};
 use tokio::task::AbortHandle;
 
 pub(crate) struct Inner {
-    pub(crate) engine: Engine<Action>,
+    pub(crate) engine: Engine<Action, Factory>,
     pub(crate) watchers: BTreeMap<u64, oneshot::Sender<WatchOutcome>>,
     // Nodes whose action's value someone waits for; filled when the action returns.
     pub(crate) values: BTreeMap<NodeId, Option<Value>>,
@@ -41,6 +42,8 @@ pub(crate) struct Inner {
     top_done: Option<WatchOutcome>,
     // The deadline the driver sleeps until; an earlier timer must wake it.
     armed: Option<Time>,
+    // Handler nodes whose body called `Ctx::bypass`.
+    pub(crate) bypassed: std::collections::BTreeSet<NodeId>,
 }
 
 impl Inner {
@@ -136,18 +139,48 @@ fn pump(shared: &Arc<Shared>, inner: &mut Inner) -> bool {
                 let ctx = Ctx {
                     shared: shared.clone(),
                     node,
+                    purpose: None,
                 };
                 let fut = action(ctx);
                 let sh = shared.clone();
                 let task = async move {
                     let res = CatchUnwind(fut).await;
-                    finish(&sh, node, res);
+                    finish(&sh, node, None, res);
                 };
                 let h = match &inner.spawner {
                     Some(rt) => rt.spawn(task),
                     None => tokio::spawn(task),
                 };
                 inner.aborts.insert(node, h.abort_handle());
+            }
+            Effect::Invoke {
+                node,
+                body,
+                purpose,
+            } => {
+                let tap = match purpose {
+                    Purpose::Tap { tap, .. } => Some(tap),
+                    _ => None,
+                };
+                let ctx = Ctx {
+                    shared: shared.clone(),
+                    node,
+                    purpose: Some(Arc::new(purpose)),
+                };
+                let fut = body(ctx);
+                let sh = shared.clone();
+                let task = async move {
+                    let res = CatchUnwind(fut).await;
+                    finish(&sh, node, tap, res);
+                };
+                let h = match &inner.spawner {
+                    Some(rt) => rt.spawn(task),
+                    None => tokio::spawn(task),
+                };
+                // A wiretap check runs to its end; only actions are cancelled with their node.
+                if tap.is_none() {
+                    inner.aborts.insert(node, h.abort_handle());
+                }
             }
             Effect::Cancel { node } => {
                 if let Some(h) = inner.aborts.remove(&node) {
@@ -290,6 +323,7 @@ impl Runtime {
                     spawner: None,
                     top_done: None,
                     armed: None,
+                    bypassed: std::collections::BTreeSet::new(),
                 }),
                 wake: Notify::new(),
                 start: tokio::time::Instant::now(),
@@ -314,6 +348,29 @@ impl Runtime {
         self
     }
 
+    /// Registers a wiretap (the TCA paper's wiretap monitors): `check` runs whenever a node whose
+    /// instance name is `task` is about to start its action (`Before`) or returned successfully
+    /// (`After`), without touching that task's code. A failing check fails the tapped node with the
+    /// check's failure (handlers then apply as to any failure).
+    pub fn wiretap<F, Fut, T>(
+        self,
+        task: impl Into<tcm_core::Name>,
+        when: TapWhen,
+        check: F,
+    ) -> Runtime
+    where
+        F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner
+                .engine
+                .wiretap(task, when, crate::task::factory(check));
+        }
+        self
+    }
+
     /// A handle to raise external events.
     pub fn events(&self) -> EventHandle {
         self.shared.handles.fetch_add(1, Ordering::SeqCst);
@@ -333,7 +390,7 @@ impl Runtime {
             inner.engine.set_tracing(!self.sinks.is_empty());
             let now = shared.now();
             let root = inner.engine.root();
-            let top = inner.engine.spawn(now, task.into_spawn(root))?;
+            let top = inner.engine.spawn(now, task.into_spawn(root).0)?;
             inner.engine.watch(
                 now,
                 Event::on(top, Facet::Execution, Point::Completed),
@@ -406,7 +463,7 @@ impl Driver {
             if let Some(outcome) = top_done {
                 break match outcome {
                     WatchOutcome::Reached => RunOutcome::Completed,
-                    WatchOutcome::Failed(f) => RunOutcome::TaskFailed(f),
+                    WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => RunOutcome::TaskFailed(f),
                     WatchOutcome::Terminated | WatchOutcome::Dead => RunOutcome::Terminated,
                 };
             }
@@ -438,6 +495,7 @@ impl Driver {
 fn finish(
     shared: &Arc<Shared>,
     node: NodeId,
+    tap: Option<WiretapId>,
     res: Result<Result<Value, Failure>, Box<dyn Any + Send>>,
 ) {
     let result = match res {
@@ -450,7 +508,19 @@ fn finish(
     let Ok(mut inner) = shared.enter() else {
         return;
     };
+    if let Some(tap) = tap {
+        let now = shared.now();
+        let _ = inner
+            .engine
+            .tap_finished(now, node, tap, result.map(|_| ()));
+        return;
+    }
     inner.aborts.remove(&node);
+    if inner.bypassed.remove(&node) {
+        let now = shared.now();
+        let _ = inner.engine.bypass(now, node);
+        return;
+    }
     let now = shared.now();
     let result = match result {
         Ok(value) => {

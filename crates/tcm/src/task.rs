@@ -1,10 +1,16 @@
-//! Tasks: what a node runs. A task is a kind (goal or command), an instance name and an async action.
+//! Tasks: what a node runs. A task is a kind (goal, command, monitor), an instance name, and an
+//! async action; plus task-level constraints, on-terminate tasks and exception handlers.
 
 use crate::ctx::Ctx;
 use std::any::Any;
 use std::future::Future;
 use std::pin::Pin;
-use tcm_core::{Constraint, Failure, Name, NodeId, NodeKind, OnTerminate, Spawn};
+use std::sync::Arc;
+use std::time::Duration;
+use tcm_core::{
+    Constraint, EachActivation, Failure, HandlerSpec, MonitorSpec, Name, NodeId, NodeKind,
+    OnTerminate, Spawn,
+};
 
 /// A value an action returns, handed to whoever waits for the node ([`crate::Spawner::wait_value`]).
 pub type Value = Box<dyn Any + Send>;
@@ -15,16 +21,148 @@ pub type ActionFuture = Pin<Box<dyn Future<Output = Result<Value, Failure>> + Se
 /// An action, called once with its context.
 pub type Action = Box<dyn FnOnce(Ctx) -> ActionFuture + Send>;
 
+/// A reusable action: a monitor's body (once per activation), a handler (once per use), a retryable
+/// task, a wiretap check.
+pub type Factory = Arc<dyn Fn(Ctx) -> ActionFuture + Send + Sync>;
+
+fn boxed<F, Fut, T>(f: F) -> impl FnOnce(Ctx) -> ActionFuture
+where
+    F: FnOnce(Ctx) -> Fut + Send + 'static,
+    Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+    T: Any + Send,
+{
+    move |ctx| Box::pin(async move { f(ctx).await.map(|v| Box::new(v) as Value) })
+}
+
+/// Wraps an async closure as a [`Factory`].
+pub fn factory<F, Fut, T>(f: F) -> Factory
+where
+    F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+    Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+    T: Any + Send,
+{
+    Arc::new(move |ctx| {
+        let fut = f(ctx);
+        Box::pin(async move { fut.await.map(|v| Box::new(v) as Value) })
+    })
+}
+
+/// An exception type (TDL's `exception` declarations): a Rust error with an optional chain of
+/// ancestor types, so that a handler for `HardwareFailure` also catches `EngineOnFire`.
+pub trait Exception: std::error::Error + Send + Sync + 'static {
+    /// The names of the ancestor exception types, nearest first. Default: none.
+    fn ancestry() -> &'static [&'static str]
+    where
+        Self: Sized,
+    {
+        &[]
+    }
+
+    /// The exception type's name. Default: the short Rust type name.
+    fn name() -> &'static str
+    where
+        Self: Sized,
+    {
+        tcm_core::short_type_name::<Self>()
+    }
+
+    /// This exception as a failure that carries it (TDL's `fail`): `return Err(e.raise())`.
+    fn raise(self) -> Failure
+    where
+        Self: Sized,
+    {
+        let mut f = Failure::from(self);
+        f.exception = Self::name().into();
+        f.ancestry = Self::ancestry().iter().map(|a| Name::Borrowed(a)).collect();
+        f
+    }
+}
+
+/// The parameters of a monitor (TDL's `maximum activate`, `maximum trigger`, `period`, …).
+#[derive(Clone, Debug, Default)]
+pub struct Monitor {
+    /// Complete after this many activations.
+    pub max_activations: Option<u32>,
+    /// Complete after this many triggers.
+    pub max_triggers: Option<u32>,
+    /// Poll: activate every period, on absolute deadlines.
+    pub period: Option<Duration>,
+    /// Skip the polling activation at start.
+    pub initial_wait: bool,
+    /// Constraints between successive activations.
+    pub each: EachActivation,
+    /// Name of activation nodes (default `ACT-<monitor>`).
+    pub activation_name: Option<Name>,
+}
+
+/// An exception handler: a reusable async body for one exception type and its descendants.
+#[derive(Clone)]
+pub struct Handler {
+    pub(crate) spec: HandlerSpec<Factory>,
+}
+
+impl Handler {
+    /// A handler named `name` for exceptions named `exception` (and types naming it as an
+    /// ancestor). In its body, [`Ctx::failure`] gives the failure, [`Ctx::caught`] its value.
+    pub fn new<F, Fut, T>(name: impl Into<Name>, exception: impl Into<Name>, body: F) -> Handler
+    where
+        F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        Handler {
+            spec: HandlerSpec {
+                name: name.into(),
+                exception: exception.into(),
+                max_activations: None,
+                body: factory(body),
+            },
+        }
+    }
+
+    /// A handler for the exception type `E`.
+    pub fn on<E: Exception, F, Fut, T>(name: impl Into<Name>, body: F) -> Handler
+    where
+        F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        Handler::new(name, E::name(), body)
+    }
+
+    /// Uses the handler at most `n` times (TDL's `maximum activate`).
+    pub fn max_activations(mut self, n: u32) -> Handler {
+        self.spec.max_activations = Some(n);
+        self
+    }
+}
+
 /// Something to spawn: a node kind, an instance name and an action.
 pub struct Task {
     pub(crate) kind: NodeKind,
     pub(crate) name: Name,
-    pub(crate) action: Action,
+    pub(crate) action: Option<Action>,
     pub(crate) constraints: Vec<Constraint>,
     pub(crate) on_terminate: Vec<Task>,
+    pub(crate) handlers: Vec<Handler>,
+    pub(crate) monitor: Option<MonitorSpec<Factory>>,
+    pub(crate) retry: Option<Factory>,
 }
 
 impl Task {
+    fn bare(kind: NodeKind, name: Name, action: Option<Action>) -> Task {
+        Task {
+            kind,
+            name,
+            action,
+            constraints: Vec::new(),
+            on_terminate: Vec::new(),
+            handlers: Vec::new(),
+            monitor: None,
+            retry: None,
+        }
+    }
+
     /// A task of any kind.
     pub fn new<F, Fut, T>(kind: NodeKind, name: impl Into<Name>, f: F) -> Task
     where
@@ -32,15 +170,21 @@ impl Task {
         Fut: Future<Output = Result<T, Failure>> + Send + 'static,
         T: Any + Send,
     {
-        Task {
-            kind,
-            name: name.into(),
-            action: Box::new(move |ctx| {
-                Box::pin(async move { f(ctx).await.map(|v| Box::new(v) as Value) })
-            }),
-            constraints: Vec::new(),
-            on_terminate: Vec::new(),
-        }
+        Task::bare(kind, name.into(), Some(Box::new(boxed(f))))
+    }
+
+    /// A task whose action can run again: handlers may [`Ctx::retry`] it after a failure.
+    pub fn retryable<F, Fut, T>(kind: NodeKind, name: impl Into<Name>, f: F) -> Task
+    where
+        F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        let fac = factory(f);
+        let first = fac.clone();
+        let mut task = Task::bare(kind, name.into(), Some(Box::new(move |ctx| first(ctx))));
+        task.retry = Some(fac);
+        task
     }
 
     /// A goal: its action expands the tree by spawning children through its [`Ctx`].
@@ -61,6 +205,27 @@ impl Task {
         T: Any + Send,
     {
         Task::new(NodeKind::Command, name, f)
+    }
+
+    /// A monitor: `body` runs once per activation, as a child command node. In the body,
+    /// [`Ctx::trigger`] counts a trigger and [`Ctx::activation`] tells the counts.
+    pub fn monitor<F, Fut, T>(name: impl Into<Name>, params: Monitor, body: F) -> Task
+    where
+        F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        let mut task = Task::bare(NodeKind::Monitor, name.into(), None);
+        task.monitor = Some(MonitorSpec {
+            body: factory(body),
+            max_activations: params.max_activations,
+            max_triggers: params.max_triggers,
+            period: params.period,
+            initial_wait: params.initial_wait,
+            each: params.each,
+            activation_name: params.activation_name,
+        });
+        task
     }
 
     /// The instance name.
@@ -87,29 +252,48 @@ impl Task {
         self
     }
 
-    /// The engine's spawn request for this task under `parent`.
-    pub(crate) fn into_spawn(self, parent: NodeId) -> Spawn<Action> {
-        let mut spec = Spawn::new(parent, self.kind, self.name, self.action);
-        spec.constraints = self.constraints;
-        spec.on_terminate = self
-            .on_terminate
-            .into_iter()
-            .map(Task::into_cleanup)
-            .collect();
-        spec
-    }
-
-    pub(crate) fn into_cleanup(self) -> OnTerminate<Action> {
-        OnTerminate {
-            kind: self.kind,
-            name: self.name,
-            action: self.action,
-        }
+    /// Attaches a task-level exception handler. At a node, task-level handlers are tried before
+    /// spawn-level ones, and within each group the last attached first (TDL's order).
+    pub fn handler(mut self, h: Handler) -> Task {
+        self.handlers.push(h);
+        self
     }
 
     /// Renames the instance (TDL's `name` constraint).
     pub fn named(mut self, name: impl Into<Name>) -> Task {
         self.name = name.into();
         self
+    }
+
+    /// The engine's spawn request for this task under `parent`.
+    pub(crate) fn into_spawn(self, parent: NodeId) -> (Spawn<Action, Factory>, usize) {
+        let n_task_handlers = self.handlers.len();
+        let spec = Spawn {
+            parent,
+            kind: self.kind,
+            name: self.name,
+            action: self.action,
+            constraints: self.constraints,
+            persistent: false,
+            on_terminate: self
+                .on_terminate
+                .into_iter()
+                .filter_map(Task::into_cleanup)
+                .collect(),
+            fulfils: None,
+            monitor: self.monitor,
+            handlers: self.handlers.into_iter().rev().map(|h| h.spec).collect(),
+            retry: self.retry,
+        };
+        (spec, n_task_handlers)
+    }
+
+    /// As an on-terminate task; monitors cannot be one.
+    pub(crate) fn into_cleanup(self) -> Option<OnTerminate<Action>> {
+        Some(OnTerminate {
+            kind: self.kind,
+            name: self.name,
+            action: self.action?,
+        })
     }
 }

@@ -25,6 +25,8 @@
 //! Aggregates (open children per facet) are counters kept on each parent: a transition costs O(1)
 //! plus the waiters it fires.
 
+mod exception;
+mod monitor;
 pub(crate) mod node;
 mod report;
 mod timers;
@@ -35,8 +37,12 @@ use crate::failure::{Failure, FailurePolicy, FatalFailure};
 use crate::ids::{ExternalId, NodeId, WatchToken};
 use crate::time::Time;
 use crate::{Name, NodeKind};
-pub use node::OnTerminate;
-use node::{Node, WaitKind, Waiter};
+pub use exception::HandlerSpec;
+use exception::{HandlerEntry, Wiretap};
+use monitor::Monitor;
+pub use monitor::{EachActivation, MonitorSpec};
+use node::{Node, Payload, WaitKind, Waiter};
+pub use node::{OnTerminate, Purpose};
 pub use report::{Blocked, NodeInfo};
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
@@ -48,13 +54,23 @@ use timers::{TimerKind, Timers};
 
 /// An output of the engine for the shell to carry out.
 #[derive(Debug)]
-pub enum Effect<A> {
+pub enum Effect<A, F = ()> {
     /// Run this node's action.
     Start {
         /// The node.
         node: NodeId,
         /// Its action, handed over once.
         action: A,
+    },
+    /// Run a factory for `node` (a monitor activation, an exception handler, a retry, a wiretap
+    /// check). Report the end with `action_finished` (or, for a wiretap, `tap_finished`).
+    Invoke {
+        /// The node it runs for.
+        node: NodeId,
+        /// The factory, given at spawn or registration.
+        body: F,
+        /// Why it runs, with what it needs to know.
+        purpose: Purpose,
     },
     /// Stop this node's running action; the engine already counts it as finished.
     Cancel {
@@ -75,8 +91,10 @@ pub enum Effect<A> {
 pub enum WatchOutcome {
     /// Normally; its action succeeded.
     Reached,
-    /// Normally, but its own action failed with this failure.
+    /// Normally, but its own action failed with this failure and no handler took it.
     Failed(Failure),
+    /// Its action failed with this failure and a handler took it; the handler's subtree is done.
+    Handled(Failure),
     /// It was terminated (the point was passed without the work being done).
     Terminated,
     /// It was a reservation that was never spawned.
@@ -84,15 +102,15 @@ pub enum WatchOutcome {
 }
 
 /// A request to insert a node (see [`Engine::spawn`]).
-pub struct Spawn<A> {
+pub struct Spawn<A, F = ()> {
     /// Where to insert it.
     pub parent: NodeId,
     /// Its kind.
     pub kind: NodeKind,
     /// Its instance name.
     pub name: Name,
-    /// Its action.
-    pub action: A,
+    /// Its action (`None` for a monitor, which runs its body per activation).
+    pub action: Option<A>,
     /// Constraints applied before insertion (terminate forms right after it).
     pub constraints: Vec<Constraint>,
     /// Keep the node after completion (not reclaimed).
@@ -101,25 +119,51 @@ pub struct Spawn<A> {
     pub on_terminate: Vec<OnTerminate<A>>,
     /// A reservation (from [`Engine::reserve`]) this spawn fulfils.
     pub fulfils: Option<NodeId>,
+    /// For a monitor: its body and parameters.
+    pub monitor: Option<MonitorSpec<F>>,
+    /// Exception handlers attached to the node, in the order they are tried.
+    pub handlers: Vec<HandlerSpec<F>>,
+    /// A factory that re-runs this task (same arguments), so handlers can retry it.
+    pub retry: Option<F>,
 }
 
-impl<A> Spawn<A> {
+impl<A, F: Clone> Spawn<A, F> {
     /// A node with no constraints.
-    pub fn new(parent: NodeId, kind: NodeKind, name: impl Into<Name>, action: A) -> Spawn<A> {
+    pub fn new(parent: NodeId, kind: NodeKind, name: impl Into<Name>, action: A) -> Spawn<A, F> {
         Spawn {
             parent,
             kind,
             name: name.into(),
-            action,
+            action: Some(action),
             constraints: Vec::new(),
             persistent: false,
             on_terminate: Vec::new(),
             fulfils: None,
+            monitor: None,
+            handlers: Vec::new(),
+            retry: None,
+        }
+    }
+
+    /// A monitor node.
+    pub fn monitor(parent: NodeId, name: impl Into<Name>, spec: MonitorSpec<F>) -> Spawn<A, F> {
+        Spawn {
+            parent,
+            kind: NodeKind::Monitor,
+            name: name.into(),
+            action: None,
+            constraints: Vec::new(),
+            persistent: false,
+            on_terminate: Vec::new(),
+            fulfils: None,
+            monitor: Some(spec),
+            handlers: Vec::new(),
+            retry: None,
         }
     }
 
     /// Adds a constraint.
-    pub fn with(mut self, c: Constraint) -> Spawn<A> {
+    pub fn with(mut self, c: Constraint) -> Spawn<A, F> {
         self.constraints.push(c);
         self
     }
@@ -174,6 +218,18 @@ pub enum EngineError {
     /// `action_finished` for a node whose action is not running.
     #[error("{0} has no running action")]
     NotRunning(NodeId),
+    /// A monitor operation on a node that is not a monitor (or a monitor spawned without its body).
+    #[error("node {{{0}}} is not a monitor (a monitor is spawned with its body and parameters)")]
+    NotAMonitor(u64),
+    /// Activation of a monitor whose handling is not active.
+    #[error("monitor {{{0}}} is not active: it has not started, has completed, or was terminated")]
+    InactiveMonitor(u64),
+    /// Bypass or retry from a node that is not an exception handler.
+    #[error("node {{{0}}} is not an exception handler")]
+    NotAHandler(u64),
+    /// Retry of a task spawned without a retry factory.
+    #[error("node {{{0}}} cannot be retried: it was spawned without a retry factory")]
+    NotRetryable(u64),
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -186,6 +242,8 @@ struct External {
     name: String,
     raised: bool,
     waiters: Vec<WaitKind>,
+    // Monitors activated on every raise.
+    activators: Vec<NodeId>,
 }
 
 /// Counters for benchmarks and tests.
@@ -203,10 +261,10 @@ pub struct Stats {
 
 /// The deterministic task-tree engine. `A` is the shell's action type; the engine only stores it and
 /// hands it back in [`Effect::Start`].
-pub struct Engine<A> {
+pub struct Engine<A, F = ()> {
     run: u32,
     now: Time,
-    nodes: Arena<A>,
+    nodes: Arena<A, F>,
     root: NodeId,
     next_display: u64,
     seq: u64,
@@ -214,18 +272,19 @@ pub struct Engine<A> {
     trace: VecDeque<TraceEvent>,
     work: VecDeque<Work>,
     ready: VecDeque<NodeId>,
-    effects: VecDeque<Effect<A>>,
+    effects: VecDeque<Effect<A, F>>,
     timers: Timers,
     externals: Vec<External>,
     external_ids: BTreeMap<String, ExternalId>,
     running: u32,
     policy: FailurePolicy,
     fatal: Option<FatalFailure>,
+    taps: Vec<Wiretap<F>>,
 }
 
-impl<A> Engine<A> {
+impl<A, F: Clone> Engine<A, F> {
     /// A new run with its root node. `run` numbers the run: handles of other runs are refused.
-    pub fn new(run: u32) -> Engine<A> {
+    pub fn new(run: u32) -> Engine<A, F> {
         let mut nodes = Arena::new(run);
         let mut root = Node::new(0, NodeKind::Root, Name::Borrowed("Root Node"), None);
         root.states = [State::Active, State::Active, State::Active];
@@ -248,6 +307,7 @@ impl<A> Engine<A> {
             running: 0,
             policy: FailurePolicy::Warn,
             fatal: None,
+            taps: Vec::new(),
         };
         engine.emit(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,
@@ -329,7 +389,7 @@ impl<A> Engine<A> {
 
     /// Inserts a node (catalogue §3.3 step 1): applies its constraints, links it under its parent,
     /// and settles. Returns its handle.
-    pub fn spawn(&mut self, now: Time, spec: Spawn<A>) -> Result<NodeId, EngineError> {
+    pub fn spawn(&mut self, now: Time, spec: Spawn<A, F>) -> Result<NodeId, EngineError> {
         self.advance(now);
         let Spawn {
             parent,
@@ -340,8 +400,14 @@ impl<A> Engine<A> {
             persistent,
             on_terminate,
             fulfils,
+            monitor,
+            handlers,
+            retry,
         } = spec;
         let pd = self.live(parent)?;
+        if (kind == NodeKind::Monitor) != monitor.is_some() {
+            return Err(EngineError::NotAMonitor(self.next_display));
+        }
         if pd.state(Facet::Execution) == State::Completed {
             return Err(EngineError::ParentCompleted {
                 node: pd.display,
@@ -383,10 +449,16 @@ impl<A> Engine<A> {
         {
             let parent_suspended = self.node(parent).suspended;
             let node = self.node_mut(id);
-            node.action = Some(action);
+            node.action = action.map(Payload::Action);
             node.persistent = persistent;
             node.on_terminate = on_terminate;
             node.suspended = parent_suspended;
+            node.monitor = monitor.map(|m| Box::new(Monitor::new(m)));
+            node.handlers = handlers
+                .into_iter()
+                .map(|spec| HandlerEntry { spec, uses: 0 })
+                .collect();
+            node.retry = retry;
         }
         self.link(parent, id);
         let (display, parent_display) = (self.node(id).display, self.node(parent).display);
@@ -397,12 +469,25 @@ impl<A> Engine<A> {
             kind,
             name,
         });
+        if let Some(m) = &self.node(id).monitor {
+            let record = TraceKind::MonitorParams {
+                node: display,
+                max_activations: m.spec.max_activations,
+                max_triggers: m.spec.max_triggers,
+                period_ns: m
+                    .spec
+                    .period
+                    .map(|p| u64::try_from(p.as_nanos()).unwrap_or(u64::MAX)),
+                initial_wait: m.spec.initial_wait,
+            };
+            self.emit(record);
+        }
         if self.node(id).suspended {
             self.emit(TraceKind::Suspended { node: display });
         }
         let mut later = Vec::new();
         for c in constraints {
-            if matches!(c, Constraint::Terminate(_)) {
+            if matches!(c, Constraint::Terminate(_) | Constraint::Activate(_)) {
                 later.push(c);
             } else {
                 self.apply(id, parent, previous, c);
@@ -438,7 +523,7 @@ impl<A> Engine<A> {
                 Facet::Execution => &[Facet::Execution],
             },
             Constraint::Serial(_) => &[Facet::Expansion, Facet::Execution],
-            Constraint::Parallel | Constraint::Terminate(_) => &[],
+            Constraint::Parallel | Constraint::Terminate(_) | Constraint::Activate(_) => &[],
         };
         for &f in gated {
             if n.state(f) != State::Disabled || n.state(Facet::Handling) != State::Disabled {
@@ -471,7 +556,11 @@ impl<A> Engine<A> {
     ) -> Result<(), EngineError> {
         self.advance(now);
         let n = self.nodes.get(node).ok_or(EngineError::Gone(node))?;
-        if n.state(Facet::Handling) != State::Active || !n.alive() {
+        if n.state(Facet::Handling) != State::Active
+            || !n.alive()
+            || n.monitor.is_some()
+            || n.taps_pending > 0
+        {
             // A cancelled action may still report; the engine already finished it.
             if n.state(Facet::Handling) == State::Completed && !n.alive() {
                 return Ok(());
@@ -479,10 +568,18 @@ impl<A> Engine<A> {
             return Err(EngineError::NotRunning(node));
         }
         self.running -= 1;
-        if let Err(failure) = result {
-            self.fail(node, failure);
+        match result {
+            Err(failure) => {
+                self.fail(node, failure);
+                self.complete_handling(node);
+            }
+            Ok(()) => {
+                // "After" wiretaps decide whether the node succeeded (`tap_finished`).
+                if self.start_taps(node, crate::ids::TapWhen::After) == 0 {
+                    self.complete_handling(node);
+                }
+            }
         }
-        self.complete_handling(node);
         self.settle();
         Ok(())
     }
@@ -551,6 +648,7 @@ impl<A> Engine<A> {
             name: name.to_string(),
             raised: false,
             waiters: Vec::new(),
+            activators: Vec::new(),
         });
         self.external_ids.insert(name.to_string(), id);
         id
@@ -566,11 +664,15 @@ impl<A> Engine<A> {
         ext.raised = true;
         let name = ext.name.clone();
         let waiters = std::mem::take(&mut ext.waiters);
+        let activators = ext.activators.clone();
         self.emit(TraceKind::External { name });
         if first {
             for w in waiters {
                 self.fire(w, false);
             }
+        }
+        for monitor in activators {
+            self.activation_due(monitor);
         }
         self.settle();
     }
@@ -620,6 +722,8 @@ impl<A> Engine<A> {
             match entry {
                 TimerKind::Enable { target, facet } => self.satisfy(target, facet),
                 TimerKind::Terminate { target } => self.work.push_back(Work::Terminate(target)),
+                TimerKind::Poll { monitor, k } => self.poll(monitor, k),
+                TimerKind::ActivateOnce { monitor } => self.activation_due(monitor),
             }
             self.settle();
         }
@@ -629,7 +733,7 @@ impl<A> Engine<A> {
     // Outputs.
 
     /// The next effect to carry out.
-    pub fn poll_effect(&mut self) -> Option<Effect<A>> {
+    pub fn poll_effect(&mut self) -> Option<Effect<A, F>> {
         self.effects.pop_front()
     }
 
@@ -683,7 +787,7 @@ impl<A> Engine<A> {
         Ok(())
     }
 
-    fn live(&self, id: NodeId) -> Result<&Node<A>, EngineError> {
+    fn live(&self, id: NodeId) -> Result<&Node<A, F>, EngineError> {
         self.check_run(id)?;
         self.nodes.get(id).ok_or(EngineError::Gone(id))
     }
@@ -703,11 +807,11 @@ impl<A> Engine<A> {
         Ok(())
     }
 
-    pub(crate) fn node(&self, id: NodeId) -> &Node<A> {
+    pub(crate) fn node(&self, id: NodeId) -> &Node<A, F> {
         self.nodes.get(id).expect("engine invariant: node exists")
     }
 
-    fn node_mut(&mut self, id: NodeId) -> &mut Node<A> {
+    fn node_mut(&mut self, id: NodeId) -> &mut Node<A, F> {
         self.nodes
             .get_mut(id)
             .expect("engine invariant: node exists")
@@ -755,6 +859,38 @@ impl<A> Engine<A> {
         if child_expands {
             p.open_expansions += 1;
         }
+    }
+
+    /// Allocates, links and traces a new node under `parent` with the given payload (activations,
+    /// handler nodes, retries, on-terminate tasks). The caller queues its check.
+    pub(crate) fn insert(
+        &mut self,
+        parent: NodeId,
+        kind: NodeKind,
+        name: Name,
+        payload: Payload<A, F>,
+    ) -> NodeId {
+        let display = self.next_display();
+        let mut node = Node::new(display, kind, name, Some(parent));
+        node.action = Some(payload);
+        node.suspended = self.node(parent).suspended;
+        let id = self.nodes.insert(node);
+        self.link(parent, id);
+        let parent_display = self.node(parent).display;
+        let name = self.node(id).name.to_string();
+        self.emit(TraceKind::Spawned {
+            node: display,
+            parent: parent_display,
+            kind,
+            name,
+        });
+        if self.node(id).suspended {
+            self.emit(TraceKind::Suspended { node: display });
+        }
+        if !self.node(parent).alive() {
+            self.work.push_back(Work::Terminate(id));
+        }
+        id
     }
 
     fn unlink(&mut self, child: NodeId) {
@@ -842,6 +978,7 @@ impl<A> Engine<A> {
                 self.apply_disable(node, parent, previous, facet, until)
             }
             Constraint::Terminate(when) => self.apply_terminate(node, parent, previous, when),
+            Constraint::Activate(when) => self.apply_activate(node, parent, previous, when),
         }
     }
 
@@ -1143,6 +1280,12 @@ impl<A> Engine<A> {
                 // Only reached through `fire_now`/`transition`, which supply the outcome.
                 let _ = token;
             }
+            // Activation constraints fire even on a forced completion (catalogue §3.4).
+            WaitKind::Activate { monitor } => self.activation_due(monitor),
+            WaitKind::ActivateAfter { monitor, delay } => {
+                self.timers
+                    .push(self.now + delay, TimerKind::ActivateOnce { monitor });
+            }
         }
     }
 
@@ -1154,7 +1297,11 @@ impl<A> Engine<A> {
             let outcome = if terminating {
                 WatchOutcome::Terminated
             } else if let Some(f) = &n.failure {
-                WatchOutcome::Failed((**f).clone())
+                if n.handled {
+                    WatchOutcome::Handled((**f).clone())
+                } else {
+                    WatchOutcome::Failed((**f).clone())
+                }
             } else {
                 WatchOutcome::Reached
             };
@@ -1199,7 +1346,7 @@ impl<A> Engine<A> {
         }
     }
 
-    fn parent_allows(&self, n: &Node<A>, facet: Facet) -> bool {
+    fn parent_allows(&self, n: &Node<A, F>, facet: Facet) -> bool {
         match n.parent {
             None => true,
             Some(p) => self
@@ -1341,11 +1488,26 @@ impl<A> Engine<A> {
             n.parked = true;
             return;
         }
-        let Some(action) = n.action.take() else {
+        let is_monitor = n.monitor.is_some();
+        let tapped = n.tapped_before;
+        if !is_monitor && !tapped {
+            n.tapped_before = true;
+            if self.start_taps(id, crate::ids::TapWhen::Before) > 0 {
+                // Stays enabled until its checks report (`tap_finished`).
+                return;
+            }
+        }
+        let Some(n) = self.nodes.get_mut(id) else {
             return;
         };
+        let payload = n.action.take();
+        if payload.is_none() && !is_monitor {
+            return;
+        }
         let expands = n.kind.expands();
-        self.running += 1;
+        if !is_monitor {
+            self.running += 1;
+        }
         self.transition(id, Facet::Handling, State::Active);
         // Figure 3: the expansion (goals) or execution (commands) of the node and of every ancestor
         // is active once some node of the right kind in the subtree is active.
@@ -1364,7 +1526,17 @@ impl<A> Engine<A> {
             self.transition(c, facet, State::Active);
             cur = parent;
         }
-        self.effects.push_back(Effect::Start { node: id, action });
+        match payload {
+            Some(Payload::Action(action)) => {
+                self.effects.push_back(Effect::Start { node: id, action })
+            }
+            Some(Payload::Invoke(body, purpose)) => self.effects.push_back(Effect::Invoke {
+                node: id,
+                body,
+                purpose,
+            }),
+            None => self.monitor_started(id),
+        }
     }
 
     fn complete_handling(&mut self, id: NodeId) {
@@ -1394,30 +1566,6 @@ impl<A> Engine<A> {
         }
     }
 
-    fn fail(&mut self, id: NodeId, failure: Failure) {
-        let display = self.node(id).display;
-        self.emit(TraceKind::Failed {
-            node: display,
-            exception: failure.exception.to_string(),
-            message: failure.message.clone(),
-        });
-        self.emit(TraceKind::Warning {
-            node: Some(display),
-            message: format!(
-                "No exception handler found for exception type \"{}\"",
-                failure.exception
-            ),
-        });
-        if self.policy == FailurePolicy::Fatal && self.fatal.is_none() {
-            self.fatal = Some(FatalFailure {
-                failure: failure.clone(),
-                node: display,
-                path: self.path(id),
-            });
-        }
-        self.node_mut(id).failure = Some(Box::new(failure));
-    }
-
     /// Instance names from the top-level task down to `id`, joined by `/`.
     pub fn path(&self, id: NodeId) -> String {
         let mut names = Vec::new();
@@ -1445,7 +1593,8 @@ impl<A> Engine<A> {
     ///    nodes are released, and each node is Terminated once its children are.
     fn do_terminate(&mut self, id: NodeId) {
         let Some(n) = self.nodes.get(id) else { return };
-        if n.kind == NodeKind::Root {
+        // The root never terminates; an on-terminate task runs to completion whatever happens.
+        if n.kind == NodeKind::Root || n.immune {
             return;
         }
         let display = n.display;
@@ -1485,9 +1634,14 @@ impl<A> Engine<A> {
             if was_suspended {
                 self.emit(TraceKind::Unsuspended { node: display });
             }
+            let action_running = h == State::Active
+                && self.node(c).monitor.is_none()
+                && self.node(c).taps_pending == 0;
             if h == State::Active {
-                self.running -= 1;
-                self.effects.push_back(Effect::Cancel { node: c });
+                if action_running {
+                    self.running -= 1;
+                    self.effects.push_back(Effect::Cancel { node: c });
+                }
                 let cleanups = std::mem::take(&mut self.node_mut(c).on_terminate);
                 for ot in cleanups {
                     self.spawn_cleanup(c, ot);
@@ -1507,20 +1661,9 @@ impl<A> Engine<A> {
     }
 
     fn spawn_cleanup(&mut self, parent: NodeId, ot: OnTerminate<A>) {
-        let display = self.next_display();
-        let mut node = Node::new(display, ot.kind, ot.name, Some(parent));
-        node.immune = true;
-        node.action = Some(ot.action);
-        let id = self.nodes.insert(node);
-        self.link(parent, id);
-        let parent_display = self.node(parent).display;
-        let name = self.node(id).name.to_string();
-        self.emit(TraceKind::Spawned {
-            node: display,
-            parent: parent_display,
-            kind: ot.kind,
-            name,
-        });
+        let id = self.insert(parent, ot.kind, ot.name, Payload::Action(ot.action));
+        // Delayed termination: the terminating parent does not take it down (see `do_terminate`).
+        self.node_mut(id).immune = true;
         self.node_mut(parent).last_spawned = Some(id);
         self.work.push_back(Work::Check(id));
     }
@@ -1580,11 +1723,17 @@ impl<A> Engine<A> {
     }
 }
 
-fn timer_is_live<A>(nodes: &Arena<A>, kind: &TimerKind) -> bool {
+fn timer_is_live<A, F>(nodes: &Arena<A, F>, kind: &TimerKind) -> bool {
     match *kind {
         TimerKind::Enable { target, facet } => nodes
             .get(target)
             .is_some_and(|n| n.alive() && n.state(facet) == State::Disabled),
+        TimerKind::Poll { monitor, .. } => nodes
+            .get(monitor)
+            .is_some_and(|n| n.alive() && n.state(Facet::Handling) == State::Active),
+        TimerKind::ActivateOnce { monitor } => nodes
+            .get(monitor)
+            .is_some_and(|n| n.alive() && n.state(Facet::Handling) != State::Completed),
         TimerKind::Terminate { target } => nodes
             .get(target)
             .is_some_and(|n| n.alive() && n.state(Facet::Execution) != State::Completed),

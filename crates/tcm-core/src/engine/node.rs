@@ -1,5 +1,7 @@
 //! One task-tree node as the engine stores it.
 
+use super::exception::{HandlerCtx, HandlerEntry};
+use super::monitor::Monitor;
 use crate::failure::Failure;
 use crate::ids::{NodeId, WatchToken};
 use crate::{Name, NodeKind};
@@ -23,6 +25,10 @@ pub(crate) enum WaitKind {
     TerminateAfter { target: NodeId, delay: Duration },
     /// Tell the shell.
     Watch { token: WatchToken },
+    /// Activate the monitor (fires even when the watched node reached the point by termination).
+    Activate { monitor: NodeId },
+    /// Activate the monitor `delay` after the point.
+    ActivateAfter { monitor: NodeId, delay: Duration },
 }
 
 impl WaitKind {
@@ -42,6 +48,49 @@ pub(crate) struct Waiter {
     pub(crate) kind: WaitKind,
 }
 
+/// Why the shell is asked to run a factory (see `Effect::Invoke`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Purpose {
+    /// One activation of a monitor: `node` is the activation node, a child of the monitor.
+    Activation {
+        /// The monitor.
+        monitor: NodeId,
+        /// This activation's number, from 1 (activations are counted when created).
+        number: u32,
+        /// Triggers counted so far.
+        triggers: u32,
+    },
+    /// An exception handler: `node` is the new handler node.
+    Handler {
+        /// The failure being handled.
+        failure: Failure,
+        /// The node whose action failed.
+        failing: NodeId,
+        /// The node the handler was attached to.
+        attached: NodeId,
+    },
+    /// A fresh run of a failed task, asked for by a handler: `node` is the new node.
+    Retry {
+        /// The node that failed.
+        of: NodeId,
+    },
+    /// A wiretap check on `node` (no new node): report with `Engine::tap_finished`.
+    Tap {
+        /// Which wiretap.
+        tap: crate::ids::WiretapId,
+        /// Before the node's action starts, or after it returned successfully.
+        when: crate::ids::TapWhen,
+    },
+}
+
+/// What a node runs when it starts.
+pub(crate) enum Payload<A, F> {
+    /// The shell's one-shot action.
+    Action(A),
+    /// A factory to invoke, and why.
+    Invoke(F, Purpose),
+}
+
 /// A task to insert as a child if the node is terminated while its action runs.
 pub struct OnTerminate<A> {
     /// Kind of the cleanup node.
@@ -52,7 +101,7 @@ pub struct OnTerminate<A> {
     pub action: A,
 }
 
-pub(crate) struct Node<A> {
+pub(crate) struct Node<A, F> {
     pub(crate) display: u64,
     pub(crate) kind: NodeKind,
     pub(crate) name: Name,
@@ -88,13 +137,34 @@ pub(crate) struct Node<A> {
     // Invariant: the number of linked children not yet reclaimed.
     pub(crate) live_children: u32,
     pub(crate) waiters: Vec<Waiter>,
-    pub(crate) action: Option<A>,
+    pub(crate) action: Option<Payload<A, F>>,
     pub(crate) on_terminate: Vec<OnTerminate<A>>,
     pub(crate) reservations: Vec<NodeId>,
+    // Monitor state, for monitor nodes.
+    pub(crate) monitor: Option<Box<Monitor<F>>>,
+    // For activation nodes: their monitor.
+    pub(crate) activation_of: Option<NodeId>,
+    // Exception handlers attached to this node, in the order they are tried.
+    pub(crate) handlers: Vec<HandlerEntry<F>>,
+    // For handler nodes: what they handle.
+    pub(crate) handling: Option<Box<HandlerCtx>>,
+    // A factory that re-runs this task, for retries.
+    pub(crate) retry: Option<F>,
+    // A handler took this node's failure.
+    pub(crate) handled: bool,
+    // Wiretap checks running on this node, and whether the "before" checks already ran.
+    pub(crate) taps_pending: u32,
+    pub(crate) tapped_before: bool,
+    pub(crate) tap_failure: Option<Box<Failure>>,
 }
 
-impl<A> Node<A> {
-    pub(crate) fn new(display: u64, kind: NodeKind, name: Name, parent: Option<NodeId>) -> Node<A> {
+impl<A, F> Node<A, F> {
+    pub(crate) fn new(
+        display: u64,
+        kind: NodeKind,
+        name: Name,
+        parent: Option<NodeId>,
+    ) -> Node<A, F> {
         let expansion = if kind.expands() {
             State::Disabled
         } else {
@@ -129,6 +199,15 @@ impl<A> Node<A> {
             action: None,
             on_terminate: Vec::new(),
             reservations: Vec::new(),
+            monitor: None,
+            activation_of: None,
+            handlers: Vec::new(),
+            handling: None,
+            retry: None,
+            handled: false,
+            taps_pending: 0,
+            tapped_before: false,
+            tap_failure: None,
         }
     }
 

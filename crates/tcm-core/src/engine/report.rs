@@ -52,7 +52,7 @@ impl fmt::Display for Blocked {
     }
 }
 
-impl<A> Engine<A> {
+impl<A, F: Clone> Engine<A, F> {
     /// A snapshot of a live node; `None` once it was reclaimed.
     pub fn info(&self, id: NodeId) -> Option<NodeInfo> {
         let n = self.nodes.get(id)?;

@@ -17,6 +17,10 @@ pub(crate) enum TimerKind {
     Enable { target: NodeId, facet: Facet },
     /// Terminate the target.
     Terminate { target: NodeId },
+    /// Polling activation `k` of a monitor (due at its start + k periods).
+    Poll { monitor: NodeId, k: u64 },
+    /// One activation of a monitor.
+    ActivateOnce { monitor: NodeId },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -4,10 +4,10 @@
 use proptest::prelude::*;
 use std::rc::Rc;
 use std::time::Duration;
-use tcm_core::sim::{Body, Outcome, Sim, body};
+use tcm_core::sim::{Body, Outcome, Sim, SimEngine, body};
 use tcm_core::{
-    Constraint, Engine, Event, Facet, Failure, NodeId, NodeKind, NodeRef, Point, Spawn,
-    TerminateWhen, Time, Until,
+    Constraint, Event, Facet, Failure, NodeId, NodeKind, NodeRef, Point, Spawn, TerminateWhen,
+    Time, Until,
 };
 
 #[derive(Clone, Debug)]
@@ -141,7 +141,7 @@ fn lower(c: &C, resolve: &dyn Fn(Target) -> Option<NodeRef>) -> Option<Constrain
 }
 
 fn action(plan: Rc<Plan>) -> Body {
-    body(move |e: &mut Engine<Body>, me: NodeId, now: Time| {
+    body(move |e: &mut SimEngine, me: NodeId, now: Time| {
         let n = plan.children.len();
         // Reserve every child named by an earlier sibling's forward reference, plus one extra
         // reservation per forward reference past the end (a dead reference).

@@ -132,13 +132,14 @@ fn error_text(input: &str) -> String {
 #[test]
 fn errors_name_the_line_and_the_problem() {
     let first = to_line(&small_run()[0]);
-    assert_eq!(
-        error_text(&format!(
-            "{first}\n{{\"seq\":1,\"t\":0,\"ev\":\"exploded\"}}\n"
-        )),
-        "line 2: not a trace record: unknown variant `exploded`, expected one of `run_started`, `reserved`, \
-         `spawned`, `constrained`, `constraint_void`, `transition`, `terminating`, `terminated`, `suspended`, \
-         `unsuspended`, `failed`, `dead`, `external`, `reclaimed`, `warning` at line 1 column 31"
+    let text = error_text(&format!(
+        "{first}\n{{\"seq\":1,\"t\":0,\"ev\":\"exploded\"}}\n"
+    ));
+    assert!(
+        text.starts_with(
+            "line 2: not a trace record: unknown variant `exploded`, expected one of `run_started`"
+        ),
+        "{text}"
     );
     let e = error_text(&format!(
         "{first}\n\n{{\"seq\":1,\"t\":0,\"ev\":\"dead\"}}\n"

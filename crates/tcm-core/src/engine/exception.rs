@@ -1,0 +1,323 @@
+//! Exceptions: handler search up the tree, bypass, re-raise and retry (TDL paper, "Task Trees";
+//! catalogue §1.8, §3.5), and wiretaps (the TCA paper's wiretap monitors).
+//!
+//! Handler search, as numbered steps:
+//! 1. A node's action fails with a [`Failure`]: the node is marked failed and the search starts at
+//!    the node itself. A failure raised by a handler node starts above the node that handler was
+//!    attached to, as an exception thrown inside a `catch` block propagates to the enclosing `try`.
+//! 2. At each node, its handlers are tried in their order (see [`HandlerSpec`]); a handler matches
+//!    if it handles the failure's exception type or one of its ancestors, and is skipped if its
+//!    maximum activations are used up. Then the parent, up to the root.
+//! 3. Found: its use count grows, and a new *handler node* is inserted as a child of the failing
+//!    node, running the handler's body with the failure, the failing node and the attachment node.
+//!    The tree is not unwound: the failing node's handling completes (failed), its execution waits
+//!    for the handler's subtree, siblings go on. The handler decides what to terminate, add or retry.
+//! 4. Not found: the node stays failed with the warning TCM printed; under
+//!    [`crate::FailurePolicy::Fatal`] the run's outcome becomes that failure.
+//! 5. Bypass ([`Engine::bypass`]): the search goes on after the bypassing handler (same node's later
+//!    handlers first, then ancestors); the next handler node becomes a child of the bypassing one,
+//!    whose handling then completes.
+//! 6. Retry ([`Engine::retry`]): a fresh node of the failing task (same kind, name and arguments,
+//!    from the factory given at spawn) is inserted under the handler node; its failures search from
+//!    there upward, so the handler's maximum activations bound the attempts.
+
+use super::node::{Payload, Purpose};
+use super::{Engine, EngineError, Work};
+use crate::failure::{Failure, FailurePolicy, FatalFailure};
+use crate::ids::{NodeId, TapWhen, WiretapId};
+use crate::time::Time;
+use crate::{Name, NodeKind};
+use tcm_trace::{Facet, State, TraceKind};
+
+/// An exception handler attached to a node (at spawn, `Spawn::handlers`).
+#[derive(Clone, Debug)]
+pub struct HandlerSpec<F> {
+    /// Instance name of the handler nodes it creates.
+    pub name: Name,
+    /// The exception type it handles (and every type that names it as an ancestor).
+    pub exception: Name,
+    /// How many times it may be used; unlimited when `None`.
+    pub max_activations: Option<u32>,
+    /// The body's factory, invoked once per use.
+    pub body: F,
+}
+
+pub(crate) struct HandlerEntry<F> {
+    pub(crate) spec: HandlerSpec<F>,
+    pub(crate) uses: u32,
+}
+
+/// What a handler node handles, for bypass and retry.
+pub(crate) struct HandlerCtx {
+    pub(crate) failure: Failure,
+    pub(crate) failing: NodeId,
+    pub(crate) attached: NodeId,
+    pub(crate) index: usize,
+}
+
+pub(crate) struct Wiretap<F> {
+    pub(crate) task: Name,
+    pub(crate) when: TapWhen,
+    pub(crate) body: F,
+}
+
+impl<A, F: Clone> Engine<A, F> {
+    /// The handler node `node` passes its exception on (step 5); its handling completes.
+    pub fn bypass(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {
+        self.advance(now);
+        let n = self.live(node)?;
+        let display = n.display;
+        let Some(ctx) = n.handling.as_ref() else {
+            return Err(EngineError::NotAHandler(display));
+        };
+        if n.state(Facet::Handling) != State::Active || !n.alive() {
+            return Err(EngineError::NotRunning(node));
+        }
+        let (failure, failing, attached, index) =
+            (ctx.failure.clone(), ctx.failing, ctx.attached, ctx.index);
+        self.running -= 1;
+        self.emit(TraceKind::Bypassed {
+            node: display,
+            exception: failure.exception.to_string(),
+        });
+        self.search(failing, failure, Some(attached), index + 1, node);
+        self.complete_handling(node);
+        self.settle();
+        Ok(())
+    }
+
+    /// The handler node `node` asks for a fresh run of the task that failed (step 6). Returns the
+    /// new node. The failing task must have been spawned with a retry factory (`Spawn::retry`).
+    pub fn retry(&mut self, now: Time, node: NodeId) -> Result<NodeId, EngineError> {
+        self.advance(now);
+        let n = self.live(node)?;
+        let display = n.display;
+        let Some(ctx) = n.handling.as_ref() else {
+            return Err(EngineError::NotAHandler(display));
+        };
+        let failing = ctx.failing;
+        let f = self.live(failing)?;
+        let Some(factory) = f.retry.clone() else {
+            return Err(EngineError::NotRetryable(f.display));
+        };
+        let (kind, name, of_display) = (f.kind, f.name.clone(), f.display);
+        let id = self.insert(
+            node,
+            kind,
+            name,
+            Payload::Invoke(factory.clone(), Purpose::Retry { of: failing }),
+        );
+        self.node_mut(id).retry = Some(factory);
+        let new_display = self.node(id).display;
+        self.emit(TraceKind::Retried {
+            node: new_display,
+            of: of_display,
+        });
+        self.work.push_back(Work::Check(id));
+        self.settle();
+        Ok(id)
+    }
+
+    /// Registers a wiretap: `body` runs whenever a node whose instance name is `task` is about to
+    /// start its action (`Before`) or has returned successfully (`After`), without touching that
+    /// task's code. A failing check fails the tapped node with the check's failure.
+    pub fn wiretap(&mut self, task: impl Into<Name>, when: TapWhen, body: F) -> WiretapId {
+        let id = WiretapId(self.taps.len() as u32);
+        self.taps.push(Wiretap {
+            task: task.into(),
+            when,
+            body,
+        });
+        id
+    }
+
+    /// A wiretap check on `node` finished.
+    pub fn tap_finished(
+        &mut self,
+        now: Time,
+        node: NodeId,
+        tap: WiretapId,
+        result: Result<(), Failure>,
+    ) -> Result<(), EngineError> {
+        self.advance(now);
+        let Some(when) = self.taps.get(tap.0 as usize).map(|t| t.when) else {
+            return Err(EngineError::NotRunning(node));
+        };
+        self.running = self.running.saturating_sub(1);
+        let Some(n) = self.nodes.get_mut(node) else {
+            return Ok(());
+        };
+        n.taps_pending = n.taps_pending.saturating_sub(1);
+        if let Err(f) = result {
+            if n.tap_failure.is_none() {
+                n.tap_failure = Some(Box::new(f));
+            }
+        }
+        if n.taps_pending > 0 || !n.alive() {
+            self.settle();
+            return Ok(());
+        }
+        let failure = n.tap_failure.take().map(|b| *b);
+        match (when, failure) {
+            (TapWhen::Before, None) => self.ready.push_back(node),
+            (TapWhen::Before, Some(f)) => {
+                // Vetoed: the action never runs; the node fails in its place.
+                self.fail(node, f);
+                self.complete_handling(node);
+            }
+            (TapWhen::After, None) => self.complete_handling(node),
+            (TapWhen::After, Some(f)) => {
+                self.fail(node, f);
+                self.complete_handling(node);
+            }
+        }
+        self.settle();
+        Ok(())
+    }
+
+    /// Starts the wiretaps of `node` for `when`; returns how many started.
+    pub(crate) fn start_taps(&mut self, node: NodeId, when: TapWhen) -> u32 {
+        if self.taps.is_empty() {
+            return 0;
+        }
+        let name = self.node(node).name.clone();
+        let matching: Vec<(WiretapId, F)> = self
+            .taps
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.when == when && t.task == name)
+            .map(|(i, t)| (WiretapId(i as u32), t.body.clone()))
+            .collect();
+        let k = matching.len() as u32;
+        if k == 0 {
+            return 0;
+        }
+        let display = self.node(node).display;
+        self.node_mut(node).taps_pending += k;
+        for (tap, body) in matching {
+            self.running += 1;
+            self.emit(TraceKind::Tapped {
+                node: display,
+                tap: tap.0,
+                when: match when {
+                    TapWhen::Before => "before".into(),
+                    TapWhen::After => "after".into(),
+                },
+            });
+            self.effects.push_back(super::Effect::Invoke {
+                node,
+                body,
+                purpose: Purpose::Tap { tap, when },
+            });
+        }
+        k
+    }
+
+    /// Step 1: `node`'s action failed.
+    pub(crate) fn fail(&mut self, node: NodeId, failure: Failure) {
+        let display = self.node(node).display;
+        self.emit(TraceKind::Failed {
+            node: display,
+            exception: failure.exception.to_string(),
+            message: failure.message.clone(),
+        });
+        // A handler's own failure searches above the node it was attached to.
+        let from = match self.node(node).handling.as_ref() {
+            Some(ctx) => self.nodes.get(ctx.attached).and_then(|a| a.parent),
+            None => Some(node),
+        };
+        self.node_mut(node).failure = Some(Box::new(failure.clone()));
+        self.search(node, failure, from, 0, node);
+    }
+
+    /// Steps 2 to 4: searches from `(from, index)` upward; a found handler's node goes under
+    /// `under`.
+    fn search(
+        &mut self,
+        failing: NodeId,
+        failure: Failure,
+        from: Option<NodeId>,
+        mut index: usize,
+        under: NodeId,
+    ) {
+        let mut cur = from;
+        while let Some(at) = cur {
+            let Some(n) = self.nodes.get(at) else { break };
+            if n.kind == NodeKind::Root {
+                break;
+            }
+            let found = n.handlers.iter().enumerate().skip(index).find(|(_, h)| {
+                failure.is_a(&h.spec.exception) && h.spec.max_activations.is_none_or(|m| h.uses < m)
+            });
+            if let Some((i, _)) = found {
+                self.use_handler(failing, failure, at, i, under);
+                return;
+            }
+            cur = n.parent;
+            index = 0;
+        }
+        let display = self.node(failing).display;
+        self.emit(TraceKind::Warning {
+            node: Some(display),
+            message: format!(
+                "No exception handler found for exception type \"{}\"",
+                failure.exception
+            ),
+        });
+        if self.policy == FailurePolicy::Fatal && self.fatal.is_none() {
+            self.fatal = Some(FatalFailure {
+                failure,
+                node: display,
+                path: self.path(failing),
+            });
+        }
+    }
+
+    fn use_handler(
+        &mut self,
+        failing: NodeId,
+        failure: Failure,
+        attached: NodeId,
+        index: usize,
+        under: NodeId,
+    ) {
+        let entry = &mut self.node_mut(attached).handlers[index];
+        entry.uses += 1;
+        let (body, name, handler) = (
+            entry.spec.body.clone(),
+            entry.spec.name.clone(),
+            entry.spec.name.to_string(),
+        );
+        self.node_mut(failing).handled = true;
+        let purpose = Purpose::Handler {
+            failure: failure.clone(),
+            failing,
+            attached,
+        };
+        let id = self.insert(
+            under,
+            NodeKind::Handler,
+            name,
+            Payload::Invoke(body, purpose),
+        );
+        let (d, fd, ad) = (
+            self.node(id).display,
+            self.node(failing).display,
+            self.node(attached).display,
+        );
+        self.emit(TraceKind::HandlerChosen {
+            node: d,
+            failing: fd,
+            attached: ad,
+            exception: failure.exception.to_string(),
+            handler,
+        });
+        self.node_mut(id).handling = Some(Box::new(HandlerCtx {
+            failure,
+            failing,
+            attached,
+            index,
+        }));
+        self.work.push_back(Work::Check(id));
+    }
+}

@@ -1,0 +1,409 @@
+//! Monitors (TDL paper, "Task Trees" and Figure 6; catalogue §1.9, §2.7).
+//!
+//! A monitor is a command-like node with no action of its own. While its handling is active, each
+//! *activation* inserts a child command node (`ACT-<monitor>`) that runs the monitor's body, from a
+//! factory the shell gave at spawn. Activations come from a polling period, `activate` constraints,
+//! external events and explicit [`Engine::activate`] calls.
+//!
+//! Protocol:
+//! 1. The monitor's handling becomes active like any node's; instead of an action it records its
+//!    start time and, if polling, activates at once (unless `initial_wait`) and arms a timer for
+//!    `start + period`.
+//! 2. A polling timer `k` fires at exactly `start + k * period` (absolute deadlines: no drift), makes
+//!    one activation and arms `k + 1` while the monitor's handling is active.
+//! 3. An activation counts itself when created; reaching `max_activations` completes the monitor's
+//!    handling at once (the last activation still runs). A `trigger` from a body counts; reaching
+//!    `max_triggers` completes it too. A completed monitor makes no more activations; its execution
+//!    completes when its running activations' subtrees do.
+//! 4. Terminating a monitor terminates its running activations with it, like any subtree.
+
+use super::node::{Payload, Purpose, WaitKind, Waiter};
+use super::timers::TimerKind;
+use super::{Engine, EngineError, Work};
+use crate::constraint::{ActivateWhen, Constraint, NodeRef};
+use crate::ids::NodeId;
+use crate::time::Time;
+use crate::{Name, NodeKind};
+use std::time::Duration;
+use tcm_trace::{Facet, State, TraceConstraint, TraceKind};
+
+/// Constraints between successive activations of one monitor (catalogue §1.3, monitor rows).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EachActivation {
+    /// Each activation starts (expansion and execution) after the previous one's execution completed.
+    pub serial: bool,
+    /// Each activation's execution waits for the previous one's execution.
+    pub sequential_execution: bool,
+    /// Each activation's expansion waits for the previous one's expansion.
+    pub sequential_expansion: bool,
+    /// `expand first` on every activation.
+    pub expand_first: bool,
+    /// `delay expansion` on every activation.
+    pub delay_expansion: bool,
+}
+
+/// How a monitor behaves; given at spawn (`Spawn::monitor`).
+#[derive(Clone, Debug)]
+pub struct MonitorSpec<F> {
+    /// The body's factory, invoked once per activation.
+    pub body: F,
+    /// The monitor completes after this many activations.
+    pub max_activations: Option<u32>,
+    /// The monitor completes after this many triggers.
+    pub max_triggers: Option<u32>,
+    /// Polling period: one activation every period, on absolute deadlines.
+    pub period: Option<Duration>,
+    /// Skip the polling activation at start.
+    pub initial_wait: bool,
+    /// Constraints between successive activations.
+    pub each: EachActivation,
+    /// Name of activation nodes; default `ACT-<monitor name>`.
+    pub activation_name: Option<Name>,
+}
+
+impl<F> MonitorSpec<F> {
+    /// A monitor with no limits and no period: it runs until terminated, activated by constraints,
+    /// events or explicit calls.
+    pub fn new(body: F) -> MonitorSpec<F> {
+        MonitorSpec {
+            body,
+            max_activations: None,
+            max_triggers: None,
+            period: None,
+            initial_wait: false,
+            each: EachActivation::default(),
+            activation_name: None,
+        }
+    }
+}
+
+pub(crate) struct Monitor<F> {
+    pub(crate) spec: MonitorSpec<F>,
+    pub(crate) activations: u32,
+    pub(crate) triggers: u32,
+    pub(crate) last: Option<NodeId>,
+    pub(crate) started_at: Time,
+}
+
+impl<F> Monitor<F> {
+    pub(crate) fn new(spec: MonitorSpec<F>) -> Monitor<F> {
+        Monitor {
+            spec,
+            activations: 0,
+            triggers: 0,
+            last: None,
+            started_at: Time::ZERO,
+        }
+    }
+}
+
+impl<A, F: Clone> Engine<A, F> {
+    /// Activates a monitor now. Returns the activation node, or `None` if the monitor already
+    /// reached its maximum. Activating a monitor whose handling is not active is an error (and a
+    /// warning in the trace).
+    pub fn activate(&mut self, now: Time, monitor: NodeId) -> Result<Option<NodeId>, EngineError> {
+        self.advance(now);
+        let n = self.live(monitor)?;
+        if n.monitor.is_none() {
+            return Err(EngineError::NotAMonitor(n.display));
+        }
+        if n.state(Facet::Handling) != State::Active || !n.alive() {
+            let display = n.display;
+            self.inactive_monitor_warning(monitor);
+            return Err(EngineError::InactiveMonitor(display));
+        }
+        let id = self.make_activation(monitor);
+        self.settle();
+        Ok(id)
+    }
+
+    /// Counts a trigger of the monitor of `node` (an activation node, or the monitor itself).
+    pub fn trigger(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {
+        self.advance(now);
+        let n = self.live(node)?;
+        let monitor = n.activation_of.unwrap_or(node);
+        let m = self.live(monitor)?;
+        let display = m.display;
+        let Some(mon) = &m.monitor else {
+            return Err(EngineError::NotAMonitor(display));
+        };
+        if m.state(Facet::Handling) != State::Active || !m.alive() {
+            // A trigger after the monitor completed changes nothing.
+            return Ok(());
+        }
+        let (count, max) = (mon.triggers + 1, mon.spec.max_triggers);
+        if let Some(mon) = self.node_mut(monitor).monitor.as_mut() {
+            mon.triggers = count;
+        }
+        self.emit(TraceKind::Triggered {
+            monitor: display,
+            count,
+        });
+        if max.is_some_and(|m| count >= m) {
+            self.monitor_done(monitor);
+        }
+        self.settle();
+        Ok(())
+    }
+
+    /// Activations and triggers counted so far, for a monitor or one of its activation nodes.
+    pub fn monitor_counts(&self, node: NodeId) -> Option<(u32, u32)> {
+        let n = self.nodes.get(node)?;
+        let m = self.nodes.get(n.activation_of.unwrap_or(node))?;
+        m.monitor.as_ref().map(|m| (m.activations, m.triggers))
+    }
+
+    fn inactive_monitor_warning(&mut self, monitor: NodeId) {
+        let n = self.node(monitor);
+        let message = format!(
+            "Trying to activate an inactive monitor {} {{{}}}",
+            n.name, n.display
+        );
+        let display = n.display;
+        self.emit(TraceKind::Warning {
+            node: Some(display),
+            message,
+        });
+    }
+
+    /// An activation source fired (timer, event, external event).
+    pub(crate) fn activation_due(&mut self, monitor: NodeId) {
+        let Some(n) = self.nodes.get(monitor) else {
+            return;
+        };
+        if !n.alive() || n.state(Facet::Handling) == State::Completed {
+            return;
+        }
+        if n.state(Facet::Handling) != State::Active {
+            self.inactive_monitor_warning(monitor);
+            return;
+        }
+        self.make_activation(monitor);
+    }
+
+    /// The monitor's handling became active (step 1 of the protocol).
+    pub(crate) fn monitor_started(&mut self, monitor: NodeId) {
+        let now = self.now;
+        let Some(mon) = self.node_mut(monitor).monitor.as_mut() else {
+            return;
+        };
+        mon.started_at = now;
+        let (period, initial_wait) = (mon.spec.period, mon.spec.initial_wait);
+        if let Some(p) = period {
+            if !initial_wait {
+                self.make_activation(monitor);
+            }
+            if self.node(monitor).state(Facet::Handling) == State::Active {
+                self.timers.push(now + p, TimerKind::Poll { monitor, k: 1 });
+            }
+        }
+    }
+
+    /// Polling timer `k` fired (step 2).
+    pub(crate) fn poll(&mut self, monitor: NodeId, k: u64) {
+        self.activation_due(monitor);
+        let Some(n) = self.nodes.get(monitor) else {
+            return;
+        };
+        let Some(mon) = &n.monitor else { return };
+        if n.alive() && n.state(Facet::Handling) == State::Active {
+            if let Some(p) = mon.spec.period {
+                let next = mon
+                    .started_at
+                    .saturating_add(p.saturating_mul(u32::try_from(k + 1).unwrap_or(u32::MAX)));
+                self.timers
+                    .push(next, TimerKind::Poll { monitor, k: k + 1 });
+            }
+        }
+    }
+
+    /// Inserts one activation node (step 3).
+    fn make_activation(&mut self, monitor: NodeId) -> Option<NodeId> {
+        let m = self.node(monitor);
+        let mon = m.monitor.as_ref()?;
+        if mon
+            .spec
+            .max_activations
+            .is_some_and(|max| mon.activations >= max)
+        {
+            return None;
+        }
+        let number = mon.activations + 1;
+        let triggers = mon.triggers;
+        let prev = mon.last;
+        let each = mon.spec.each;
+        let body = mon.spec.body.clone();
+        let name: Name = match &mon.spec.activation_name {
+            Some(n) => n.clone(),
+            None => Name::Owned(format!("ACT-{}", m.name)),
+        };
+        let max = mon.spec.max_activations;
+        let monitor_display = m.display;
+        if let Some(mon) = self.node_mut(monitor).monitor.as_mut() {
+            mon.activations = number;
+        }
+        let payload = Payload::Invoke(
+            body,
+            Purpose::Activation {
+                monitor,
+                number,
+                triggers,
+            },
+        );
+        let id = self.insert(monitor, NodeKind::Command, name, payload);
+        self.node_mut(id).activation_of = Some(monitor);
+        if let Some(prev) = prev {
+            let r = NodeRef::Node(prev);
+            let mut cs = Vec::new();
+            if each.serial {
+                cs.push(Constraint::Serial(r));
+            }
+            if each.sequential_execution {
+                cs.push(Constraint::Sequential(Facet::Execution, r));
+            }
+            if each.sequential_expansion {
+                cs.push(Constraint::Sequential(Facet::Expansion, r));
+            }
+            for c in cs {
+                self.apply(id, monitor, Some(prev), c);
+            }
+        }
+        if each.expand_first {
+            self.apply(id, monitor, prev, Constraint::ExpandFirst);
+        }
+        if each.delay_expansion {
+            self.apply(id, monitor, prev, Constraint::DelayExpansion);
+        }
+        let display = self.node(id).display;
+        self.emit(TraceKind::Activated {
+            monitor: monitor_display,
+            node: display,
+            number,
+        });
+        if let Some(mon) = self.node_mut(monitor).monitor.as_mut() {
+            mon.last = Some(id);
+        }
+        self.node_mut(monitor).last_spawned = Some(id);
+        self.work.push_back(Work::Check(id));
+        if max.is_some_and(|max| number >= max) {
+            self.monitor_done(monitor);
+        }
+        Some(id)
+    }
+
+    /// The monitor reached a maximum: its handling completes; no more activations.
+    pub(crate) fn monitor_done(&mut self, monitor: NodeId) {
+        let Some(n) = self.nodes.get(monitor) else {
+            return;
+        };
+        if n.state(Facet::Handling) != State::Active {
+            return;
+        }
+        self.transition(monitor, Facet::Handling, State::Completed);
+        self.bury_reservations(monitor);
+        self.work.push_back(Work::Check(monitor));
+    }
+
+    /// Applies an `activate` constraint to `node` (a monitor).
+    pub(crate) fn apply_activate(
+        &mut self,
+        node: NodeId,
+        parent: NodeId,
+        previous: Option<NodeId>,
+        when: ActivateWhen,
+    ) {
+        let display = self.node(node).display;
+        if self.node(node).monitor.is_none() {
+            self.void(node, "`activate` applies to monitors only".into());
+            return;
+        }
+        match when {
+            ActivateWhen::Now => {
+                self.emit(TraceKind::Constrained {
+                    node: display,
+                    constraint: TraceConstraint::ActivateNow,
+                });
+                // TCM's "activate at self handling active", which avoids racing the monitor's start.
+                let w = Waiter {
+                    facet: Facet::Handling,
+                    point: tcm_trace::Point::Active,
+                    kind: WaitKind::Activate { monitor: node },
+                };
+                if self.node(node).reached(w.facet, w.point) {
+                    self.activation_due(node);
+                } else {
+                    self.node_mut(node).waiters.push(w);
+                }
+            }
+            ActivateWhen::Time(at) => {
+                self.emit(TraceKind::Constrained {
+                    node: display,
+                    constraint: TraceConstraint::ActivateAtTime { at: at.as_nanos() },
+                });
+                self.timers
+                    .push(at.max(self.now), TimerKind::ActivateOnce { monitor: node });
+            }
+            ActivateWhen::In(d) => {
+                self.apply_activate(node, parent, previous, ActivateWhen::Time(self.now + d))
+            }
+            ActivateWhen::External(x) => {
+                let Some(ext) = self.externals.get_mut(x.0 as usize) else {
+                    self.void(node, "unknown external event".into());
+                    return;
+                };
+                ext.activators.push(node);
+                let name = ext.name.clone();
+                self.emit(TraceKind::Constrained {
+                    node: display,
+                    constraint: TraceConstraint::ActivateAtExternal { name },
+                });
+            }
+            ActivateWhen::Event(ev) | ActivateWhen::InAfter(_, ev) => {
+                let delay = match when {
+                    ActivateWhen::InAfter(d, _) => Some(d),
+                    _ => None,
+                };
+                let Some(r) = self.resolve(ev.node, node, parent, previous) else {
+                    self.void(
+                        node,
+                        "activate constraint names `previous`, but nothing was spawned before"
+                            .into(),
+                    );
+                    return;
+                };
+                let event = self.event_ref(r, ev.facet, ev.point);
+                let constraint = match delay {
+                    Some(d) => TraceConstraint::ActivateInAfter {
+                        delay_ns: u64::try_from(d.as_nanos()).unwrap_or(u64::MAX),
+                        event,
+                    },
+                    None => TraceConstraint::ActivateAtEvent { event },
+                };
+                self.emit(TraceKind::Constrained {
+                    node: display,
+                    constraint,
+                });
+                let kind = match delay {
+                    Some(delay) => WaitKind::ActivateAfter {
+                        monitor: node,
+                        delay,
+                    },
+                    None => WaitKind::Activate { monitor: node },
+                };
+                let passed = match self.nodes.lookup(r) {
+                    crate::arena::Lookup::Gone(_) => true,
+                    crate::arena::Lookup::Live => self.node(r).reached(ev.facet, ev.point),
+                };
+                if passed {
+                    self.fire(kind, false);
+                } else {
+                    self.node_mut(r).waiters.push(Waiter {
+                        facet: ev.facet,
+                        point: ev.point,
+                        kind,
+                    });
+                }
+            }
+        }
+    }
+}
