@@ -428,7 +428,9 @@ impl Driver {
         let mut trace = Vec::new();
         let result = loop {
             let (deadline, idle, running, fatal, blocked, top_done) = {
-                let mut inner = self.shared.enter()?;
+                // A plain lock, not a `Session`: the driver decides itself what to do next, and
+                // waking itself would spin while the run waits for an event handle.
+                let mut inner = lock(&self.shared)?;
                 pump(&self.shared, &mut inner);
                 while let Some(ev) = inner.engine.poll_trace() {
                     trace.push(ev);
@@ -475,10 +477,11 @@ impl Driver {
                 biased;
                 () = self.shared.wake.notified() => {}
                 () = sleep_until(sleep), if sleep.is_some() => {
-                    let mut inner = self.shared.enter()?;
+                    let mut inner = lock(&self.shared)?;
                     let now = self.shared.now();
                     inner.armed = None;
                     inner.engine.handle_timeout(now);
+                    pump(&self.shared, &mut inner);
                 }
             }
         };

@@ -18,14 +18,15 @@
 //! }
 //! ```
 //!
-//! `monitorPickup` is a plain command standing in for the Figure 6 monitor (monitors come later).
+//! `monitorPickup` is the Figure 6 monitor ([`monitor_pickup`]) or, in [`deliver_mail`], a plain
+//! command standing in for it, as in the runtime's first story tests.
 
 #![allow(dead_code, unreachable_pub)]
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tcm::{Constraint, Event, Facet, NodeRef, Point, Task, Until};
+use tcm::{Constraint, Event, Facet, Monitor, NodeRef, Point, Task, Until};
 
 /// The simulated world: what the door sensor will report, and when the mail is taken.
 pub struct World {
@@ -34,8 +35,11 @@ pub struct World {
     pub door_readings: Mutex<VecDeque<i32>>,
     /// The reading once the list is exhausted.
     pub forever: i32,
-    /// How long after `monitor_pickup` starts the mail is taken.
+    /// How long after `monitor_pickup` starts the mail is taken (for the stand-in command), or when,
+    /// since the run started, it is taken (for the Figure 6 monitor).
     pub pickup_after: Duration,
+    /// What the robot said, in order.
+    pub said: Mutex<Vec<String>>,
 }
 
 impl World {
@@ -45,6 +49,7 @@ impl World {
             door_readings: Mutex::new(VecDeque::from([-1, 1])),
             forever: 0,
             pickup_after: Duration::from_secs(5),
+            said: Mutex::new(Vec::new()),
         })
     }
 
@@ -54,6 +59,7 @@ impl World {
             door_readings: Mutex::new(VecDeque::new()),
             forever: 1,
             pickup_after: Duration::from_secs(5),
+            said: Mutex::new(Vec::new()),
         })
     }
 
@@ -80,8 +86,56 @@ fn busy(name: &'static str, d: Duration) -> Task {
     })
 }
 
-/// `Goal deliverMail(int room)`.
+/// `Goal deliverMail(int room)`, with a command standing in for the monitor.
 pub fn deliver_mail(room: u32, world: Arc<World>) -> Task {
+    deliver_mail_with(room, world, |w| busy("monitorPickup", w.pickup_after))
+}
+
+/// `Goal deliverMail(int room)` with the Figure 6 monitor.
+pub fn deliver_mail_fig6(room: u32, world: Arc<World>) -> Task {
+    deliver_mail_with(room, world, monitor_pickup)
+}
+
+/// ```text
+/// Monitor monitorPickup () max triggers = 1, max activations = 15, period = 0:0:1.5 {
+///     if (mailIsGone()) {
+///         trigger;
+///         with (parallel) do { spawn speak("Thank you"); spawn notifySender(); }
+///     }
+/// }
+/// ```
+pub fn monitor_pickup(world: Arc<World>) -> Task {
+    let params = Monitor {
+        max_triggers: Some(1),
+        max_activations: Some(15),
+        period: Some(Duration::from_millis(1500)),
+        ..Monitor::default()
+    };
+    Task::monitor("monitorPickup", params, move |ctx| {
+        let w = world.clone();
+        async move {
+            if ctx.now() >= w.pickup_after {
+                ctx.trigger()?;
+                ctx.spawn(say("Thank you", w.clone())).start()?;
+                ctx.spawn(busy("notifySender", Duration::from_millis(500)))
+                    .start()?;
+            }
+            Ok(())
+        }
+    })
+}
+
+fn say(text: &'static str, world: Arc<World>) -> Task {
+    Task::command("speak", move |_| async move {
+        if let Ok(mut said) = world.said.lock() {
+            said.push(text.to_string());
+        }
+        tokio::time::sleep(secs(1)).await;
+        Ok(())
+    })
+}
+
+fn deliver_mail_with(room: u32, world: Arc<World>, pickup: fn(Arc<World>) -> Task) -> Task {
     Task::goal("deliverMail", move |ctx| async move {
         let (x, y) = (f64::from(room) * 10.0, 5.0);
         ctx.spawn(navigate_to_locn(x, y)).start()?;
@@ -96,7 +150,7 @@ pub fn deliver_mail(room: u32, world: Arc<World>) -> Task {
             .sequential(Facet::Execution, center)
             .terminate_at(Event::new(monitor, Point::Completed))
             .start()?;
-        ctx.spawn(busy("monitorPickup", world.pickup_after))
+        ctx.spawn(pickup(world.clone()))
             .sequential(Facet::Execution, center)
             .fulfils(monitor)
             .start()?;

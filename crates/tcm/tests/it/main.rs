@@ -4,6 +4,8 @@
 #[path = "../../examples/paper/fig4.rs"]
 mod fig4;
 
+mod exceptions;
+mod monitors;
 mod paper;
 mod runtime;
 mod util;

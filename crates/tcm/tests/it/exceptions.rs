@@ -1,0 +1,227 @@
+//! Typed exceptions through the async runtime: handlers reading the exception's data, retry,
+//! bypass, and a wiretap vetoing a move.
+
+use crate::util::{assert_order, run_checked, story};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use tcm::{
+    Exception, Facet, Failure, Handler, NodeKind, NodeRef, RunOutcome, Runtime, TapWhen, Task,
+    TraceKind,
+};
+
+#[derive(Debug, thiserror::Error)]
+#[error("motor at {temperature} C")]
+struct Overheating {
+    temperature: f64,
+}
+
+impl Exception for Overheating {
+    fn ancestry() -> &'static [&'static str] {
+        &["HardwareFailure"]
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+#[error("every route to room {room} is blocked")]
+struct NoPath {
+    room: u32,
+}
+
+impl Exception for NoPath {}
+
+fn secs(s: f64) -> Duration {
+    Duration::from_secs_f64(s)
+}
+
+fn chosen(trace: &[tcm::TraceEvent]) -> Vec<String> {
+    trace
+        .iter()
+        .filter_map(|e| match &e.kind {
+            TraceKind::HandlerChosen {
+                handler, exception, ..
+            } => Some(format!("{handler}<-{exception}")),
+            TraceKind::Bypassed { .. } => Some("bypass".into()),
+            _ => None,
+        })
+        .collect()
+}
+
+#[tokio::test(start_paused = true)]
+async fn navigate_to_locn_handlers_read_the_exception_data() {
+    let log = Arc::new(Mutex::new(Vec::<String>::new()));
+    let (l1, l2) = (log.clone(), log.clone());
+    let task = Task::goal("navigateToLocn", |ctx| async move {
+        ctx.spawn(Task::command("move", |_| async {
+            tokio::time::sleep(secs(1.0)).await;
+            Err::<(), _>(Overheating { temperature: 92.5 }.raise())
+        }))
+        .start()?;
+        ctx.spawn(Task::command("plan", |_| async {
+            Err::<(), _>(NoPath { room: 7 }.raise())
+        }))
+        .start()?;
+        Ok(())
+    })
+    .handler(Handler::on::<Overheating, _, _, _>(
+        "handleOverheating",
+        move |ctx| {
+            let log = l1.clone();
+            async move {
+                let t = ctx.caught::<Overheating>().map(|o| o.temperature);
+                log.lock().expect("log").push(format!("cool from {t:?}"));
+                ctx.spawn(Task::command("coolDown", |_| async {
+                    tokio::time::sleep(secs(3.0)).await;
+                    Ok(())
+                }))
+                .start()?;
+                Ok(())
+            }
+        },
+    ))
+    .handler(Handler::on::<NoPath, _, _, _>(
+        "handlePlannerFailure",
+        move |ctx| {
+            let log = l2.clone();
+            async move {
+                let room = ctx.caught::<NoPath>().map(|n| n.room);
+                log.lock()
+                    .expect("log")
+                    .push(format!("give up on {room:?}"));
+                Ok(())
+            }
+        },
+    ));
+    let (report, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(
+        chosen(&trace),
+        [
+            "handlePlannerFailure<-NoPath",
+            "handleOverheating<-Overheating"
+        ]
+    );
+    assert_eq!(
+        *log.lock().expect("log"),
+        ["give up on Some(7)", "cool from Some(92.5)"]
+    );
+    assert_order(
+        &story(&trace),
+        &[
+            "1 move failed Overheating",
+            "1 coolDown handling active",
+            "4 coolDown handling completed",
+            "4 move execution completed",
+        ],
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_handler_for_the_parent_type_catches_the_child() {
+    let task = Task::goal("drive", |ctx| async move {
+        ctx.spawn(Task::command("motor", |_| async {
+            Err::<(), _>(Overheating { temperature: 80.0 }.raise())
+        }))
+        .start()?;
+        Ok(())
+    })
+    .handler(Handler::new("anyHardware", "HardwareFailure", |_| async {
+        Ok(())
+    }));
+    let (_, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(chosen(&trace), ["anyHardware<-Overheating"]);
+}
+
+#[tokio::test(start_paused = true)]
+async fn retry_succeeds_on_the_second_attempt_and_bypass_passes_it_up() {
+    let attempts = Arc::new(AtomicU32::new(0));
+    let a = attempts.clone();
+    let task = Task::goal("deliver", move |ctx| async move {
+        let a = a.clone();
+        ctx.spawn(
+            Task::retryable(NodeKind::Command, "move", move |_| {
+                let a = a.clone();
+                async move {
+                    tokio::time::sleep(secs(1.0)).await;
+                    if a.fetch_add(1, Ordering::SeqCst) == 0 {
+                        return Err(Failure::new("Blocked", "cart in the way"));
+                    }
+                    Ok(())
+                }
+            })
+            .handler(Handler::new("notMine", "Blocked", |ctx| async move {
+                ctx.bypass()
+            })),
+        )
+        .start()?;
+        ctx.spawn(Task::command("speak", |_| async { Ok(()) }))
+            .sequential(Facet::Execution, NodeRef::Previous)
+            .start()?;
+        Ok(())
+    })
+    .handler(
+        Handler::new("retryMove", "Blocked", |ctx| async move {
+            let again = ctx.retry()?;
+            ctx.wait(again).await?;
+            Ok(())
+        })
+        .max_activations(2),
+    );
+    let (report, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(attempts.load(Ordering::SeqCst), 2);
+    assert_eq!(
+        chosen(&trace),
+        ["notMine<-Blocked", "bypass", "retryMove<-Blocked"]
+    );
+    assert_order(
+        &story(&trace),
+        &[
+            "1 move failed Blocked",
+            "1 retryMove handling active",
+            "2 move handling completed",
+            "2 speak handling active",
+        ],
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_wiretap_vetoes_one_of_five_moves() {
+    let checks = Arc::new(AtomicU32::new(0));
+    let c = checks.clone();
+    let rt = Runtime::new().wiretap("move", TapWhen::Before, move |_| {
+        let n = c.fetch_add(1, Ordering::SeqCst) + 1;
+        async move {
+            if n == 3 {
+                return Err(Failure::new("Unstable", "the robot would tip over"));
+            }
+            Ok(())
+        }
+    });
+    let task = Task::goal("walk", |ctx| async move {
+        for _ in 0..5 {
+            ctx.spawn(Task::command("move", |_| async {
+                tokio::time::sleep(secs(1.0)).await;
+                Ok(())
+            }))
+            .sequential(Facet::Execution, NodeRef::Previous)
+            .start()?;
+        }
+        Ok(())
+    });
+    let (report, trace) = run_checked(rt, task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(checks.load(Ordering::SeqCst), 5);
+    let st = story(&trace);
+    assert_eq!(
+        st.iter()
+            .filter(|l| l.ends_with("move handling active"))
+            .count(),
+        4
+    );
+    assert!(
+        st.iter().any(|l| l == "2 move failed Unstable"),
+        "{}",
+        st.join("\n")
+    );
+}
