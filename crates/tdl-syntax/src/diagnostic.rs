@@ -265,3 +265,14 @@ fn snippet(
         }
     }
 }
+
+impl Diagnostic {
+    /// As a spanned `syn::Error` (for the `tdl!` macro): the message, then the hint as `help:`.
+    pub fn to_syn_error(&self) -> syn::Error {
+        let text = match &self.hint {
+            Some(hint) => format!("{}\n  = help: {hint}", self.message),
+            None => self.message.clone(),
+        };
+        syn::Error::new(self.span, text)
+    }
+}

@@ -51,6 +51,7 @@
 
 pub mod ast;
 mod check;
+mod codegen;
 mod diagnostic;
 mod dump;
 mod keyword;
@@ -63,6 +64,7 @@ use proc_macro2::{Span, TokenStream, TokenTree};
 use syn::parse::{ParseStream, Parser};
 
 pub use ast::*;
+pub use codegen::{Generated, compile_str, expand_macro, generate, pretty, stubs};
 pub use diagnostic::{Diagnostic, Label, LineCol, Severity, render_all};
 pub use dump::dump;
 pub use time::format_nanos;

@@ -1,0 +1,12 @@
+//! The one integration-test binary of `tdl` (house style: `tests/it/main.rs`): TDL programs
+//! written with `tdl!` (or compiled from `.tdl` files by `tdl-build`) run on virtual time, and
+//! each test asserts on the trace, which the trace checker also validates.
+
+mod build;
+mod exceptions;
+mod groups;
+mod loops;
+mod paper;
+mod refs;
+mod ui;
+mod util;

@@ -1,0 +1,13 @@
+tdl::tdl! {
+    exception Stuck;
+    goal g() {
+        spawn a() with exception handler unstick();
+    }
+    command a() {}
+}
+
+fn unstick() -> tdl::Task {
+    unimplemented!()
+}
+
+fn main() {}

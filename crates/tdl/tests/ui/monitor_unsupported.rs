@@ -1,0 +1,7 @@
+tdl::tdl! {
+    monitor watch() with period 1s {
+        trigger;
+    }
+}
+
+fn main() {}

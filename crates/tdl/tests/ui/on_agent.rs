@@ -1,0 +1,8 @@
+tdl::tdl! {
+    goal g() {
+        spawn a() with on "robot2";
+    }
+    command a() {}
+}
+
+fn main() {}

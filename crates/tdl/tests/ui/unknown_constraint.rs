@@ -1,0 +1,8 @@
+tdl::tdl! {
+    goal g() {
+        spawn a() with sequentially;
+    }
+    command a() {}
+}
+
+fn main() {}
