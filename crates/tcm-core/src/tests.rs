@@ -1021,3 +1021,69 @@ fn assert_checked(trace: &[TraceEvent]) {
         }
     }
 }
+
+#[test]
+fn constraints_on_a_reservation_apply_when_it_is_spawned() {
+    // See: a constraint statement on a task the body spawns later (`f2 serial f1;` before `spawn f2`).
+    let mut sim = Sim::new();
+    let root = sim.engine.root();
+    goal(
+        &mut sim.engine,
+        root,
+        "body",
+        body(|e, me, now| {
+            let f2 = e.reserve(now, me, "f2").expect("reserve");
+            let f1 = cmd(e, me, "f1", takes(s(2.0)), &[]);
+            e.constrain(now, f2, Constraint::Serial(f1.into()))
+                .expect("constrain a reservation");
+            e.constrain(now, f2, Constraint::Terminate(TerminateWhen::In(s(10.0))))
+                .expect("constrain");
+            let mut spec = Spawn::new(me, NodeKind::Command, "f2", body(|_, _, _| Outcome::Never));
+            spec.fulfils = Some(f2);
+            e.spawn(now, spec).expect("fulfil");
+            Outcome::done()
+        }),
+        &[],
+    );
+    sim.run();
+    assert_order(
+        &story(sim.trace()),
+        &[
+            "2 f1 execution completed",
+            "2 f2 handling active",
+            "10 f2 terminating",
+        ],
+    );
+    assert_checked(sim.trace());
+}
+
+#[test]
+fn held_children_start_when_the_body_ends() {
+    // TDL: the body finishes before its children run, so a constraint statement after a spawn applies.
+    let mut sim = Sim::new();
+    let root = sim.engine.root();
+    goal(
+        &mut sim.engine,
+        root,
+        "body",
+        body(|e, me, now| {
+            e.hold_children(now, me, true).expect("hold");
+            let a = cmd(e, me, "a", takes(s(1.0)), &[]);
+            let b = cmd(e, me, "b", takes(s(1.0)), &[]);
+            e.constrain(now, b, Constraint::Serial(a.into()))
+                .expect("b has not started yet");
+            Outcome::after(s(0.5))
+        }),
+        &[],
+    );
+    sim.run();
+    assert_eq!(
+        only(&story(sim.trace()), &["handling active"]),
+        [
+            "0 body handling active",
+            "0.5 a handling active",
+            "1.5 b handling active"
+        ]
+    );
+    assert_checked(sim.trace());
+}

@@ -56,8 +56,26 @@ impl Ctx {
         self.with_engine(|e, now| e.reserve(now, self.node, name))
     }
 
+    /// Holds (`true`) or releases the start of the children this action spawns. While held, they
+    /// are inserted and constrained but do not start; they start when the action returns, when it
+    /// releases them, or while it waits ([`Ctx::wait`] releases and then holds again). This is
+    /// TDL's semantics (a body ends before its children run), which generated code uses so that
+    /// constraint statements after a spawn still apply.
+    pub fn hold_children(&self, on: bool) -> Result<(), Error> {
+        self.with_engine(|e, now| e.hold_children(now, self.node, on).map(|_| ()))
+    }
+
     /// Waits until `node`'s execution completes (the node and its whole subtree), as TDL's `wait`.
     pub async fn wait(&self, node: NodeId) -> Result<WatchOutcome, Error> {
+        let held = self.with_engine(|e, now| e.hold_children(now, self.node, false))?;
+        let res = self.wait_released(node).await;
+        if held {
+            self.with_engine(|e, now| e.hold_children(now, self.node, true))?;
+        }
+        res
+    }
+
+    async fn wait_released(&self, node: NodeId) -> Result<WatchOutcome, Error> {
         let rx = {
             let mut inner = self.shared.enter()?;
             let token = inner.next_token();

@@ -485,17 +485,25 @@ impl<A, F: Clone> Engine<A, F> {
         if self.node(id).suspended {
             self.emit(TraceKind::Suspended { node: display });
         }
+        let deferred = std::mem::take(&mut self.node_mut(id).deferred);
         let mut later = Vec::new();
+        for (c, prev) in deferred {
+            if matches!(c, Constraint::Terminate(_) | Constraint::Activate(_)) {
+                later.push((c, prev));
+            } else {
+                self.apply(id, parent, prev, c);
+            }
+        }
         for c in constraints {
             if matches!(c, Constraint::Terminate(_) | Constraint::Activate(_)) {
-                later.push(c);
+                later.push((c, previous));
             } else {
                 self.apply(id, parent, previous, c);
             }
         }
         self.node_mut(parent).last_spawned = Some(id);
-        for c in later {
-            self.apply(id, parent, previous, c);
+        for (c, prev) in later {
+            self.apply(id, parent, prev, c);
         }
         if !self.node(parent).alive() && !self.node(id).immune {
             self.work.push_back(Work::Terminate(id));
@@ -514,6 +522,14 @@ impl<A, F: Clone> Engine<A, F> {
             return Err(EngineError::Root("constrained"));
         }
         self.validate_refs(&c)?;
+        if n.reserved {
+            // A constraint statement on a task spawned later (a forward reference): kept until the
+            // spawn, so it is applied with the spawn's own constraints.
+            let parent = n.parent.unwrap_or(self.root);
+            let previous = self.nodes.get(parent).and_then(|p| p.last_spawned);
+            self.node_mut(node).deferred.push((c, previous));
+            return Ok(());
+        }
         let gated: &[Facet] = match c {
             Constraint::ExpandFirst => &[Facet::Execution],
             Constraint::DelayExpansion => &[Facet::Expansion],
@@ -526,6 +542,9 @@ impl<A, F: Clone> Engine<A, F> {
             Constraint::Parallel | Constraint::Terminate(_) | Constraint::Activate(_) => &[],
         };
         for &f in gated {
+            if f == Facet::Expansion && !n.kind.expands() {
+                continue; // Void for a node that does not expand (see `apply_disable`).
+            }
             if n.state(f) != State::Disabled || n.state(Facet::Handling) != State::Disabled {
                 return Err(EngineError::TooLate {
                     node: n.display,
@@ -625,6 +644,30 @@ impl<A, F: Clone> Engine<A, F> {
         }
         self.settle();
         Ok(())
+    }
+
+    /// Holds (or releases) the start of the children a running action spawns: while held, they are
+    /// inserted and constrained but their handling is not enabled. TDL's semantics, where a task's
+    /// body always ends before any child it spawned runs (unless it waits), so constraint statements
+    /// after a spawn still apply. The hold ends by itself when the action returns.
+    /// Returns whether it was holding before.
+    pub fn hold_children(
+        &mut self,
+        now: Time,
+        node: NodeId,
+        on: bool,
+    ) -> Result<bool, EngineError> {
+        self.advance(now);
+        let n = self.live(node)?;
+        if n.kind == NodeKind::Root {
+            return Err(EngineError::Root("held"));
+        }
+        let was = std::mem::replace(&mut self.node_mut(node).holding, on);
+        if was && !on {
+            self.check_children(node);
+            self.settle();
+        }
+        Ok(was)
     }
 
     /// Suspends a node and its subtree: no action in it starts until it is unsuspended. Running
@@ -1371,11 +1414,17 @@ impl<A, F: Clone> Engine<A, F> {
             if n.reserved || n.kind == NodeKind::Root {
                 return;
             }
+            // Children of a holding action are not enabled at all until it releases them.
+            let held = n
+                .parent
+                .and_then(|p| self.nodes.get(p))
+                .is_some_and(|p| p.holding && p.state(Facet::Handling) == State::Active);
             let alive = n.alive();
+            let can_enable = alive && !held;
             let h = n.state(Facet::Handling);
             let x = n.state(Facet::Expansion);
             let e = n.state(Facet::Execution);
-            if alive
+            if can_enable
                 && x == State::Disabled
                 && n.blocks[Facet::Expansion.index()] == 0
                 && self.parent_allows(n, Facet::Expansion)
@@ -1385,7 +1434,7 @@ impl<A, F: Clone> Engine<A, F> {
                 self.check_children(id);
                 continue;
             }
-            if alive
+            if can_enable
                 && e == State::Disabled
                 && n.blocks[Facet::Execution.index()] == 0
                 && self.parent_allows(n, Facet::Execution)
@@ -1396,7 +1445,7 @@ impl<A, F: Clone> Engine<A, F> {
                 continue;
             }
             let gate = if n.kind.expands() { x } else { e };
-            if alive
+            if can_enable
                 && h == State::Disabled
                 && n.blocks[Facet::Handling.index()] == 0
                 && gate >= State::Enabled
@@ -1541,6 +1590,9 @@ impl<A, F: Clone> Engine<A, F> {
 
     fn complete_handling(&mut self, id: NodeId) {
         self.transition(id, Facet::Handling, State::Completed);
+        if std::mem::replace(&mut self.node_mut(id).holding, false) {
+            self.check_children(id);
+        }
         self.bury_reservations(id);
         self.work.push_back(Work::Check(id));
     }

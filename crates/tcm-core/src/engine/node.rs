@@ -156,6 +156,11 @@ pub(crate) struct Node<A, F> {
     pub(crate) taps_pending: u32,
     pub(crate) tapped_before: bool,
     pub(crate) tap_failure: Option<Box<Failure>>,
+    // Constraints applied to a reservation before its spawn, with the `previous` of that moment;
+    // applied when the spawn fulfils it.
+    pub(crate) deferred: Vec<(crate::constraint::Constraint, Option<NodeId>)>,
+    // While the action runs, its new children do not start (TDL: a body ends before its children run).
+    pub(crate) holding: bool,
 }
 
 impl<A, F> Node<A, F> {
@@ -208,6 +213,8 @@ impl<A, F> Node<A, F> {
             taps_pending: 0,
             tapped_before: false,
             tap_failure: None,
+            deferred: Vec::new(),
+            holding: false,
         }
     }
 

@@ -468,3 +468,31 @@ async fn every_constraint_form_through_the_api() {
         ],
     );
 }
+
+#[tokio::test(start_paused = true)]
+async fn held_children_wait_for_the_body_and_a_wait_releases_them() {
+    // See: TDL semantics for constraint statements after a spawn.
+    let task = Task::goal("g", |ctx| async move {
+        ctx.hold_children(true)?;
+        let a = ctx.spawn(sleeper("a", secs(1))).start()?;
+        let b = ctx.spawn(sleeper("b", secs(1))).start()?;
+        // `b` has not started: a constraint statement still applies.
+        ctx.constrain(b, Constraint::Serial(a.into()))?;
+        // Waiting runs the held children (TDL's `wait` runs the agenda).
+        ctx.wait(b).await?;
+        let c = ctx.spawn(sleeper("c", secs(1))).start()?;
+        ctx.constrain(c, Constraint::Disable(Facet::Handling, Until::For(secs(3))))?;
+        Ok(())
+    });
+    let (report, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(
+        crate::util::only(&story(&trace), &["handling active"]),
+        [
+            "0 g handling active",
+            "0 a handling active",
+            "1 b handling active",
+            "5 c handling active"
+        ]
+    );
+}
