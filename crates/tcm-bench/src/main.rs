@@ -9,12 +9,16 @@
 //!
 //! Workloads: W1 a root spawns N no-op commands, each `serial previous`; W2 N unordered no-op
 //! commands; W3 a goal spawning the same goal recursively to depth N, each child sequential on the
-//! previous one. W1 also runs at 10k, 100k and 1M to show the per-node cost does not grow.
+//! previous one; W4 a monitor polling every 1 ms for 2 s on real time, its lateness against the
+//! ideal schedule beside a thread sleeping to the same deadlines; W6 N commands failing with an
+//! exception handled three levels up. W1 also runs at 10k, 100k and 1M to show the per-node cost
+//! does not grow.
 
 use std::collections::VecDeque;
-use std::time::Instant;
-use tcm::{Constraint, Facet, NodeRef, Runtime, Task};
-use tcm_core::{Effect, Engine, NodeKind, Spawn, Time};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tcm::{Constraint, Facet, Failure, Handler, Monitor, NodeRef, Runtime, Task};
+use tcm_core::{Effect, Engine, HandlerSpec, NodeKind, Spawn, Time};
 
 /// Repetitions of each measurement; the best is kept (least disturbed by the machine).
 const REPEATS: usize = 3;
@@ -168,6 +172,192 @@ fn shell_recursive(depth: usize) -> (f64, usize) {
     (ns, hw)
 }
 
+/// W6 on the engine: top (with the handler) > mid > low > N failing commands.
+fn core_exceptions(n: usize) -> f64 {
+    best(|| {
+        // Action payloads: 1 top, 2 mid, 3 low, 4 a failing command. Factories: 0, the handler.
+        let mut e: Engine<u8, u8> = Engine::new(1);
+        e.set_tracing(false);
+        let root = e.root();
+        let start = Instant::now();
+        let mut top = Spawn::new(root, NodeKind::Goal, "top", 1);
+        top.handlers.push(HandlerSpec {
+            name: "recover".into(),
+            exception: "Boom".into(),
+            max_activations: None,
+            body: 0,
+        });
+        e.spawn(Time::ZERO, top).expect("spawn");
+        let mut handled = 0;
+        while let Some(effect) = e.poll_effect() {
+            match effect {
+                Effect::Start { node, action } => {
+                    let res = match action {
+                        1 | 2 => {
+                            e.spawn(
+                                Time::ZERO,
+                                Spawn::new(node, NodeKind::Goal, "level", action + 1),
+                            )
+                            .expect("spawn");
+                            Ok(())
+                        }
+                        3 => {
+                            for _ in 0..n {
+                                e.spawn(Time::ZERO, Spawn::new(node, NodeKind::Command, "boom", 4))
+                                    .expect("spawn");
+                            }
+                            Ok(())
+                        }
+                        _ => Err(Failure::new("Boom", "")),
+                    };
+                    let _ = e.action_finished(Time::ZERO, node, res);
+                }
+                Effect::Invoke { node, .. } => {
+                    handled += 1;
+                    let _ = e.action_finished(Time::ZERO, node, Ok(()));
+                }
+                _ => {}
+            }
+        }
+        assert_eq!(handled, n, "every exception was handled");
+        start.elapsed().as_nanos() as f64 / n as f64
+    })
+}
+
+/// W6 through the async runtime.
+fn shell_exceptions(n: usize) -> f64 {
+    best(|| {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_time()
+            .build()
+            .expect("tokio runtime");
+        let handled = Arc::new(Mutex::new(0usize));
+        let h = handled.clone();
+        let start = Instant::now();
+        let task = Task::goal("top", move |ctx| async move {
+            ctx.spawn(Task::goal("mid", move |ctx| async move {
+                ctx.spawn(Task::goal("low", move |ctx| async move {
+                    for _ in 0..n {
+                        ctx.spawn(Task::command("boom", |_| async {
+                            Err::<(), _>(Failure::new("Boom", ""))
+                        }))
+                        .start()?;
+                    }
+                    Ok(())
+                }))
+                .start()?;
+                Ok(())
+            }))
+            .start()?;
+            Ok(())
+        })
+        .handler(Handler::new("recover", "Boom", move |_| {
+            let h = h.clone();
+            async move {
+                if let Ok(mut c) = h.lock() {
+                    *c += 1;
+                }
+                Ok(())
+            }
+        }));
+        let report = rt.block_on(Runtime::new().run(task)).expect("run");
+        assert_eq!(report.outcome, tcm::RunOutcome::Completed);
+        assert_eq!(handled.lock().map(|c| *c).unwrap_or(0), n);
+        start.elapsed().as_nanos() as f64 / n as f64
+    })
+}
+
+/// Mean, p99 and max of lateness samples (ns).
+fn stats(mut v: Vec<u64>) -> (f64, u64, u64) {
+    v.sort_unstable();
+    let mean = v.iter().sum::<u64>() as f64 / v.len().max(1) as f64;
+    let p99 = v.get(v.len() * 99 / 100).copied().unwrap_or(0);
+    (mean, p99, v.last().copied().unwrap_or(0))
+}
+
+/// W4: a 1 ms polling monitor for 2 s on real time, against a thread sleeping to the same deadlines.
+fn w4(json: bool) {
+    const N: u32 = 2000;
+    let period = Duration::from_millis(1);
+    // The floor: a plain thread sleeping to absolute deadlines.
+    let floor = std::thread::spawn(move || {
+        let t0 = Instant::now();
+        let mut late = Vec::with_capacity(N as usize);
+        for k in 1..N {
+            let deadline = t0 + period * k;
+            let now = Instant::now();
+            if deadline > now {
+                std::thread::sleep(deadline - now);
+            }
+            late.push((Instant::now() - deadline).as_nanos() as u64);
+        }
+        late
+    })
+    .join()
+    .unwrap_or_default();
+    // Ours: a polling monitor with the precise timer on a real multi-thread runtime.
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("tokio runtime");
+    let samples: Arc<Mutex<Vec<Instant>>> = Arc::default();
+    let s2 = samples.clone();
+    let params = Monitor {
+        max_activations: Some(N),
+        period: Some(period),
+        ..Monitor::default()
+    };
+    let task = Task::monitor("poll", params, move |_| {
+        let s = s2.clone();
+        async move {
+            if let Ok(mut v) = s.lock() {
+                v.push(Instant::now());
+            }
+            Ok(())
+        }
+    });
+    let report = rt
+        .block_on(Runtime::new().precise_timer().run(task))
+        .expect("run");
+    let starts = samples.lock().map(|v| v.clone()).unwrap_or_default();
+    let activations = starts.len();
+    let ours: Vec<u64> = match starts.first() {
+        Some(&t0) => starts
+            .iter()
+            .enumerate()
+            .skip(1)
+            .map(|(k, t)| {
+                t.saturating_duration_since(t0 + period * k as u32)
+                    .as_nanos() as u64
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let (m, p99, max) = stats(ours);
+    let (fm, fp99, fmax) = stats(floor);
+    let ratio = m / fm.max(1.0);
+    if json {
+        let v = serde_json::json!({
+            "workload": "W4", "layer": "shell", "n": activations,
+            "mean_late_ns": m.round(), "p99_late_ns": p99, "max_late_ns": max,
+            "floor_mean_late_ns": fm.round(), "floor_p99_late_ns": fp99, "floor_max_late_ns": fmax,
+            "ratio": (ratio * 100.0).round() / 100.0, "outcome": format!("{:?}", report.outcome),
+        });
+        println!("{v}");
+    } else {
+        println!(
+            "W4   shell  {activations} activations   late mean {:.1} us p99 {:.1} us max {:.1} us   floor mean {:.1} us p99 {:.1} us max {:.1} us   ratio {ratio:.2}",
+            m / 1e3,
+            p99 as f64 / 1e3,
+            max as f64 / 1e3,
+            fm / 1e3,
+            fp99 as f64 / 1e3,
+            fmax as f64 / 1e3
+        );
+    }
+}
+
 fn report(
     json: bool,
     workload: &str,
@@ -219,6 +409,11 @@ fn main() {
     let fd = floor(2 * depth);
     report(json, "W3", "core", 2 * depth, core_recursive(depth), fd);
     report(json, "W3", "shell", 2 * depth, shell_recursive(depth), fd);
+    let ne = if quick { 1_000 } else { 10_000 };
+    let fe = floor(ne);
+    report(json, "W6", "core", ne, (core_exceptions(ne), 0), fe);
+    report(json, "W6", "shell", ne, (shell_exceptions(ne), 0), fe);
+    w4(json);
     let sizes: &[usize] = if quick {
         &[1_000, 10_000]
     } else {

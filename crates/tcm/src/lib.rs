@@ -21,6 +21,7 @@ mod ctx;
 mod runtime;
 mod sink;
 mod task;
+mod timer;
 
 pub use ctx::{Ctx, Spawner};
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
@@ -53,6 +54,9 @@ pub enum Error {
     /// The awaited child was terminated (or never spawned).
     #[error("the awaited child was terminated before it completed")]
     ChildTerminated,
+    /// The precise timer's thread could not be started.
+    #[error("cannot start the precise timer thread: {0}")]
+    Timer(std::io::Error),
     /// The awaited child returned no value of the expected type.
     #[error("the awaited child returned no value of type {0}")]
     NoValue(&'static str),

@@ -300,6 +300,7 @@ impl Drop for EventHandle {
 pub struct Runtime {
     shared: Arc<Shared>,
     sinks: Vec<Box<dyn TraceSink>>,
+    precise: bool,
 }
 
 impl Default for Runtime {
@@ -331,7 +332,16 @@ impl Runtime {
                 handles: AtomicUsize::new(0),
             }),
             sinks: Vec::new(),
+            precise: false,
         }
+    }
+
+    /// Wakes for timers with a dedicated thread instead of tokio's millisecond timer, so polling
+    /// monitors keep sub-millisecond schedules (see the `timer` module). Real time only: under
+    /// tokio's paused clock, leave it off.
+    pub fn precise_timer(mut self) -> Runtime {
+        self.precise = true;
+        self
     }
 
     /// Adds a trace sink.
@@ -399,7 +409,14 @@ impl Runtime {
             top
         };
         let _ = top;
-        let outcome = Driver::new(shared.clone()).drive(&mut self.sinks).await;
+        let timer = if self.precise {
+            Some(crate::timer::PreciseTimer::start(shared.clone()).map_err(Error::Timer)?)
+        } else {
+            None
+        };
+        let outcome = Driver::new(shared.clone(), timer)
+            .drive(&mut self.sinks)
+            .await;
         for s in &mut self.sinks {
             s.flush();
         }
@@ -415,11 +432,12 @@ impl Runtime {
 
 struct Driver {
     shared: Arc<Shared>,
+    timer: Option<crate::timer::PreciseTimer>,
 }
 
 impl Driver {
-    fn new(shared: Arc<Shared>) -> Driver {
-        Driver { shared }
+    fn new(shared: Arc<Shared>, timer: Option<crate::timer::PreciseTimer>) -> Driver {
+        Driver { shared, timer }
     }
 
     /// The driver loop. It is the one intentionally endless loop of the runtime: each turn ends in
@@ -431,6 +449,9 @@ impl Driver {
                 // A plain lock, not a `Session`: the driver decides itself what to do next, and
                 // waking itself would spin while the run waits for an event handle.
                 let mut inner = lock(&self.shared)?;
+                // Due timers fire here (cheap when none is due), whoever woke the driver.
+                let now = self.shared.now();
+                inner.engine.handle_timeout(now);
                 pump(&self.shared, &mut inner);
                 while let Some(ev) = inner.engine.poll_trace() {
                     trace.push(ev);
@@ -472,7 +493,11 @@ impl Driver {
             if idle && !running && self.shared.handles.load(Ordering::SeqCst) == 0 {
                 break RunOutcome::Stuck(blocked);
             }
-            let sleep = deadline.map(|t| self.shared.start + t.since_start());
+            let mut sleep = deadline.map(|t| self.shared.start + t.since_start());
+            if let Some(timer) = &self.timer {
+                timer.set(sleep.map(tokio::time::Instant::into_std));
+                sleep = None;
+            }
             tokio::select! {
                 biased;
                 () = self.shared.wake.notified() => {}

@@ -496,3 +496,31 @@ async fn held_children_wait_for_the_body_and_a_wait_releases_them() {
         ]
     );
 }
+
+#[test]
+fn the_precise_timer_drives_a_polling_monitor_on_real_time() {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_time()
+        .build()
+        .expect("runtime");
+    let count = Arc::new(AtomicUsize::new(0));
+    let c = count.clone();
+    let params = tcm::Monitor {
+        max_activations: Some(5),
+        period: Some(Duration::from_millis(2)),
+        ..tcm::Monitor::default()
+    };
+    let task = Task::monitor("poll", params, move |_| {
+        let c = c.clone();
+        async move {
+            c.fetch_add(1, Ordering::SeqCst);
+            Ok(())
+        }
+    });
+    let report = rt
+        .block_on(Runtime::new().precise_timer().run(task))
+        .expect("run");
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(count.load(Ordering::SeqCst), 5);
+}
