@@ -187,6 +187,6 @@ fn documented_examples_are_exact() {
             forms.insert(form.to_string());
         }
     }
-    assert_eq!(kinds.len(), 15, "{kinds:?}");
-    assert_eq!(forms.len(), 11, "{forms:?}");
+    assert_eq!(kinds.len(), 22, "{kinds:?}");
+    assert_eq!(forms.len(), 16, "{forms:?}");
 }
