@@ -14,8 +14,13 @@ fn s(secs: f64) -> Duration {
 }
 
 /// Renders a trace as lines `"<t> <name> <facet> <state>"` (plus termination, failure and
-/// reclamation records); `filter` keeps the lines that contain any of the given words.
+/// reclamation records), after checking it with the trace checker: every story test thus runs it.
 fn story(trace: &[TraceEvent]) -> Vec<String> {
+    assert_checked(trace);
+    story_unchecked(trace)
+}
+
+fn story_unchecked(trace: &[TraceEvent]) -> Vec<String> {
     let mut names: BTreeMap<u64, String> = BTreeMap::new();
     let mut out = Vec::new();
     for ev in trace {
@@ -1016,7 +1021,7 @@ fn assert_checked(trace: &[TraceEvent]) {
             panic!(
                 "trace checker:\n{}\nstory:\n{}",
                 v.join("\n"),
-                story(trace).join("\n")
+                story_unchecked(trace).join("\n")
             );
         }
     }
