@@ -275,9 +275,12 @@ impl ReplayNode {
         self.kind.is_some_and(NodeKind::expands)
     }
 
-    // Whether every goal-like node of the subtree has completed handling.
+    // Whether every goal-like node of the subtree, reached through goal-like nodes, has completed
+    // handling. A command-like node's expansion is complete from the start (paper, footnote 1): the
+    // handler goals that may appear under a failing command belong to its execution, not to the
+    // expansion of its ancestors.
     pub(crate) fn goals_done(&self) -> bool {
-        (!self.expands() || self.facets[0] == State::Completed) && self.n_children_goals_open == 0
+        !self.expands() || (self.facets[0] == State::Completed && self.n_children_goals_open == 0)
     }
 }
 

@@ -4,10 +4,10 @@
 use proptest::prelude::*;
 use std::rc::Rc;
 use std::time::Duration;
-use tcm_core::sim::{Body, Outcome, Sim, SimEngine, body};
+use tcm_core::sim::{Body, Factory, Outcome, Sim, SimEngine, body, factory};
 use tcm_core::{
-    Constraint, Event, Facet, Failure, NodeId, NodeKind, NodeRef, Point, Spawn, TerminateWhen,
-    Time, Until,
+    Constraint, Event, Facet, Failure, HandlerSpec, MonitorSpec, NodeId, NodeKind, NodeRef, Point,
+    Purpose, Spawn, TerminateWhen, Time, Until,
 };
 
 #[derive(Clone, Debug)]
@@ -41,9 +41,69 @@ struct Plan {
     goal: bool,
     secs: u8,
     fail: bool,
+    // Which exception a failure raises: 0 = `A`, 1 = `B` (a kind of `A`).
+    exc: u8,
     never: bool,
     constraints: Vec<C>,
     children: Vec<Plan>,
+    monitor: Option<Mon>,
+    handlers: Vec<H>,
+}
+
+/// A monitor instead of a plain node.
+#[derive(Clone, Debug)]
+struct Mon {
+    period_ms: u16,
+    max_activations: u8,
+    max_triggers: Option<u8>,
+    initial_wait: bool,
+    serial: bool,
+    child_secs: u8,
+}
+
+/// A handler attached to a goal: `what` 0 = recover, 1 = bypass, 2 = fail with `C`.
+#[derive(Clone, Debug)]
+struct H {
+    exc: u8,
+    max: Option<u8>,
+    what: u8,
+}
+
+fn mon() -> impl Strategy<Value = Option<Mon>> {
+    prop::option::weighted(
+        0.1,
+        (
+            300u16..2000,
+            1u8..5,
+            prop::option::of(1u8..3),
+            any::<bool>(),
+            any::<bool>(),
+            0u8..3,
+        )
+            .prop_map(
+                |(period_ms, max_activations, max_triggers, initial_wait, serial, child_secs)| {
+                    Mon {
+                        period_ms,
+                        max_activations,
+                        max_triggers,
+                        initial_wait,
+                        serial,
+                        child_secs,
+                    }
+                },
+            ),
+    )
+}
+
+fn handlers() -> impl Strategy<Value = Vec<H>> {
+    prop::collection::vec(
+        (0u8..3, prop::option::of(1u8..3), 0u8..3).prop_map(|(exc, max, what)| H {
+            exc,
+            max,
+            what,
+        }),
+        0..3,
+    )
 }
 
 fn facet() -> impl Strategy<Value = Facet> {
@@ -89,20 +149,25 @@ fn constraint() -> impl Strategy<Value = C> {
 
 fn leaf() -> impl Strategy<Value = Plan> {
     (
-        any::<bool>(),
-        0u8..4,
-        prop::bool::weighted(0.1),
+        (any::<bool>(), 0u8..4, prop::bool::weighted(0.15), 0u8..2),
         prop::bool::weighted(0.05),
         prop::collection::vec(constraint(), 0..3),
+        mon(),
+        handlers(),
     )
-        .prop_map(|(goal, secs, fail, never, constraints)| Plan {
-            goal,
-            secs,
-            fail,
-            never,
-            constraints,
-            children: vec![],
-        })
+        .prop_map(
+            |((goal, secs, fail, exc), never, constraints, monitor, handlers)| Plan {
+                goal,
+                secs,
+                fail,
+                exc,
+                never,
+                constraints,
+                children: vec![],
+                monitor,
+                handlers,
+            },
+        )
 }
 
 fn plan() -> impl Strategy<Value = Plan> {
@@ -191,12 +256,18 @@ fn action(plan: Rc<Plan>) -> Body {
             } else {
                 NodeKind::Command
             };
-            let mut spec = Spawn::new(
-                me,
-                kind,
-                if child.goal { "g" } else { "c" },
-                action(Rc::new(child.clone())),
-            );
+            let mut spec = match &child.monitor {
+                Some(m) => Spawn::monitor(me, "m", monitor_spec(m)),
+                None => Spawn::new(
+                    me,
+                    kind,
+                    if child.goal { "g" } else { "c" },
+                    action(Rc::new(child.clone())),
+                ),
+            };
+            if child.goal && child.monitor.is_none() {
+                spec.handlers = child.handlers.iter().map(handler).collect();
+            }
             let mut has_first = false;
             for c in &child.constraints {
                 if let Some(lc) = lower(c, &resolve) {
@@ -225,12 +296,69 @@ fn action(plan: Rc<Plan>) -> Body {
             return Outcome::Never;
         }
         let res = if plan.fail {
-            Err(Failure::new("Random", "planned failure"))
+            Err(exception(plan.exc))
         } else {
             Ok(())
         };
         Outcome::After(Duration::from_secs(u64::from(plan.secs)), res)
     })
+}
+
+/// `A`, or `B` which is a kind of `A`, or `C`.
+fn exception(which: u8) -> Failure {
+    match which {
+        0 => Failure::new("A", "planned failure"),
+        1 => Failure::new("B", "planned failure").with_ancestry(vec!["A".into()]),
+        _ => Failure::new("C", "raised by a handler"),
+    }
+}
+
+fn handler(h: &H) -> HandlerSpec<Factory> {
+    let what = h.what;
+    HandlerSpec {
+        name: "h".into(),
+        exception: ["A", "B", "C"][usize::from(h.exc.min(2))].into(),
+        max_activations: h.max.map(u32::from),
+        body: factory(move |e, me, now, _| match what {
+            0 => {
+                let spec = Spawn::new(
+                    me,
+                    NodeKind::Command,
+                    "recover",
+                    body(|_, _, _| Outcome::after(Duration::from_secs(1))),
+                );
+                e.spawn(now, spec).expect("spawn recovery");
+                Outcome::done()
+            }
+            1 => Outcome::Bypass(Duration::from_millis(500)),
+            _ => Outcome::After(Duration::from_millis(200), Err(exception(2))),
+        }),
+    }
+}
+
+fn monitor_spec(m: &Mon) -> MonitorSpec<Factory> {
+    let child_secs = m.child_secs;
+    let mut spec = MonitorSpec::new(factory(move |e, act, now, p| {
+        if let Purpose::Activation { number, .. } = p {
+            if number % 2 == 0 {
+                e.trigger(now, act).expect("trigger");
+            }
+        }
+        let leaf = Spawn::new(
+            act,
+            NodeKind::Command,
+            "probe",
+            body(move |_, _, _| Outcome::after(Duration::from_secs(u64::from(child_secs)))),
+        );
+        e.spawn(now, leaf).expect("spawn probe");
+        Outcome::done()
+    }));
+    spec.period = Some(Duration::from_millis(u64::from(m.period_ms)));
+    spec.max_activations = Some(u32::from(m.max_activations));
+    spec.max_triggers = m.max_triggers.map(u32::from);
+    spec.initial_wait = m.initial_wait;
+    spec.each.serial = m.serial;
+    spec
 }
 
 fn run(plan: &Plan) -> Vec<tcm_trace::TraceEvent> {
