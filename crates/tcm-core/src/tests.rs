@@ -5,7 +5,6 @@
 
 use crate::sim::{Body, Outcome, Sim, SimEngine, body, noop, takes};
 use crate::*;
-use std::collections::BTreeMap;
 use std::time::Duration;
 use tcm_trace::{TraceEvent, TraceKind};
 
@@ -21,58 +20,10 @@ fn story(trace: &[TraceEvent]) -> Vec<String> {
 }
 
 fn story_unchecked(trace: &[TraceEvent]) -> Vec<String> {
-    let mut names: BTreeMap<u64, String> = BTreeMap::new();
-    let mut out = Vec::new();
-    for ev in trace {
-        let t = ev.t as f64 / 1e9;
-        let name = |names: &BTreeMap<u64, String>, n: &u64| {
-            names.get(n).cloned().unwrap_or_else(|| format!("#{n}"))
-        };
-        let line = match &ev.kind {
-            TraceKind::Spawned { node, name: nm, .. }
-            | TraceKind::Reserved { node, name: nm, .. } => {
-                names.insert(*node, nm.clone());
-                continue;
-            }
-            TraceKind::Transition {
-                node, facet, to, ..
-            } => format!("{} {facet} {to}", name(&names, node)),
-            TraceKind::Terminating { node } => format!("{} terminating", name(&names, node)),
-            TraceKind::Terminated { node } => format!("{} terminated", name(&names, node)),
-            TraceKind::Failed {
-                node, exception, ..
-            } => format!("{} failed {exception}", name(&names, node)),
-            TraceKind::Dead { node } => format!("{} dead", name(&names, node)),
-            TraceKind::Suspended { node } => format!("{} suspended", name(&names, node)),
-            TraceKind::Unsuspended { node } => format!("{} unsuspended", name(&names, node)),
-            _ => continue,
-        };
-        out.push(format!("{t} {line}"));
-    }
-    out
+    tcm_trace::story::story(trace)
 }
 
-/// The lines of `story` that mention one of `words`, e.g. only handling transitions.
-fn only(lines: &[String], words: &[&str]) -> Vec<String> {
-    lines
-        .iter()
-        .filter(|l| words.iter().any(|w| l.contains(w)))
-        .cloned()
-        .collect()
-}
-
-/// Asserts that `needles` occur in `lines` in this order (not necessarily adjacent).
-#[track_caller]
-fn assert_order(lines: &[String], needles: &[&str]) {
-    let mut it = lines.iter();
-    for n in needles {
-        assert!(
-            it.any(|l| l == n),
-            "missing or out of order: {n:?}\nstory:\n{}",
-            lines.join("\n")
-        );
-    }
-}
+use tcm_trace::story::{assert_order, only};
 
 fn cmd(
     e: &mut SimEngine,

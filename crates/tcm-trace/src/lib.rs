@@ -7,7 +7,8 @@
 //! - [`Replay`]: the task tree rebuilt record by record, shared by all the readers below;
 //! - [`TextLog`]: TCM's terminal log (catalogue §5.1, §5.2), column for column;
 //! - [`dump_tcm`] and [`dump_modern`]: tree dumps (catalogue §5.4);
-//! - [`check`]: the trace checker every runtime test runs, with its [`Rule`]s.
+//! - [`check`]: the trace checker every runtime test runs, with its [`Rule`]s;
+//! - [`story`]: one line per transition, what tests assert on.
 //!
 //! Viewers and the CLI depend on this crate only.
 //!
@@ -40,6 +41,7 @@ mod event;
 pub mod jsonl;
 mod replay;
 mod state;
+pub mod story;
 mod textlog;
 
 #[cfg(test)]

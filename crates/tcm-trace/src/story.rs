@@ -1,0 +1,105 @@
+//! Stories: a compact rendering of a trace, one line per transition, that tests assert on.
+//!
+//! A story line reads `<seconds> <name> <what>`, e.g. `1.5 move handling active`,
+//! `30 centerOnDoor terminating`, `1 plan failed NoPath`. Times are virtual seconds since the run
+//! started, written as short as they go (`0`, `1.5`, `16`). Tests across the workspace (engine,
+//! runtime, language, simulator) assert on the order of such lines, so they survive any change to
+//! how the engine is built inside.
+
+use crate::event::{TraceEvent, TraceKind};
+use std::collections::BTreeMap;
+
+/// Renders a trace as story lines: facet transitions, termination, failures, dead reservations
+/// and suspension. Other records (constraints, reclamation, …) are left out.
+pub fn story(trace: &[TraceEvent]) -> Vec<String> {
+    let mut names: BTreeMap<u64, String> = BTreeMap::new();
+    let mut out = Vec::new();
+    for ev in trace {
+        let name = |names: &BTreeMap<u64, String>, n: &u64| {
+            names.get(n).cloned().unwrap_or_else(|| format!("#{n}"))
+        };
+        let line = match &ev.kind {
+            TraceKind::Spawned { node, name: nm, .. }
+            | TraceKind::Reserved { node, name: nm, .. } => {
+                names.insert(*node, nm.clone());
+                continue;
+            }
+            TraceKind::Transition {
+                node, facet, to, ..
+            } => format!("{} {facet} {to}", name(&names, node)),
+            TraceKind::Terminating { node } => format!("{} terminating", name(&names, node)),
+            TraceKind::Terminated { node } => format!("{} terminated", name(&names, node)),
+            TraceKind::Failed {
+                node, exception, ..
+            } => format!("{} failed {exception}", name(&names, node)),
+            TraceKind::Dead { node } => format!("{} dead", name(&names, node)),
+            TraceKind::Suspended { node } => format!("{} suspended", name(&names, node)),
+            TraceKind::Unsuspended { node } => format!("{} unsuspended", name(&names, node)),
+            _ => continue,
+        };
+        out.push(format!("{} {line}", ev.t as f64 / 1e9));
+    }
+    out
+}
+
+/// The lines that contain any of `words`.
+pub fn only(lines: &[String], words: &[&str]) -> Vec<String> {
+    lines
+        .iter()
+        .filter(|l| words.iter().any(|w| l.contains(w)))
+        .cloned()
+        .collect()
+}
+
+/// Panics unless `needles` occur in `lines` in this order (not necessarily adjacent), printing the
+/// whole story when one is missing.
+#[track_caller]
+pub fn assert_order(lines: &[String], needles: &[&str]) {
+    let mut it = lines.iter();
+    for n in needles {
+        assert!(
+            it.any(|l| l == n),
+            "missing or out of order: {n:?}\nstory:\n{}",
+            lines.join("\n")
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Facet, NodeKind, State};
+
+    #[test]
+    fn a_story_names_nodes_and_times_in_seconds() {
+        let ev = |seq, t, kind| TraceEvent { seq, t, kind };
+        let trace = vec![
+            ev(
+                0,
+                0,
+                TraceKind::Spawned {
+                    node: 1,
+                    parent: 0,
+                    kind: NodeKind::Command,
+                    name: "move".into(),
+                },
+            ),
+            ev(
+                1,
+                1_500_000_000,
+                TraceKind::Transition {
+                    node: 1,
+                    facet: Facet::Handling,
+                    from: State::Enabled,
+                    to: State::Active,
+                },
+            ),
+            ev(2, 30_000_000_000, TraceKind::Terminating { node: 1 }),
+            ev(3, 30_000_000_000, TraceKind::Reclaimed { node: 1 }),
+        ];
+        let lines = story(&trace);
+        assert_eq!(lines, ["1.5 move handling active", "30 move terminating"]);
+        assert_eq!(only(&lines, &["terminating"]), ["30 move terminating"]);
+        assert_order(&lines, &["1.5 move handling active", "30 move terminating"]);
+    }
+}
