@@ -119,6 +119,17 @@ impl<A, F> Arena<A, F> {
         }
     }
 
+    /// The handle of the live node in slot `link`, if any.
+    pub(crate) fn id_at(&self, link: crate::engine::node::Link) -> Option<NodeId> {
+        let slot = self.slots.get(link.0 as usize)?;
+        slot.node.as_ref()?;
+        Some(NodeId {
+            run: self.run,
+            idx: link.0,
+            generation: slot.generation,
+        })
+    }
+
     pub(crate) fn live(&self) -> usize {
         self.live
     }

@@ -1043,3 +1043,12 @@ fn held_children_start_when_the_body_ends() {
     );
     assert_checked(sim.trace());
 }
+
+#[test]
+fn a_node_stays_small() {
+    // Nodes are the engine's bulk: a million alive at once must fit in a few hundred megabytes.
+    // See: issue 6 (1M-node W1 within 250 MB).
+    let size =
+        std::mem::size_of::<crate::engine::node::Node<crate::sim::Body, crate::sim::Factory>>();
+    assert!(size <= 280, "a node takes {size} bytes");
+}

@@ -105,7 +105,7 @@ impl<A, F: Clone> Engine<A, F> {
             node,
             kind,
             name,
-            Payload::Invoke(factory.clone(), Purpose::Retry { of: failing }),
+            Payload::Invoke(Box::new((factory.clone(), Purpose::Retry { of: failing }))),
         );
         self.node_mut(id).retry = Some(factory);
         let new_display = self.node(id).display;
@@ -246,9 +246,16 @@ impl<A, F: Clone> Engine<A, F> {
             if n.kind == NodeKind::Root {
                 break;
             }
-            let found = n.handlers.iter().enumerate().skip(index).find(|(_, h)| {
-                failure.is_a(&h.spec.exception) && h.spec.max_activations.is_none_or(|m| h.uses < m)
-            });
+            let found = n
+                .handlers
+                .as_slice()
+                .iter()
+                .enumerate()
+                .skip(index)
+                .find(|(_, h)| {
+                    failure.is_a(&h.spec.exception)
+                        && h.spec.max_activations.is_none_or(|m| h.uses < m)
+                });
             if let Some((i, _)) = found {
                 self.use_handler(failing, failure, at, i, under);
                 return;
@@ -281,7 +288,9 @@ impl<A, F: Clone> Engine<A, F> {
         index: usize,
         under: NodeId,
     ) {
-        let entry = &mut self.node_mut(attached).handlers[index];
+        let Some(entry) = self.node_mut(attached).handlers.get_mut(index) else {
+            return;
+        };
         entry.uses += 1;
         let (body, name, handler) = (
             entry.spec.body.clone(),
@@ -298,7 +307,7 @@ impl<A, F: Clone> Engine<A, F> {
             under,
             NodeKind::Handler,
             name,
-            Payload::Invoke(body, purpose),
+            Payload::Invoke(Box::new((body, purpose))),
         );
         let (d, fd, ad) = (
             self.node(id).display,

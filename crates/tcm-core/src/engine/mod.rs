@@ -41,7 +41,7 @@ pub use exception::HandlerSpec;
 use exception::{HandlerEntry, Wiretap};
 use monitor::Monitor;
 pub use monitor::{EachActivation, MonitorSpec};
-use node::{Node, Payload, WaitKind, Waiter};
+use node::{Link, Node, Payload, WaitKind, Waiter};
 pub use node::{OnTerminate, Purpose};
 pub use report::{Blocked, NodeInfo};
 use std::collections::{BTreeMap, VecDeque};
@@ -451,13 +451,15 @@ impl<A, F: Clone> Engine<A, F> {
             let node = self.node_mut(id);
             node.action = action.map(Payload::Action);
             node.persistent = persistent;
-            node.on_terminate = on_terminate;
+            node.on_terminate.set(on_terminate);
             node.suspended = parent_suspended;
             node.monitor = monitor.map(|m| Box::new(Monitor::new(m)));
-            node.handlers = handlers
-                .into_iter()
-                .map(|spec| HandlerEntry { spec, uses: 0 })
-                .collect();
+            node.handlers.set(
+                handlers
+                    .into_iter()
+                    .map(|spec| HandlerEntry { spec, uses: 0 })
+                    .collect(),
+            );
             node.retry = retry;
         }
         self.link(parent, id);
@@ -485,7 +487,7 @@ impl<A, F: Clone> Engine<A, F> {
         if self.node(id).suspended {
             self.emit(TraceKind::Suspended { node: display });
         }
-        let deferred = std::mem::take(&mut self.node_mut(id).deferred);
+        let deferred = self.node_mut(id).deferred.take();
         let mut later = Vec::new();
         for (c, prev) in deferred {
             if matches!(c, Constraint::Terminate(_) | Constraint::Activate(_)) {
@@ -619,10 +621,10 @@ impl<A, F: Clone> Engine<A, F> {
     pub fn terminate_children(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {
         self.advance(now);
         self.live(node)?;
-        let mut c = self.node(node).first_child;
+        let mut c = self.first_child(node);
         while let Some(child) = c {
             self.work.push_back(Work::Terminate(child));
-            c = self.node(child).next_sibling;
+            c = self.next_sibling(child);
         }
         self.settle();
         Ok(())
@@ -635,12 +637,12 @@ impl<A, F: Clone> Engine<A, F> {
             .live(node)?
             .parent
             .ok_or(EngineError::Root("given siblings"))?;
-        let mut c = self.node(parent).first_child;
+        let mut c = self.first_child(parent);
         while let Some(child) = c {
             if child != node {
                 self.work.push_back(Work::Terminate(child));
             }
-            c = self.node(child).next_sibling;
+            c = self.next_sibling(child);
         }
         self.settle();
         Ok(())
@@ -886,22 +888,36 @@ impl<A, F: Clone> Engine<A, F> {
         {
             let c = self.node_mut(child);
             c.prev_sibling = last;
-            c.next_sibling = None;
+            c.next_sibling = Link::NONE;
         }
-        if let Some(l) = last {
-            self.node_mut(l).next_sibling = Some(child);
+        if let Some(l) = self.nodes.id_at(last) {
+            self.node_mut(l).next_sibling = Link::to(child);
         }
         let child_expands = self.node(child).state(Facet::Expansion) != State::Completed;
         let p = self.node_mut(parent);
-        if p.first_child.is_none() {
-            p.first_child = Some(child);
+        if p.first_child == Link::NONE {
+            p.first_child = Link::to(child);
         }
-        p.last_child = Some(child);
+        p.last_child = Link::to(child);
         p.live_children += 1;
         p.open_executions += 1;
         if child_expands {
             p.open_expansions += 1;
         }
+    }
+
+    /// The first linked child of a live node.
+    pub(crate) fn first_child(&self, id: NodeId) -> Option<NodeId> {
+        self.nodes
+            .get(id)
+            .and_then(|n| self.nodes.id_at(n.first_child))
+    }
+
+    /// The next linked sibling of a live node.
+    pub(crate) fn next_sibling(&self, id: NodeId) -> Option<NodeId> {
+        self.nodes
+            .get(id)
+            .and_then(|n| self.nodes.id_at(n.next_sibling))
     }
 
     /// Allocates, links and traces a new node under `parent` with the given payload (activations,
@@ -942,19 +958,15 @@ impl<A, F: Clone> Engine<A, F> {
             (c.parent, c.prev_sibling, c.next_sibling)
         };
         let Some(parent) = parent else { return };
-        match prev {
+        match self.nodes.id_at(prev) {
             Some(p) => self.node_mut(p).next_sibling = next,
             None => self.node_mut(parent).first_child = next,
         }
-        match next {
+        match self.nodes.id_at(next) {
             Some(n) => self.node_mut(n).prev_sibling = prev,
             None => self.node_mut(parent).last_child = prev,
         }
-        let p = self.node_mut(parent);
-        p.live_children -= 1;
-        if p.last_spawned == Some(child) {
-            // Keep `previous` meaningful: a reclaimed node is looked up by its fate.
-        }
+        self.node_mut(parent).live_children -= 1;
     }
 
     // ----------------------------------------------------------------------------------------
@@ -1400,10 +1412,10 @@ impl<A, F: Clone> Engine<A, F> {
     }
 
     fn check_children(&mut self, id: NodeId) {
-        let mut c = self.node(id).first_child;
+        let mut c = self.first_child(id);
         while let Some(child) = c {
             self.work.push_back(Work::Check(child));
-            c = self.node(child).next_sibling;
+            c = self.next_sibling(child);
         }
     }
 
@@ -1579,11 +1591,14 @@ impl<A, F: Clone> Engine<A, F> {
             Some(Payload::Action(action)) => {
                 self.effects.push_back(Effect::Start { node: id, action })
             }
-            Some(Payload::Invoke(body, purpose)) => self.effects.push_back(Effect::Invoke {
-                node: id,
-                body,
-                purpose,
-            }),
+            Some(Payload::Invoke(invoke)) => {
+                let (body, purpose) = *invoke;
+                self.effects.push_back(Effect::Invoke {
+                    node: id,
+                    body,
+                    purpose,
+                });
+            }
             None => self.monitor_started(id),
         }
     }
@@ -1599,7 +1614,7 @@ impl<A, F: Clone> Engine<A, F> {
 
     /// The body of `id` ended: reservations it never spawned are dead (catalogue §1.6).
     fn bury_reservations(&mut self, id: NodeId) {
-        let reservations = std::mem::take(&mut self.node_mut(id).reservations);
+        let reservations = self.node_mut(id).reservations.take();
         for r in reservations {
             let Some(node) = self.nodes.remove(r, Fate::Dead) else {
                 continue;
@@ -1694,7 +1709,7 @@ impl<A, F: Clone> Engine<A, F> {
                     self.running -= 1;
                     self.effects.push_back(Effect::Cancel { node: c });
                 }
-                let cleanups = std::mem::take(&mut self.node_mut(c).on_terminate);
+                let cleanups = self.node_mut(c).on_terminate.take();
                 for ot in cleanups {
                     self.spawn_cleanup(c, ot);
                 }
@@ -1703,10 +1718,10 @@ impl<A, F: Clone> Engine<A, F> {
                 self.transition(c, Facet::Handling, State::Completed);
                 self.bury_reservations(c);
             }
-            let mut child = self.node(c).first_child;
+            let mut child = self.first_child(c);
             while let Some(ch) = child {
                 queue.push_back(ch);
-                child = self.node(ch).next_sibling;
+                child = self.next_sibling(ch);
             }
             self.work.push_back(Work::Check(c));
         }
@@ -1748,10 +1763,10 @@ impl<A, F: Clone> Engine<A, F> {
                     self.ready.push_back(c);
                 }
             }
-            let mut child = self.node(c).first_child;
+            let mut child = self.first_child(c);
             while let Some(ch) = child {
                 queue.push_back(ch);
-                child = self.node(ch).next_sibling;
+                child = self.next_sibling(ch);
             }
         }
         self.settle();

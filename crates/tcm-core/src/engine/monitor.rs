@@ -242,14 +242,14 @@ impl<A, F: Clone> Engine<A, F> {
         if let Some(mon) = self.node_mut(monitor).monitor.as_mut() {
             mon.activations = number;
         }
-        let payload = Payload::Invoke(
+        let payload = Payload::Invoke(Box::new((
             body,
             Purpose::Activation {
                 monitor,
                 number,
                 triggers,
             },
-        );
+        )));
         let id = self.insert(monitor, NodeKind::Command, name, payload);
         self.node_mut(id).activation_of = Some(monitor);
         if let Some(prev) = prev {

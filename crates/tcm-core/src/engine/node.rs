@@ -48,6 +48,62 @@ pub(crate) struct Waiter {
     pub(crate) kind: WaitKind,
 }
 
+/// A link between linked (hence live) nodes: the slot index alone, `NONE` for no node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Link(pub(crate) u32);
+
+impl Link {
+    pub(crate) const NONE: Link = Link(u32::MAX);
+
+    pub(crate) fn to(id: NodeId) -> Link {
+        Link(id.idx)
+    }
+}
+
+/// A list that is almost always empty: one pointer while empty, instead of a `Vec`'s three words.
+/// Nodes are the engine's bulk, so their rarely used lists stay small.
+// A boxed `Vec` on purpose: one word while empty, which is nearly always.
+#[allow(clippy::box_collection)]
+pub(crate) struct Sparse<T>(Option<Box<Vec<T>>>);
+
+impl<T> Default for Sparse<T> {
+    fn default() -> Self {
+        Sparse(None)
+    }
+}
+
+impl<T> Sparse<T> {
+    pub(crate) fn push(&mut self, it: T) {
+        self.0.get_or_insert_with(Box::default).push(it);
+    }
+
+    pub(crate) fn take(&mut self) -> Vec<T> {
+        self.0.take().map(|b| *b).unwrap_or_default()
+    }
+
+    pub(crate) fn set(&mut self, v: Vec<T>) {
+        self.0 = if v.is_empty() {
+            None
+        } else {
+            Some(Box::new(v))
+        };
+    }
+
+    pub(crate) fn as_slice(&self) -> &[T] {
+        self.0.as_deref().map_or(&[], Vec::as_slice)
+    }
+
+    pub(crate) fn get_mut(&mut self, i: usize) -> Option<&mut T> {
+        self.0.as_deref_mut().and_then(|v| v.get_mut(i))
+    }
+
+    pub(crate) fn retain(&mut self, f: impl FnMut(&T) -> bool) {
+        if let Some(v) = self.0.as_deref_mut() {
+            v.retain(f);
+        }
+    }
+}
+
 /// Why the shell is asked to run a factory (see `Effect::Invoke`).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Purpose {
@@ -87,8 +143,8 @@ pub enum Purpose {
 pub(crate) enum Payload<A, F> {
     /// The shell's one-shot action.
     Action(A),
-    /// A factory to invoke, and why.
-    Invoke(F, Purpose),
+    /// A factory to invoke, and why (boxed: rare, and large next to an action).
+    Invoke(Box<(F, Purpose)>),
 }
 
 /// A task to insert as a child if the node is terminated while its action runs.
@@ -107,10 +163,11 @@ pub(crate) struct Node<A, F> {
     pub(crate) name: Name,
     pub(crate) parent: Option<NodeId>,
     // Children in spawn order, as an intrusive doubly-linked list (O(1) unlink on reclaim).
-    pub(crate) first_child: Option<NodeId>,
-    pub(crate) last_child: Option<NodeId>,
-    pub(crate) prev_sibling: Option<NodeId>,
-    pub(crate) next_sibling: Option<NodeId>,
+    // Links hold slot indices only: a linked node is alive, so its slot's generation is current.
+    pub(crate) first_child: Link,
+    pub(crate) last_child: Link,
+    pub(crate) prev_sibling: Link,
+    pub(crate) next_sibling: Link,
     // The child spawned most recently, for `previous`.
     pub(crate) last_spawned: Option<NodeId>,
     pub(crate) states: [State; 3],
@@ -138,14 +195,14 @@ pub(crate) struct Node<A, F> {
     pub(crate) live_children: u32,
     pub(crate) waiters: Vec<Waiter>,
     pub(crate) action: Option<Payload<A, F>>,
-    pub(crate) on_terminate: Vec<OnTerminate<A>>,
-    pub(crate) reservations: Vec<NodeId>,
+    pub(crate) on_terminate: Sparse<OnTerminate<A>>,
+    pub(crate) reservations: Sparse<NodeId>,
     // Monitor state, for monitor nodes.
     pub(crate) monitor: Option<Box<Monitor<F>>>,
     // For activation nodes: their monitor.
     pub(crate) activation_of: Option<NodeId>,
     // Exception handlers attached to this node, in the order they are tried.
-    pub(crate) handlers: Vec<HandlerEntry<F>>,
+    pub(crate) handlers: Sparse<HandlerEntry<F>>,
     // For handler nodes: what they handle.
     pub(crate) handling: Option<Box<HandlerCtx>>,
     // A factory that re-runs this task, for retries.
@@ -158,7 +215,7 @@ pub(crate) struct Node<A, F> {
     pub(crate) tap_failure: Option<Box<Failure>>,
     // Constraints applied to a reservation before its spawn, with the `previous` of that moment;
     // applied when the spawn fulfils it.
-    pub(crate) deferred: Vec<(crate::constraint::Constraint, Option<NodeId>)>,
+    pub(crate) deferred: Sparse<(crate::constraint::Constraint, Option<NodeId>)>,
     // While the action runs, its new children do not start (TDL: a body ends before its children run).
     pub(crate) holding: bool,
 }
@@ -180,10 +237,10 @@ impl<A, F> Node<A, F> {
             kind,
             name,
             parent,
-            first_child: None,
-            last_child: None,
-            prev_sibling: None,
-            next_sibling: None,
+            first_child: Link::NONE,
+            last_child: Link::NONE,
+            prev_sibling: Link::NONE,
+            next_sibling: Link::NONE,
             last_spawned: None,
             states: [State::Disabled, expansion, State::Disabled],
             termination: Termination::Alive,
@@ -202,18 +259,18 @@ impl<A, F> Node<A, F> {
             live_children: 0,
             waiters: Vec::new(),
             action: None,
-            on_terminate: Vec::new(),
-            reservations: Vec::new(),
+            on_terminate: Sparse::default(),
+            reservations: Sparse::default(),
             monitor: None,
             activation_of: None,
-            handlers: Vec::new(),
+            handlers: Sparse::default(),
             handling: None,
             retry: None,
             handled: false,
             taps_pending: 0,
             tapped_before: false,
             tap_failure: None,
-            deferred: Vec::new(),
+            deferred: Sparse::default(),
             holding: false,
         }
     }

@@ -75,10 +75,10 @@ impl<A, F: Clone> Engine<A, F> {
     /// The live children of a node, in spawn order.
     pub fn children(&self, id: NodeId) -> Vec<NodeId> {
         let mut out = Vec::new();
-        let mut c = self.nodes.get(id).and_then(|n| n.first_child);
+        let mut c = self.first_child(id);
         while let Some(ch) = c {
             out.push(ch);
-            c = self.nodes.get(ch).and_then(|n| n.next_sibling);
+            c = self.next_sibling(ch);
         }
         out
     }
