@@ -13,6 +13,12 @@
 //! ideal schedule beside a thread sleeping to the same deadlines; W6 N commands failing with an
 //! exception handled three levels up. W1 also runs at 10k, 100k and 1M to show the per-node cost
 //! does not grow.
+//!
+//! `--workload W1|W2|W3|W4|W6|W1-scale`, `--layer core|shell`, `--n N` and `--depth D` run one
+//! workload, one layer, one size (W1-scale then runs only that size); `--hold` makes the core
+//! layer's W1-scale spawn every command before any runs (layer `core-hold`), so all N are alive at
+//! once as in the shell. `bench/compare` runs each workload in a process of its own with these, to
+//! read its peak RSS and to match the sizes the other systems can handle.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
@@ -53,6 +59,12 @@ fn drain(engine: &mut Engine<u8>) {
 }
 
 fn core_flat(n: usize, chained: bool) -> (f64, usize) {
+    core_flat_with(n, chained, false)
+}
+
+/// W1 (`chained`) or W2 on the engine. With `hold`, every command is spawned before any runs (as
+/// the shell's goal does), so all N are alive at once; without it each one runs as it is spawned.
+fn core_flat_with(n: usize, chained: bool, hold: bool) -> (f64, usize) {
     let mut hw = 0;
     let ns = best(|| {
         let mut e: Engine<u8> = Engine::new(1);
@@ -70,7 +82,9 @@ fn core_flat(n: usize, chained: bool) -> (f64, usize) {
                 spec.constraints.push(Constraint::Serial(NodeRef::Previous));
             }
             e.spawn(Time::ZERO, spec).expect("spawn");
-            drain(&mut e);
+            if !hold {
+                drain(&mut e);
+            }
         }
         let _ = e.action_finished(Time::ZERO, top, Ok(()));
         drain(&mut e);
@@ -385,43 +399,160 @@ fn report(
     }
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let json = args.iter().any(|a| a == "--json");
-    let quick = args.iter().any(|a| a == "--quick");
-    if let Some(bad) = args
-        .iter()
-        .find(|a| !matches!(a.as_str(), "--json" | "--quick"))
-    {
-        eprintln!("unknown argument {bad:?}\nusage: tcm-bench [--json] [--quick]");
-        std::process::exit(2);
+/// Command-line options. Without `--workload`, `--layer`, `--n` or `--depth` every workload runs at
+/// its default size, as before; `bench/compare` uses them to run one workload per process (so its
+/// peak RSS can be read) at the sizes the other systems can handle.
+struct Options {
+    json: bool,
+    quick: bool,
+    /// Only this workload (`W1`, `W2`, `W3`, `W4`, `W6` or `W1-scale`).
+    workload: Option<String>,
+    /// Only this layer (`core` or `shell`).
+    layer: Option<String>,
+    /// Number of nodes for W1, W2, W6 and W1-scale (one size instead of the scaling set).
+    n: Option<usize>,
+    /// W1-scale core only: spawn all N before running any (reported as layer `core-hold`).
+    hold: bool,
+    /// Recursion depth for W3 (it reports `n` = 2 × depth nodes: a goal and a command per level).
+    depth: Option<usize>,
+}
+
+const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W6|W1-scale] \
+[--layer core|shell] [--n N] [--depth D] [--hold]";
+
+fn parse_args() -> Result<Options, String> {
+    let mut o = Options {
+        json: false,
+        quick: false,
+        workload: None,
+        layer: None,
+        n: None,
+        depth: None,
+        hold: false,
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
+        let number = |v: String| {
+            v.replace('_', "")
+                .parse::<usize>()
+                .ok()
+                .filter(|n| *n > 0)
+                .ok_or(format!("not a positive number: {v:?}"))
+        };
+        match a.as_str() {
+            "--json" => o.json = true,
+            "--quick" => o.quick = true,
+            "--hold" => o.hold = true,
+            "--workload" => {
+                let w = value("--workload")?;
+                if !matches!(w.as_str(), "W1" | "W2" | "W3" | "W4" | "W6" | "W1-scale") {
+                    return Err(format!("unknown workload {w:?}"));
+                }
+                o.workload = Some(w);
+            }
+            "--layer" => {
+                let l = value("--layer")?;
+                if !matches!(l.as_str(), "core" | "shell") {
+                    return Err(format!("unknown layer {l:?}"));
+                }
+                o.layer = Some(l);
+            }
+            "--n" => o.n = Some(number(value("--n")?)?),
+            "--depth" => o.depth = Some(number(value("--depth")?)?),
+            _ => return Err(format!("unknown argument {a:?}")),
+        }
     }
+    Ok(o)
+}
+
+fn main() {
+    let o = match parse_args() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("{e}\n{USAGE}");
+            std::process::exit(2);
+        }
+    };
+    let json = o.json;
+    let quick = o.quick;
     if cfg!(debug_assertions) {
         eprintln!("note: a debug build; run with --release for meaningful figures");
     }
-    let n = if quick { 10_000 } else { 100_000 };
-    let depth = if quick { 1_000 } else { 10_000 };
-    let f = floor(n);
-    report(json, "W1", "core", n, core_flat(n, true), f);
-    report(json, "W1", "shell", n, shell_flat(n, true), f);
-    report(json, "W2", "core", n, core_flat(n, false), f);
-    report(json, "W2", "shell", n, shell_flat(n, false), f);
-    let fd = floor(2 * depth);
-    report(json, "W3", "core", 2 * depth, core_recursive(depth), fd);
-    report(json, "W3", "shell", 2 * depth, shell_recursive(depth), fd);
-    let ne = if quick { 1_000 } else { 10_000 };
-    let fe = floor(ne);
-    report(json, "W6", "core", ne, (core_exceptions(ne), 0), fe);
-    report(json, "W6", "shell", ne, (shell_exceptions(ne), 0), fe);
-    w4(json);
-    let sizes: &[usize] = if quick {
-        &[1_000, 10_000]
-    } else {
-        &[10_000, 100_000, 1_000_000]
-    };
-    for &s in sizes {
-        let fs = floor(s);
-        report(json, "W1-scale", "core", s, core_flat(s, true), fs);
-        report(json, "W1-scale", "shell", s, shell_flat(s, true), fs);
+    let on = |w: &str| o.workload.as_deref().is_none_or(|x| x == w);
+    let core = o.layer.as_deref() != Some("shell");
+    let shell = o.layer.as_deref() != Some("core");
+    let n = o.n.unwrap_or(if quick { 10_000 } else { 100_000 });
+    let depth = o.depth.unwrap_or(if quick { 1_000 } else { 10_000 });
+    if on("W1") || on("W2") {
+        let f = floor(n);
+        if on("W1") {
+            if core {
+                report(json, "W1", "core", n, core_flat(n, true), f);
+            }
+            if shell {
+                report(json, "W1", "shell", n, shell_flat(n, true), f);
+            }
+        }
+        if on("W2") {
+            if core {
+                report(json, "W2", "core", n, core_flat(n, false), f);
+            }
+            if shell {
+                report(json, "W2", "shell", n, shell_flat(n, false), f);
+            }
+        }
+    }
+    if on("W3") {
+        let fd = floor(2 * depth);
+        if core {
+            report(json, "W3", "core", 2 * depth, core_recursive(depth), fd);
+        }
+        if shell {
+            report(json, "W3", "shell", 2 * depth, shell_recursive(depth), fd);
+        }
+    }
+    if on("W6") {
+        let ne = o.n.unwrap_or(if quick { 1_000 } else { 10_000 });
+        let fe = floor(ne);
+        if core {
+            report(json, "W6", "core", ne, (core_exceptions(ne), 0), fe);
+        }
+        if shell {
+            report(json, "W6", "shell", ne, (shell_exceptions(ne), 0), fe);
+        }
+    }
+    if on("W4") && shell {
+        w4(json);
+    }
+    if on("W1-scale") {
+        let default: &[usize] = if quick {
+            &[1_000, 10_000]
+        } else {
+            &[10_000, 100_000, 1_000_000]
+        };
+        let one = o.n.map(|s| [s]);
+        let sizes: &[usize] = match &one {
+            Some(s) => s,
+            None => default,
+        };
+        for &s in sizes {
+            let fs = floor(s);
+            if core && o.hold {
+                report(
+                    json,
+                    "W1-scale",
+                    "core-hold",
+                    s,
+                    core_flat_with(s, true, true),
+                    fs,
+                );
+            } else if core {
+                report(json, "W1-scale", "core", s, core_flat(s, true), fs);
+            }
+            if shell {
+                report(json, "W1-scale", "shell", s, shell_flat(s, true), fs);
+            }
+        }
     }
 }
