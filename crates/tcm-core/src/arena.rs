@@ -33,9 +33,16 @@ pub(crate) enum Lookup {
     Gone(Fate),
 }
 
+/// Slots per chunk. Storage grows a chunk at a time and never moves: no reallocation copies
+/// (which would briefly double the memory of a million-node tree), and no slot ever moves.
+const CHUNK_BITS: u32 = 10;
+const CHUNK: usize = 1 << CHUNK_BITS;
+
 pub(crate) struct Arena<A, F> {
     run: u32,
-    slots: Vec<Slot<A, F>>,
+    // Invariant: every chunk but the last is full (CHUNK slots); each has capacity CHUNK.
+    chunks: Vec<Vec<Slot<A, F>>>,
+    n_slots: usize,
     free: Vec<u32>,
     live: usize,
     high_water: usize,
@@ -45,7 +52,8 @@ impl<A, F> Arena<A, F> {
     pub(crate) fn new(run: u32) -> Arena<A, F> {
         Arena {
             run,
-            slots: Vec::new(),
+            chunks: Vec::new(),
+            n_slots: 0,
             free: Vec::new(),
             live: 0,
             high_water: 0,
@@ -55,22 +63,31 @@ impl<A, F> Arena<A, F> {
     pub(crate) fn insert(&mut self, node: Node<A, F>) -> NodeId {
         self.live += 1;
         self.high_water = self.high_water.max(self.live);
+        let run = self.run;
         if let Some(idx) = self.free.pop() {
-            let slot = &mut self.slots[idx as usize];
+            let Some(slot) = self.slot_mut(idx) else {
+                unreachable!("a free index names an existing slot");
+            };
             slot.generation = slot.generation.wrapping_add(1);
             slot.node = Some(node);
             NodeId {
-                run: self.run,
+                run,
                 idx,
                 generation: slot.generation,
             }
         } else {
-            let idx = u32::try_from(self.slots.len()).expect("more than 2^32 live nodes");
-            self.slots.push(Slot {
-                generation: 0,
-                node: Some(node),
-                fate: Fate::Completed,
-            });
+            let idx = u32::try_from(self.n_slots).expect("more than 2^32 live nodes");
+            if self.n_slots % CHUNK == 0 {
+                self.chunks.push(Vec::with_capacity(CHUNK));
+            }
+            if let Some(chunk) = self.chunks.last_mut() {
+                chunk.push(Slot {
+                    generation: 0,
+                    node: Some(node),
+                    fate: Fate::Completed,
+                });
+            }
+            self.n_slots += 1;
             NodeId {
                 run: self.run,
                 idx,
@@ -79,8 +96,20 @@ impl<A, F> Arena<A, F> {
         }
     }
 
+    fn slot(&self, idx: u32) -> Option<&Slot<A, F>> {
+        self.chunks
+            .get((idx >> CHUNK_BITS) as usize)?
+            .get(idx as usize & (CHUNK - 1))
+    }
+
+    fn slot_mut(&mut self, idx: u32) -> Option<&mut Slot<A, F>> {
+        self.chunks
+            .get_mut((idx >> CHUNK_BITS) as usize)?
+            .get_mut(idx as usize & (CHUNK - 1))
+    }
+
     pub(crate) fn remove(&mut self, id: NodeId, fate: Fate) -> Option<Node<A, F>> {
-        let slot = self.slots.get_mut(id.idx as usize)?;
+        let slot = self.slot_mut(id.idx)?;
         if slot.generation != id.generation {
             return None;
         }
@@ -92,7 +121,7 @@ impl<A, F> Arena<A, F> {
     }
 
     pub(crate) fn get(&self, id: NodeId) -> Option<&Node<A, F>> {
-        let slot = self.slots.get(id.idx as usize)?;
+        let slot = self.slot(id.idx)?;
         if slot.generation != id.generation {
             return None;
         }
@@ -100,7 +129,7 @@ impl<A, F> Arena<A, F> {
     }
 
     pub(crate) fn get_mut(&mut self, id: NodeId) -> Option<&mut Node<A, F>> {
-        let slot = self.slots.get_mut(id.idx as usize)?;
+        let slot = self.slot_mut(id.idx)?;
         if slot.generation != id.generation {
             return None;
         }
@@ -110,7 +139,7 @@ impl<A, F> Arena<A, F> {
     /// Whether the handle names a live node or a reclaimed one (and how it ended). A handle whose
     /// slot was reused since counts as completed: every point of that node has long passed.
     pub(crate) fn lookup(&self, id: NodeId) -> Lookup {
-        match self.slots.get(id.idx as usize) {
+        match self.slot(id.idx) {
             Some(slot) if slot.generation == id.generation => match slot.node {
                 Some(_) => Lookup::Live,
                 None => Lookup::Gone(slot.fate),
@@ -121,7 +150,7 @@ impl<A, F> Arena<A, F> {
 
     /// The handle of the live node in slot `link`, if any.
     pub(crate) fn id_at(&self, link: crate::engine::node::Link) -> Option<NodeId> {
-        let slot = self.slots.get(link.0 as usize)?;
+        let slot = self.slot(link.0)?;
         slot.node.as_ref()?;
         Some(NodeId {
             run: self.run,
@@ -140,8 +169,9 @@ impl<A, F> Arena<A, F> {
 
     pub(crate) fn iter(&self) -> impl Iterator<Item = (NodeId, &Node<A, F>)> {
         let run = self.run;
-        self.slots
+        self.chunks
             .iter()
+            .flatten()
             .enumerate()
             .filter_map(move |(idx, slot)| {
                 slot.node.as_ref().map(|n| {

@@ -1050,5 +1050,5 @@ fn a_node_stays_small() {
     // See: issue 6 (1M-node W1 within 250 MB).
     let size =
         std::mem::size_of::<crate::engine::node::Node<crate::sim::Body, crate::sim::Factory>>();
-    assert!(size <= 280, "a node takes {size} bytes");
+    assert!(size <= 208, "a node takes {size} bytes");
 }

@@ -67,7 +67,7 @@ impl<A, F: Clone> Engine<A, F> {
         self.advance(now);
         let n = self.live(node)?;
         let display = n.display;
-        let Some(ctx) = n.handling.as_ref() else {
+        let Some(ctx) = n.handling() else {
             return Err(EngineError::NotAHandler(display));
         };
         if n.state(Facet::Handling) != State::Active || !n.alive() {
@@ -92,12 +92,12 @@ impl<A, F: Clone> Engine<A, F> {
         self.advance(now);
         let n = self.live(node)?;
         let display = n.display;
-        let Some(ctx) = n.handling.as_ref() else {
+        let Some(ctx) = n.handling() else {
             return Err(EngineError::NotAHandler(display));
         };
         let failing = ctx.failing;
         let f = self.live(failing)?;
-        let Some(factory) = f.retry.clone() else {
+        let Some(factory) = f.retry().cloned() else {
             return Err(EngineError::NotRetryable(f.display));
         };
         let (kind, name, of_display) = (f.kind, f.name.clone(), f.display);
@@ -107,7 +107,7 @@ impl<A, F: Clone> Engine<A, F> {
             name,
             Payload::Invoke(Box::new((factory.clone(), Purpose::Retry { of: failing }))),
         );
-        self.node_mut(id).retry = Some(factory);
+        self.node_mut(id).cold_mut().retry = Some(factory);
         let new_display = self.node(id).display;
         self.emit(TraceKind::Retried {
             node: new_display,
@@ -147,17 +147,19 @@ impl<A, F: Clone> Engine<A, F> {
         let Some(n) = self.nodes.get_mut(node) else {
             return Ok(());
         };
-        n.taps_pending = n.taps_pending.saturating_sub(1);
+        let alive = n.alive();
+        let c = n.cold_mut();
+        c.taps_pending = c.taps_pending.saturating_sub(1);
         if let Err(f) = result {
-            if n.tap_failure.is_none() {
-                n.tap_failure = Some(Box::new(f));
+            if c.tap_failure.is_none() {
+                c.tap_failure = Some(f);
             }
         }
-        if n.taps_pending > 0 || !n.alive() {
+        if c.taps_pending > 0 || !alive {
             self.settle();
             return Ok(());
         }
-        let failure = n.tap_failure.take().map(|b| *b);
+        let failure = c.tap_failure.take();
         match (when, failure) {
             (TapWhen::Before, None) => self.ready.push_back(node),
             (TapWhen::Before, Some(f)) => {
@@ -193,7 +195,7 @@ impl<A, F: Clone> Engine<A, F> {
             return 0;
         }
         let display = self.node(node).display;
-        self.node_mut(node).taps_pending += k;
+        self.node_mut(node).cold_mut().taps_pending += k;
         for (tap, body) in matching {
             self.running += 1;
             self.emit(TraceKind::Tapped {
@@ -222,11 +224,11 @@ impl<A, F: Clone> Engine<A, F> {
             message: failure.message.clone(),
         });
         // A handler's own failure searches above the node it was attached to.
-        let from = match self.node(node).handling.as_ref() {
+        let from = match self.node(node).handling() {
             Some(ctx) => self.nodes.get(ctx.attached).and_then(|a| a.parent),
             None => Some(node),
         };
-        self.node_mut(node).failure = Some(Box::new(failure.clone()));
+        self.node_mut(node).cold_mut().failure = Some(failure.clone());
         self.search(node, failure, from, 0, node);
     }
 
@@ -246,16 +248,9 @@ impl<A, F: Clone> Engine<A, F> {
             if n.kind == NodeKind::Root {
                 break;
             }
-            let found = n
-                .handlers
-                .as_slice()
-                .iter()
-                .enumerate()
-                .skip(index)
-                .find(|(_, h)| {
-                    failure.is_a(&h.spec.exception)
-                        && h.spec.max_activations.is_none_or(|m| h.uses < m)
-                });
+            let found = n.handlers().iter().enumerate().skip(index).find(|(_, h)| {
+                failure.is_a(&h.spec.exception) && h.spec.max_activations.is_none_or(|m| h.uses < m)
+            });
             if let Some((i, _)) = found {
                 self.use_handler(failing, failure, at, i, under);
                 return;
@@ -288,7 +283,7 @@ impl<A, F: Clone> Engine<A, F> {
         index: usize,
         under: NodeId,
     ) {
-        let Some(entry) = self.node_mut(attached).handlers.get_mut(index) else {
+        let Some(entry) = self.node_mut(attached).cold_mut().handlers.get_mut(index) else {
             return;
         };
         entry.uses += 1;
@@ -297,7 +292,7 @@ impl<A, F: Clone> Engine<A, F> {
             entry.spec.name.clone(),
             entry.spec.name.to_string(),
         );
-        self.node_mut(failing).handled = true;
+        self.node_mut(failing).cold_mut().handled = true;
         let purpose = Purpose::Handler {
             failure: failure.clone(),
             failing,
@@ -321,12 +316,12 @@ impl<A, F: Clone> Engine<A, F> {
             exception: failure.exception.to_string(),
             handler,
         });
-        self.node_mut(id).handling = Some(Box::new(HandlerCtx {
+        self.node_mut(id).cold_mut().handling = Some(HandlerCtx {
             failure,
             failing,
             attached,
             index,
-        }));
+        });
         self.work.push_back(Work::Check(id));
     }
 }

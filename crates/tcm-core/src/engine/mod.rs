@@ -378,7 +378,7 @@ impl<A, F: Clone> Engine<A, F> {
         node.reserved = true;
         let id = self.nodes.insert(node);
         let parent_display = self.node(parent).display;
-        self.node_mut(parent).reservations.push(id);
+        self.node_mut(parent).cold_mut().reservations.push(id);
         self.emit(TraceKind::Reserved {
             node: display,
             parent: parent_display,
@@ -430,7 +430,10 @@ impl<A, F: Clone> Engine<A, F> {
                 if !ok {
                     return Err(EngineError::NotReserved(r));
                 }
-                self.node_mut(parent).reservations.retain(|x| *x != r);
+                self.node_mut(parent)
+                    .cold_mut()
+                    .reservations
+                    .retain(|x| *x != r);
                 let node = self.node_mut(r);
                 node.reserved = false;
                 node.kind = kind;
@@ -451,16 +454,22 @@ impl<A, F: Clone> Engine<A, F> {
             let node = self.node_mut(id);
             node.action = action.map(Payload::Action);
             node.persistent = persistent;
-            node.on_terminate.set(on_terminate);
+            if !on_terminate.is_empty() {
+                node.cold_mut().on_terminate = on_terminate;
+            }
             node.suspended = parent_suspended;
-            node.monitor = monitor.map(|m| Box::new(Monitor::new(m)));
-            node.handlers.set(
-                handlers
+            if let Some(m) = monitor {
+                node.cold_mut().monitor = Some(Monitor::new(m));
+            }
+            if !handlers.is_empty() {
+                node.cold_mut().handlers = handlers
                     .into_iter()
                     .map(|spec| HandlerEntry { spec, uses: 0 })
-                    .collect(),
-            );
-            node.retry = retry;
+                    .collect();
+            }
+            if retry.is_some() {
+                node.cold_mut().retry = retry;
+            }
         }
         self.link(parent, id);
         let (display, parent_display) = (self.node(id).display, self.node(parent).display);
@@ -471,7 +480,7 @@ impl<A, F: Clone> Engine<A, F> {
             kind,
             name,
         });
-        if let Some(m) = &self.node(id).monitor {
+        if let Some(m) = self.node(id).monitor() {
             let record = TraceKind::MonitorParams {
                 node: display,
                 max_activations: m.spec.max_activations,
@@ -487,7 +496,7 @@ impl<A, F: Clone> Engine<A, F> {
         if self.node(id).suspended {
             self.emit(TraceKind::Suspended { node: display });
         }
-        let deferred = self.node_mut(id).deferred.take();
+        let deferred = self.node_mut(id).take_cold(|c| &mut c.deferred);
         let mut later = Vec::new();
         for (c, prev) in deferred {
             if matches!(c, Constraint::Terminate(_) | Constraint::Activate(_)) {
@@ -529,7 +538,7 @@ impl<A, F: Clone> Engine<A, F> {
             // spawn, so it is applied with the spawn's own constraints.
             let parent = n.parent.unwrap_or(self.root);
             let previous = self.nodes.get(parent).and_then(|p| p.last_spawned);
-            self.node_mut(node).deferred.push((c, previous));
+            self.node_mut(node).cold_mut().deferred.push((c, previous));
             return Ok(());
         }
         let gated: &[Facet] = match c {
@@ -579,8 +588,8 @@ impl<A, F: Clone> Engine<A, F> {
         let n = self.nodes.get(node).ok_or(EngineError::Gone(node))?;
         if n.state(Facet::Handling) != State::Active
             || !n.alive()
-            || n.monitor.is_some()
-            || n.taps_pending > 0
+            || n.monitor().is_some()
+            || n.taps_pending() > 0
         {
             // A cancelled action may still report; the engine already finished it.
             if n.state(Facet::Handling) == State::Completed && !n.alive() {
@@ -1351,11 +1360,11 @@ impl<A, F: Clone> Engine<A, F> {
         if let WaitKind::Watch { token } = kind {
             let outcome = if terminating {
                 WatchOutcome::Terminated
-            } else if let Some(f) = &n.failure {
-                if n.handled {
-                    WatchOutcome::Handled((**f).clone())
+            } else if let Some(f) = n.failure() {
+                if n.handled() {
+                    WatchOutcome::Handled(f.clone())
                 } else {
-                    WatchOutcome::Failed((**f).clone())
+                    WatchOutcome::Failed(f.clone())
                 }
             } else {
                 WatchOutcome::Reached
@@ -1549,10 +1558,10 @@ impl<A, F: Clone> Engine<A, F> {
             n.parked = true;
             return;
         }
-        let is_monitor = n.monitor.is_some();
-        let tapped = n.tapped_before;
-        if !is_monitor && !tapped {
-            n.tapped_before = true;
+        let is_monitor = n.monitor().is_some();
+        let tapped = n.tapped_before();
+        if !is_monitor && !tapped && !self.taps.is_empty() {
+            n.cold_mut().tapped_before = true;
             if self.start_taps(id, crate::ids::TapWhen::Before) > 0 {
                 // Stays enabled until its checks report (`tap_finished`).
                 return;
@@ -1614,7 +1623,7 @@ impl<A, F: Clone> Engine<A, F> {
 
     /// The body of `id` ended: reservations it never spawned are dead (catalogue §1.6).
     fn bury_reservations(&mut self, id: NodeId) {
-        let reservations = self.node_mut(id).reservations.take();
+        let reservations = self.node_mut(id).take_cold(|c| &mut c.reservations);
         for r in reservations {
             let Some(node) = self.nodes.remove(r, Fate::Dead) else {
                 continue;
@@ -1702,14 +1711,14 @@ impl<A, F: Clone> Engine<A, F> {
                 self.emit(TraceKind::Unsuspended { node: display });
             }
             let action_running = h == State::Active
-                && self.node(c).monitor.is_none()
-                && self.node(c).taps_pending == 0;
+                && self.node(c).monitor().is_none()
+                && self.node(c).taps_pending() == 0;
             if h == State::Active {
                 if action_running {
                     self.running -= 1;
                     self.effects.push_back(Effect::Cancel { node: c });
                 }
-                let cleanups = self.node_mut(c).on_terminate.take();
+                let cleanups = self.node_mut(c).take_cold(|c| &mut c.on_terminate);
                 for ot in cleanups {
                     self.spawn_cleanup(c, ot);
                 }

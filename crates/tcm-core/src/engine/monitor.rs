@@ -104,7 +104,7 @@ impl<A, F: Clone> Engine<A, F> {
     pub fn activate(&mut self, now: Time, monitor: NodeId) -> Result<Option<NodeId>, EngineError> {
         self.advance(now);
         let n = self.live(monitor)?;
-        if n.monitor.is_none() {
+        if n.monitor().is_none() {
             return Err(EngineError::NotAMonitor(n.display));
         }
         if n.state(Facet::Handling) != State::Active || !n.alive() {
@@ -121,10 +121,10 @@ impl<A, F: Clone> Engine<A, F> {
     pub fn trigger(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {
         self.advance(now);
         let n = self.live(node)?;
-        let monitor = n.activation_of.unwrap_or(node);
+        let monitor = n.activation_of().unwrap_or(node);
         let m = self.live(monitor)?;
         let display = m.display;
-        let Some(mon) = &m.monitor else {
+        let Some(mon) = m.monitor() else {
             return Err(EngineError::NotAMonitor(display));
         };
         if m.state(Facet::Handling) != State::Active || !m.alive() {
@@ -132,7 +132,7 @@ impl<A, F: Clone> Engine<A, F> {
             return Ok(());
         }
         let (count, max) = (mon.triggers + 1, mon.spec.max_triggers);
-        if let Some(mon) = self.node_mut(monitor).monitor.as_mut() {
+        if let Some(mon) = self.node_mut(monitor).monitor_mut() {
             mon.triggers = count;
         }
         self.emit(TraceKind::Triggered {
@@ -149,8 +149,8 @@ impl<A, F: Clone> Engine<A, F> {
     /// Activations and triggers counted so far, for a monitor or one of its activation nodes.
     pub fn monitor_counts(&self, node: NodeId) -> Option<(u32, u32)> {
         let n = self.nodes.get(node)?;
-        let m = self.nodes.get(n.activation_of.unwrap_or(node))?;
-        m.monitor.as_ref().map(|m| (m.activations, m.triggers))
+        let m = self.nodes.get(n.activation_of().unwrap_or(node))?;
+        m.monitor().map(|m| (m.activations, m.triggers))
     }
 
     fn inactive_monitor_warning(&mut self, monitor: NodeId) {
@@ -184,7 +184,7 @@ impl<A, F: Clone> Engine<A, F> {
     /// The monitor's handling became active (step 1 of the protocol).
     pub(crate) fn monitor_started(&mut self, monitor: NodeId) {
         let now = self.now;
-        let Some(mon) = self.node_mut(monitor).monitor.as_mut() else {
+        let Some(mon) = self.node_mut(monitor).monitor_mut() else {
             return;
         };
         mon.started_at = now;
@@ -205,7 +205,7 @@ impl<A, F: Clone> Engine<A, F> {
         let Some(n) = self.nodes.get(monitor) else {
             return;
         };
-        let Some(mon) = &n.monitor else { return };
+        let Some(mon) = n.monitor() else { return };
         if n.alive() && n.state(Facet::Handling) == State::Active {
             if let Some(p) = mon.spec.period {
                 let next = mon
@@ -220,7 +220,7 @@ impl<A, F: Clone> Engine<A, F> {
     /// Inserts one activation node (step 3).
     fn make_activation(&mut self, monitor: NodeId) -> Option<NodeId> {
         let m = self.node(monitor);
-        let mon = m.monitor.as_ref()?;
+        let mon = m.monitor()?;
         if mon
             .spec
             .max_activations
@@ -239,7 +239,7 @@ impl<A, F: Clone> Engine<A, F> {
         };
         let max = mon.spec.max_activations;
         let monitor_display = m.display;
-        if let Some(mon) = self.node_mut(monitor).monitor.as_mut() {
+        if let Some(mon) = self.node_mut(monitor).monitor_mut() {
             mon.activations = number;
         }
         let payload = Payload::Invoke(Box::new((
@@ -251,7 +251,7 @@ impl<A, F: Clone> Engine<A, F> {
             },
         )));
         let id = self.insert(monitor, NodeKind::Command, name, payload);
-        self.node_mut(id).activation_of = Some(monitor);
+        self.node_mut(id).cold_mut().activation_of = Some(monitor);
         if let Some(prev) = prev {
             let r = NodeRef::Node(prev);
             let mut cs = Vec::new();
@@ -280,7 +280,7 @@ impl<A, F: Clone> Engine<A, F> {
             node: display,
             number,
         });
-        if let Some(mon) = self.node_mut(monitor).monitor.as_mut() {
+        if let Some(mon) = self.node_mut(monitor).monitor_mut() {
             mon.last = Some(id);
         }
         self.node_mut(monitor).last_spawned = Some(id);
@@ -313,7 +313,7 @@ impl<A, F: Clone> Engine<A, F> {
         when: ActivateWhen,
     ) {
         let display = self.node(node).display;
-        if self.node(node).monitor.is_none() {
+        if self.node(node).monitor().is_none() {
             self.void(node, "`activate` applies to monitors only".into());
             return;
         }

@@ -60,50 +60,6 @@ impl Link {
     }
 }
 
-/// A list that is almost always empty: one pointer while empty, instead of a `Vec`'s three words.
-/// Nodes are the engine's bulk, so their rarely used lists stay small.
-// A boxed `Vec` on purpose: one word while empty, which is nearly always.
-#[allow(clippy::box_collection)]
-pub(crate) struct Sparse<T>(Option<Box<Vec<T>>>);
-
-impl<T> Default for Sparse<T> {
-    fn default() -> Self {
-        Sparse(None)
-    }
-}
-
-impl<T> Sparse<T> {
-    pub(crate) fn push(&mut self, it: T) {
-        self.0.get_or_insert_with(Box::default).push(it);
-    }
-
-    pub(crate) fn take(&mut self) -> Vec<T> {
-        self.0.take().map(|b| *b).unwrap_or_default()
-    }
-
-    pub(crate) fn set(&mut self, v: Vec<T>) {
-        self.0 = if v.is_empty() {
-            None
-        } else {
-            Some(Box::new(v))
-        };
-    }
-
-    pub(crate) fn as_slice(&self) -> &[T] {
-        self.0.as_deref().map_or(&[], Vec::as_slice)
-    }
-
-    pub(crate) fn get_mut(&mut self, i: usize) -> Option<&mut T> {
-        self.0.as_deref_mut().and_then(|v| v.get_mut(i))
-    }
-
-    pub(crate) fn retain(&mut self, f: impl FnMut(&T) -> bool) {
-        if let Some(v) = self.0.as_deref_mut() {
-            v.retain(f);
-        }
-    }
-}
-
 /// Why the shell is asked to run a factory (see `Effect::Invoke`).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Purpose {
@@ -147,6 +103,69 @@ pub(crate) enum Payload<A, F> {
     Invoke(Box<(F, Purpose)>),
 }
 
+/// The waiters of one node: most nodes have none or one (the next sibling's `sequential`), so one
+/// is kept inline and only more allocate.
+#[derive(Default)]
+pub(crate) enum Waiters {
+    #[default]
+    None,
+    One(Waiter),
+    Many(Vec<Waiter>),
+}
+
+impl Waiters {
+    pub(crate) fn push(&mut self, w: Waiter) {
+        *self = match std::mem::take(self) {
+            Waiters::None => Waiters::One(w),
+            Waiters::One(first) => Waiters::Many(vec![first, w]),
+            Waiters::Many(mut v) => {
+                v.push(w);
+                Waiters::Many(v)
+            }
+        };
+    }
+
+    pub(crate) fn is_empty(&self) -> bool {
+        match self {
+            Waiters::None => true,
+            Waiters::One(_) => false,
+            Waiters::Many(v) => v.is_empty(),
+        }
+    }
+
+    pub(crate) fn retain(&mut self, mut keep: impl FnMut(&Waiter) -> bool) {
+        match self {
+            Waiters::None => {}
+            Waiters::One(w) => {
+                if !keep(w) {
+                    *self = Waiters::None;
+                }
+            }
+            Waiters::Many(v) => v.retain(keep),
+        }
+    }
+
+    pub(crate) fn iter(&self) -> std::slice::Iter<'_, Waiter> {
+        match self {
+            Waiters::None => [].iter(),
+            Waiters::One(w) => std::slice::from_ref(w).iter(),
+            Waiters::Many(v) => v.iter(),
+        }
+    }
+}
+
+impl IntoIterator for Waiters {
+    type Item = Waiter;
+    type IntoIter = std::vec::IntoIter<Waiter>;
+    fn into_iter(self) -> Self::IntoIter {
+        match self {
+            Waiters::None => Vec::new().into_iter(),
+            Waiters::One(w) => vec![w].into_iter(),
+            Waiters::Many(v) => v.into_iter(),
+        }
+    }
+}
+
 /// A task to insert as a child if the node is terminated while its action runs.
 pub struct OnTerminate<A> {
     /// Kind of the cleanup node.
@@ -184,7 +203,6 @@ pub(crate) struct Node<A, F> {
     pub(crate) reserved: bool,
     // Delayed termination (on-terminate nodes): a terminating ancestor does not terminate it.
     pub(crate) immune: bool,
-    pub(crate) failure: Option<Box<Failure>>,
     // Invariant: the number of linked children whose expansion is not completed.
     pub(crate) open_expansions: u32,
     // Invariant: the number of linked children whose execution is not completed.
@@ -193,18 +211,28 @@ pub(crate) struct Node<A, F> {
     pub(crate) terminating_children: u32,
     // Invariant: the number of linked children not yet reclaimed.
     pub(crate) live_children: u32,
-    pub(crate) waiters: Vec<Waiter>,
+    pub(crate) waiters: Waiters,
     pub(crate) action: Option<Payload<A, F>>,
-    pub(crate) on_terminate: Sparse<OnTerminate<A>>,
-    pub(crate) reservations: Sparse<NodeId>,
+    // While the action runs, its new children do not start (TDL: a body ends before its children run).
+    pub(crate) holding: bool,
+    // Everything most nodes never use, in one box: nodes are the engine's bulk.
+    cold: Option<Box<Cold<A, F>>>,
+}
+
+/// The rarely used part of a node.
+pub(crate) struct Cold<A, F> {
+    pub(crate) failure: Option<Failure>,
+    pub(crate) on_terminate: Vec<OnTerminate<A>>,
+    // Reserved children not spawned yet.
+    pub(crate) reservations: Vec<NodeId>,
     // Monitor state, for monitor nodes.
-    pub(crate) monitor: Option<Box<Monitor<F>>>,
+    pub(crate) monitor: Option<Monitor<F>>,
     // For activation nodes: their monitor.
     pub(crate) activation_of: Option<NodeId>,
     // Exception handlers attached to this node, in the order they are tried.
-    pub(crate) handlers: Sparse<HandlerEntry<F>>,
+    pub(crate) handlers: Vec<HandlerEntry<F>>,
     // For handler nodes: what they handle.
-    pub(crate) handling: Option<Box<HandlerCtx>>,
+    pub(crate) handling: Option<HandlerCtx>,
     // A factory that re-runs this task, for retries.
     pub(crate) retry: Option<F>,
     // A handler took this node's failure.
@@ -212,12 +240,30 @@ pub(crate) struct Node<A, F> {
     // Wiretap checks running on this node, and whether the "before" checks already ran.
     pub(crate) taps_pending: u32,
     pub(crate) tapped_before: bool,
-    pub(crate) tap_failure: Option<Box<Failure>>,
+    pub(crate) tap_failure: Option<Failure>,
     // Constraints applied to a reservation before its spawn, with the `previous` of that moment;
     // applied when the spawn fulfils it.
-    pub(crate) deferred: Sparse<(crate::constraint::Constraint, Option<NodeId>)>,
-    // While the action runs, its new children do not start (TDL: a body ends before its children run).
-    pub(crate) holding: bool,
+    pub(crate) deferred: Vec<(crate::constraint::Constraint, Option<NodeId>)>,
+}
+
+impl<A, F> Default for Cold<A, F> {
+    fn default() -> Self {
+        Cold {
+            failure: None,
+            on_terminate: Vec::new(),
+            reservations: Vec::new(),
+            monitor: None,
+            activation_of: None,
+            handlers: Vec::new(),
+            handling: None,
+            retry: None,
+            handled: false,
+            taps_pending: 0,
+            tapped_before: false,
+            tap_failure: None,
+            deferred: Vec::new(),
+        }
+    }
 }
 
 impl<A, F> Node<A, F> {
@@ -252,26 +298,14 @@ impl<A, F> Node<A, F> {
             persistent: false,
             reserved: false,
             immune: false,
-            failure: None,
             open_expansions: 0,
             open_executions: 0,
             terminating_children: 0,
             live_children: 0,
-            waiters: Vec::new(),
+            waiters: Waiters::default(),
             action: None,
-            on_terminate: Sparse::default(),
-            reservations: Sparse::default(),
-            monitor: None,
-            activation_of: None,
-            handlers: Sparse::default(),
-            handling: None,
-            retry: None,
-            handled: false,
-            taps_pending: 0,
-            tapped_before: false,
-            tap_failure: None,
-            deferred: Sparse::default(),
             holding: false,
+            cold: None,
         }
     }
 
@@ -285,5 +319,61 @@ impl<A, F> Node<A, F> {
 
     pub(crate) fn alive(&self) -> bool {
         self.termination == Termination::Alive
+    }
+
+    /// The rarely used part, allocated on first write.
+    pub(crate) fn cold_mut(&mut self) -> &mut Cold<A, F> {
+        self.cold.get_or_insert_with(Box::default)
+    }
+
+    pub(crate) fn monitor(&self) -> Option<&Monitor<F>> {
+        self.cold.as_ref().and_then(|c| c.monitor.as_ref())
+    }
+
+    pub(crate) fn monitor_mut(&mut self) -> Option<&mut Monitor<F>> {
+        self.cold.as_mut().and_then(|c| c.monitor.as_mut())
+    }
+
+    pub(crate) fn activation_of(&self) -> Option<NodeId> {
+        self.cold.as_ref().and_then(|c| c.activation_of)
+    }
+
+    pub(crate) fn handlers(&self) -> &[HandlerEntry<F>] {
+        self.cold.as_ref().map_or(&[], |c| c.handlers.as_slice())
+    }
+
+    pub(crate) fn handling(&self) -> Option<&HandlerCtx> {
+        self.cold.as_ref().and_then(|c| c.handling.as_ref())
+    }
+
+    pub(crate) fn retry(&self) -> Option<&F> {
+        self.cold.as_ref().and_then(|c| c.retry.as_ref())
+    }
+
+    pub(crate) fn failure(&self) -> Option<&Failure> {
+        self.cold.as_ref().and_then(|c| c.failure.as_ref())
+    }
+
+    pub(crate) fn handled(&self) -> bool {
+        self.cold.as_ref().is_some_and(|c| c.handled)
+    }
+
+    pub(crate) fn taps_pending(&self) -> u32 {
+        self.cold.as_ref().map_or(0, |c| c.taps_pending)
+    }
+
+    pub(crate) fn tapped_before(&self) -> bool {
+        self.cold.as_ref().is_some_and(|c| c.tapped_before)
+    }
+
+    /// Takes a list out of the cold part without allocating it.
+    pub(crate) fn take_cold<T>(
+        &mut self,
+        f: impl FnOnce(&mut Cold<A, F>) -> &mut Vec<T>,
+    ) -> Vec<T> {
+        match self.cold.as_mut() {
+            Some(c) => std::mem::take(f(c)),
+            None => Vec::new(),
+        }
     }
 }

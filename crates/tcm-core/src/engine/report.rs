@@ -63,7 +63,7 @@ impl<A, F: Clone> Engine<A, F> {
             states: n.states,
             termination: n.termination,
             suspended: n.suspended,
-            failed: n.failure.is_some(),
+            failed: n.failure().is_some(),
         })
     }
 
@@ -90,7 +90,7 @@ impl<A, F: Clone> Engine<A, F> {
         // (waiting node display, facet) -> reasons
         let mut reasons: BTreeMap<(u64, Facet), Vec<String>> = BTreeMap::new();
         for (_, n) in self.nodes.iter() {
-            for w in &n.waiters {
+            for w in n.waiters.iter() {
                 let (target, facet, after) = match w.kind {
                     WaitKind::Enable { target, facet } => (target, facet, None),
                     WaitKind::EnableAfter {
