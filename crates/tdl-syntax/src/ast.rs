@@ -220,6 +220,8 @@ pub enum Stmt {
     Bypass(Span),
     /// `trigger;` (monitors only).
     Trigger(Span),
+    /// `retry;` (handlers only): run the failed task again and wait for it.
+    Retry(Span),
     /// `if cond { ... } [else ...]`.
     If(If),
     /// `['label:] for pat in expr { ... }`.

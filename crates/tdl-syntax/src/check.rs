@@ -206,6 +206,7 @@ enum Node<'a> {
     Fail(&'a Fail),
     Bypass(Span),
     Trigger(Span),
+    Retry(Span),
 }
 
 /// Where a spawn or label is defined: its index in the flattened body and its loop depth.
@@ -243,6 +244,7 @@ fn flatten<'a>(block: &'a Block, depth: usize, out: &mut Vec<Node<'a>>) {
             Stmt::Fail(it) => out.push(Node::Fail(it)),
             Stmt::Bypass(span) => out.push(Node::Bypass(*span)),
             Stmt::Trigger(span) => out.push(Node::Trigger(*span)),
+            Stmt::Retry(span) => out.push(Node::Retry(*span)),
             Stmt::If(it) => {
                 let mut it = it;
                 loop {
@@ -368,6 +370,11 @@ impl<'a> Body<'a> {
                 Node::Bypass(span) if self.task.kind != TaskKind::Handler => diags.push(
                     Diagnostic::error(*span, "`bypass` outside an exception handler").with_hint(
                         "only a handler can pass its exception on; in other tasks use `fail`",
+                    ),
+                ),
+                Node::Retry(span) if self.task.kind != TaskKind::Handler => diags.push(
+                    Diagnostic::error(*span, "`retry` outside an exception handler").with_hint(
+                        "only a handler can run the failed task again; attach a `handler` that retries",
                     ),
                 ),
                 Node::Trigger(span) if self.task.kind != TaskKind::Monitor => diags.push(

@@ -169,6 +169,7 @@ fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
         }
         Stmt::Bypass(_) => line(out, depth, "bypass"),
         Stmt::Trigger(_) => line(out, depth, "trigger"),
+        Stmt::Retry(_) => line(out, depth, "retry"),
         Stmt::If(it) => dump_if(out, it, depth, "if"),
         Stmt::For(it) => {
             let label = it

@@ -1,9 +1,11 @@
 //! TDL for Rust: task-level control of robots after Simmons & Apfelbaum's Task Description
 //! Language (1998). This is the crate users depend on.
 //!
-//! - [`tdl!`] compiles TDL task definitions (`goal`, `command`, `exception`, `spawn ... with ...`,
-//!   `with (...) { ... }` groups, constraint statements, `fail`) into Rust items: per task a struct
-//!   with its arguments and a constructor function returning a [`Task`].
+//! - [`tdl!`] compiles TDL task definitions (`goal`, `command`, `monitor`, `handler`,
+//!   `exception`, `spawn ... with ...`, `with (...) { ... }` groups, constraint statements, `fail`,
+//!   `trigger`, `bypass`, `retry`) into Rust items: per task a struct with its arguments and a
+//!   constructor function returning a [`Task`] (a [`Handler`] for handlers). Generated bodies hold
+//!   their children until they end or wait, as in TDL.
 //! - Everything else is the `tcm` runtime, re-exported: [`Runtime`] runs a task tree, [`Ctx`] is
 //!   what a body sees, [`Constraint`] and friends are what the generated code builds.
 //! - `.tdl` files can also be compiled from `build.rs` with the `tdl-build` crate, and checked or
@@ -32,6 +34,9 @@ extern crate self as tdl;
 
 pub use tcm::*;
 pub use tdl_macros::tdl;
+
+#[doc(hidden)]
+pub mod codegen;
 
 /// The runtime crate, for paths the re-exports do not cover.
 pub use tcm;

@@ -29,7 +29,7 @@ fn check_prints_every_mistake_with_position_and_hint_and_exits_1() {
         [
             "tests/data/three_mistakes.tdl:4:55: error: unknown tag `nowhere`",
             "tests/data/three_mistakes.tdl:5:5: error: `wait` on a task that is not spawned yet",
-            "tests/data/three_mistakes.tdl:9:9: error: monitors are not supported by the code generator yet",
+            "tests/data/three_mistakes.tdl:15:7: error: this constraint can only be given on the spawn",
         ],
         "{out}"
     );

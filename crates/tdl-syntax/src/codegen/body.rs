@@ -24,10 +24,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use proc_macro2::{Ident, Literal, Span, TokenStream, TokenTree};
 use quote::{format_ident, quote};
 
-use super::{FileCx, HANDLER_HINT, unsupported};
+use super::{FileCx, count_expr, handler_expr};
 use crate::ast::{
     Binding, Block, Constraint, ConstraintKind, ConstraintStmt, Else, Event, Facet, Fail, RelTime,
-    Spawn, State, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind, When, WithGroup,
+    Spawn, State, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind, TaskKind, When,
+    WithGroup,
 };
 use crate::diagnostic::Diagnostic;
 
@@ -35,8 +36,6 @@ use crate::diagnostic::Diagnostic;
 pub(super) struct Action {
     /// The statements of the `async move` block, ending with its `Ok(..)`.
     pub(super) code: TokenStream,
-    /// Whether the body names `ctx` (otherwise the closure's parameter is `_ctx`).
-    pub(super) uses_ctx: bool,
     /// Whether `previous` is tracked in `tdl_prev`.
     pub(super) tracks_previous: bool,
 }
@@ -59,7 +58,10 @@ pub(super) fn task_body(file: &FileCx, task: &Task, diags: &mut Vec<Diagnostic>)
     };
     let mut code = g.prelude();
     let stmts = &task.body.stmts;
-    let tail_is_exit = matches!(stmts.last(), Some(Stmt::Succeed(_) | Stmt::Fail(_)));
+    let tail_is_exit = matches!(
+        stmts.last(),
+        Some(Stmt::Succeed(_) | Stmt::Fail(_) | Stmt::Bypass(_))
+    );
     let n_stmts = stmts.len();
     let mut inner = TokenStream::new();
     for (i, stmt) in stmts.iter().enumerate() {
@@ -82,9 +84,10 @@ pub(super) fn task_body(file: &FileCx, task: &Task, diags: &mut Vec<Diagnostic>)
                 inner.extend(quote!(::core::result::Result::Ok(())));
             }
             Stmt::Fail(it) if last => {
-                let err = fail_error(it);
+                let err = fail_error(file, it);
                 inner.extend(quote!(::core::result::Result::Err::<(), ::tdl::Failure>(#err)));
             }
+            Stmt::Bypass(_) if last && task.result.is_none() => inner.extend(quote!(ctx.bypass())),
             _ => inner.extend(g.stmt(stmt)),
         }
     }
@@ -99,12 +102,77 @@ pub(super) fn task_body(file: &FileCx, task: &Task, diags: &mut Vec<Diagnostic>)
             ::core::result::Result::Ok(())
         }),
     }
-    let uses_ctx = mentions_ctx(&code);
+    let tracks_previous = g.an.uses_prev;
+    // Handler bodies: the exception's data and the nodes involved, when the body names them.
+    let mut head = quote!(ctx.hold_children(true)?;);
+    if task.kind == TaskKind::Handler {
+        let name = task.name.to_string();
+        if let Some(exc) = &task.handles {
+            if mentions(&code, "exception") {
+                head.extend(quote! {
+                    let exception: ::std::sync::Arc<#exc> = ::tdl::codegen::caught::<#exc>(&ctx, #name)?;
+                });
+            }
+        }
+        if mentions(&code, "failing") {
+            head.extend(quote!(let failing: ::tdl::NodeId = ::tdl::codegen::failing_node(&ctx)?;));
+        }
+        if mentions(&code, "attached") {
+            head.extend(
+                quote!(let attached: ::tdl::NodeId = ::tdl::codegen::attached_node(&ctx)?;),
+            );
+        }
+    }
+    let cells = persistent_cells(task);
+    let code = if cells.is_empty() {
+        quote!(#head #code)
+    } else {
+        // Each run starts from the stored values and stores its own back however its body ends
+        // (the inner block catches `return` and `?`).
+        let ok = match &task.result {
+            Some(ty) => quote!(#ty),
+            None => quote!(()),
+        };
+        let loads = cells.iter().map(
+            |(var, cell, ty, _)| quote!(#[allow(unused_mut)] let mut #var: #ty = #cell.load();),
+        );
+        let stores = cells
+            .iter()
+            .map(|(var, cell, _, _)| quote!(#cell.store(#var);));
+        quote! {
+            #head
+            #(#loads)*
+            let tdl_outcome: ::core::result::Result<#ok, ::tdl::Failure> = async { #code }.await;
+            #(#stores)*
+            tdl_outcome
+        }
+    };
     Action {
         code,
-        uses_ctx,
-        tracks_previous: g.an.uses_prev,
+        tracks_previous,
     }
+}
+
+/// The `persistent` variables of a monitor or handler, shared by its runs: (variable, cell,
+/// type, initial value). Goals and commands run once, so theirs are plain locals.
+pub(super) fn persistent_cells(task: &Task) -> Vec<(Ident, Ident, syn::Type, TokenStream)> {
+    if !matches!(task.kind, TaskKind::Monitor | TaskKind::Handler) {
+        return Vec::new();
+    }
+    task.constraints
+        .iter()
+        .filter_map(|c| match &c.kind {
+            TaskConstraintKind::Persistent(p) => {
+                let init = match &p.init {
+                    Some(init) => quote!(#init),
+                    None => quote!(::core::default::Default::default()),
+                };
+                let cell = format_ident!("tdl_persistent_{}", p.name);
+                Some((p.name.clone(), cell, p.ty.clone(), init))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 fn succeed_with_result(span: Span) -> Diagnostic {
@@ -116,17 +184,29 @@ fn ends_with_semicolon(tokens: &TokenStream) -> bool {
     matches!(tokens.clone().into_iter().last(), Some(TokenTree::Punct(p)) if p.as_char() == ';')
 }
 
-fn mentions_ctx(tokens: &TokenStream) -> bool {
+/// Whether `tokens` name `word`, as an identifier or as an inline format argument (`"{word}"`,
+/// `"{word:?}"`).
+fn mentions(tokens: &TokenStream, word: &str) -> bool {
     tokens.clone().into_iter().any(|it| match it {
-        TokenTree::Ident(id) => id == "ctx",
-        TokenTree::Group(group) => mentions_ctx(&group.stream()),
-        _ => false,
+        TokenTree::Ident(id) => id == word,
+        TokenTree::Group(group) => mentions(&group.stream(), word),
+        TokenTree::Literal(lit) => {
+            let text = lit.to_string();
+            text.contains(&format!("{{{word}}}")) || text.contains(&format!("{{{word}:"))
+        }
+        TokenTree::Punct(_) => false,
     })
 }
 
-/// `fail Exc { .. }` as a `tdl::Failure` expression.
-fn fail_error(fail: &Fail) -> TokenStream {
+/// `fail Exc { .. }` as a `tdl::Failure` expression: raised through `tdl::Exception` when the
+/// exception is declared in the source (so handlers of its ancestors match), else converted as
+/// any error.
+fn fail_error(file: &FileCx, fail: &Fail) -> TokenStream {
     match &fail.exception {
+        Some(exc) if file.declares_exception(&exc.to_string()) => {
+            let fields = &fail.fields;
+            quote!(::tdl::Exception::raise(#exc { #(#fields),* }))
+        }
         Some(exc) => {
             let fields = &fail.fields;
             quote!(::tdl::Failure::from(#exc { #(#fields),* }))
@@ -229,7 +309,8 @@ impl Analysis {
             | Stmt::Succeed(_)
             | Stmt::Fail(_)
             | Stmt::Bypass(_)
-            | Stmt::Trigger(_) => {}
+            | Stmt::Trigger(_)
+            | Stmt::Retry(_) => {}
         }
     }
 
@@ -357,7 +438,7 @@ impl Analysis {
                 continue;
             }
             let base = spawn.labels.first().unwrap_or(&spawn.task).clone();
-            let mut var = format!("tdl_{base}");
+            let mut var = format!("tdl_{}", base.trim_start_matches("r#"));
             while !used.insert(var.clone()) {
                 var.push('_');
             }
@@ -369,7 +450,7 @@ impl Analysis {
                 continue;
             }
             let base = group.labels.first().cloned().unwrap_or_default();
-            let mut var = format!("tdl_{base}");
+            let mut var = format!("tdl_{}", base.trim_start_matches("r#"));
             while !used.insert(var.clone()) {
                 var.push('_');
             }
@@ -409,6 +490,8 @@ impl Nodes {
 
 /// A constraint after its tag was replaced by a node expression.
 enum Low {
+    /// `activate ...`, with its `tdl::ActivateWhen`.
+    Activate(TokenStream),
     ExpandFirst,
     DelayExpansion,
     Sequential(TokenStream, TokenStream),
@@ -428,6 +511,7 @@ impl Low {
     /// As a `tdl::Constraint` value.
     fn value(&self) -> TokenStream {
         match self {
+            Low::Activate(when) => quote!(::tdl::Constraint::Activate(#when)),
             Low::ExpandFirst => quote!(::tdl::Constraint::ExpandFirst),
             Low::DelayExpansion => quote!(::tdl::Constraint::DelayExpansion),
             Low::Sequential(f, n) => {
@@ -471,6 +555,7 @@ impl Low {
             Low::DisableFor(f, d) => quote!(.disable_for(#f, #d)),
             Low::TerminateAt(ev) => quote!(.terminate_at(#ev)),
             Low::TerminateIn(d) => quote!(.terminate_in(#d)),
+            Low::Activate(when) => quote!(.activate(#when)),
             _ => {
                 let value = self.value();
                 quote!(.with(#value))
@@ -495,7 +580,7 @@ fn point(s: State) -> TokenStream {
     }
 }
 
-fn duration(t: &RelTime) -> TokenStream {
+pub(super) fn duration(t: &RelTime) -> TokenStream {
     match t {
         RelTime::Nanos(n) => {
             let n = *n;
@@ -550,8 +635,9 @@ impl<'a> Gen<'a, '_> {
     /// `previous` tracker.
     fn prelude(&mut self) -> TokenStream {
         let mut out = TokenStream::new();
+        let local_persistent = matches!(self.task.kind, TaskKind::Goal | TaskKind::Command);
         for c in &self.task.constraints {
-            if let TaskConstraintKind::Persistent(p) = &c.kind {
+            if let (TaskConstraintKind::Persistent(p), true) = (&c.kind, local_persistent) {
                 let (name, ty) = (&p.name, &p.ty);
                 let init = match &p.init {
                     Some(init) => quote!(#init),
@@ -630,12 +716,16 @@ impl<'a> Gen<'a, '_> {
                 quote!(return ::core::result::Result::Ok(());)
             }
             Stmt::Fail(it) => {
-                let err = fail_error(it);
+                let err = fail_error(self.file, it);
                 quote!(return ::core::result::Result::Err(#err);)
             }
-            // Only legal in handlers and monitors, which are reported as a whole (and elsewhere
-            // by the checks).
-            Stmt::Bypass(_) | Stmt::Trigger(_) => TokenStream::new(),
+            // Handlers only, monitors only (the checks report them elsewhere).
+            Stmt::Bypass(_) => quote!(return ctx.bypass();),
+            Stmt::Trigger(_) => quote!(ctx.trigger()?;),
+            Stmt::Retry(_) => quote! {
+                let tdl_retry = ctx.retry()?;
+                ctx.wait(tdl_retry).await?;
+            },
             Stmt::If(it) => self.if_stmt(it),
             Stmt::For(it) => {
                 let (label, pat, expr) = (&it.label, &it.pat, &it.expr);
@@ -888,24 +978,44 @@ impl<'a> Gen<'a, '_> {
                     }
                 }
             }
-            ConstraintKind::Activate
-            | ConstraintKind::ActivateAt(_)
-            | ConstraintKind::ActivateIn { .. }
-            | ConstraintKind::MaximumActivate(_)
+            ConstraintKind::Activate => no_node(Low::Activate(quote!(::tdl::ActivateWhen::Now))),
+            ConstraintKind::ActivateAt(When::Event(ev)) => {
+                let nodes = self.nodes(&ev.tag, prev);
+                let ev = ev.clone();
+                Some((
+                    nodes,
+                    Box::new(move |n| {
+                        let ev = Self::event(&ev, n);
+                        Low::Activate(quote!(::tdl::ActivateWhen::Event(#ev)))
+                    }),
+                ))
+            }
+            ConstraintKind::ActivateAt(When::Time(t)) => {
+                let t = time_of_day(t);
+                no_node(Low::Activate(quote!(::tdl::ActivateWhen::Time(#t))))
+            }
+            ConstraintKind::ActivateIn { delay, after } => {
+                let d = duration(delay);
+                match after {
+                    None => no_node(Low::Activate(quote!(::tdl::ActivateWhen::In(#d)))),
+                    Some(ev) => {
+                        let nodes = self.nodes(&ev.tag, prev);
+                        let ev = ev.clone();
+                        Some((
+                            nodes,
+                            Box::new(move |n| {
+                                let ev = Self::event(&ev, n);
+                                Low::Activate(quote!(::tdl::ActivateWhen::InAfter(#d, #ev)))
+                            }),
+                        ))
+                    }
+                }
+            }
+            // Spawner settings, generated by `spawn` (and refused in constraint statements).
+            ConstraintKind::MaximumActivate(_)
             | ConstraintKind::MaximumTrigger(_)
-            | ConstraintKind::Period(_) => {
-                self.diags.push(unsupported(
-                    c.span,
-                    "monitor constraints",
-                    "monitors are being added to `tcm`; remove the constraint until then",
-                ));
-                None
-            }
-            ConstraintKind::ExceptionHandler(_) => {
-                self.diags
-                    .push(unsupported(c.span, "exception handlers", HANDLER_HINT));
-                None
-            }
+            | ConstraintKind::Period(_)
+            | ConstraintKind::ExceptionHandler(_) => None,
             ConstraintKind::OnAgent(_) => {
                 self.diags.push(
                     Diagnostic::error(c.span, "distributed agents are not supported yet")
@@ -945,6 +1055,22 @@ impl<'a> Gen<'a, '_> {
                     ConstraintKind::OnTerminate(it) => {
                         let (t, a) = (&it.task, &it.args);
                         steps.push(Step::Method(quote!(.on_terminate(#t(#(#a),*)))));
+                    }
+                    ConstraintKind::ExceptionHandler(it) => {
+                        let h = handler_expr(it, c.span, self.diags);
+                        steps.push(Step::Method(quote!(.handler(#h))));
+                    }
+                    ConstraintKind::MaximumActivate(n) => {
+                        let n = count_expr(n, c.span, self.diags);
+                        steps.push(Step::Method(quote!(.max_activations(#n))));
+                    }
+                    ConstraintKind::MaximumTrigger(n) => {
+                        let n = count_expr(n, c.span, self.diags);
+                        steps.push(Step::Method(quote!(.max_triggers(#n))));
+                    }
+                    ConstraintKind::Period(t) => {
+                        let d = duration(t);
+                        steps.push(Step::Method(quote!(.period(#d))));
                     }
                     _ => {
                         if let Some((nodes, f)) = self.lower(c, list_prev) {
@@ -1132,13 +1258,18 @@ impl<'a> Gen<'a, '_> {
                 return target.each(&target_var, |t| quote!(ctx.terminate(#t)?;));
             }
             ConstraintKind::Parallel => return TokenStream::new(),
-            ConstraintKind::Name(_) | ConstraintKind::OnTerminate(_) => {
+            ConstraintKind::Name(_)
+            | ConstraintKind::OnTerminate(_)
+            | ConstraintKind::ExceptionHandler(_)
+            | ConstraintKind::MaximumActivate(_)
+            | ConstraintKind::MaximumTrigger(_)
+            | ConstraintKind::Period(_) => {
                 self.diags.push(
                     Diagnostic::error(
                         stmt.constraint.span,
                         "this constraint can only be given on the spawn",
                     )
-                    .with_hint("move it into the spawn's `with` list"),
+                    .with_hint("move it into the spawn's `with` list (monitor settings can also go on the monitor's definition)"),
                 );
                 return TokenStream::new();
             }

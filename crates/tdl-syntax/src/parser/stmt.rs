@@ -169,6 +169,7 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
         ("succeed", Stmt::Succeed as fn(Span) -> Stmt),
         ("bypass", Stmt::Bypass),
         ("trigger", Stmt::Trigger),
+        ("retry", Stmt::Retry),
     ] {
         if is_bare(cursor, keyword) {
             let ident = input.call(Ident::parse_any)?;

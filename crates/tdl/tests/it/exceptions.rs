@@ -1,5 +1,6 @@
-//! Exceptions declared in TDL and raised with `fail`: the failing node fails with the exception's
-//! name (no handlers yet), and the generated types carry their data and parent.
+//! Exceptions declared in TDL and raised with `fail`, and handlers written in TDL: the failing
+//! node fails with the exception's name; handlers are found up the tree, read the exception's data,
+//! bypass, re-raise and retry; the generated types carry their data and ancestry.
 
 use crate::util::{assert_order, run_checked, story};
 use tdl::{RunOutcome, Runtime};
@@ -89,10 +90,293 @@ async fn a_failing_top_level_task_reports_its_exception_and_data() {
 
 #[test]
 fn exceptions_are_error_types_that_know_their_parent() {
-    assert_eq!(Overheating::PARENT, Some("HardwareFailure"));
-    assert_eq!(HardwareFailure::PARENT, None);
+    use tdl::Exception;
+    assert_eq!(Overheating::ancestry(), ["HardwareFailure"]);
+    assert_eq!(
+        handlers::EngineOnFire::ancestry(),
+        ["Overheating", "HardwareFailure"]
+    );
+    assert!(HardwareFailure::ancestry().is_empty());
     let e = NoPath { from: 1, to: 2 };
     let err: &dyn std::error::Error = &e;
     assert_eq!(err.to_string(), "NoPath { from: 1, to: 2 }");
     assert_eq!(format!("{:?}", HardwareFailure {}), "HardwareFailure");
+}
+
+/// The handler stories. Each test reads what handlers did from a per-thread log.
+mod handlers {
+    use crate::util::{assert_order, run_checked, story};
+    use std::cell::{Cell, RefCell};
+    use tdl::{RunOutcome, Runtime, TraceEvent, TraceKind};
+
+    thread_local! {
+        // Per test thread: tokio's test runtime runs every action on the test's thread.
+        static LOG: RefCell<Vec<String>> = const { RefCell::new(Vec::new()) };
+        static ATTEMPTS: Cell<u32> = const { Cell::new(0) };
+    }
+
+    fn log(line: String) {
+        LOG.with(|l| l.borrow_mut().push(line));
+    }
+
+    fn take_log() -> Vec<String> {
+        LOG.with(|l| std::mem::take(&mut *l.borrow_mut()))
+    }
+
+    async fn sleep_s(s: u64) {
+        tokio::time::sleep(std::time::Duration::from_secs(s)).await;
+    }
+
+    /// `handler<-exception` per handler chosen, and `bypass` per bypass, in order.
+    fn chosen(trace: &[TraceEvent]) -> Vec<String> {
+        trace
+            .iter()
+            .filter_map(|e| match &e.kind {
+                TraceKind::HandlerChosen {
+                    handler, exception, ..
+                } => Some(format!("{handler}<-{exception}")),
+                TraceKind::Bypassed { .. } => Some("bypass".into()),
+                _ => None,
+            })
+            .collect()
+    }
+
+    tdl::tdl! {
+        pub exception HardwareFailure;
+        pub exception Overheating : HardwareFailure { temperature: f64 }
+        pub exception EngineOnFire : Overheating;
+        pub exception NoPath { room: u32 }
+        pub exception Blocked { by: &'static str }
+
+        // The paper's navigateToLocn: handlers for Overheating and NoPath, each reading its data.
+        goal navigate_to_locn(room: u32)
+            with exception handler handle_overheating(), exception handler handle_no_path()
+        {
+            spawn move_leg(1);
+            spawn plan_path(room);
+        }
+        command move_leg(n: u32) {
+            sleep_s(n.into()).await;
+            fail Overheating { temperature: 92.5 };
+        }
+        command plan_path(room: u32) {
+            fail NoPath { room };
+        }
+        handler handle_overheating() handles Overheating {
+            log(format!("cool from {}", exception.temperature));
+            spawn cool_down();
+        }
+        handler handle_no_path() handles NoPath {
+            // The failing node is the child; the handler is attached to the goal above it.
+            let whose = if failing == attached { "own" } else { "child's" };
+            log(format!("give up on room {}, the {whose} failure", exception.room));
+        }
+        command cool_down() { sleep_s(3).await; }
+
+        // Subclass matching: a handler for the grandparent catches the grandchild.
+        goal drive() with exception handler any_hardware() {
+            spawn engine();
+        }
+        command engine() { fail EngineOnFire; }
+        handler any_hardware() handles HardwareFailure {
+            log("any hardware".to_owned());
+        }
+
+        // A bypass chain over three levels; `absorb("mid")` may be used once.
+        goal top() with exception handler absorb("top") {
+            spawn mid();
+        }
+        goal mid() with exception handler absorb("mid") maximum activate 1 {
+            spawn bump(1) with exception handler pass_on();
+            spawn bump(2) with exception handler pass_on(), sequential execution previous;
+        }
+        command bump(n: u32) {
+            sleep_s(1).await;
+            fail Blocked { by: if n == 1 { "cart" } else { "door" } };
+        }
+        handler pass_on() handles Blocked {
+            log(format!("pass on {}", exception.by));
+            bypass;
+        }
+        handler absorb(level: &'static str) handles Blocked {
+            log(format!("{level} absorbs {}", exception.by));
+        }
+
+        // A handler that re-raises: its failure is searched for above the node it is attached to.
+        goal escalating() with exception handler handle_no_path() {
+            spawn move_leg(1) with exception handler escalate();
+        }
+        handler escalate() handles Overheating {
+            log(format!("escalate {}", exception.temperature));
+            fail NoPath { room: 0 };
+        }
+
+        // Retry: the handler runs the failed task again (same arguments); the second run works.
+        goal deliver() with exception handler retry_move() maximum activate 2 {
+            spawn flaky_move(2.5);
+            spawn say_done() with sequential execution previous;
+        }
+        command flaky_move(dist: f64) {
+            sleep_s(1).await;
+            let attempt = ATTEMPTS.get() + 1;
+            ATTEMPTS.set(attempt);
+            log(format!("move {dist} attempt {attempt}"));
+            if attempt == 1 {
+                fail Blocked { by: "cart" };
+            }
+        }
+        handler retry_move() handles Blocked {
+            retry;
+            log("retried".to_owned());
+        }
+        command say_done() { log("done".to_owned()); }
+
+        // A task whose argument is not `Clone` runs once; retrying it fails with `NotRetryable`.
+        struct Token(u32);
+        goal use_once() with exception handler retry_move() maximum activate 1 {
+            spawn use_token(Token(7));
+        }
+        command use_token(token: Token) {
+            log(format!("token {}", token.0));
+            fail Blocked { by: "token" };
+        }
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn navigate_to_locn_handlers_read_the_exception_data() {
+        take_log();
+        let (report, trace) = run_checked(Runtime::new(), navigate_to_locn(7)).await;
+        assert_eq!(report.outcome, RunOutcome::Completed);
+        assert_eq!(
+            chosen(&trace),
+            ["handle_no_path<-NoPath", "handle_overheating<-Overheating"]
+        );
+        let log = take_log();
+        assert_eq!(log.len(), 2, "{log:?}");
+        assert_eq!(log[0], "give up on room 7, the child's failure");
+        assert_eq!(log[1], "cool from 92.5");
+        assert_order(
+            &story(&trace),
+            &[
+                "0 plan_path failed NoPath",
+                "1 move_leg failed Overheating",
+                "1 cool_down handling active",
+                "4 cool_down execution completed",
+                "4 move_leg execution completed",
+                "4 navigate_to_locn execution completed",
+            ],
+        );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_handler_for_an_ancestor_catches_the_descendant() {
+        take_log();
+        let (report, trace) = run_checked(Runtime::new(), drive()).await;
+        assert_eq!(report.outcome, RunOutcome::Completed);
+        assert_eq!(chosen(&trace), ["any_hardware<-EngineOnFire"]);
+        assert_eq!(take_log(), ["any hardware"]);
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn bypass_chain_over_three_levels_with_maximum_activations() {
+        take_log();
+        let (report, trace) = run_checked(Runtime::new(), top()).await;
+        assert_eq!(report.outcome, RunOutcome::Completed);
+        assert_eq!(
+            chosen(&trace),
+            [
+                "pass_on<-Blocked",
+                "bypass",
+                "absorb<-Blocked",
+                "pass_on<-Blocked",
+                "bypass",
+                "absorb<-Blocked",
+            ]
+        );
+        // The second failure skips `mid`'s handler, used up, and reaches `top`'s.
+        assert_eq!(
+            take_log(),
+            [
+                "pass on cart",
+                "mid absorbs cart",
+                "pass on door",
+                "top absorbs door"
+            ]
+        );
+        assert_order(
+            &story(&trace),
+            &[
+                "1 bump failed Blocked",
+                "2 bump failed Blocked",
+                "2 top execution completed",
+            ],
+        );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_handler_that_re_raises() {
+        take_log();
+        let (report, trace) = run_checked(Runtime::new(), escalating()).await;
+        assert_eq!(report.outcome, RunOutcome::Completed);
+        assert_eq!(
+            chosen(&trace),
+            ["escalate<-Overheating", "handle_no_path<-NoPath"]
+        );
+        let log = take_log();
+        assert_eq!(log[0], "escalate 92.5");
+        assert!(log[1].starts_with("give up on room 0"), "{log:?}");
+        assert_order(
+            &story(&trace),
+            &["1 move_leg failed Overheating", "1 escalate failed NoPath"],
+        );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn retry_succeeds_on_the_second_attempt() {
+        take_log();
+        ATTEMPTS.set(0);
+        let (report, trace) = run_checked(Runtime::new(), deliver()).await;
+        assert_eq!(report.outcome, RunOutcome::Completed);
+        assert_eq!(chosen(&trace), ["retry_move<-Blocked"]);
+        assert!(
+            trace
+                .iter()
+                .any(|e| matches!(e.kind, TraceKind::Retried { .. }))
+        );
+        assert_eq!(
+            take_log(),
+            [
+                "move 2.5 attempt 1",
+                "move 2.5 attempt 2",
+                "retried",
+                "done"
+            ]
+        );
+        assert_order(
+            &story(&trace),
+            &[
+                "1 flaky_move failed Blocked",
+                "1 retry_move handling active",
+                "2 flaky_move execution completed",
+                "2 say_done handling active",
+                "2 deliver execution completed",
+            ],
+        );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_task_with_arguments_that_are_not_clone_runs_once() {
+        take_log();
+        let (report, trace) = run_checked(Runtime::new(), use_once()).await;
+        assert_eq!(report.outcome, RunOutcome::Completed);
+        assert_eq!(chosen(&trace), ["retry_move<-Blocked"]);
+        assert_eq!(take_log(), ["token 7", "retried"]);
+        assert_order(
+            &story(&trace),
+            &[
+                "0 use_token failed Blocked",
+                "0 use_token failed NotRetryable",
+            ],
+        );
+    }
 }

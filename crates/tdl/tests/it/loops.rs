@@ -1,7 +1,7 @@
 //! Loops spawning `move_by[i]` and `turn[i]`, constrained on the previous iteration's spawns by
 //! iteration-indexed tags (`[i - 1]`, `[.]`).
 
-use crate::util::{assert_order, only, run_checked, run_checked_forward, story};
+use crate::util::{assert_order, only, run_checked, story};
 use tdl::{RunOutcome, Runtime};
 
 async fn sleep_s(s: u64) {
@@ -32,7 +32,7 @@ tdl::tdl! {
 
 #[tokio::test(start_paused = true)]
 async fn each_iteration_waits_for_the_previous_ones_spawns() {
-    let (report, trace) = run_checked_forward(Runtime::new(), square(2.0)).await;
+    let (report, trace) = run_checked(Runtime::new(), square(2.0)).await;
     assert_eq!(report.outcome, RunOutcome::Completed);
     let st = story(&trace);
     assert_eq!(

@@ -6,6 +6,7 @@ mod build;
 mod exceptions;
 mod groups;
 mod loops;
+mod monitors;
 mod paper;
 mod refs;
 mod ui;

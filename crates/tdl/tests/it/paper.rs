@@ -6,7 +6,8 @@ use tdl::{RunOutcome, Runtime};
 
 /// The stand-in world shared by both versions: commands that take virtual time, and a door
 /// sensor that reads left, right, then centred. `monitor_pickup` is a plain command standing in
-/// for the Figure 6 monitor (monitors are not generated yet): the mail is taken after 5 s.
+/// for the Figure 6 monitor, so the trace stays that of Figure 4 alone (the monitor itself runs
+/// under `deliver_mail` in `monitors.rs`): the mail is taken after 5 s.
 macro_rules! world {
     () => {
         thread_local! {

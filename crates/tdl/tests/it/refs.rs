@@ -1,7 +1,7 @@
 //! Forward references (constraint statements on spawns further down) and dead references (tags
 //! of spawns that never ran: enablement on them is void, `terminate at` them fires at once).
 
-use crate::util::{assert_order, run_checked, run_checked_forward, story};
+use crate::util::{assert_order, run_checked, story};
 use tdl::{RunOutcome, Runtime};
 
 async fn sleep_s(s: u64) {
@@ -23,6 +23,14 @@ tdl::tdl! {
         spawn after();
     }
 
+    goal chained() {
+        a: spawn fetch_part(1) with name "part-a";
+        b: spawn fetch_part(2) with name "part-b";
+        // After both spawns: the children only start when the body ends, so this applies.
+        b serial a;
+        b disable execution for 1s after a completed;
+    }
+
     goal maybe(go: bool) {
         if go {
             opt: spawn optional();
@@ -34,7 +42,7 @@ tdl::tdl! {
 
 #[tokio::test(start_paused = true)]
 async fn constraint_statements_apply_to_later_spawns() {
-    let (report, trace) = run_checked_forward(Runtime::new(), fetch()).await;
+    let (report, trace) = run_checked(Runtime::new(), fetch()).await;
     assert_eq!(report.outcome, RunOutcome::Completed);
     let st = story(&trace);
     // `f2 serial f1` was stated before either spawn; `f2 wait` blocks the body until part-2 is
@@ -48,6 +56,29 @@ async fn constraint_statements_apply_to_later_spawns() {
             "4 part-2 execution completed",
             "4 after handling active",
             "5 fetch execution completed",
+        ],
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn constraint_statements_after_the_spawn_apply() {
+    let (report, trace) = run_checked(Runtime::new(), chained()).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    let st = story(&trace);
+    // Without `b serial a` both parts would start at 0; with it, part-b waits for part-a (done at
+    // 2) and then 1 s more.
+    assert!(
+        !st.contains(&"0 part-b handling active".to_owned()),
+        "{st:#?}"
+    );
+    assert_order(
+        &st,
+        &[
+            "0 part-a handling active",
+            "2 part-a execution completed",
+            "3 part-b execution active",
+            "5 part-b execution completed",
+            "5 chained execution completed",
         ],
     );
 }

@@ -12,35 +12,6 @@ pub(crate) async fn run_checked(rt: Runtime, task: Task) -> (Report, Vec<TraceEv
     (report, trace)
 }
 
-/// Like [`run_checked`], but tolerates the checker's `before-spawn` complaint about constraint
-/// records on a reserved node.
-///
-/// FIXME: the engine accepts constraints on a reservation (that is what forward references are
-/// for) and records them, but `tcm_trace::check` flags each such record as naming a node "reserved
-/// but not spawned yet". One of the two must change; until then tests with constraint statements
-/// on forward references use this.
-pub(crate) async fn run_checked_forward(rt: Runtime, task: Task) -> (Report, Vec<TraceEvent>) {
-    let rec = Recorder::new();
-    let report = rt.with_sink(rec.clone()).run(task).await.expect("run");
-    let trace = rec.events();
-    if let Err(violations) = tcm_trace::check(&trace) {
-        let real: Vec<String> = violations
-            .iter()
-            .filter(|v| {
-                !(v.rule == tcm_trace::Rule::BeforeSpawn
-                    && v.message.contains("reserved but not spawned yet"))
-            })
-            .map(|v| format!("{v}"))
-            .collect();
-        assert!(
-            real.is_empty(),
-            "trace checker found violations:\n{}",
-            real.join("\n")
-        );
-    }
-    (report, trace)
-}
-
 /// Asserts the trace passes the checker and that the checker looked at it.
 #[track_caller]
 pub(crate) fn assert_checked(trace: &[TraceEvent]) {

@@ -2,6 +2,10 @@ tdl::tdl! {
     monitor watch() with period 1s {
         trigger;
     }
+    goal g() {
+        w: spawn watch();
+        w maximum trigger 3;
+    }
 }
 
 fn main() {}

@@ -1,0 +1,130 @@
+//! Support for the code that `tdl!`, `tdl-build` and `tdl expand` generate. Not for direct use:
+//! nothing here is covered by semver, and the names may change with the generator.
+//!
+//! - [`Args`]: a task's arguments kept for re-runs. Every generated goal and command is a
+//!   [`Task::retryable`](crate::Task::retryable) task; its body takes its arguments from an `Args`,
+//!   which clones them when they are `Clone` (so a handler's `retry` re-runs the task with the same
+//!   arguments) and otherwise hands them out once (a retry then fails with `NotRetryable`). The
+//!   choice is made at compile time by autoref specialisation: `(&args).tdl_args()` finds
+//!   [`CloneArgs`] when the arguments are `Clone`, else [`TakeArgs`].
+//! - [`Persistent`]: a monitor's or handler's `persistent` variable, shared by its activations.
+//! - [`caught`], [`failing_node`], [`attached_node`]: what a handler body reads.
+//! - [`count`]: a `maximum activate/trigger` count as a `u32`.
+
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use tcm::{Ctx, Failure, NodeId};
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// A task's arguments, kept by its body for re-runs (see the module docs).
+pub struct Args<T>(Mutex<Option<T>>);
+
+impl<T> Args<T> {
+    /// Keeps `args`.
+    pub fn new(args: T) -> Args<T> {
+        Args(Mutex::new(Some(args)))
+    }
+}
+
+/// The arguments of a run, when they are `Clone`: a copy each time.
+pub trait CloneArgs<T> {
+    /// A copy of the arguments.
+    fn tdl_args(&self) -> Option<T>;
+}
+
+impl<T: Clone> CloneArgs<T> for Args<T> {
+    fn tdl_args(&self) -> Option<T> {
+        lock(&self.0).clone()
+    }
+}
+
+/// The arguments of a run, when they are not `Clone`: the first run takes them.
+pub trait TakeArgs<T> {
+    /// The arguments, the first time only.
+    fn tdl_args(&self) -> Option<T>;
+}
+
+impl<T> TakeArgs<T> for &Args<T> {
+    fn tdl_args(&self) -> Option<T> {
+        lock(&self.0).take()
+    }
+}
+
+/// The failure of a re-run of a task whose arguments are not `Clone`.
+pub fn not_retryable(task: &str) -> Failure {
+    Failure::new(
+        "NotRetryable",
+        format!("`{task}` cannot run again: its arguments are not `Clone`"),
+    )
+}
+
+/// A `persistent` variable of a monitor or a handler: one value per monitor instance (per spawn)
+/// or per handler instance, shared by its activations. Each activation starts with a copy of the
+/// value ([`Persistent::load`]) and stores its copy back when its body ends
+/// ([`Persistent::store`]), however it ends.
+pub struct Persistent<T>(Arc<Mutex<T>>);
+
+impl<T> Clone for Persistent<T> {
+    fn clone(&self) -> Self {
+        Persistent(self.0.clone())
+    }
+}
+
+impl<T: Clone> Persistent<T> {
+    /// A variable with its initial value.
+    pub fn new(init: T) -> Persistent<T> {
+        Persistent(Arc::new(Mutex::new(init)))
+    }
+
+    /// The current value.
+    pub fn load(&self) -> T {
+        lock(&self.0).clone()
+    }
+
+    /// Replaces the value.
+    pub fn store(&self, value: T) {
+        *lock(&self.0) = value;
+    }
+}
+
+/// In a handler body: the exception value, if the failure carries an `E`. A failure of a
+/// descendant exception type carries that type's value, not an `E`: then the handler fails with
+/// `ExceptionData` (a handler for a parent type should not read `exception`).
+pub fn caught<E: Send + Sync + 'static>(ctx: &Ctx, handler: &str) -> Result<Arc<E>, Failure> {
+    ctx.caught::<E>().ok_or_else(|| {
+        let got = ctx
+            .failure()
+            .map_or_else(|| "nothing".to_owned(), |f| format!("`{}`", f.exception));
+        Failure::new(
+            "ExceptionData",
+            format!(
+                "handler `{handler}` reads `exception` as a `{}`, but caught {got}",
+                short_name::<E>()
+            ),
+        )
+    })
+}
+
+fn short_name<E>() -> &'static str {
+    let full = std::any::type_name::<E>();
+    full.rsplit("::").next().unwrap_or(full)
+}
+
+/// In a handler body: the node whose action failed.
+pub fn failing_node(ctx: &Ctx) -> Result<NodeId, Failure> {
+    ctx.failing_node()
+        .ok_or_else(|| Failure::new("NotAHandler", "`failing` outside an exception handler"))
+}
+
+/// In a handler body: the node the handler was attached to.
+pub fn attached_node(ctx: &Ctx) -> Result<NodeId, Failure> {
+    ctx.attached_node()
+        .ok_or_else(|| Failure::new("NotAHandler", "`attached` outside an exception handler"))
+}
+
+/// A `maximum activate/trigger` count; values out of the `u32` range saturate.
+pub fn count<N: TryInto<u32>>(n: N) -> u32 {
+    n.try_into().unwrap_or(u32::MAX)
+}
