@@ -1,0 +1,103 @@
+//! Xavier, the mail-delivery robot of the TDL paper (Simmons & Apfelbaum 1998), delivering mail on
+//! the simulated office floor of `xavier-world`: the mission written in TDL, a live task-tree view,
+//! and the summary of a run read back from its trace. The `xavier` binary is the demo.
+//!
+//! - [`mission`]: the mission in TDL (`src/mission.tdl`: goals, commands, the two monitors and the
+//!   exception handlers) and the state its tasks share.
+//! - [`run`]: one mission on a fresh world, with any trace sinks; [`Setup`] says which.
+//! - [`display`]: the live tree (redrawn in place on a terminal) and the plain event log.
+//! - [`summary`]: rooms delivered, rooms given up and why, exceptions and how each was handled.
+//!
+//! ```
+//! use xavier::{Setup, run};
+//! use xavier_world::Scenario;
+//!
+//! let setup = Setup { seed: 1, scenario: Scenario::Nominal, rooms: vec![3] };
+//! let rec = tdl::Recorder::new();
+//! let done = tdl::block_on_virtual(run(&setup, vec![Box::new(rec.clone())]))??;
+//! let summary = xavier::summary::Summary::new(&setup, &done, &rec.events());
+//! assert_eq!(summary.delivered, [3]);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+#![warn(missing_docs)]
+
+pub mod display;
+pub mod mission;
+pub mod summary;
+
+use mission::Mission;
+use std::time::Duration;
+use tdl::{Report, Runtime, TraceEvent, TraceSink};
+use xavier_world::{Scenario, SharedWorld, World};
+
+/// The rooms of the default round.
+pub const DEFAULT_ROOMS: [u32; 3] = [3, 7, 12];
+
+/// What to run: the world's seed and scenario, and the rooms to deliver to, in order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Setup {
+    /// Seed of the world's randomness (traffic, pickup delays, door positions, sensor noise).
+    pub seed: u64,
+    /// What is special about the floor.
+    pub scenario: Scenario,
+    /// The rooms, in delivery order.
+    pub rooms: Vec<u32>,
+}
+
+impl Default for Setup {
+    fn default() -> Setup {
+        Setup {
+            seed: 1,
+            scenario: Scenario::Nominal,
+            rooms: DEFAULT_ROOMS.to_vec(),
+        }
+    }
+}
+
+/// A finished run: the runtime's report and the mission's state at the end.
+#[derive(Clone, Debug)]
+pub struct Done {
+    /// How the run ended and how long it took (simulated time on a paused clock).
+    pub report: Report,
+    /// The mission's shared state (world and log) as the run left it.
+    pub mission: Mission,
+}
+
+/// Runs the mission of `setup` on a fresh world, with `sinks` receiving the trace, on the current
+/// tokio runtime (paused clock: virtual time).
+pub async fn run(setup: &Setup, sinks: Vec<Box<dyn TraceSink>>) -> Result<Done, tdl::Error> {
+    let world = SharedWorld::new(World::new(setup.seed, setup.scenario));
+    run_in(setup, Mission::new(world), sinks).await
+}
+
+/// Like [`run`], in a given mission (so a display can watch its world).
+pub async fn run_in(
+    setup: &Setup,
+    mission: Mission,
+    sinks: Vec<Box<dyn TraceSink>>,
+) -> Result<Done, tdl::Error> {
+    let mut rt = Runtime::new();
+    for sink in sinks {
+        rt = rt.with_sink(BoxedSink(sink));
+    }
+    let report = rt
+        .run(mission::deliver_all(mission.clone(), setup.rooms.clone()))
+        .await?;
+    Ok(Done { report, mission })
+}
+
+struct BoxedSink(Box<dyn TraceSink>);
+
+impl TraceSink for BoxedSink {
+    fn record(&mut self, ev: &TraceEvent) {
+        self.0.record(ev);
+    }
+    fn flush(&mut self) {
+        self.0.flush();
+    }
+}
+
+/// `d` as seconds with one decimal, e.g. `152.3 s`.
+pub fn secs(d: Duration) -> String {
+    format!("{:.1} s", d.as_secs_f64())
+}

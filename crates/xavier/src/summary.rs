@@ -1,0 +1,317 @@
+//! The summary of a run, read from its trace and the mission's log: rooms delivered, rooms given
+//! up and why, every exception raised and how it was handled (`failed`, `handler_chosen`,
+//! `bypassed`, `retried` and unhandled-exception `warning` records), the suspensions of motion,
+//! and the times.
+
+use crate::mission::Undeliverable;
+use crate::{Done, Setup, secs};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::time::Duration;
+use tdl::{RunOutcome, TraceEvent, TraceKind};
+
+/// One exception raised during the run and what became of it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ExceptionStory {
+    /// When it was raised (simulated time).
+    pub at: Duration,
+    /// The room whose delivery it happened in, if any.
+    pub room: Option<u32>,
+    /// The failing node: `name {id}`.
+    pub node: String,
+    /// The exception type.
+    pub exception: String,
+    /// Its message.
+    pub message: String,
+    /// What happened, in order: `handler detour {33} (attached to navigate_to_locn {20})`,
+    /// `bypassed by ...`, `retried as {n}`, `no handler`.
+    pub handling: Vec<String>,
+}
+
+impl ExceptionStory {
+    /// Whether some handler took it (and did not pass it on to nobody).
+    pub fn handled(&self) -> bool {
+        self.handling.iter().any(|h| h.starts_with("handler"))
+            && !self.handling.iter().any(|h| h == "no handler")
+    }
+
+    /// The name of the last handler chosen for it, if any.
+    pub fn handler(&self) -> Option<&str> {
+        self.handling
+            .iter()
+            .rev()
+            .find_map(|h| h.strip_prefix("handler "))
+            .and_then(|h| h.split(' ').next())
+    }
+}
+
+/// A span of time the navigation was suspended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Suspension {
+    /// The suspended node's number.
+    pub node: u64,
+    /// When it was suspended.
+    pub from: Duration,
+    /// When it was unsuspended (or terminated); `None` if never.
+    pub until: Option<Duration>,
+}
+
+/// What a run achieved.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    /// The setup that ran.
+    pub setup: Setup,
+    /// The rooms of the round whose letter was taken, in the order taken.
+    pub delivered: Vec<u32>,
+    /// The rooms whose sender was notified.
+    pub notified: Vec<u32>,
+    /// The rooms given up, with the exception that made the robot give up.
+    pub undeliverable: Vec<Undeliverable>,
+    /// Rooms neither delivered nor given up (nobody took the letter in time).
+    pub not_taken: Vec<u32>,
+    /// Every exception raised, in order.
+    pub exceptions: Vec<ExceptionStory>,
+    /// Every suspension of a subtree (its top node), in order.
+    pub suspensions: Vec<Suspension>,
+    /// How the run ended.
+    pub outcome: RunOutcome,
+    /// Simulated time of the run.
+    pub simulated: Duration,
+    /// How far the robot drove, in metres.
+    pub distance: f64,
+    /// How many trace records the run wrote.
+    pub records: usize,
+}
+
+impl Summary {
+    /// The summary of `done`, a run of `setup` whose trace is `trace`.
+    pub fn new(setup: &Setup, done: &Done, trace: &[TraceEvent]) -> Summary {
+        let world = done.mission.world.summary();
+        let delivered: Vec<u32> = world
+            .delivered
+            .iter()
+            .copied()
+            .filter(|r| setup.rooms.contains(r))
+            .collect();
+        let undeliverable = done.mission.undeliverable();
+        let not_taken = setup
+            .rooms
+            .iter()
+            .copied()
+            .filter(|r| !delivered.contains(r) && !undeliverable.iter().any(|u| u.room == *r))
+            .collect();
+        let (exceptions, suspensions) = read_trace(setup, trace);
+        Summary {
+            setup: setup.clone(),
+            delivered,
+            notified: done.mission.notifications(),
+            undeliverable,
+            not_taken,
+            exceptions,
+            suspensions,
+            outcome: done.report.outcome.clone(),
+            simulated: done.report.elapsed,
+            distance: world.distance_travelled,
+            records: trace.len(),
+        }
+    }
+
+    /// Whether the run ended well: the top-level task completed (rooms given up are fine).
+    pub fn ok(&self) -> bool {
+        self.outcome == RunOutcome::Completed
+    }
+}
+
+/// Exceptions and suspensions from the trace.
+fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<Suspension>) {
+    let mut names: BTreeMap<u64, (String, u64)> = BTreeMap::new();
+    // Delivery nodes are spawned in the order of the rooms.
+    let mut deliveries: BTreeMap<u64, u32> = BTreeMap::new();
+    let mut stories: Vec<ExceptionStory> = Vec::new();
+    // Failing node -> its story; handler node -> the story it handles.
+    let mut by_failing: BTreeMap<u64, usize> = BTreeMap::new();
+    let mut by_handler: BTreeMap<u64, usize> = BTreeMap::new();
+    let mut suspended: BTreeMap<u64, usize> = BTreeMap::new();
+    let mut suspensions: Vec<Suspension> = Vec::new();
+    let label = |names: &BTreeMap<u64, (String, u64)>, id: u64| match names.get(&id) {
+        Some((name, _)) => format!("{name} {{{id}}}"),
+        None => format!("{{{id}}}"),
+    };
+    let room_of = |names: &BTreeMap<u64, (String, u64)>, deliveries: &BTreeMap<u64, u32>, id| {
+        let mut cur = Some(id);
+        while let Some(n) = cur {
+            if let Some(room) = deliveries.get(&n) {
+                return Some(*room);
+            }
+            cur = names.get(&n).map(|(_, p)| *p).filter(|&p| p != n && p != 0);
+        }
+        None
+    };
+    for ev in trace {
+        let at = Duration::from_nanos(ev.t);
+        match &ev.kind {
+            TraceKind::Spawned {
+                node, parent, name, ..
+            } => {
+                names.insert(*node, (name.clone(), *parent));
+                if name == "deliver_mail" {
+                    if let Some(room) = setup.rooms.get(deliveries.len()) {
+                        deliveries.insert(*node, *room);
+                    }
+                }
+            }
+            TraceKind::Failed {
+                node,
+                exception,
+                message,
+            } => {
+                by_failing.insert(*node, stories.len());
+                stories.push(ExceptionStory {
+                    at,
+                    room: room_of(&names, &deliveries, *node),
+                    node: label(&names, *node),
+                    exception: exception.clone(),
+                    message: message.clone(),
+                    handling: Vec::new(),
+                });
+            }
+            TraceKind::HandlerChosen {
+                node,
+                failing,
+                attached,
+                handler,
+                ..
+            } => {
+                if let Some(&i) = by_failing.get(failing) {
+                    by_handler.insert(*node, i);
+                    stories[i].handling.push(format!(
+                        "handler {handler} {{{node}}} (attached to {})",
+                        label(&names, *attached)
+                    ));
+                }
+            }
+            TraceKind::Bypassed { node, .. } => {
+                if let Some(&i) = by_handler.get(node) {
+                    stories[i]
+                        .handling
+                        .push(format!("bypassed by {}", label(&names, *node)));
+                }
+            }
+            TraceKind::Retried { node, of } => {
+                if let Some(&i) = by_failing.get(of) {
+                    stories[i].handling.push(format!("retried as {{{node}}}"));
+                }
+            }
+            TraceKind::Warning {
+                node: Some(node),
+                message,
+            } if message.starts_with("No exception handler found") => {
+                if let Some(&i) = by_failing.get(node) {
+                    stories[i].handling.push("no handler".to_string());
+                }
+            }
+            TraceKind::Suspended { node } => {
+                let parent = names.get(node).map(|(_, p)| *p);
+                if !parent.is_some_and(|p| suspended.contains_key(&p)) {
+                    suspended.insert(*node, suspensions.len());
+                    suspensions.push(Suspension {
+                        node: *node,
+                        from: at,
+                        until: None,
+                    });
+                } else {
+                    suspended.insert(*node, usize::MAX);
+                }
+            }
+            TraceKind::Unsuspended { node } => {
+                if let Some(i) = suspended.remove(node) {
+                    if let Some(s) = suspensions.get_mut(i) {
+                        s.until = Some(at);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    (stories, suspensions)
+}
+
+fn rooms(rooms: &[u32]) -> String {
+    if rooms.is_empty() {
+        return "none".to_string();
+    }
+    rooms
+        .iter()
+        .map(u32::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = &self.setup;
+        writeln!(
+            f,
+            "Xavier's mail round: seed {}, scenario {}, rooms {}",
+            s.seed,
+            s.scenario,
+            rooms(&s.rooms)
+        )?;
+        writeln!(f, "  delivered:       {}", rooms(&self.delivered))?;
+        writeln!(f, "  senders told:    {}", rooms(&self.notified))?;
+        if self.undeliverable.is_empty() {
+            writeln!(f, "  undeliverable:   none")?;
+        } else {
+            writeln!(f, "  undeliverable:")?;
+            for u in &self.undeliverable {
+                writeln!(f, "    room {}: {} ({})", u.room, u.exception, u.reason)?;
+            }
+        }
+        if !self.not_taken.is_empty() {
+            writeln!(
+                f,
+                "  letter not taken: {} (nobody came within the pickup monitor's 15 polls)",
+                rooms(&self.not_taken)
+            )?;
+        }
+        writeln!(f, "  exceptions:      {}", self.exceptions.len())?;
+        for e in &self.exceptions {
+            let room = e.room.map(|r| format!("room {r}: ")).unwrap_or_default();
+            writeln!(
+                f,
+                "    {:>7}  {room}{} failed {}: {}",
+                secs(e.at),
+                e.node,
+                e.exception,
+                e.message
+            )?;
+            for h in &e.handling {
+                writeln!(f, "             -> {h}")?;
+            }
+            if e.handling.is_empty() {
+                writeln!(f, "             -> ended with its task (no handler search)")?;
+            }
+        }
+        if self.suspensions.is_empty() {
+            writeln!(f, "  suspensions:     none")?;
+        } else {
+            writeln!(f, "  suspensions:     {}", self.suspensions.len())?;
+            for sp in &self.suspensions {
+                let until = sp.until.map_or("the end".to_string(), secs);
+                writeln!(f, "    {{{}}} from {} to {until}", sp.node, secs(sp.from))?;
+            }
+        }
+        writeln!(
+            f,
+            "  simulated time:  {} ({:.1} m driven, {} trace records)",
+            secs(self.simulated),
+            self.distance,
+            self.records
+        )?;
+        let outcome = match &self.outcome {
+            RunOutcome::Completed => "completed".to_string(),
+            other => format!("{other:?}"),
+        };
+        write!(f, "  run:             {outcome}")
+    }
+}

@@ -1,0 +1,6 @@
+//! Integration tests of the xavier crate: the mission on every scenario with fixed seeds on
+//! virtual time, asserted on the trace, and the `xavier` binary.
+
+mod binary;
+mod scenarios;
+mod util;
