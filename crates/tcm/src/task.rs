@@ -147,6 +147,7 @@ pub struct Task {
     pub(crate) handlers: Vec<Handler>,
     pub(crate) monitor: Option<MonitorSpec<Factory>>,
     pub(crate) retry: Option<Factory>,
+    pub(crate) persistent: bool,
 }
 
 impl Task {
@@ -160,6 +161,7 @@ impl Task {
             handlers: Vec::new(),
             monitor: None,
             retry: None,
+            persistent: false,
         }
     }
 
@@ -259,6 +261,13 @@ impl Task {
         self
     }
 
+    /// Keeps every node of this task after it completes, instead of reclaiming it (TDL's
+    /// `persistent` qualifier): its state stays visible, at the cost of memory.
+    pub fn persistent(mut self) -> Task {
+        self.persistent = true;
+        self
+    }
+
     /// Renames the instance (TDL's `name` constraint).
     pub fn named(mut self, name: impl Into<Name>) -> Task {
         self.name = name.into();
@@ -274,7 +283,7 @@ impl Task {
             name: self.name,
             action: self.action,
             constraints: self.constraints,
-            persistent: false,
+            persistent: self.persistent,
             on_terminate: self
                 .on_terminate
                 .into_iter()

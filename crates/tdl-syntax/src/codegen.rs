@@ -230,17 +230,19 @@ pub(crate) fn handler_expr(
 /// The struct, its `into_task` (or `into_handler`) method and the constructor function of one
 /// task.
 fn task_items(file: &FileCx, task: &Task, diags: &mut Vec<Diagnostic>) -> TokenStream {
-    if task.persistent {
-        diags.push(
-            Diagnostic::error(
-                task.span,
-                "`persistent` tasks are not supported by the code generator yet",
-            )
-            .with_hint("remove `persistent`: completed nodes are reclaimed"),
-        );
-    }
     let monitor = task.kind == TaskKind::Monitor;
     let mut modifiers = TokenStream::new();
+    if task.persistent {
+        if task.kind == TaskKind::Handler {
+            diags.push(
+                Diagnostic::error(task.span, "an exception handler cannot be `persistent`")
+                    .with_hint("only goals, commands and monitors can be kept after they complete"),
+            );
+        } else {
+            // Kept after completion instead of reclaimed (TDL's PERSISTENT qualifier).
+            modifiers.extend(quote!(.persistent()));
+        }
+    }
     let mut prelude = TokenStream::new();
     let mut params = TokenStream::new();
     let mut each = TokenStream::new();

@@ -111,3 +111,44 @@ async fn references_to_a_spawn_that_never_ran_are_dead() {
         ],
     );
 }
+
+tdl::tdl! {
+    persistent command keepsake() { sleep_s(1).await; }
+    command ephemeral() { sleep_s(1).await; }
+    goal keep_one() {
+        spawn keepsake();
+        spawn ephemeral();
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_persistent_task_is_kept_after_it_completes() {
+    let (report, trace) = run_checked(Runtime::new(), keep_one()).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    let mut names = std::collections::BTreeMap::new();
+    let mut reclaimed = Vec::new();
+    for ev in &trace {
+        match &ev.kind {
+            tdl::TraceKind::Spawned { node, name, .. } => {
+                names.insert(*node, name.clone());
+            }
+            tdl::TraceKind::Reclaimed { node } => {
+                reclaimed.push(names.get(node).cloned().unwrap_or_default())
+            }
+            _ => {}
+        }
+    }
+    assert!(
+        reclaimed.contains(&"ephemeral".to_string()),
+        "{reclaimed:?}"
+    );
+    assert!(
+        !reclaimed.contains(&"keepsake".to_string()),
+        "a persistent node is never reclaimed: {reclaimed:?}"
+    );
+    assert!(
+        report.stats.live_nodes >= 3,
+        "root, keep_one and keepsake stay: {:?}",
+        report.stats
+    );
+}
