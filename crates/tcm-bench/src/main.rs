@@ -9,7 +9,8 @@
 //!
 //! Workloads: W1 a root spawns N no-op commands, each `serial previous`; W2 N unordered no-op
 //! commands; W3 a goal spawning the same goal recursively to depth N, each child sequential on the
-//! previous one; W4 a monitor polling every 1 ms for 2 s on real time, its lateness against the
+//! previous one; W5 N commands each disabled until the previous one's execution completed and each
+//! with a `terminate in` timer that never fires; W4 a monitor polling every 1 ms for 2 s on real time, its lateness against the
 //! ideal schedule beside a thread sleeping to the same deadlines; W6 N commands failing with an
 //! exception handled three levels up. W1 also runs at 10k, 100k and 1M to show the per-node cost
 //! does not grow.
@@ -180,6 +181,76 @@ fn shell_recursive(depth: usize) -> (f64, usize) {
     let mut hw = 0;
     let ns = best(|| {
         let (ns, h) = shell(2 * depth, || recursive(depth));
+        hw = h;
+        ns
+    });
+    (ns, hw)
+}
+
+/// The two constraints of each W5 node: wait for the previous one's execution, and a timeout that
+/// never fires (the timer heap holds one stale entry per node until compaction).
+fn w5_constraints() -> [Constraint; 2] {
+    use tcm::{Event, Point, TerminateWhen, Until};
+    [
+        Constraint::Disable(
+            Facet::Handling,
+            Until::Event(Event::on(
+                NodeRef::Previous,
+                Facet::Execution,
+                Point::Completed,
+            )),
+        ),
+        Constraint::Terminate(TerminateWhen::In(Duration::from_secs(3600))),
+    ]
+}
+
+/// W5 on the engine: N commands, each disabled until the previous one's execution completed and
+/// each with a `terminate in` timer that never fires.
+fn core_constrained(n: usize) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = best(|| {
+        let mut e: Engine<u8> = Engine::new(1);
+        e.set_tracing(false);
+        let root = e.root();
+        let start = Instant::now();
+        let top = e
+            .spawn(Time::ZERO, Spawn::new(root, NodeKind::Goal, "top", 0))
+            .expect("spawn");
+        let _ = e.poll_effect();
+        for _ in 0..n {
+            let mut spec = Spawn::new(top, NodeKind::Command, "step", 0);
+            spec.constraints.extend(w5_constraints());
+            e.spawn(Time::ZERO, spec).expect("spawn");
+            drain(&mut e);
+        }
+        let _ = e.action_finished(Time::ZERO, top, Ok(()));
+        drain(&mut e);
+        assert!(
+            e.poll_timeout().is_none(),
+            "every timeout is stale once its node completed"
+        );
+        hw = e.stats().high_water;
+        start.elapsed().as_nanos() as f64 / n as f64
+    });
+    (ns, hw)
+}
+
+/// W5 through the async runtime.
+fn shell_constrained(n: usize) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = best(|| {
+        let (ns, h) = shell(n, || {
+            Task::goal("top", move |ctx| async move {
+                for _ in 0..n {
+                    let [a, b] = w5_constraints();
+                    ctx.spawn(Task::command("step", |_| async { Ok(()) }))
+                        .with(a)
+                        .with(b)
+                        .start()?;
+                }
+                Ok(())
+            })
+        });
         hw = h;
         ns
     });
@@ -417,7 +488,7 @@ struct Options {
     depth: Option<usize>,
 }
 
-const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W6|W1-scale] \
+const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W5|W6|W1-scale] \
 [--layer core|shell] [--n N] [--depth D] [--hold]";
 
 fn parse_args() -> Result<Options, String> {
@@ -446,7 +517,10 @@ fn parse_args() -> Result<Options, String> {
             "--hold" => o.hold = true,
             "--workload" => {
                 let w = value("--workload")?;
-                if !matches!(w.as_str(), "W1" | "W2" | "W3" | "W4" | "W6" | "W1-scale") {
+                if !matches!(
+                    w.as_str(),
+                    "W1" | "W2" | "W3" | "W4" | "W5" | "W6" | "W1-scale"
+                ) {
                     return Err(format!("unknown workload {w:?}"));
                 }
                 o.workload = Some(w);
@@ -510,6 +584,16 @@ fn main() {
         }
         if shell {
             report(json, "W3", "shell", 2 * depth, shell_recursive(depth), fd);
+        }
+    }
+    if on("W5") {
+        let nc = o.n.unwrap_or(if quick { 1_000 } else { 10_000 });
+        let fc = floor(nc);
+        if core {
+            report(json, "W5", "core", nc, core_constrained(nc), fc);
+        }
+        if shell {
+            report(json, "W5", "shell", nc, shell_constrained(nc), fc);
         }
     }
     if on("W6") {
