@@ -402,23 +402,22 @@ fn w4(json: bool) {
             Ok(())
         }
     });
+    // The ideal schedule starts when the run starts: activation k is due at t0 + k periods (the
+    // monitor starts a few microseconds after t0, which counts against us).
+    let t0 = Instant::now();
     let report = rt
         .block_on(Runtime::new().precise_timer().run(task))
         .expect("run");
     let starts = samples.lock().map(|v| v.clone()).unwrap_or_default();
     let activations = starts.len();
-    let ours: Vec<u64> = match starts.first() {
-        Some(&t0) => starts
-            .iter()
-            .enumerate()
-            .skip(1)
-            .map(|(k, t)| {
-                t.saturating_duration_since(t0 + period * k as u32)
-                    .as_nanos() as u64
-            })
-            .collect(),
-        None => Vec::new(),
-    };
+    let ours: Vec<u64> = starts
+        .iter()
+        .enumerate()
+        .map(|(k, t)| {
+            t.saturating_duration_since(t0 + period * k as u32)
+                .as_nanos() as u64
+        })
+        .collect();
     let (m, p99, max) = stats(ours);
     let (fm, fp99, fmax) = stats(floor);
     let ratio = m / fm.max(1.0);
