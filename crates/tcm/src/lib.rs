@@ -21,6 +21,7 @@ mod ctx;
 mod runtime;
 mod sink;
 mod task;
+pub mod testing;
 mod timer;
 
 pub use ctx::{Ctx, Spawner};
