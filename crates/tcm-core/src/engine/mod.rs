@@ -41,7 +41,7 @@ pub use exception::HandlerSpec;
 use exception::{HandlerEntry, Wiretap};
 use monitor::Monitor;
 pub use monitor::{EachActivation, MonitorSpec};
-use node::{Link, Node, Payload, WaitKind, Waiter};
+use node::{Link, Node, Payload, WaitKind, Waiter, Waiters};
 pub use node::{OnTerminate, Purpose};
 pub use report::{Blocked, NodeInfo};
 use std::collections::{BTreeMap, VecDeque};
@@ -365,11 +365,10 @@ impl<A, F: Clone> Engine<A, F> {
     ) -> Result<NodeId, EngineError> {
         self.advance(now);
         let pd = self.live(parent)?;
-        let parent_name = pd.name.to_string();
         if pd.state(Facet::Execution) == State::Completed {
             return Err(EngineError::ParentCompleted {
                 node: pd.display,
-                name: parent_name,
+                name: pd.name.to_string(),
             });
         }
         let display = self.next_display();
@@ -473,7 +472,11 @@ impl<A, F: Clone> Engine<A, F> {
         }
         self.link(parent, id);
         let (display, parent_display) = (self.node(id).display, self.node(parent).display);
-        let name = self.node(id).name.to_string();
+        let name = if self.tracing {
+            self.node(id).name.to_string()
+        } else {
+            String::new()
+        };
         self.emit(TraceKind::Spawned {
             node: display,
             parent: parent_display,
@@ -945,7 +948,11 @@ impl<A, F: Clone> Engine<A, F> {
         let id = self.nodes.insert(node);
         self.link(parent, id);
         let parent_display = self.node(parent).display;
-        let name = self.node(id).name.to_string();
+        let name = if self.tracing {
+            self.node(id).name.to_string()
+        } else {
+            String::new()
+        };
         self.emit(TraceKind::Spawned {
             node: display,
             parent: parent_display,
@@ -996,11 +1003,15 @@ impl<A, F: Clone> Engine<A, F> {
         }
     }
 
-    fn void(&mut self, node: NodeId, reason: String) {
+    /// Traces a constraint that was dropped; the reason is only built when someone reads the trace.
+    fn void(&mut self, node: NodeId, reason: impl FnOnce() -> String) {
+        if !self.tracing {
+            return;
+        }
         let display = self.node(node).display;
         self.emit(TraceKind::ConstraintVoid {
             node: display,
-            reason,
+            reason: reason(),
         });
     }
 
@@ -1057,10 +1068,9 @@ impl<A, F: Clone> Engine<A, F> {
         let display = self.node(node).display;
         if facet == Facet::Expansion && !self.node(node).kind.expands() {
             // A command's expansion is complete from the start (paper, footnote 1).
-            self.void(
-                node,
-                format!("{facet} of a node that does not expand is always completed"),
-            );
+            self.void(node, || {
+                format!("{facet} of a node that does not expand is always completed")
+            });
             return;
         }
         match until {
@@ -1088,7 +1098,7 @@ impl<A, F: Clone> Engine<A, F> {
             }
             Until::External(x) => {
                 let Some(ext) = self.externals.get(x.0 as usize) else {
-                    self.void(node, "unknown external event".into());
+                    self.void(node, || "unknown external event".into());
                     return;
                 };
                 let (name, raised) = (ext.name.clone(), ext.raised);
@@ -1110,12 +1120,11 @@ impl<A, F: Clone> Engine<A, F> {
                     _ => None,
                 };
                 let Some(r) = self.resolve(ev.node, node, parent, previous) else {
-                    self.void(
-                        node,
+                    self.void(node, || {
                         format!(
                             "{facet} constraint names `previous`, but nothing was spawned before"
-                        ),
-                    );
+                        )
+                    });
                     return;
                 };
                 let event = self.event_ref(r, ev.facet, ev.point);
@@ -1132,10 +1141,9 @@ impl<A, F: Clone> Engine<A, F> {
                     Lookup::Live => self.node(r).reached(ev.facet, ev.point),
                 };
                 if let Lookup::Gone(_) = self.nodes.lookup(r) {
-                    self.void(
-                        node,
-                        "the referenced node is already gone; its events have passed".into(),
-                    );
+                    self.void(node, || {
+                        "the referenced node is already gone; its events have passed".into()
+                    });
                     return;
                 }
                 self.emit(TraceKind::Constrained {
@@ -1210,7 +1218,7 @@ impl<A, F: Clone> Engine<A, F> {
             }
             TerminateWhen::External(x) => {
                 let Some(ext) = self.externals.get(x.0 as usize) else {
-                    self.void(node, "unknown external event".into());
+                    self.void(node, || "unknown external event".into());
                     return;
                 };
                 let (name, raised) = (ext.name.clone(), ext.raised);
@@ -1232,11 +1240,10 @@ impl<A, F: Clone> Engine<A, F> {
                     _ => None,
                 };
                 let Some(r) = self.resolve(ev.node, node, parent, previous) else {
-                    self.void(
-                        node,
+                    self.void(node, || {
                         "terminate constraint names `previous`, but nothing was spawned before"
-                            .into(),
-                    );
+                            .into()
+                    });
                     return;
                 };
                 let event = self.event_ref(r, ev.facet, ev.point);
@@ -1249,7 +1256,7 @@ impl<A, F: Clone> Engine<A, F> {
                 };
                 match self.nodes.lookup(r) {
                     Lookup::Gone(Fate::Terminated) => {
-                        self.void(node, "the referenced node was terminated; its termination constraints never fire".into());
+                        self.void(node, || "the referenced node was terminated; its termination constraints never fire".into());
                     }
                     Lookup::Gone(Fate::Dead) => {
                         self.emit(TraceKind::Constrained {
@@ -1385,10 +1392,11 @@ impl<A, F: Clone> Engine<A, F> {
         debug_assert!(from < to, "facets only move forward");
         n.states[facet.index()] = to;
         let display = n.display;
-        let fired: Vec<Waiter> = if n.waiters.is_empty() {
-            Vec::new()
+        // Usually none or one fires: `Waiters` keeps one inline, so no allocation.
+        let fired = if n.waiters.is_empty() {
+            Waiters::None
         } else {
-            let mut fired = Vec::new();
+            let mut fired = Waiters::None;
             n.waiters.retain(|w| {
                 if w.facet == facet && w.point.state() <= to {
                     fired.push(*w);

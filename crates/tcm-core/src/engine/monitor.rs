@@ -314,7 +314,7 @@ impl<A, F: Clone> Engine<A, F> {
     ) {
         let display = self.node(node).display;
         if self.node(node).monitor().is_none() {
-            self.void(node, "`activate` applies to monitors only".into());
+            self.void(node, || "`activate` applies to monitors only".into());
             return;
         }
         match when {
@@ -348,7 +348,7 @@ impl<A, F: Clone> Engine<A, F> {
             }
             ActivateWhen::External(x) => {
                 let Some(ext) = self.externals.get_mut(x.0 as usize) else {
-                    self.void(node, "unknown external event".into());
+                    self.void(node, || "unknown external event".into());
                     return;
                 };
                 ext.activators.push(node);
@@ -364,11 +364,10 @@ impl<A, F: Clone> Engine<A, F> {
                     _ => None,
                 };
                 let Some(r) = self.resolve(ev.node, node, parent, previous) else {
-                    self.void(
-                        node,
+                    self.void(node, || {
                         "activate constraint names `previous`, but nothing was spawned before"
-                            .into(),
-                    );
+                            .into()
+                    });
                     return;
                 };
                 let event = self.event_ref(r, ev.facet, ev.point);

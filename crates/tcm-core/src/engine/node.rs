@@ -156,12 +156,28 @@ impl Waiters {
 
 impl IntoIterator for Waiters {
     type Item = Waiter;
-    type IntoIter = std::vec::IntoIter<Waiter>;
-    fn into_iter(self) -> Self::IntoIter {
+    type IntoIter = WaitersIter;
+    fn into_iter(self) -> WaitersIter {
         match self {
-            Waiters::None => Vec::new().into_iter(),
-            Waiters::One(w) => vec![w].into_iter(),
-            Waiters::Many(v) => v.into_iter(),
+            Waiters::None => WaitersIter::One(None),
+            Waiters::One(w) => WaitersIter::One(Some(w)),
+            Waiters::Many(v) => WaitersIter::Many(v.into_iter()),
+        }
+    }
+}
+
+/// The waiters of a node, by value, without allocating for the inline one.
+pub(crate) enum WaitersIter {
+    One(Option<Waiter>),
+    Many(std::vec::IntoIter<Waiter>),
+}
+
+impl Iterator for WaitersIter {
+    type Item = Waiter;
+    fn next(&mut self) -> Option<Waiter> {
+        match self {
+            WaitersIter::One(w) => w.take(),
+            WaitersIter::Many(it) => it.next(),
         }
     }
 }
