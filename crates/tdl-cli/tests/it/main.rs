@@ -68,3 +68,47 @@ fn usage_and_io_errors_exit_2() {
     assert_eq!(code, 2);
     assert!(err.contains("cannot read tests/data/missing.tdl"), "{err}");
 }
+
+#[test]
+fn trace_check_accepts_a_good_trace_and_names_the_violations_of_a_bad_one() {
+    let (code, out, _) = tdl(&["trace", "check", "tests/data/run.jsonl"]);
+    assert_eq!(code, 0, "{out}");
+    assert!(
+        out.starts_with("tests/data/run.jsonl: ok (60 records"),
+        "{out}"
+    );
+    let (code, out, _) = tdl(&["trace", "check", "tests/data/broken_run.jsonl"]);
+    assert_eq!(code, 1, "{out}");
+    assert!(out.contains("[transition-from]"), "{out}");
+}
+
+#[test]
+fn trace_log_tree_and_story_read_a_trace() {
+    let (code, out, _) = tdl(&["trace", "log", "tests/data/run.jsonl"]);
+    assert_eq!(code, 0);
+    assert!(
+        out.starts_with(
+            "Goal          deliver_all {1}:        TCM {0} --> ON HOLD         (Inactive)\n"
+        ),
+        "{out}"
+    );
+    let (code, out, _) = tdl(&["trace", "tree", "tests/data/run.jsonl", "--at", "0"]);
+    assert_eq!(code, 0);
+    assert!(
+        out.lines()
+            .any(|l| l.trim_start().starts_with("deliver_all {1}")),
+        "{out}"
+    );
+    let (code, out, _) = tdl(&["trace", "story", "tests/data/run.jsonl"]);
+    assert_eq!(code, 0);
+    assert!(
+        out.lines().any(|l| l == "0 deliver_all handling active"),
+        "{out}"
+    );
+    let (code, _, err) = tdl(&["trace", "story", "tests/data/missing.jsonl"]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("cannot read tests/data/missing.jsonl"),
+        "{err}"
+    );
+}
