@@ -20,6 +20,12 @@ impl NodeId {
     pub fn run(self) -> u32 {
         self.run
     }
+
+    /// The index of the node's storage slot: small and dense, so a shell can keep per-node data in
+    /// a vector. Slots are reused after a node is reclaimed: compare the whole id too.
+    pub fn slot(self) -> u32 {
+        self.idx
+    }
 }
 
 impl fmt::Display for NodeId {

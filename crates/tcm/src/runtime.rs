@@ -11,7 +11,7 @@ use crate::ctx::Ctx;
 use crate::sink::TraceSink;
 use crate::task::{Action, Factory, Task, Value};
 use std::any::Any;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::future::Future;
 use std::panic::AssertUnwindSafe;
 use std::pin::Pin;
@@ -34,7 +34,7 @@ pub(crate) struct Inner {
     pub(crate) values: BTreeMap<NodeId, Option<Value>>,
     // Running actions, to abort on cancellation. Only looked up, never iterated in an order that
     // shows in the trace, so a hash map keeps determinism.
-    aborts: HashMap<NodeId, AbortHandle>,
+    aborts: Aborts,
     next_token: u64,
     // Where actions are spawned: the tokio runtime of `Runtime::run`.
     spawner: Option<tokio::runtime::Handle>,
@@ -141,16 +141,10 @@ fn pump(shared: &Arc<Shared>, inner: &mut Inner) -> bool {
                     node,
                     purpose: None,
                 };
-                let fut = action(ctx);
-                let sh = shared.clone();
-                let task = async move {
-                    let res = CatchUnwind(fut).await;
-                    finish(&sh, node, None, res);
-                };
-                let h = match &inner.spawner {
-                    Some(rt) => rt.spawn(task),
-                    None => tokio::spawn(task),
-                };
+                let h = (action.0)(Launch {
+                    ctx,
+                    rt: inner.spawner.as_ref(),
+                });
                 inner.aborts.insert(node, h.abort_handle());
             }
             Effect::Invoke {
@@ -319,7 +313,7 @@ impl Runtime {
                     engine: Engine::new(run),
                     watchers: BTreeMap::new(),
                     values: BTreeMap::new(),
-                    aborts: HashMap::new(),
+                    aborts: Aborts::default(),
                     next_token: TOP,
                     spawner: None,
                     top_done: None,
@@ -512,7 +506,7 @@ impl Driver {
         };
         // Whatever still runs belongs to a run that is over.
         let mut inner = lock(&self.shared)?;
-        for (_, h) in inner.aborts.drain() {
+        for h in inner.aborts.drain() {
             h.abort();
         }
         Ok(result)
@@ -561,6 +555,90 @@ fn finish(
     };
     // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
     let _ = inner.engine.action_finished(now, node, result);
+}
+
+/// The abort handles of running actions, by the node's storage slot (dense, so a vector beats a
+/// hash map on the path every action takes).
+#[derive(Default)]
+struct Aborts {
+    slots: Vec<Option<(NodeId, AbortHandle)>>,
+    len: usize,
+}
+
+impl Aborts {
+    fn insert(&mut self, node: NodeId, h: AbortHandle) {
+        let i = node.slot() as usize;
+        if self.slots.len() <= i {
+            self.slots.resize_with(i + 1, || None);
+        }
+        if self.slots[i].replace((node, h)).is_none() {
+            self.len += 1;
+        }
+    }
+
+    fn remove(&mut self, node: &NodeId) -> Option<AbortHandle> {
+        let slot = self.slots.get_mut(node.slot() as usize)?;
+        match slot {
+            Some((id, _)) if id == node => {
+                self.len -= 1;
+                slot.take().map(|(_, h)| h)
+            }
+            _ => None,
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    fn drain(&mut self) -> impl Iterator<Item = AbortHandle> + '_ {
+        self.len = 0;
+        self.slots
+            .iter_mut()
+            .filter_map(|s| s.take().map(|(_, h)| h))
+    }
+}
+
+/// What an [`Action`] needs to start: its context and where to spawn.
+pub(crate) struct Launch<'a> {
+    pub(crate) ctx: Ctx,
+    pub(crate) rt: Option<&'a tokio::runtime::Handle>,
+}
+
+impl Launch<'_> {
+    /// Spawns `f(ctx)` as a tokio task that reports its end (or its panic) to the engine; its
+    /// value is kept for whoever waits for it.
+    pub(crate) fn spawn<F, Fut, T>(self, f: F) -> tokio::task::JoinHandle<()>
+    where
+        F: FnOnce(Ctx) -> Fut,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        self.spawn_value(move |ctx| {
+            let fut = f(ctx);
+            async move { fut.await.map(|v| Box::new(v) as Value) }
+        })
+    }
+
+    /// As [`Launch::spawn`], for a future whose value is already erased.
+    pub(crate) fn spawn_value<F, Fut>(self, f: F) -> tokio::task::JoinHandle<()>
+    where
+        F: FnOnce(Ctx) -> Fut,
+        Fut: Future<Output = Result<Value, Failure>> + Send + 'static,
+    {
+        let Launch { ctx, rt } = self;
+        let (shared, node) = (ctx.shared.clone(), ctx.node);
+        let fut = f(ctx);
+        let task = async move {
+            let fut = std::pin::pin!(fut);
+            let res = CatchUnwind(fut).await;
+            finish(&shared, node, None, res);
+        };
+        match rt {
+            Some(rt) => rt.spawn(task),
+            None => tokio::spawn(task),
+        }
+    }
 }
 
 /// Polls a future, turning a panic into an error (a panicking action fails its node).

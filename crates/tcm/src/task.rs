@@ -18,21 +18,31 @@ pub type Value = Box<dyn Any + Send>;
 /// The future of a running action.
 pub type ActionFuture = Pin<Box<dyn Future<Output = Result<Value, Failure>> + Send>>;
 
-/// An action, called once with its context.
-pub type Action = Box<dyn FnOnce(Ctx) -> ActionFuture + Send>;
+/// An action: called once when its node starts, it spawns the action's future as a tokio task.
+/// The future's type is erased only there, so starting an action costs one allocation (the
+/// task), not two.
+pub struct Action(pub(crate) Box<Launcher>);
+
+/// The erased start of an action: spawn the task, return its handle.
+pub(crate) type Launcher =
+    dyn for<'a> FnOnce(crate::runtime::Launch<'a>) -> tokio::task::JoinHandle<()> + Send;
+
+impl Action {
+    fn new<F, Fut, T>(f: F) -> Action
+    where
+        F: FnOnce(Ctx) -> Fut + Send + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        Action(Box::new(move |launch: crate::runtime::Launch<'_>| {
+            launch.spawn(f)
+        }))
+    }
+}
 
 /// A reusable action: a monitor's body (once per activation), a handler (once per use), a retryable
 /// task, a wiretap check.
 pub type Factory = Arc<dyn Fn(Ctx) -> ActionFuture + Send + Sync>;
-
-fn boxed<F, Fut, T>(f: F) -> impl FnOnce(Ctx) -> ActionFuture
-where
-    F: FnOnce(Ctx) -> Fut + Send + 'static,
-    Fut: Future<Output = Result<T, Failure>> + Send + 'static,
-    T: Any + Send,
-{
-    move |ctx| Box::pin(async move { f(ctx).await.map(|v| Box::new(v) as Value) })
-}
 
 /// Wraps an async closure as a [`Factory`].
 pub fn factory<F, Fut, T>(f: F) -> Factory
@@ -172,7 +182,7 @@ impl Task {
         Fut: Future<Output = Result<T, Failure>> + Send + 'static,
         T: Any + Send,
     {
-        Task::bare(kind, name.into(), Some(Box::new(boxed(f))))
+        Task::bare(kind, name.into(), Some(Action::new(f)))
     }
 
     /// A task whose action can run again: handlers may [`Ctx::retry`] it after a failure.
@@ -184,7 +194,13 @@ impl Task {
     {
         let fac = factory(f);
         let first = fac.clone();
-        let mut task = Task::bare(kind, name.into(), Some(Box::new(move |ctx| first(ctx))));
+        let mut task = Task::bare(
+            kind,
+            name.into(),
+            Some(Action(Box::new(
+                move |launch: crate::runtime::Launch<'_>| launch.spawn_value(move |ctx| first(ctx)),
+            ))),
+        );
         task.retry = Some(fac);
         task
     }
@@ -290,7 +306,7 @@ impl Task {
                 .filter_map(Task::into_cleanup)
                 .collect(),
             fulfils: None,
-            monitor: self.monitor,
+            monitor: self.monitor.map(Box::new),
             handlers: self.handlers.into_iter().rev().map(|h| h.spec).collect(),
             retry: self.retry,
         };

@@ -120,7 +120,7 @@ pub struct Spawn<A, F = ()> {
     /// A reservation (from [`Engine::reserve`]) this spawn fulfils.
     pub fulfils: Option<NodeId>,
     /// For a monitor: its body and parameters.
-    pub monitor: Option<MonitorSpec<F>>,
+    pub monitor: Option<Box<MonitorSpec<F>>>,
     /// Exception handlers attached to the node, in the order they are tried.
     pub handlers: Vec<HandlerSpec<F>>,
     /// A factory that re-runs this task (same arguments), so handlers can retry it.
@@ -156,7 +156,7 @@ impl<A, F: Clone> Spawn<A, F> {
             persistent: false,
             on_terminate: Vec::new(),
             fulfils: None,
-            monitor: Some(spec),
+            monitor: Some(Box::new(spec)),
             handlers: Vec::new(),
             retry: None,
         }
@@ -458,7 +458,7 @@ impl<A, F: Clone> Engine<A, F> {
             }
             node.suspended = parent_suspended;
             if let Some(m) = monitor {
-                node.cold_mut().monitor = Some(Monitor::new(m));
+                node.cold_mut().monitor = Some(Monitor::new(*m));
             }
             if !handlers.is_empty() {
                 node.cold_mut().handlers = handlers
