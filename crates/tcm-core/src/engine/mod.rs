@@ -471,18 +471,7 @@ impl<A, F: Clone> Engine<A, F> {
             }
         }
         self.link(parent, id);
-        let (display, parent_display) = (self.node(id).display, self.node(parent).display);
-        let name = if self.tracing {
-            self.node(id).name.to_string()
-        } else {
-            String::new()
-        };
-        self.emit(TraceKind::Spawned {
-            node: display,
-            parent: parent_display,
-            kind,
-            name,
-        });
+        let display = self.emit_spawned(id, parent);
         if let Some(m) = self.node(id).monitor() {
             let record = TraceKind::MonitorParams {
                 node: display,
@@ -947,18 +936,7 @@ impl<A, F: Clone> Engine<A, F> {
         node.suspended = self.node(parent).suspended;
         let id = self.nodes.insert(node);
         self.link(parent, id);
-        let parent_display = self.node(parent).display;
-        let name = if self.tracing {
-            self.node(id).name.to_string()
-        } else {
-            String::new()
-        };
-        self.emit(TraceKind::Spawned {
-            node: display,
-            parent: parent_display,
-            kind,
-            name,
-        });
+        self.emit_spawned(id, parent);
         if self.node(id).suspended {
             self.emit(TraceKind::Suspended { node: display });
         }
@@ -966,6 +944,25 @@ impl<A, F: Clone> Engine<A, F> {
             self.work.push_back(Work::Terminate(id));
         }
         id
+    }
+
+    /// Traces a node's insertion under `parent`; returns its display number.
+    fn emit_spawned(&mut self, id: NodeId, parent: NodeId) -> u64 {
+        let (display, kind) = (self.node(id).display, self.node(id).kind);
+        let parent = self.node(parent).display;
+        // The name is only copied when someone reads the trace.
+        let name = if self.tracing {
+            self.node(id).name.to_string()
+        } else {
+            String::new()
+        };
+        self.emit(TraceKind::Spawned {
+            node: display,
+            parent,
+            kind,
+            name,
+        });
+        display
     }
 
     fn unlink(&mut self, child: NodeId) {
