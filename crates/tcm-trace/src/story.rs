@@ -42,6 +42,21 @@ pub fn story(trace: &[TraceEvent]) -> Vec<String> {
     out
 }
 
+/// How failures were handled, in order: `handler<-Exception` for each handler chosen, `bypass` for
+/// each bypass.
+pub fn handling(trace: &[TraceEvent]) -> Vec<String> {
+    trace
+        .iter()
+        .filter_map(|e| match &e.kind {
+            TraceKind::HandlerChosen {
+                handler, exception, ..
+            } => Some(format!("{handler}<-{exception}")),
+            TraceKind::Bypassed { .. } => Some("bypass".into()),
+            _ => None,
+        })
+        .collect()
+}
+
 /// The lines that contain any of `words`.
 pub fn only(lines: &[String], words: &[&str]) -> Vec<String> {
     lines

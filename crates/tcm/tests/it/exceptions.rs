@@ -7,7 +7,6 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tcm::{
     Exception, Facet, Failure, Handler, NodeKind, NodeRef, RunOutcome, Runtime, TapWhen, Task,
-    TraceKind,
 };
 
 #[derive(Debug, thiserror::Error)]
@@ -34,18 +33,7 @@ fn secs(s: f64) -> Duration {
     Duration::from_secs_f64(s)
 }
 
-fn chosen(trace: &[tcm::TraceEvent]) -> Vec<String> {
-    trace
-        .iter()
-        .filter_map(|e| match &e.kind {
-            TraceKind::HandlerChosen {
-                handler, exception, ..
-            } => Some(format!("{handler}<-{exception}")),
-            TraceKind::Bypassed { .. } => Some("bypass".into()),
-            _ => None,
-        })
-        .collect()
-}
+use tcm::testing::handling as chosen;
 
 #[tokio::test(start_paused = true)]
 async fn navigate_to_locn_handlers_read_the_exception_data() {

@@ -107,7 +107,7 @@ fn exceptions_are_error_types_that_know_their_parent() {
 mod handlers {
     use crate::util::{assert_order, run_checked, story};
     use std::cell::{Cell, RefCell};
-    use tdl::{RunOutcome, Runtime, TraceEvent, TraceKind};
+    use tdl::{RunOutcome, Runtime, TraceKind};
 
     thread_local! {
         // Per test thread: tokio's test runtime runs every action on the test's thread.
@@ -127,19 +127,7 @@ mod handlers {
         tokio::time::sleep(std::time::Duration::from_secs(s)).await;
     }
 
-    /// `handler<-exception` per handler chosen, and `bypass` per bypass, in order.
-    fn chosen(trace: &[TraceEvent]) -> Vec<String> {
-        trace
-            .iter()
-            .filter_map(|e| match &e.kind {
-                TraceKind::HandlerChosen {
-                    handler, exception, ..
-                } => Some(format!("{handler}<-{exception}")),
-                TraceKind::Bypassed { .. } => Some("bypass".into()),
-                _ => None,
-            })
-            .collect()
-    }
+    use tdl::testing::handling as chosen;
 
     tdl::tdl! {
         pub exception HardwareFailure;
