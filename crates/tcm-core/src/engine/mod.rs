@@ -760,11 +760,23 @@ impl<A, F: Clone> Engine<A, F> {
     /// Fires every timer due at or before `now`.
     pub fn handle_timeout(&mut self, now: Time) {
         self.advance(now);
+        self.fire_timers(now, true);
+    }
+
+    /// Fires the live timers due before `now` (or at `now` too, if `inclusive`), in deadline order,
+    /// each at its own time.
+    fn fire_timers(&mut self, now: Time, inclusive: bool) {
         loop {
             let nodes = &self.nodes;
-            let Some(entry) = self.timers.pop_due(now, |k| timer_is_live(nodes, k)) else {
+            let Some((at, entry)) = self
+                .timers
+                .pop_due(now, inclusive, |k| timer_is_live(nodes, k))
+            else {
                 break;
             };
+            if at > self.now {
+                self.now = at;
+            }
             match entry {
                 TimerKind::Enable { target, facet } => self.satisfy(target, facet),
                 TimerKind::Terminate { target } => self.work.push_back(Work::Terminate(target)),
@@ -811,7 +823,11 @@ impl<A, F: Clone> Engine<A, F> {
     // ----------------------------------------------------------------------------------------
     // Internals: lookups.
 
+    /// Moves the engine's clock to `now`. It never skips a deadline: timers due before `now` fire
+    /// first, each at its own time, so an input that arrives late (on real time the shell wakes a
+    /// little after a deadline) never overtakes a timer that was due before it.
     fn advance(&mut self, now: Time) {
+        self.fire_timers(now, false);
         if now > self.now {
             self.now = now;
         }

@@ -80,20 +80,22 @@ impl Timers {
         None
     }
 
-    /// Removes and returns the earliest live timer due at or before `now`.
+    /// Removes and returns the earliest live timer due before `now` (or at `now`, if `inclusive`),
+    /// with its deadline.
     pub(crate) fn pop_due(
         &mut self,
         now: Time,
+        inclusive: bool,
         live: impl Fn(&TimerKind) -> bool,
-    ) -> Option<TimerKind> {
+    ) -> Option<(Time, TimerKind)> {
         while let Some(Reverse(top)) = self.heap.peek() {
-            if top.at > now {
+            if top.at > now || (!inclusive && top.at == now) {
                 return None;
             }
-            let kind = top.kind;
+            let (at, kind) = (top.at, top.kind);
             self.heap.pop();
             if live(&kind) {
-                return Some(kind);
+                return Some((at, kind));
             }
         }
         None

@@ -524,3 +524,66 @@ fn the_precise_timer_drives_a_polling_monitor_on_real_time() {
     assert_eq!(report.outcome, RunOutcome::Completed);
     assert_eq!(count.load(Ordering::SeqCst), 5);
 }
+
+#[test]
+fn many_actions_on_real_worker_threads_neither_deadlock_nor_break_the_trace() {
+    // A stress run on a real multi-thread runtime: actions finish on several threads at once, wait
+    // for each other, get terminated mid-flight, and spawn from inside; the run must end and its
+    // trace must pass the checker.
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(3)
+        .enable_time()
+        .build()
+        .expect("runtime");
+    let task = Task::goal("stress", |ctx| async move {
+        let mut seed: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for i in 0..200u64 {
+            let pause = Duration::from_micros(next() % 300);
+            let child = ctx.spawn(Task::goal("branch", move |ctx| async move {
+                for _ in 0..4 {
+                    ctx.spawn(Task::command("step", move |_| async move {
+                        tokio::time::sleep(pause).await;
+                        Ok(())
+                    }))
+                    .sequential(Facet::Execution, NodeRef::Previous)
+                    .start()?;
+                }
+                ctx.spawn(Task::command("blip", |_| async { Ok(()) }))
+                    .wait()
+                    .await?;
+                Ok(())
+            }));
+            let child = if next() % 5 == 0 {
+                child.terminate_in(Duration::from_micros(next() % 500))
+            } else {
+                child
+            };
+            let id = child.start()?;
+            if i % 50 == 49 {
+                ctx.wait(id).await?;
+            }
+        }
+        Ok(())
+    });
+    let rec = tcm::Recorder::new();
+    let report = rt
+        .block_on(async {
+            tokio::time::timeout(
+                Duration::from_secs(60),
+                Runtime::new().with_sink(rec.clone()).run(task),
+            )
+            .await
+        })
+        .expect("the run ends (no deadlock)")
+        .expect("run");
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    let trace = rec.events();
+    assert!(trace.len() > 5_000, "{} records", trace.len());
+    tcm::testing::assert_checked(&trace);
+}
