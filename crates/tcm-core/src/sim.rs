@@ -207,7 +207,7 @@ impl Sim {
                 purpose,
             } => {
                 let outcome = (body.0)(&mut self.engine, node, self.now, &purpose);
-                let tap = match purpose {
+                let tap = match *purpose {
                     Purpose::Tap { tap, .. } => Some(tap),
                     _ => None,
                 };

@@ -152,14 +152,14 @@ fn pump(shared: &Arc<Shared>, inner: &mut Inner) -> bool {
                 body,
                 purpose,
             } => {
-                let tap = match purpose {
+                let tap = match *purpose {
                     Purpose::Tap { tap, .. } => Some(tap),
                     _ => None,
                 };
                 let ctx = Ctx {
                     shared: shared.clone(),
                     node,
-                    purpose: Some(Arc::new(purpose)),
+                    purpose: Some(Arc::from(purpose)),
                 };
                 let fut = body(ctx);
                 let sh = shared.clone();
@@ -451,12 +451,14 @@ impl Driver {
                     trace.push(ev);
                 }
                 let idle = inner.engine.is_idle();
-                let blocked = if idle {
+                let running = !inner.aborts.is_empty();
+                // The stuck report scans every node: only when the run is over.
+                let blocked = if idle && !running && self.shared.handles.load(Ordering::SeqCst) == 0
+                {
                     inner.engine.blocked()
                 } else {
                     Vec::new()
                 };
-                let running = !inner.aborts.is_empty();
                 let deadline = inner.engine.poll_timeout();
                 inner.armed = deadline;
                 let fatal = inner.engine.fatal().cloned();

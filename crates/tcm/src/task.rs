@@ -155,7 +155,7 @@ pub struct Task {
     pub(crate) constraints: Vec<Constraint>,
     pub(crate) on_terminate: Vec<Task>,
     pub(crate) handlers: Vec<Handler>,
-    pub(crate) monitor: Option<MonitorSpec<Factory>>,
+    pub(crate) monitor: Option<Box<MonitorSpec<Factory>>>,
     pub(crate) retry: Option<Factory>,
     pub(crate) persistent: bool,
 }
@@ -234,7 +234,7 @@ impl Task {
         T: Any + Send,
     {
         let mut task = Task::bare(NodeKind::Monitor, name.into(), None);
-        task.monitor = Some(MonitorSpec {
+        task.monitor = Some(Box::new(MonitorSpec {
             body: factory(body),
             max_activations: params.max_activations,
             max_triggers: params.max_triggers,
@@ -242,7 +242,7 @@ impl Task {
             initial_wait: params.initial_wait,
             each: params.each,
             activation_name: params.activation_name,
-        });
+        }));
         task
     }
 
@@ -306,7 +306,7 @@ impl Task {
                 .filter_map(Task::into_cleanup)
                 .collect(),
             fulfils: None,
-            monitor: self.monitor.map(Box::new),
+            monitor: self.monitor,
             handlers: self.handlers.into_iter().rev().map(|h| h.spec).collect(),
             retry: self.retry,
         };

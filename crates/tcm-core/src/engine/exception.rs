@@ -105,7 +105,7 @@ impl<A, F: Clone> Engine<A, F> {
             node,
             kind,
             name,
-            Payload::Invoke(Box::new((factory.clone(), Purpose::Retry { of: failing }))),
+            Payload::Invoke(factory.clone(), Box::new(Purpose::Retry { of: failing })),
         );
         self.node_mut(id).cold_mut().retry = Some(factory);
         let new_display = self.node(id).display;
@@ -209,7 +209,7 @@ impl<A, F: Clone> Engine<A, F> {
             self.effects.push_back(super::Effect::Invoke {
                 node,
                 body,
-                purpose: Purpose::Tap { tap, when },
+                purpose: Box::new(Purpose::Tap { tap, when }),
             });
         }
         k
@@ -302,7 +302,7 @@ impl<A, F: Clone> Engine<A, F> {
             under,
             NodeKind::Handler,
             name,
-            Payload::Invoke(Box::new((body, purpose))),
+            Payload::Invoke(body, Box::new(purpose)),
         );
         let (d, fd, ad) = (
             self.node(id).display,

@@ -69,8 +69,8 @@ pub enum Effect<A, F = ()> {
         node: NodeId,
         /// The factory, given at spawn or registration.
         body: F,
-        /// Why it runs, with what it needs to know.
-        purpose: Purpose,
+        /// Why it runs, with what it needs to know (boxed: effects stay small).
+        purpose: Box<Purpose>,
     },
     /// Stop this node's running action; the engine already counts it as finished.
     Cancel {
@@ -1426,8 +1426,10 @@ impl<A, F: Clone> Engine<A, F> {
             from,
             to,
         });
-        for w in fired {
-            self.fire_now(id, w.kind);
+        if !fired.is_empty() {
+            for w in fired {
+                self.fire_now(id, w.kind);
+            }
         }
     }
 
@@ -1621,8 +1623,7 @@ impl<A, F: Clone> Engine<A, F> {
             Some(Payload::Action(action)) => {
                 self.effects.push_back(Effect::Start { node: id, action })
             }
-            Some(Payload::Invoke(invoke)) => {
-                let (body, purpose) = *invoke;
+            Some(Payload::Invoke(body, purpose)) => {
                 self.effects.push_back(Effect::Invoke {
                     node: id,
                     body,

@@ -242,14 +242,14 @@ impl<A, F: Clone> Engine<A, F> {
         if let Some(mon) = self.node_mut(monitor).monitor_mut() {
             mon.activations = number;
         }
-        let payload = Payload::Invoke(Box::new((
+        let payload = Payload::Invoke(
             body,
-            Purpose::Activation {
+            Box::new(Purpose::Activation {
                 monitor,
                 number,
                 triggers,
-            },
-        )));
+            }),
+        );
         let id = self.insert(monitor, NodeKind::Command, name, payload);
         self.node_mut(id).cold_mut().activation_of = Some(monitor);
         if let Some(prev) = prev {

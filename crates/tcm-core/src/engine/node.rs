@@ -100,7 +100,7 @@ pub(crate) enum Payload<A, F> {
     /// The shell's one-shot action.
     Action(A),
     /// A factory to invoke, and why (boxed: rare, and large next to an action).
-    Invoke(Box<(F, Purpose)>),
+    Invoke(F, Box<Purpose>),
 }
 
 /// The waiters of one node: most nodes have none or one (the next sibling's `sequential`), so one
