@@ -76,10 +76,13 @@ impl<A, F: Clone> Engine<A, F> {
         let (failure, failing, attached, index) =
             (ctx.failure.clone(), ctx.failing, ctx.attached, ctx.index);
         self.running -= 1;
-        self.emit(TraceKind::Bypassed {
-            node: display,
-            exception: failure.exception.to_string(),
-        });
+        emit!(
+            self,
+            TraceKind::Bypassed {
+                node: display,
+                exception: failure.exception.to_string(),
+            }
+        );
         self.search(failing, failure, Some(attached), index + 1, node);
         self.complete_handling(node);
         self.settle();
@@ -109,10 +112,13 @@ impl<A, F: Clone> Engine<A, F> {
         );
         self.node_mut(id).cold_mut().retry = Some(factory);
         let new_display = self.node(id).display;
-        self.emit(TraceKind::Retried {
-            node: new_display,
-            of: of_display,
-        });
+        emit!(
+            self,
+            TraceKind::Retried {
+                node: new_display,
+                of: of_display,
+            }
+        );
         self.work.push_back(Work::Check(id));
         self.settle();
         Ok(id)
@@ -198,14 +204,17 @@ impl<A, F: Clone> Engine<A, F> {
         self.node_mut(node).cold_mut().taps_pending += k;
         for (tap, body) in matching {
             self.running += 1;
-            self.emit(TraceKind::Tapped {
-                node: display,
-                tap: tap.0,
-                when: match when {
-                    TapWhen::Before => "before".into(),
-                    TapWhen::After => "after".into(),
-                },
-            });
+            emit!(
+                self,
+                TraceKind::Tapped {
+                    node: display,
+                    tap: tap.0,
+                    when: match when {
+                        TapWhen::Before => "before".into(),
+                        TapWhen::After => "after".into(),
+                    },
+                }
+            );
             self.effects.push_back(super::Effect::Invoke {
                 node,
                 body,
@@ -218,11 +227,14 @@ impl<A, F: Clone> Engine<A, F> {
     /// Step 1: `node`'s action failed.
     pub(crate) fn fail(&mut self, node: NodeId, failure: Failure) {
         let display = self.node(node).display;
-        self.emit(TraceKind::Failed {
-            node: display,
-            exception: failure.exception.to_string(),
-            message: failure.message.clone(),
-        });
+        emit!(
+            self,
+            TraceKind::Failed {
+                node: display,
+                exception: failure.exception.to_string(),
+                message: failure.message.clone(),
+            }
+        );
         // A handler's own failure searches above the node it was attached to.
         let from = match self.node(node).handling() {
             Some(ctx) => self.nodes.get(ctx.attached).and_then(|a| a.parent),
@@ -259,13 +271,16 @@ impl<A, F: Clone> Engine<A, F> {
             index = 0;
         }
         let display = self.node(failing).display;
-        self.emit(TraceKind::Warning {
-            node: Some(display),
-            message: format!(
-                "No exception handler found for exception type \"{}\"",
-                failure.exception
-            ),
-        });
+        emit!(
+            self,
+            TraceKind::Warning {
+                node: Some(display),
+                message: format!(
+                    "No exception handler found for exception type \"{}\"",
+                    failure.exception
+                ),
+            }
+        );
         if self.policy == FailurePolicy::Fatal && self.fatal.is_none() {
             self.fatal = Some(FatalFailure {
                 failure,
@@ -309,13 +324,16 @@ impl<A, F: Clone> Engine<A, F> {
             self.node(failing).display,
             self.node(attached).display,
         );
-        self.emit(TraceKind::HandlerChosen {
-            node: d,
-            failing: fd,
-            attached: ad,
-            exception: failure.exception.to_string(),
-            handler,
-        });
+        emit!(
+            self,
+            TraceKind::HandlerChosen {
+                node: d,
+                failing: fd,
+                attached: ad,
+                exception: failure.exception.to_string(),
+                handler,
+            }
+        );
         self.node_mut(id).cold_mut().handling = Some(HandlerCtx {
             failure,
             failing,

@@ -25,6 +25,17 @@
 //! Aggregates (open children per facet) are counters kept on each parent: a transition costs O(1)
 //! plus the waiters it fires.
 
+/// Traces a record, building it only when someone reads the trace (records carry names and
+/// messages; building and dropping them would cost every transition when tracing is off).
+macro_rules! emit {
+    ($engine:expr, $kind:expr $(,)?) => {
+        if $engine.tracing {
+            let kind = $kind;
+            $engine.push_trace(kind);
+        }
+    };
+}
+
 mod exception;
 mod monitor;
 pub(crate) mod node;
@@ -309,7 +320,7 @@ impl<A, F: Clone> Engine<A, F> {
             fatal: None,
             taps: Vec::new(),
         };
-        engine.emit(TraceKind::RunStarted {
+        engine.push_trace(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,
             run,
         });
@@ -378,11 +389,14 @@ impl<A, F: Clone> Engine<A, F> {
         let id = self.nodes.insert(node);
         let parent_display = self.node(parent).display;
         self.node_mut(parent).cold_mut().reservations.push(id);
-        self.emit(TraceKind::Reserved {
-            node: display,
-            parent: parent_display,
-            name: name.into_owned(),
-        });
+        emit!(
+            self,
+            TraceKind::Reserved {
+                node: display,
+                parent: parent_display,
+                name: name.into_owned(),
+            }
+        );
         Ok(id)
     }
 
@@ -483,10 +497,10 @@ impl<A, F: Clone> Engine<A, F> {
                     .map(|p| u64::try_from(p.as_nanos()).unwrap_or(u64::MAX)),
                 initial_wait: m.spec.initial_wait,
             };
-            self.emit(record);
+            emit!(self, record);
         }
         if self.node(id).suspended {
-            self.emit(TraceKind::Suspended { node: display });
+            emit!(self, TraceKind::Suspended { node: display });
         }
         let deferred = self.node_mut(id).take_cold(|c| &mut c.deferred);
         let mut later = Vec::new();
@@ -711,7 +725,7 @@ impl<A, F: Clone> Engine<A, F> {
         let name = ext.name.clone();
         let waiters = std::mem::take(&mut ext.waiters);
         let activators = ext.activators.clone();
-        self.emit(TraceKind::External { name });
+        emit!(self, TraceKind::External { name });
         if first {
             for w in waiters {
                 self.fire(w, false);
@@ -879,10 +893,8 @@ impl<A, F: Clone> Engine<A, F> {
             .expect("engine invariant: node exists")
     }
 
-    fn emit(&mut self, kind: TraceKind) {
-        if !self.tracing {
-            return;
-        }
+    /// Appends a record; use `emit!`, which builds the record only when tracing is on.
+    fn push_trace(&mut self, kind: TraceKind) {
         let seq = self.seq;
         self.seq += 1;
         self.trace.push_back(TraceEvent {
@@ -954,7 +966,7 @@ impl<A, F: Clone> Engine<A, F> {
         self.link(parent, id);
         self.emit_spawned(id, parent);
         if self.node(id).suspended {
-            self.emit(TraceKind::Suspended { node: display });
+            emit!(self, TraceKind::Suspended { node: display });
         }
         if !self.node(parent).alive() {
             self.work.push_back(Work::Terminate(id));
@@ -972,12 +984,15 @@ impl<A, F: Clone> Engine<A, F> {
         } else {
             String::new()
         };
-        self.emit(TraceKind::Spawned {
-            node: display,
-            parent,
-            kind,
-            name,
-        });
+        emit!(
+            self,
+            TraceKind::Spawned {
+                node: display,
+                parent,
+                kind,
+                name,
+            }
+        );
         display
     }
 
@@ -1022,10 +1037,13 @@ impl<A, F: Clone> Engine<A, F> {
             return;
         }
         let display = self.node(node).display;
-        self.emit(TraceKind::ConstraintVoid {
-            node: display,
-            reason: reason(),
-        });
+        emit!(
+            self,
+            TraceKind::ConstraintVoid {
+                node: display,
+                reason: reason(),
+            }
+        );
     }
 
     /// Applies one constraint to `node` (already in the arena).
@@ -1035,17 +1053,23 @@ impl<A, F: Clone> Engine<A, F> {
             Constraint::Parallel => {}
             Constraint::ExpandFirst => {
                 self.node_mut(node).expand_first = true;
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::ExpandFirst,
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::ExpandFirst,
+                    }
+                );
             }
             Constraint::DelayExpansion => {
                 self.node_mut(node).delay_expansion = true;
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::DelayExpansion,
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::DelayExpansion,
+                    }
+                );
             }
             Constraint::Sequential(facet, r) => {
                 let point_facet = facet;
@@ -1088,13 +1112,16 @@ impl<A, F: Clone> Engine<A, F> {
         }
         match until {
             Until::Time(at) => {
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::DisableUntilTime {
-                        facet,
-                        at: at.as_nanos(),
-                    },
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::DisableUntilTime {
+                            facet,
+                            at: at.as_nanos(),
+                        },
+                    }
+                );
                 if at > self.now {
                     self.node_mut(node).blocks[facet.index()] += 1;
                     self.timers.push(
@@ -1115,10 +1142,13 @@ impl<A, F: Clone> Engine<A, F> {
                     return;
                 };
                 let (name, raised) = (ext.name.clone(), ext.raised);
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::DisableUntilExternal { facet, name },
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::DisableUntilExternal { facet, name },
+                    }
+                );
                 if !raised {
                     self.node_mut(node).blocks[facet.index()] += 1;
                     self.externals[x.0 as usize].waiters.push(WaitKind::Enable {
@@ -1159,10 +1189,13 @@ impl<A, F: Clone> Engine<A, F> {
                     });
                     return;
                 }
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint,
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint,
+                    }
+                );
                 match (passed, delay) {
                     (true, None) => {}
                     (true, Some(d)) => {
@@ -1209,17 +1242,23 @@ impl<A, F: Clone> Engine<A, F> {
         let display = self.node(node).display;
         match when {
             TerminateWhen::Now => {
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::TerminateNow,
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::TerminateNow,
+                    }
+                );
                 self.work.push_back(Work::Terminate(node));
             }
             TerminateWhen::Time(at) => {
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::TerminateAtTime { at: at.as_nanos() },
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::TerminateAtTime { at: at.as_nanos() },
+                    }
+                );
                 if at <= self.now {
                     self.work.push_back(Work::Terminate(node));
                 } else {
@@ -1235,10 +1274,13 @@ impl<A, F: Clone> Engine<A, F> {
                     return;
                 };
                 let (name, raised) = (ext.name.clone(), ext.raised);
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::TerminateAtExternal { name },
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::TerminateAtExternal { name },
+                    }
+                );
                 if raised {
                     self.work.push_back(Work::Terminate(node));
                 } else {
@@ -1272,24 +1314,33 @@ impl<A, F: Clone> Engine<A, F> {
                         self.void(node, || "the referenced node was terminated; its termination constraints never fire".into());
                     }
                     Lookup::Gone(Fate::Dead) => {
-                        self.emit(TraceKind::Constrained {
-                            node: display,
-                            constraint,
-                        });
+                        emit!(
+                            self,
+                            TraceKind::Constrained {
+                                node: display,
+                                constraint,
+                            }
+                        );
                         self.fire_termination(node, delay);
                     }
                     Lookup::Gone(Fate::Completed) => {
-                        self.emit(TraceKind::Constrained {
-                            node: display,
-                            constraint,
-                        });
+                        emit!(
+                            self,
+                            TraceKind::Constrained {
+                                node: display,
+                                constraint,
+                            }
+                        );
                         self.fire_termination(node, delay);
                     }
                     Lookup::Live => {
-                        self.emit(TraceKind::Constrained {
-                            node: display,
-                            constraint,
-                        });
+                        emit!(
+                            self,
+                            TraceKind::Constrained {
+                                node: display,
+                                constraint,
+                            }
+                        );
                         let rn = self.node(r);
                         if !rn.alive() {
                             // Its points are reached by termination only: the constraint never fires.
@@ -1420,12 +1471,15 @@ impl<A, F: Clone> Engine<A, F> {
             });
             fired
         };
-        self.emit(TraceKind::Transition {
-            node: display,
-            facet,
-            from,
-            to,
-        });
+        emit!(
+            self,
+            TraceKind::Transition {
+                node: display,
+                facet,
+                from,
+                to,
+            }
+        );
         if !fired.is_empty() {
             for w in fired {
                 self.fire_now(id, w.kind);
@@ -1534,7 +1588,7 @@ impl<A, F: Clone> Engine<A, F> {
             {
                 self.node_mut(id).termination = Termination::Terminated;
                 let display = self.node(id).display;
-                self.emit(TraceKind::Terminated { node: display });
+                emit!(self, TraceKind::Terminated { node: display });
                 if let Some(p) = self.node(id).parent {
                     if let Some(pn) = self.nodes.get_mut(p) {
                         pn.terminating_children -= 1;
@@ -1564,7 +1618,7 @@ impl<A, F: Clone> Engine<A, F> {
         self.unlink(id);
         let display = self.node(id).display;
         self.nodes.remove(id, fate);
-        self.emit(TraceKind::Reclaimed { node: display });
+        emit!(self, TraceKind::Reclaimed { node: display });
         if let Some(p) = parent {
             self.work.push_back(Work::Check(p));
         }
@@ -1650,7 +1704,7 @@ impl<A, F: Clone> Engine<A, F> {
             let Some(node) = self.nodes.remove(r, Fate::Dead) else {
                 continue;
             };
-            self.emit(TraceKind::Dead { node: node.display });
+            emit!(self, TraceKind::Dead { node: node.display });
             for w in node.waiters {
                 match w.kind {
                     WaitKind::Watch { token } => self.effects.push_back(Effect::Notify {
@@ -1697,13 +1751,16 @@ impl<A, F: Clone> Engine<A, F> {
         }
         let display = n.display;
         if !n.alive() {
-            self.emit(TraceKind::Warning {
-                node: Some(display),
-                message: format!(
-                    "Trying to terminate already dead node {} {{{}}}",
-                    n.name, display
-                ),
-            });
+            emit!(
+                self,
+                TraceKind::Warning {
+                    node: Some(display),
+                    message: format!(
+                        "Trying to terminate already dead node {} {{{}}}",
+                        n.name, display
+                    ),
+                }
+            );
             return;
         }
         if n.state(Facet::Execution) == State::Completed {
@@ -1728,9 +1785,9 @@ impl<A, F: Clone> Engine<A, F> {
             if let Some(p) = parent.and_then(|p| self.nodes.get_mut(p)) {
                 p.terminating_children += 1;
             }
-            self.emit(TraceKind::Terminating { node: display });
+            emit!(self, TraceKind::Terminating { node: display });
             if was_suspended {
-                self.emit(TraceKind::Unsuspended { node: display });
+                emit!(self, TraceKind::Unsuspended { node: display });
             }
             let action_running = h == State::Active
                 && self.node(c).monitor().is_none()
@@ -1785,11 +1842,14 @@ impl<A, F: Clone> Engine<A, F> {
                 n.suspended = on;
                 let display = n.display;
                 let resume = !on && std::mem::replace(&mut n.parked, false);
-                self.emit(if on {
-                    TraceKind::Suspended { node: display }
-                } else {
-                    TraceKind::Unsuspended { node: display }
-                });
+                emit!(
+                    self,
+                    if on {
+                        TraceKind::Suspended { node: display }
+                    } else {
+                        TraceKind::Unsuspended { node: display }
+                    }
+                );
                 if resume {
                     self.ready.push_back(c);
                 }

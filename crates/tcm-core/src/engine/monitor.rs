@@ -135,10 +135,13 @@ impl<A, F: Clone> Engine<A, F> {
         if let Some(mon) = self.node_mut(monitor).monitor_mut() {
             mon.triggers = count;
         }
-        self.emit(TraceKind::Triggered {
-            monitor: display,
-            count,
-        });
+        emit!(
+            self,
+            TraceKind::Triggered {
+                monitor: display,
+                count,
+            }
+        );
         if max.is_some_and(|m| count >= m) {
             self.monitor_done(monitor);
         }
@@ -160,10 +163,13 @@ impl<A, F: Clone> Engine<A, F> {
             n.name, n.display
         );
         let display = n.display;
-        self.emit(TraceKind::Warning {
-            node: Some(display),
-            message,
-        });
+        emit!(
+            self,
+            TraceKind::Warning {
+                node: Some(display),
+                message,
+            }
+        );
     }
 
     /// An activation source fired (timer, event, external event).
@@ -275,11 +281,14 @@ impl<A, F: Clone> Engine<A, F> {
             self.apply(id, monitor, prev, Constraint::DelayExpansion);
         }
         let display = self.node(id).display;
-        self.emit(TraceKind::Activated {
-            monitor: monitor_display,
-            node: display,
-            number,
-        });
+        emit!(
+            self,
+            TraceKind::Activated {
+                monitor: monitor_display,
+                node: display,
+                number,
+            }
+        );
         if let Some(mon) = self.node_mut(monitor).monitor_mut() {
             mon.last = Some(id);
         }
@@ -319,10 +328,13 @@ impl<A, F: Clone> Engine<A, F> {
         }
         match when {
             ActivateWhen::Now => {
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::ActivateNow,
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::ActivateNow,
+                    }
+                );
                 // TCM's "activate at self handling active", which avoids racing the monitor's start.
                 let w = Waiter {
                     facet: Facet::Handling,
@@ -336,10 +348,13 @@ impl<A, F: Clone> Engine<A, F> {
                 }
             }
             ActivateWhen::Time(at) => {
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::ActivateAtTime { at: at.as_nanos() },
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::ActivateAtTime { at: at.as_nanos() },
+                    }
+                );
                 self.timers
                     .push(at.max(self.now), TimerKind::ActivateOnce { monitor: node });
             }
@@ -353,10 +368,13 @@ impl<A, F: Clone> Engine<A, F> {
                 };
                 ext.activators.push(node);
                 let name = ext.name.clone();
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint: TraceConstraint::ActivateAtExternal { name },
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint: TraceConstraint::ActivateAtExternal { name },
+                    }
+                );
             }
             ActivateWhen::Event(ev) | ActivateWhen::InAfter(_, ev) => {
                 let delay = match when {
@@ -378,10 +396,13 @@ impl<A, F: Clone> Engine<A, F> {
                     },
                     None => TraceConstraint::ActivateAtEvent { event },
                 };
-                self.emit(TraceKind::Constrained {
-                    node: display,
-                    constraint,
-                });
+                emit!(
+                    self,
+                    TraceKind::Constrained {
+                        node: display,
+                        constraint,
+                    }
+                );
                 let kind = match delay {
                     Some(delay) => WaitKind::ActivateAfter {
                         monitor: node,
