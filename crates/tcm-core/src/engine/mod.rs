@@ -427,7 +427,8 @@ impl<A, F: Clone> Engine<A, F> {
                 name: pd.name.to_string(),
             });
         }
-        if constraints.contains(&Constraint::ExpandFirst)
+        if constraints.len() >= 2
+            && constraints.contains(&Constraint::ExpandFirst)
             && constraints.contains(&Constraint::DelayExpansion)
         {
             return Err(EngineError::Inconsistent);
