@@ -1052,3 +1052,14 @@ fn a_node_stays_small() {
         std::mem::size_of::<crate::engine::node::Node<crate::sim::Body, crate::sim::Factory>>();
     assert!(size <= 208, "a node takes {size} bytes");
 }
+
+#[test]
+fn watching_a_relative_reference_is_refused() {
+    let mut sim = Sim::new();
+    let err = sim.engine.watch(
+        Time::ZERO,
+        Event::new(NodeRef::Previous, Point::Completed),
+        WatchToken(1),
+    );
+    assert_eq!(err, Err(EngineError::RelativeRef));
+}

@@ -235,6 +235,9 @@ pub enum EngineError {
     /// Activation of a monitor whose handling is not active.
     #[error("monitor {{{0}}} is not active: it has not started, has completed, or was terminated")]
     InactiveMonitor(u64),
+    /// `watch` needs a node handle; `previous`, `this` and `parent` only mean something in a spawn.
+    #[error("a watched event must name a node handle, not `previous`, `this` or `parent`")]
+    RelativeRef,
     /// Bypass or retry from a node that is not an exception handler.
     #[error("node {{{0}}} is not an exception handler")]
     NotAHandler(u64),
@@ -743,7 +746,7 @@ impl<A, F: Clone> Engine<A, F> {
     pub fn watch(&mut self, now: Time, event: Event, token: WatchToken) -> Result<(), EngineError> {
         self.advance(now);
         let NodeRef::Node(node) = event.node else {
-            return Err(EngineError::NotReserved(self.root));
+            return Err(EngineError::RelativeRef);
         };
         self.check_run(node)?;
         match self.nodes.lookup(node) {
