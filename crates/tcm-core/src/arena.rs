@@ -120,6 +120,20 @@ impl<A, F> Arena<A, F> {
         Some(node)
     }
 
+    /// Frees the node's slot, dropping the node where it lies (no copy out).
+    pub(crate) fn discard(&mut self, id: NodeId, fate: Fate) {
+        let Some(slot) = self.slot_mut(id.idx) else {
+            return;
+        };
+        if slot.generation != id.generation || slot.node.is_none() {
+            return;
+        }
+        slot.node = None;
+        slot.fate = fate;
+        self.free.push(id.idx);
+        self.live -= 1;
+    }
+
     pub(crate) fn get(&self, id: NodeId) -> Option<&Node<A, F>> {
         let slot = self.slot(id.idx)?;
         if slot.generation != id.generation {

@@ -1621,7 +1621,7 @@ impl<A, F: Clone> Engine<A, F> {
         let parent = self.node(id).parent;
         self.unlink(id);
         let display = self.node(id).display;
-        self.nodes.remove(id, fate);
+        self.nodes.discard(id, fate);
         emit!(self, TraceKind::Reclaimed { node: display });
         if let Some(p) = parent {
             self.work.push_back(Work::Check(p));
