@@ -1516,16 +1516,18 @@ impl<A, F: Clone> Engine<A, F> {
             if n.reserved || n.kind == NodeKind::Root {
                 return;
             }
-            // Children of a holding action are not enabled at all until it releases them.
-            let held = n
-                .parent
-                .and_then(|p| self.nodes.get(p))
-                .is_some_and(|p| p.holding && p.state(Facet::Handling) == State::Active);
             let alive = n.alive();
-            let can_enable = alive && !held;
             let h = n.state(Facet::Handling);
             let x = n.state(Facet::Expansion);
             let e = n.state(Facet::Execution);
+            // Children of a holding action are not enabled at all until it releases them (only
+            // looked up while something is left to enable).
+            let can_enable = alive
+                && (h == State::Disabled || x == State::Disabled || e == State::Disabled)
+                && !n
+                    .parent
+                    .and_then(|p| self.nodes.get(p))
+                    .is_some_and(|p| p.holding && p.state(Facet::Handling) == State::Active);
             if can_enable
                 && x == State::Disabled
                 && n.blocks[Facet::Expansion.index()] == 0
