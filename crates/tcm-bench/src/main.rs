@@ -66,6 +66,17 @@ fn core_flat(n: usize, chained: bool) -> (f64, usize) {
 /// W1 (`chained`) or W2 on the engine. With `hold`, every command is spawned before any runs (as
 /// the shell's goal does), so all N are alive at once; without it each one runs as it is spawned.
 fn core_flat_with(n: usize, chained: bool, hold: bool) -> (f64, usize) {
+    let constraints: &[Constraint] = if chained {
+        &[Constraint::Serial(NodeRef::Previous)]
+    } else {
+        &[]
+    };
+    core_children(n, hold, constraints)
+}
+
+/// A goal on the engine spawning `n` no-op commands, each with `constraints`, then completing;
+/// returns ns per node and the high-water mark. Every node must be reclaimed and every timer stale.
+fn core_children(n: usize, hold: bool, constraints: &[Constraint]) -> (f64, usize) {
     let mut hw = 0;
     let ns = best(|| {
         let mut e: Engine<u8> = Engine::new(1);
@@ -79,9 +90,7 @@ fn core_flat_with(n: usize, chained: bool, hold: bool) -> (f64, usize) {
         let _ = e.poll_effect();
         for _ in 0..n {
             let mut spec = Spawn::new(top, NodeKind::Command, "noop", 0);
-            if chained {
-                spec.constraints.push(Constraint::Serial(NodeRef::Previous));
-            }
+            spec.constraints.extend_from_slice(constraints);
             e.spawn(Time::ZERO, spec).expect("spawn");
             if !hold {
                 drain(&mut e);
@@ -91,6 +100,10 @@ fn core_flat_with(n: usize, chained: bool, hold: bool) -> (f64, usize) {
         drain(&mut e);
         let el = start.elapsed().as_nanos() as f64 / n as f64;
         assert_eq!(e.stats().live_nodes, 1, "everything reclaimed");
+        assert!(
+            e.poll_timeout().is_none(),
+            "every timeout is stale once its node completed"
+        );
         hw = e.stats().high_water;
         el
     });
@@ -207,32 +220,7 @@ fn w5_constraints() -> [Constraint; 2] {
 /// W5 on the engine: N commands, each disabled until the previous one's execution completed and
 /// each with a `terminate in` timer that never fires.
 fn core_constrained(n: usize) -> (f64, usize) {
-    let mut hw = 0;
-    let ns = best(|| {
-        let mut e: Engine<u8> = Engine::new(1);
-        e.set_tracing(false);
-        let root = e.root();
-        let start = Instant::now();
-        let top = e
-            .spawn(Time::ZERO, Spawn::new(root, NodeKind::Goal, "top", 0))
-            .expect("spawn");
-        let _ = e.poll_effect();
-        for _ in 0..n {
-            let mut spec = Spawn::new(top, NodeKind::Command, "step", 0);
-            spec.constraints.extend(w5_constraints());
-            e.spawn(Time::ZERO, spec).expect("spawn");
-            drain(&mut e);
-        }
-        let _ = e.action_finished(Time::ZERO, top, Ok(()));
-        drain(&mut e);
-        assert!(
-            e.poll_timeout().is_none(),
-            "every timeout is stale once its node completed"
-        );
-        hw = e.stats().high_water;
-        start.elapsed().as_nanos() as f64 / n as f64
-    });
-    (ns, hw)
+    core_children(n, false, &w5_constraints())
 }
 
 /// W5 through the async runtime.
