@@ -54,7 +54,7 @@ fn best(mut f: impl FnMut() -> f64) -> f64 {
 fn drain(engine: &mut Engine<u8>) {
     while let Some(effect) = engine.poll_effect() {
         if let Effect::Start { node, .. } = effect {
-            let _ = engine.action_finished(Time::ZERO, node, Ok(()));
+            let _ = engine.handle_action_finished(Time::ZERO, node, Ok(()));
         }
     }
 }
@@ -96,7 +96,7 @@ fn core_children(n: usize, hold: bool, constraints: &[Constraint]) -> (f64, usiz
                 drain(&mut e);
             }
         }
-        let _ = e.action_finished(Time::ZERO, top, Ok(()));
+        let _ = e.handle_action_finished(Time::ZERO, top, Ok(()));
         drain(&mut e);
         let el = start.elapsed().as_nanos() as f64 / n as f64;
         assert_eq!(e.stats().live_nodes, 1, "everything reclaimed");
@@ -132,7 +132,7 @@ fn core_recursive(depth: usize) -> (f64, usize) {
                     .with(Constraint::Sequential(Facet::Execution, c.into()));
                 e.spawn(Time::ZERO, spec).expect("spawn");
             }
-            let _ = e.action_finished(Time::ZERO, node, Ok(()));
+            let _ = e.handle_action_finished(Time::ZERO, node, Ok(()));
         }
         let el = start.elapsed().as_nanos() as f64 / (2 * depth) as f64;
         assert_eq!(e.stats().live_nodes, 1, "everything reclaimed");
@@ -203,17 +203,17 @@ fn shell_recursive(depth: usize) -> (f64, usize) {
 /// The two constraints of each W5 node: wait for the previous one's execution, and a timeout that
 /// never fires (the timer heap holds one stale entry per node until compaction).
 fn w5_constraints() -> [Constraint; 2] {
-    use tcm::{Event, Point, TerminateWhen, Until};
+    use tcm::{Event, Point, When};
     [
-        Constraint::Disable(
+        Constraint::disable(
             Facet::Handling,
-            Until::Event(Event::on(
+            When::Event(Event::on(
                 NodeRef::Previous,
                 Facet::Execution,
                 Point::Completed,
             )),
         ),
-        Constraint::Terminate(TerminateWhen::In(Duration::from_secs(3600))),
+        Constraint::terminate(When::In(Duration::from_secs(3600))),
     ]
 }
 
@@ -283,11 +283,11 @@ fn core_exceptions(n: usize) -> f64 {
                         }
                         _ => Err(Failure::new("Boom", "")),
                     };
-                    let _ = e.action_finished(Time::ZERO, node, res);
+                    let _ = e.handle_action_finished(Time::ZERO, node, res);
                 }
-                Effect::Invoke { node, .. } => {
+                Effect::Invoke { job, .. } => {
                     handled += 1;
-                    let _ = e.action_finished(Time::ZERO, node, Ok(()));
+                    let _ = e.handle_action_finished(Time::ZERO, job, Ok(()));
                 }
                 _ => {}
             }

@@ -1,4 +1,4 @@
-//! Synchronisation constraints (TDL paper, Figure 5; catalogue §1.4 and §7).
+//! Synchronisation constraints (TDL paper, Figure 5; docs/semantics.md, "Constraints").
 //!
 //! A [`Constraint`] is given when a node is spawned, or later through `Engine::constrain`. Shorthands
 //! (`sequential`, `serial`, `parallel`) are kept as written so the trace shows what the user said;
@@ -46,7 +46,7 @@ pub struct Event {
 
 impl Event {
     /// An event with TDL's default facet: `enabled`/`active` mean the handling, `completed` the
-    /// execution (the node and its whole subtree done), catalogue §1.6.
+    /// execution (the node and its whole subtree done); docs/semantics.md, "Events".
     pub fn new(node: impl Into<NodeRef>, point: Point) -> Event {
         let facet = match point {
             Point::Completed => Facet::Execution,
@@ -69,53 +69,48 @@ impl Event {
     }
 }
 
-/// What a `disable … until` waits for.
+/// When a trigger fires: the one "when" of every timed or event-driven constraint.
+///
+/// `disable F until …`, `terminate …` and `activate …` differ only in what they do then ([`Then`]);
+/// the engine arms all of them by one code path (`engine/arm.rs`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Until {
-    /// A state transition of some node.
+pub enum When {
+    /// At once (for `activate`: as soon as the monitor's handling is active).
+    Now,
+    /// At an absolute time.
+    At(Time),
+    /// A duration from when the constraint is applied (`disable for`, `terminate in`, `activate in`).
+    In(Duration),
+    /// When a node's facet reaches a state.
     Event(Event),
-    /// An absolute time.
-    Time(Time),
-    /// A duration from when the constraint is applied.
-    For(Duration),
-    /// A duration after an event happens.
-    ForAfter(Duration, Event),
-    /// A named external event or manual signal gate (latched: once raised, it stays raised).
+    /// A duration after a node's facet reaches a state.
+    After(Duration, Event),
+    /// When a named external event is raised. Enabling and terminating are latched (a raise before
+    /// the constraint counts); activation happens on every raise after it.
     External(ExternalId),
 }
 
-/// When a `terminate` constraint fires.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum TerminateWhen {
-    /// At once.
-    Now,
-    /// When an event happens; never if the event's node is itself terminated first.
-    Event(Event),
-    /// At an absolute time.
-    Time(Time),
-    /// A duration from when the constraint is applied.
-    In(Duration),
-    /// A duration after an event happens.
-    InAfter(Duration, Event),
-    /// When a named external event is raised.
-    External(ExternalId),
+impl When {
+    /// The event this waits for, if any.
+    pub fn event(&self) -> Option<Event> {
+        match *self {
+            When::Event(e) | When::After(_, e) => Some(e),
+            _ => None,
+        }
+    }
 }
 
-/// When an `activate` constraint activates a monitor (catalogue §1.4, monitors only).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ActivateWhen {
-    /// As soon as the monitor's handling is active.
-    Now,
-    /// When an event happens (also when its node reached it by being terminated).
-    Event(Event),
-    /// At an absolute time.
-    Time(Time),
-    /// A duration from when the constraint is applied.
-    In(Duration),
-    /// A duration after an event happens.
-    InAfter(Duration, Event),
-    /// Every time a named external event is raised.
-    External(ExternalId),
+/// What a trigger does when it fires.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Then {
+    /// Satisfies one enablement constraint of the facet: `disable <facet> until <when>`.
+    Enable(Facet),
+    /// Terminates the node and its subtree: `terminate <when>`. Never fires if the event's node
+    /// reaches the event by being terminated itself (docs/semantics.md, "Termination").
+    Terminate,
+    /// Activates the monitor: `activate <when>` (monitors only). Fires also when the event's node
+    /// reaches the event by termination.
+    Activate,
 }
 
 /// A synchronisation constraint on one node.
@@ -131,12 +126,8 @@ pub enum Constraint {
     Serial(NodeRef),
     /// `parallel`: no constraint.
     Parallel,
-    /// `disable <facet> until …`.
-    Disable(Facet, Until),
-    /// `terminate …`.
-    Terminate(TerminateWhen),
-    /// `activate …` (monitors only).
-    Activate(ActivateWhen),
+    /// When something happens, do something: `disable … until`, `terminate …`, `activate …`.
+    Trigger(When, Then),
 }
 
 impl Constraint {
@@ -145,11 +136,35 @@ impl Constraint {
         Constraint::Sequential(Facet::Execution, NodeRef::Previous)
     }
 
+    /// `disable <facet> until <when>`.
+    pub fn disable(facet: Facet, when: When) -> Constraint {
+        Constraint::Trigger(when, Then::Enable(facet))
+    }
+
+    /// `terminate <when>`.
+    pub fn terminate(when: When) -> Constraint {
+        Constraint::Trigger(when, Then::Terminate)
+    }
+
+    /// `activate <when>` (monitors only).
+    pub fn activate(when: When) -> Constraint {
+        Constraint::Trigger(when, Then::Activate)
+    }
+
     /// Whether this constraint may still be applied to a node whose handling has started.
     pub fn applies_after_start(&self) -> bool {
         matches!(
             self,
-            Constraint::Terminate(_) | Constraint::Activate(_) | Constraint::Parallel
+            Constraint::Trigger(_, Then::Terminate | Then::Activate) | Constraint::Parallel
+        )
+    }
+
+    /// Whether it is applied after the node is linked under its parent (terminate and activate forms
+    /// may fire at once, which needs the node in the tree).
+    pub(crate) fn applies_after_link(&self) -> bool {
+        matches!(
+            self,
+            Constraint::Trigger(_, Then::Terminate | Then::Activate)
         )
     }
 }

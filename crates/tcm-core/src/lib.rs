@@ -18,7 +18,7 @@
 //! // Only `a` may start: `b`'s execution waits for `a`'s.
 //! assert!(matches!(engine.poll_effect(), Some(Effect::Start { node, .. }) if node == a));
 //! assert!(engine.poll_effect().is_none());
-//! engine.action_finished(Time::from_nanos(5), a, Ok(())).unwrap();
+//! engine.handle_action_finished(Time::from_nanos(5), a, Ok(())).unwrap();
 //! assert!(matches!(engine.poll_effect(), Some(Effect::Start { node, .. }) if node == b));
 //! ```
 //!
@@ -33,6 +33,7 @@
 
 mod arena;
 mod constraint;
+mod driver;
 mod engine;
 mod failure;
 mod ids;
@@ -42,9 +43,10 @@ mod time;
 #[cfg(test)]
 mod tests;
 
-pub use constraint::{ActivateWhen, Constraint, Event, NodeRef, TerminateWhen, Until};
+pub use constraint::{Constraint, Event, NodeRef, Then, When};
+pub use driver::{Driver, Next, Shell};
 pub use engine::{
-    Blocked, EachActivation, Effect, Engine, EngineError, HandlerSpec, MonitorSpec, NodeInfo,
+    Blocked, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorSpec, NodeInfo,
     OnTerminate, Purpose, Spawn, Stats, WatchOutcome,
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, short_type_name};

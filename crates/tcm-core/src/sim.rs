@@ -4,10 +4,11 @@
 //! children, add constraints, terminate nodes) and the node, returning when and how the action
 //! ends. Monitor bodies, exception handlers, retries and wiretaps are [`Factory`]s, called once per
 //! use. [`Sim::run`] then plays the agenda: it starts actions, finishes them at their time, fires
-//! timers, and collects the trace. Used by this crate's tests, property tests and benchmarks; the
+//! timers, and collects the trace, through the same [`Driver`] steps as the tokio shell in `tcm`. Used by this crate's tests, property tests and benchmarks; the
 //! tokio shell in `tcm` does the same with real async actions.
 
-use crate::{Effect, Engine, Failure, NodeId, Purpose, Time, WatchOutcome, WatchToken, WiretapId};
+use crate::driver::{Driver, Shell};
+use crate::{Engine, Failure, Job, NodeId, Purpose, Time, WatchOutcome, WatchToken};
 use std::collections::BTreeMap;
 use std::rc::Rc;
 use std::time::Duration;
@@ -83,10 +84,10 @@ pub fn noop() -> Body {
     body(|_, _, _| Outcome::done())
 }
 
+/// An end the simulator will report: a job's result (or a handler's bypass) at its time.
 enum Finish {
-    Action(NodeId, Result<(), Failure>),
+    Done(Job, Result<(), Failure>),
     Bypass(NodeId),
-    Tap(NodeId, WiretapId, Result<(), Failure>),
 }
 
 /// Called for each watch notification, with the engine, so a "waiting" body can continue.
@@ -96,6 +97,11 @@ pub type NotifyHook = Box<dyn FnMut(&mut SimEngine, WatchToken, &WatchOutcome, T
 pub struct Sim {
     /// The engine under test.
     pub engine: SimEngine,
+    shell: SimShell,
+}
+
+/// The simulator's side of the [`Driver`]: scripted actions, their ends on virtual time, the trace.
+struct SimShell {
     now: Time,
     pending: BTreeMap<(Time, u64), Finish>,
     by_node: BTreeMap<NodeId, (Time, u64)>,
@@ -117,20 +123,22 @@ impl Sim {
     pub fn new() -> Sim {
         Sim {
             engine: Engine::new(1),
-            now: Time::ZERO,
-            pending: BTreeMap::new(),
-            by_node: BTreeMap::new(),
-            seq: 0,
-            trace: Vec::new(),
-            notes: Vec::new(),
-            keep_trace: true,
-            on_notify: None,
+            shell: SimShell {
+                now: Time::ZERO,
+                pending: BTreeMap::new(),
+                by_node: BTreeMap::new(),
+                seq: 0,
+                trace: Vec::new(),
+                notes: Vec::new(),
+                keep_trace: true,
+                on_notify: None,
+            },
         }
     }
 
     /// Drops trace records instead of keeping them (for runs of millions of nodes).
     pub fn without_trace(mut self) -> Sim {
-        self.keep_trace = false;
+        self.shell.keep_trace = false;
         self.engine.set_tracing(false);
         self
     }
@@ -140,153 +148,118 @@ impl Sim {
         mut self,
         hook: impl FnMut(&mut SimEngine, WatchToken, &WatchOutcome, Time) + 'static,
     ) -> Sim {
-        self.on_notify = Some(Box::new(hook));
+        self.shell.on_notify = Some(Box::new(hook));
         self
     }
 
     /// The current virtual time.
     pub fn now(&self) -> Time {
-        self.now
+        self.shell.now
     }
 
     /// The trace so far.
     pub fn trace(&self) -> &[TraceEvent] {
-        &self.trace
+        &self.shell.trace
     }
 
     /// Watch notifications received so far.
     pub fn notes(&self) -> &[(WatchToken, WatchOutcome)] {
-        &self.notes
-    }
-
-    fn schedule(&mut self, d: Duration, finish: Finish, cancellable: Option<NodeId>) {
-        let key = (self.now + d, self.seq);
-        self.seq += 1;
-        self.pending.insert(key, finish);
-        if let Some(node) = cancellable {
-            self.by_node.insert(node, key);
-        }
-    }
-
-    fn drain(&mut self) {
-        while let Some(first) = self.engine.poll_effect() {
-            // A node may be started and terminated in one settle: then it must not run at all.
-            let mut batch = vec![first];
-            while let Some(e) = self.engine.poll_effect() {
-                batch.push(e);
-            }
-            let cancelled: Vec<NodeId> = batch
-                .iter()
-                .filter_map(|e| match e {
-                    Effect::Cancel { node } => Some(*node),
-                    _ => None,
-                })
-                .collect();
-            for effect in batch {
-                self.apply(effect, &cancelled);
-            }
-        }
-        if self.keep_trace {
-            while let Some(ev) = self.engine.poll_trace() {
-                self.trace.push(ev);
-            }
-        }
-    }
-
-    fn apply(&mut self, effect: Effect<Body, Factory>, cancelled: &[NodeId]) {
-        match effect {
-            Effect::Start { node, .. } | Effect::Invoke { node, .. }
-                if cancelled.contains(&node) => {}
-            Effect::Start { node, action } => {
-                let outcome = (action.0)(&mut self.engine, node, self.now);
-                self.outcome(node, outcome, None);
-            }
-            Effect::Invoke {
-                node,
-                body,
-                purpose,
-            } => {
-                let outcome = (body.0)(&mut self.engine, node, self.now, &purpose);
-                let tap = match *purpose {
-                    Purpose::Tap { tap, .. } => Some(tap),
-                    _ => None,
-                };
-                self.outcome(node, outcome, tap);
-            }
-            Effect::Cancel { node } => {
-                if let Some(key) = self.by_node.remove(&node) {
-                    self.pending.remove(&key);
-                }
-            }
-            Effect::Notify { token, outcome } => {
-                if let Some(hook) = self.on_notify.as_mut() {
-                    hook(&mut self.engine, token, &outcome, self.now);
-                }
-                if self.keep_trace {
-                    self.notes.push((token, outcome));
-                }
-            }
-        }
-    }
-
-    fn outcome(&mut self, node: NodeId, outcome: Outcome, tap: Option<WiretapId>) {
-        match (outcome, tap) {
-            (Outcome::Never, _) => {}
-            (Outcome::After(d, res), Some(tap)) => {
-                self.schedule(d, Finish::Tap(node, tap, res), None);
-            }
-            (Outcome::Bypass(_), Some(tap)) => {
-                self.schedule(Duration::ZERO, Finish::Tap(node, tap, Ok(())), None)
-            }
-            (Outcome::After(d, res), None) => {
-                self.schedule(d, Finish::Action(node, res), Some(node))
-            }
-            (Outcome::Bypass(d), None) => self.schedule(d, Finish::Bypass(node), Some(node)),
-        }
+        &self.shell.notes
     }
 
     /// Runs until nothing is left to do or virtual time passes `limit`. Returns the end time.
     pub fn run_until(&mut self, limit: Time) -> Time {
+        let sh = &mut self.shell;
         loop {
-            self.drain();
-            let next_action = self.pending.keys().next().map(|k| k.0);
-            let next_timer = self.engine.poll_timeout();
-            let next = match (next_action, next_timer) {
-                (Some(a), Some(t)) => a.min(t),
-                (Some(a), None) => a,
-                (None, Some(t)) => t,
-                (None, None) => return self.now,
+            let next = Driver::turn(&mut self.engine, sh, sh.now);
+            let next_end = sh.pending.keys().next().map(|k| k.0);
+            let Some(at) = [next_end, next.deadline].into_iter().flatten().min() else {
+                return sh.now;
             };
-            if next > limit {
-                self.now = limit;
-                return self.now;
+            if at > limit {
+                sh.now = limit;
+                return sh.now;
             }
-            self.now = next;
-            if next_action == Some(next) {
-                if let Some((_, finish)) = self.pending.pop_first() {
-                    // The node may have been terminated meanwhile; the engine ignores it then.
-                    let _ = match finish {
-                        Finish::Action(node, res) => {
-                            self.by_node.remove(&node);
-                            self.engine.action_finished(self.now, node, res)
-                        }
-                        Finish::Bypass(node) => {
-                            self.by_node.remove(&node);
-                            self.engine.bypass(self.now, node)
-                        }
-                        Finish::Tap(node, tap, res) => {
-                            self.engine.tap_finished(self.now, node, tap, res)
-                        }
-                    };
+            sh.now = at;
+            if next_end != Some(at) {
+                continue; // A timer: the next turn fires it.
+            }
+            let Some((_, finish)) = sh.pending.pop_first() else {
+                continue;
+            };
+            // The node may have been terminated meanwhile; the engine ignores the end then.
+            let _ = match finish {
+                Finish::Done(job, res) => {
+                    sh.by_node.remove(&job.node());
+                    self.engine.handle_action_finished(sh.now, job, res)
                 }
-            } else {
-                self.engine.handle_timeout(self.now);
-            }
+                Finish::Bypass(node) => {
+                    sh.by_node.remove(&node);
+                    let _ = self.engine.request_bypass(sh.now, node);
+                    self.engine.handle_action_finished(sh.now, node, Ok(()))
+                }
+            };
         }
     }
 
     /// Runs until nothing is left to do.
     pub fn run(&mut self) -> Time {
         self.run_until(Time::NEVER)
+    }
+}
+
+impl SimShell {
+    fn schedule(&mut self, d: Duration, finish: Finish, job: Job) {
+        let key = (self.now + d, self.seq);
+        self.seq += 1;
+        self.pending.insert(key, finish);
+        if job.cancellable() {
+            self.by_node.insert(job.node(), key);
+        }
+    }
+
+    fn outcome(&mut self, job: Job, outcome: Outcome) {
+        match outcome {
+            Outcome::Never => {}
+            Outcome::After(d, res) => self.schedule(d, Finish::Done(job, res), job),
+            // A wiretap check cannot bypass: it passes.
+            Outcome::Bypass(_) if !job.cancellable() => {
+                self.schedule(Duration::ZERO, Finish::Done(job, Ok(())), job)
+            }
+            Outcome::Bypass(d) => self.schedule(d, Finish::Bypass(job.node()), job),
+        }
+    }
+}
+
+impl Shell<Body, Factory> for SimShell {
+    fn start(&mut self, engine: &mut SimEngine, node: NodeId, action: Body) {
+        let outcome = (action.0)(engine, node, self.now);
+        self.outcome(Job::from(node), outcome);
+    }
+
+    fn invoke(&mut self, engine: &mut SimEngine, job: Job, body: Factory, purpose: Box<Purpose>) {
+        let outcome = (body.0)(engine, job.node(), self.now, &purpose);
+        self.outcome(job, outcome);
+    }
+
+    fn cancel(&mut self, node: NodeId) {
+        if let Some(key) = self.by_node.remove(&node) {
+            self.pending.remove(&key);
+        }
+    }
+
+    fn notify(&mut self, engine: &mut SimEngine, token: WatchToken, outcome: WatchOutcome) {
+        if let Some(hook) = self.on_notify.as_mut() {
+            hook(engine, token, &outcome, self.now);
+        }
+        if self.keep_trace {
+            self.notes.push((token, outcome));
+        }
+    }
+
+    fn trace(&mut self, record: TraceEvent) {
+        if self.keep_trace {
+            self.trace.push(record);
+        }
     }
 }

@@ -1,4 +1,5 @@
-//! Tree dumps of a [`Replay`]: TCM's `TCM_DisplayTree` form (catalogue §5.4) and a modern form.
+//! Tree dumps of a [`Replay`]: TCM's `TCM_DisplayTree` form and a modern form
+//! (docs/semantics.md, "TCM-compatible output").
 //!
 //! TCM's form prints one line per node, indented 3 spaces per depth, `<name> {id} [h|a|p|t]` with the
 //! codes handling `uh/hg/hd`, achieving (execution) `ua/ag/ad`, planning (expansion) `up/pg/pd` and

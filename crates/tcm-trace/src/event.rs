@@ -9,7 +9,10 @@ use crate::state::{Facet, NodeKind, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 1;
+pub const TRACE_FORMAT_VERSION: u32 = 2;
+
+/// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
+pub const OLDEST_READABLE_VERSION: u32 = 1;
 
 /// One trace record.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -36,91 +39,190 @@ pub struct TraceEventRef {
 
 /// A constraint as applied, with every relative reference resolved and every relative time made
 /// absolute (nanoseconds since the run started).
+///
+/// Every timed or event-driven constraint is one [`TraceConstraint::Trigger`]: *when* something
+/// happens ([`TraceWhen`]), *then* something is done ([`TraceThen`]). `disable F until …` is a
+/// trigger that enables `F`, `terminate …` one that terminates, `activate …` one that activates a
+/// monitor. Version 1 traces wrote one form per combination (`disable_until_event`,
+/// `terminate_at_time`, …); they are read into this shape (`LegacyConstraint`).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(tag = "form", rename_all = "snake_case")]
+#[serde(tag = "form", rename_all = "snake_case", from = "AnyConstraint")]
 pub enum TraceConstraint {
     /// Execution waits for expansion completed.
     ExpandFirst,
     /// Expansion waits for execution enabled.
     DelayExpansion,
-    /// `facet` may not become enabled before `event` happened.
+    /// When `when` happens, do `then`.
+    Trigger {
+        /// What it waits for.
+        when: TraceWhen,
+        /// What it does then.
+        then: TraceThen,
+    },
+}
+
+impl TraceConstraint {
+    /// A trigger.
+    pub fn trigger(when: TraceWhen, then: TraceThen) -> TraceConstraint {
+        TraceConstraint::Trigger { when, then }
+    }
+
+    /// The event a trigger waits for, if it waits for one.
+    pub fn event(&self) -> Option<TraceEventRef> {
+        match self {
+            TraceConstraint::Trigger { when, .. } => when.event(),
+            _ => None,
+        }
+    }
+}
+
+/// When a trigger fires, as recorded: relative times already made absolute.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TraceWhen {
+    /// At once.
+    Now,
+    /// At an absolute time (ns since the run started).
+    At(u64),
+    /// When the event happens.
+    Event(TraceEventRef),
+    /// A delay after the event happens.
+    After {
+        /// Delay (ns).
+        delay_ns: u64,
+        /// The event the delay counts from.
+        event: TraceEventRef,
+    },
+    /// When the named external event is raised.
+    External(String),
+}
+
+impl TraceWhen {
+    /// The event waited for, if any.
+    pub fn event(&self) -> Option<TraceEventRef> {
+        match self {
+            TraceWhen::Event(e) | TraceWhen::After { event: e, .. } => Some(*e),
+            _ => None,
+        }
+    }
+}
+
+/// What a trigger does when it fires.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TraceThen {
+    /// Satisfies one enablement constraint of the facet (`disable <facet> until …`).
+    Enable(Facet),
+    /// Terminates the node (`terminate …`).
+    Terminate,
+    /// Activates the monitor (`activate …`).
+    Activate,
+}
+
+/// A constraint record as either version writes it: the current forms, or version 1's one form per
+/// combination. Only used to read; writing always uses [`TraceConstraint`]'s current forms.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum AnyConstraint {
+    Current(CurrentConstraint),
+    Legacy(LegacyConstraint),
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "form", rename_all = "snake_case")]
+enum CurrentConstraint {
+    ExpandFirst,
+    DelayExpansion,
+    Trigger { when: TraceWhen, then: TraceThen },
+}
+
+/// The constraint forms of trace format version 1, kept so that old traces still read.
+#[derive(Deserialize)]
+#[serde(tag = "form", rename_all = "snake_case")]
+enum LegacyConstraint {
     DisableUntilEvent {
-        /// Constrained facet.
         facet: Facet,
-        /// Awaited event.
         event: TraceEventRef,
     },
-    /// `facet` may not become enabled before time `at`.
     DisableUntilTime {
-        /// Constrained facet.
         facet: Facet,
-        /// Absolute time (ns).
         at: u64,
     },
-    /// `facet` may not become enabled before `delay_ns` after `event`.
     DisableForAfter {
-        /// Constrained facet.
         facet: Facet,
-        /// Delay (ns).
         delay_ns: u64,
-        /// Event the delay counts from.
         event: TraceEventRef,
     },
-    /// `facet` may not become enabled before the external event is raised.
     DisableUntilExternal {
-        /// Constrained facet.
         facet: Facet,
-        /// Name of the external event.
         name: String,
     },
-    /// Terminate at once.
     TerminateNow,
-    /// Terminate when `event` happens (not if its node is terminated first).
     TerminateAtEvent {
-        /// Triggering event.
         event: TraceEventRef,
     },
-    /// Terminate at time `at` (ns).
     TerminateAtTime {
-        /// Absolute time (ns).
         at: u64,
     },
-    /// Terminate `delay_ns` after `event`.
     TerminateInAfter {
-        /// Delay (ns).
         delay_ns: u64,
-        /// Event the delay counts from.
         event: TraceEventRef,
     },
-    /// Terminate when the external event is raised.
     TerminateAtExternal {
-        /// Name of the external event.
         name: String,
     },
-    /// Activate the monitor as soon as its handling is active.
     ActivateNow,
-    /// Activate the monitor when `event` happens (also by termination).
     ActivateAtEvent {
-        /// Triggering event.
         event: TraceEventRef,
     },
-    /// Activate the monitor at time `at` (ns).
     ActivateAtTime {
-        /// Absolute time (ns).
         at: u64,
     },
-    /// Activate the monitor `delay_ns` after `event`.
     ActivateInAfter {
-        /// Delay (ns).
         delay_ns: u64,
-        /// Event the delay counts from.
         event: TraceEventRef,
     },
-    /// Activate the monitor every time the external event is raised.
     ActivateAtExternal {
-        /// Name of the external event.
         name: String,
     },
+}
+
+impl From<AnyConstraint> for TraceConstraint {
+    fn from(c: AnyConstraint) -> TraceConstraint {
+        use LegacyConstraint as L;
+        use TraceThen::{Activate, Enable, Terminate};
+        use TraceWhen as W;
+        let t = TraceConstraint::trigger;
+        match c {
+            AnyConstraint::Current(CurrentConstraint::ExpandFirst) => TraceConstraint::ExpandFirst,
+            AnyConstraint::Current(CurrentConstraint::DelayExpansion) => {
+                TraceConstraint::DelayExpansion
+            }
+            AnyConstraint::Current(CurrentConstraint::Trigger { when, then }) => t(when, then),
+            AnyConstraint::Legacy(l) => match l {
+                L::DisableUntilEvent { facet, event } => t(W::Event(event), Enable(facet)),
+                L::DisableUntilTime { facet, at } => t(W::At(at), Enable(facet)),
+                L::DisableForAfter {
+                    facet,
+                    delay_ns,
+                    event,
+                } => t(W::After { delay_ns, event }, Enable(facet)),
+                L::DisableUntilExternal { facet, name } => t(W::External(name), Enable(facet)),
+                L::TerminateNow => t(W::Now, Terminate),
+                L::TerminateAtEvent { event } => t(W::Event(event), Terminate),
+                L::TerminateAtTime { at } => t(W::At(at), Terminate),
+                L::TerminateInAfter { delay_ns, event } => {
+                    t(W::After { delay_ns, event }, Terminate)
+                }
+                L::TerminateAtExternal { name } => t(W::External(name), Terminate),
+                L::ActivateNow => t(W::Now, Activate),
+                L::ActivateAtEvent { event } => t(W::Event(event), Activate),
+                L::ActivateAtTime { at } => t(W::At(at), Activate),
+                L::ActivateInAfter { delay_ns, event } => t(W::After { delay_ns, event }, Activate),
+                L::ActivateAtExternal { name } => t(W::External(name), Activate),
+            },
+        }
+    }
 }
 
 /// The body of a trace record.

@@ -4,7 +4,7 @@
 //! trace or iterate a [`JsonlReader`] to stream a long one. A trace file is user input, so every
 //! reading error names the line and says what is wrong.
 
-use crate::event::{TRACE_FORMAT_VERSION, TraceEvent, TraceKind};
+use crate::event::{OLDEST_READABLE_VERSION, TRACE_FORMAT_VERSION, TraceEvent, TraceKind};
 use std::io::{self, BufRead, Write};
 
 #[cfg(test)]
@@ -32,17 +32,19 @@ pub enum ReadError {
         #[source]
         source: serde_json::Error,
     },
-    /// The trace was written with a newer, incompatible schema.
+    /// The trace was written with a schema this reader does not know (newer, or too old).
     #[error(
-        "line {line}: the trace has format version {found}, but this reader reads version {supported} only"
+        "line {line}: the trace has format version {found}, but this reader reads versions {oldest} to {supported}"
     )]
     Version {
         /// Line number, from 1.
         line: usize,
         /// Version found in the `run_started` record.
         found: u32,
-        /// Version this crate reads.
+        /// The newest version this crate reads (the one it writes).
         supported: u32,
+        /// The oldest version this crate still reads.
+        oldest: u32,
     },
 }
 
@@ -74,11 +76,12 @@ pub fn parse_line(line: &str, line_no: usize) -> Result<TraceEvent, ReadError> {
         source,
     })?;
     if let TraceKind::RunStarted { version, .. } = ev.kind {
-        if version != TRACE_FORMAT_VERSION {
+        if !(OLDEST_READABLE_VERSION..=TRACE_FORMAT_VERSION).contains(&version) {
             return Err(ReadError::Version {
                 line: line_no,
                 found: version,
                 supported: TRACE_FORMAT_VERSION,
+                oldest: OLDEST_READABLE_VERSION,
             });
         }
     }

@@ -5,8 +5,8 @@
 //!
 //! - [`jsonl`]: the JSON-lines codec ([`write_line`], [`read_jsonl`]), schema in `docs/trace-format.md`;
 //! - [`Replay`]: the task tree rebuilt record by record, shared by all the readers below;
-//! - [`TextLog`]: TCM's terminal log (catalogue §5.1, §5.2), column for column;
-//! - [`dump_tcm`] and [`dump_modern`]: tree dumps (catalogue §5.4);
+//! - [`TextLog`]: TCM's terminal log, column for column, and [`dump_tcm`] and [`dump_modern`]: tree
+//!   dumps in TCM's form and ours (docs/semantics.md, "TCM-compatible output");
 //! - [`check`]: the trace checker every runtime test runs, with its [`Rule`]s;
 //! - [`story`]: one line per transition, what tests assert on.
 //!
@@ -49,7 +49,10 @@ mod test_util;
 
 pub use check::{CheckReport, Checker, MAX_VIOLATIONS, Rule, Violation, check};
 pub use dump::{dump_modern, dump_tcm};
-pub use event::{TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent, TraceEventRef, TraceKind};
+pub use event::{
+    OLDEST_READABLE_VERSION, TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent, TraceEventRef,
+    TraceKind, TraceThen, TraceWhen,
+};
 pub use jsonl::{JsonlReader, ReadError, read_jsonl, to_line, write_line};
 pub use replay::{MonitorInfo, ROOT_NAME, Replay, ReplayError, ReplayNode};
 pub use state::{Facet, NodeKind, Point, State, Termination};

@@ -44,7 +44,7 @@ pub fn story(trace: &[TraceEvent]) -> Vec<String> {
 
 /// How failures were handled, in order: `handler<-Exception` for each handler chosen, `bypass` for
 /// each bypass.
-pub fn handling(trace: &[TraceEvent]) -> Vec<String> {
+pub fn handler_choices(trace: &[TraceEvent]) -> Vec<String> {
     trace
         .iter()
         .filter_map(|e| match &e.kind {

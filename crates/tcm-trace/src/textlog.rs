@@ -1,4 +1,5 @@
-//! TCM's terminal log, rendered from trace records (catalogue §5.1, and §5.2 in trace mode).
+//! TCM's terminal log, rendered from trace records: the default logger's lines, and the TRACE
+//! builds' lines in trace mode (docs/semantics.md, "TCM-compatible output").
 //!
 //! [`TextLog`] keeps a [`Replay`] and turns each record into the lines TCM's default logger would have
 //! printed, with TCM's column layout, so logs can be compared textually with the original's:
@@ -9,7 +10,7 @@
 //!   Success               A {1}:
 //! ```
 //!
-//! Mapping from our records (decision 6 in `decisions.md`: TCM's words appear only here):
+//! Mapping from our records (TCM's words appear only here; docs/semantics.md, "Words"):
 //!
 //! - `spawned` prints the "ON HOLD (Inactive)" line.
 //! - Handling entering *enabled* prints "ON HOLD --> TCM (Sent)": TCM printed it when the node was queued,
@@ -29,7 +30,8 @@
 //! Known differences from TCM:
 //!
 //! - Nodes released by the same event start in spawn order; TCM started them in reverse registration
-//!   order (decision 2 in `decisions.md`), so such lines may appear in a different order.
+//!   order (docs/semantics.md, "Agenda and release order"), so such lines may come in another
+//!   order.
 //! - Time (with [`TextLogOptions::time`]) is virtual time since the run started, rendered
 //!   ` HHH:MM:SS.hh` (hours right-justified in 3), not the wall-clock time of day.
 //! - TCM's `WARNING: _displayStatus` lines for odd transitions are not produced; the trace checker reports
@@ -50,7 +52,7 @@ mod tests;
 pub struct TextLogOptions {
     /// Append the time since the run started, ` HHH:MM:SS.hh`, to every line.
     pub time: bool,
-    /// Also print TCM's TRACE lines (catalogue §5.2) for every facet and termination transition.
+    /// Also print the lines of TCM's TRACE builds for every facet and termination transition.
     pub trace: bool,
 }
 

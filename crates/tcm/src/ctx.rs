@@ -3,14 +3,14 @@
 //! exception, bypass it or retry the failed task.
 
 use crate::Error;
-use crate::runtime::{Shared, lock};
+use crate::host::{Shared, lock};
 use crate::task::{Action, Factory, Handler, Task, Value};
 use std::any::Any;
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::{
-    ActivateWhen, Constraint, Event, ExternalId, Facet, Failure, NodeId, NodeRef, Point, Purpose,
-    Spawn, TerminateWhen, Until, WatchOutcome, WatchToken,
+    Constraint, Event, ExternalId, Facet, Failure, NodeId, NodeRef, Point, Purpose, Spawn,
+    WatchOutcome, WatchToken, When,
 };
 use tokio::sync::oneshot;
 
@@ -34,10 +34,10 @@ impl Ctx {
     }
 
     /// The engine time of the next occurrence of a time of day (`secs` since midnight, UTC), for
-    /// `disable until` / `terminate at` an absolute time (decision 4: resolved against the wall clock
-    /// now; a time already past today is due at once).
+    /// `disable until` / `terminate at` an absolute time (docs/semantics.md, "Time": resolved against the
+    /// wall clock now; a time already past today is due at once).
     pub fn time_of_day(&self, secs: f64) -> tcm_core::Time {
-        self.shared.time_of_day(secs)
+        self.shared.clock.time_of_day(secs)
     }
 
     /// Starts building a spawn of `task` as a child of this node.
@@ -133,7 +133,7 @@ impl Ctx {
     pub fn raise(&self, name: &str) -> Result<(), Error> {
         self.with_engine(|e, now| {
             let id = e.external(name);
-            e.raise(now, id);
+            e.handle_external(now, id);
             Ok(())
         })
     }
@@ -203,8 +203,11 @@ impl Ctx {
     pub fn bypass(&self) -> Result<(), Failure> {
         match (self.failure(), self.shared.enter()) {
             (Some(_), Ok(mut inner)) => {
-                inner.bypassed.insert(self.node);
-                Ok(())
+                let now = self.shared.now();
+                inner
+                    .engine
+                    .request_bypass(now, self.node)
+                    .map_err(|e| Failure::from(Error::from(e)))
             }
             (None, _) => Err(Failure::new(
                 "NotAHandler",
@@ -270,27 +273,27 @@ impl Spawner<'_> {
 
     /// `disable <facet> until <event>`.
     pub fn disable_until(self, facet: Facet, event: Event) -> Self {
-        self.with(Constraint::Disable(facet, Until::Event(event)))
+        self.with(Constraint::disable(facet, When::Event(event)))
     }
 
     /// `disable <facet> for <duration>`.
     pub fn disable_for(self, facet: Facet, d: Duration) -> Self {
-        self.with(Constraint::Disable(facet, Until::For(d)))
+        self.with(Constraint::disable(facet, When::In(d)))
     }
 
     /// `terminate at <event>`.
     pub fn terminate_at(self, event: Event) -> Self {
-        self.with(Constraint::Terminate(TerminateWhen::Event(event)))
+        self.with(Constraint::terminate(When::Event(event)))
     }
 
     /// `terminate in <duration>`.
     pub fn terminate_in(self, d: Duration) -> Self {
-        self.with(Constraint::Terminate(TerminateWhen::In(d)))
+        self.with(Constraint::terminate(When::In(d)))
     }
 
     /// `activate …` (monitors).
-    pub fn activate(self, when: ActivateWhen) -> Self {
-        self.with(Constraint::Activate(when))
+    pub fn activate(self, when: When) -> Self {
+        self.with(Constraint::activate(when))
     }
 
     /// Overrides the monitor's maximum activations for this spawn.

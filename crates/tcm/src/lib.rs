@@ -17,7 +17,9 @@
 //! The semantics live in `tcm-core` (the engine); see its documentation and `ARCHITECTURE.md`.
 #![warn(missing_docs)]
 
+mod clock;
 mod ctx;
+mod host;
 mod runtime;
 mod sink;
 mod task;
@@ -28,12 +30,11 @@ pub use ctx::{Ctx, Spawner};
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink};
 pub use task::{Action, ActionFuture, Exception, Factory, Handler, Monitor, Task, Value, factory};
-pub use tcm_core::{ActivateWhen, EachActivation, TapWhen, WiretapId};
 pub use tcm_core::{
     Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,
-    FatalFailure, NodeId, NodeKind, NodeRef, Point, State, Stats, TerminateWhen, Time, Until,
-    WatchOutcome,
+    FatalFailure, NodeId, NodeKind, NodeRef, Point, State, Stats, Time, WatchOutcome,
 };
+pub use tcm_core::{EachActivation, TapWhen, Then, When, WiretapId};
 pub use tcm_trace::{TraceEvent, TraceKind};
 
 /// Errors of the runtime API. Inside an action, `?` turns them into a failure of the node.

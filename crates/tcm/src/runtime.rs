@@ -7,201 +7,22 @@
 //! mutex so that actions, on any worker thread, call it directly and briefly.
 
 use crate::Error;
+use crate::clock::Clock;
 use crate::ctx::Ctx;
+use crate::host::{Inner, Shared, TOP, lock};
 use crate::sink::TraceSink;
-use crate::task::{Action, Factory, Task, Value};
+use crate::task::Task;
 use std::any::Any;
-use std::collections::BTreeMap;
 use std::future::Future;
-use std::panic::AssertUnwindSafe;
-use std::pin::Pin;
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tcm_core::{
-    Blocked, Effect, Engine, Event, Failure, FailurePolicy, FatalFailure, NodeId, Stats, Time,
+    Blocked, Engine, Event, Failure, FailurePolicy, FatalFailure, Next, Stats, TapWhen,
     WatchOutcome, WatchToken,
 };
-use tcm_core::{Purpose, TapWhen, WiretapId};
 use tcm_trace::{Facet, Point};
-use tokio::sync::{Notify, oneshot};
-use tokio::task::AbortHandle;
-
-pub(crate) struct Inner {
-    pub(crate) engine: Engine<Action, Factory>,
-    pub(crate) watchers: BTreeMap<u64, oneshot::Sender<WatchOutcome>>,
-    // Nodes whose action's value someone waits for; filled when the action returns.
-    pub(crate) values: BTreeMap<NodeId, Option<Value>>,
-    // Running actions, to abort on cancellation. Only looked up, never iterated in an order that
-    // shows in the trace, so a hash map keeps determinism.
-    aborts: Aborts,
-    next_token: u64,
-    // Where actions are spawned: the tokio runtime of `Runtime::run`.
-    spawner: Option<tokio::runtime::Handle>,
-    // How the top-level task ended, once it did.
-    top_done: Option<WatchOutcome>,
-    // The deadline the driver sleeps until; an earlier timer must wake it.
-    armed: Option<Time>,
-    // Handler nodes whose body called `Ctx::bypass`.
-    pub(crate) bypassed: std::collections::BTreeSet<NodeId>,
-}
-
-impl Inner {
-    pub(crate) fn next_token(&mut self) -> u64 {
-        self.next_token += 1;
-        self.next_token
-    }
-}
-
-pub(crate) struct Shared {
-    pub(crate) inner: Mutex<Inner>,
-    pub(crate) wake: Notify,
-    start: tokio::time::Instant,
-    // The wall clock when the run's time zero was taken, for times of day.
-    wall_start: std::time::SystemTime,
-    handles: AtomicUsize,
-}
-
-impl Shared {
-    /// Virtual time of the engine: tokio's clock (paused or real) since the runtime was created.
-    pub(crate) fn now(&self) -> Time {
-        let d = tokio::time::Instant::now().saturating_duration_since(self.start);
-        Time::from_nanos(u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
-    }
-}
-
-impl Shared {
-    /// See [`Ctx::time_of_day`].
-    pub(crate) fn time_of_day(&self, secs: f64) -> Time {
-        const DAY: f64 = 86_400.0;
-        let now = self.now();
-        let wall = self.wall_start + now.since_start();
-        let since_epoch = wall
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64());
-        let today = since_epoch - since_epoch.rem_euclid(DAY);
-        let ahead = (today + secs.clamp(0.0, DAY) - since_epoch).max(0.0);
-        now + Duration::from_secs_f64(ahead)
-    }
-}
-
-pub(crate) fn lock(shared: &Shared) -> Result<MutexGuard<'_, Inner>, Error> {
-    shared.inner.lock().map_err(|_| Error::Poisoned)
-}
-
-/// Exclusive access to the engine. When it ends, the engine's effects are carried out at once, by
-/// whoever changed the engine (an action, a handle, the driver): actions start, cancelled ones are
-/// aborted, waiters are answered. The driver is woken only for what only it can do: hand trace
-/// records to the sinks, re-arm the timer, end the run.
-pub(crate) struct Session<'a> {
-    guard: MutexGuard<'a, Inner>,
-    shared: &'a Arc<Shared>,
-}
-
-impl Shared {
-    pub(crate) fn enter(self: &Arc<Shared>) -> Result<Session<'_>, Error> {
-        Ok(Session {
-            guard: lock(self)?,
-            shared: self,
-        })
-    }
-}
-
-impl std::ops::Deref for Session<'_> {
-    type Target = Inner;
-    fn deref(&self) -> &Inner {
-        &self.guard
-    }
-}
-
-impl std::ops::DerefMut for Session<'_> {
-    fn deref_mut(&mut self) -> &mut Inner {
-        &mut self.guard
-    }
-}
-
-impl Drop for Session<'_> {
-    fn drop(&mut self) {
-        if pump(self.shared, &mut self.guard) {
-            self.shared.wake.notify_one();
-        }
-    }
-}
-
-/// Carries out the engine's effects; returns whether the driver must wake.
-fn pump(shared: &Arc<Shared>, inner: &mut Inner) -> bool {
-    let mut wake = false;
-    while let Some(effect) = inner.engine.poll_effect() {
-        match effect {
-            Effect::Start { node, action } => {
-                // Spawned under the lock: the task's own completion takes the lock, so its abort
-                // handle is recorded before it can finish.
-                let ctx = Ctx {
-                    shared: shared.clone(),
-                    node,
-                    purpose: None,
-                };
-                let h = (action.0)(Launch {
-                    ctx,
-                    rt: inner.spawner.as_ref(),
-                });
-                inner.aborts.insert(node, h.abort_handle());
-            }
-            Effect::Invoke {
-                node,
-                body,
-                purpose,
-            } => {
-                let tap = match *purpose {
-                    Purpose::Tap { tap, .. } => Some(tap),
-                    _ => None,
-                };
-                let ctx = Ctx {
-                    shared: shared.clone(),
-                    node,
-                    purpose: Some(Arc::from(purpose)),
-                };
-                let fut = body(ctx);
-                let sh = shared.clone();
-                let task = async move {
-                    let res = CatchUnwind(fut).await;
-                    finish(&sh, node, tap, res);
-                };
-                let h = match &inner.spawner {
-                    Some(rt) => rt.spawn(task),
-                    None => tokio::spawn(task),
-                };
-                // A wiretap check runs to its end; only actions are cancelled with their node.
-                if tap.is_none() {
-                    inner.aborts.insert(node, h.abort_handle());
-                }
-            }
-            Effect::Cancel { node } => {
-                if let Some(h) = inner.aborts.remove(&node) {
-                    h.abort();
-                }
-            }
-            Effect::Notify { token, outcome } if token.0 == TOP => {
-                inner.top_done = Some(outcome);
-                wake = true;
-            }
-            Effect::Notify { token, outcome } => {
-                if let Some(tx) = inner.watchers.remove(&token.0) {
-                    let _ = tx.send(outcome);
-                }
-            }
-        }
-    }
-    wake = wake || inner.engine.fatal().is_some() || inner.engine.has_trace();
-    let deadline = inner.engine.poll_timeout();
-    if let Some(t) = deadline {
-        wake = wake || inner.armed.is_none_or(|a| t < a);
-    }
-    wake || (inner.aborts.is_empty() && inner.engine.is_idle())
-}
-
-/// The token of the watch on the top-level task.
-const TOP: u64 = 0;
+use tokio::sync::Notify;
 
 static RUNS: AtomicU32 = AtomicU32::new(1);
 
@@ -217,7 +38,7 @@ pub enum RunOutcome {
     /// An unhandled failure under [`FailurePolicy::Fatal`].
     Fatal(FatalFailure),
     /// Nothing can progress, no timer is pending and no event handle is open: these nodes wait on
-    /// events that will never come (decision 3).
+    /// events that will never come (docs/semantics.md, "Run outcome").
     Stuck(Vec<Blocked>),
 }
 
@@ -244,7 +65,7 @@ impl EventHandle {
         let mut s = self.shared.enter()?;
         let now = self.shared.now();
         let id = s.engine.external(name);
-        s.engine.raise(now, id);
+        s.engine.handle_external(now, id);
         Ok(())
     }
 }
@@ -309,20 +130,9 @@ impl Runtime {
         let run = RUNS.fetch_add(1, Ordering::Relaxed);
         Runtime {
             shared: Arc::new(Shared {
-                inner: Mutex::new(Inner {
-                    engine: Engine::new(run),
-                    watchers: BTreeMap::new(),
-                    values: BTreeMap::new(),
-                    aborts: Aborts::default(),
-                    next_token: TOP,
-                    spawner: None,
-                    top_done: None,
-                    armed: None,
-                    bypassed: std::collections::BTreeSet::new(),
-                }),
+                inner: Mutex::new(Inner::new(Engine::new(run))),
                 wake: Notify::new(),
-                start: tokio::time::Instant::now(),
-                wall_start: std::time::SystemTime::now(),
+                clock: Clock::new(),
                 handles: AtomicUsize::new(0),
             }),
             sinks: Vec::new(),
@@ -408,7 +218,7 @@ impl Runtime {
         } else {
             None
         };
-        let outcome = Driver::new(shared.clone(), timer)
+        let outcome = RunLoop::new(shared.clone(), timer)
             .drive(&mut self.sinks)
             .await;
         for s in &mut self.sinks {
@@ -424,14 +234,45 @@ impl Runtime {
     }
 }
 
-struct Driver {
+/// The driver loop's view of the run after one turn.
+struct Turn {
+    next: Next,
+    fatal: Option<FatalFailure>,
+    // The stuck report, when the run can no longer progress.
+    blocked: Option<Vec<Blocked>>,
+    top_done: Option<WatchOutcome>,
+}
+
+struct RunLoop {
     shared: Arc<Shared>,
     timer: Option<crate::timer::PreciseTimer>,
 }
 
-impl Driver {
-    fn new(shared: Arc<Shared>, timer: Option<crate::timer::PreciseTimer>) -> Driver {
-        Driver { shared, timer }
+impl RunLoop {
+    fn new(shared: Arc<Shared>, timer: Option<crate::timer::PreciseTimer>) -> RunLoop {
+        RunLoop { shared, timer }
+    }
+
+    /// One turn of the core's driver under the lock: due timers fire, effects are carried out,
+    /// trace records are taken for the sinks.
+    fn turn(&self, trace: &mut Vec<tcm_trace::TraceEvent>) -> Result<Turn, Error> {
+        // A plain lock, not a `Session`: the driver decides itself what to do next, and waking
+        // itself would spin while the run waits for an event handle.
+        let mut inner = lock(&self.shared)?;
+        let now = self.shared.now();
+        let (engine, mut host) = inner.split(&self.shared);
+        let next = tcm_core::Driver::turn(engine, &mut host, now);
+        trace.append(&mut inner.trace);
+        inner.armed = next.deadline;
+        let running = !inner.aborts.is_empty();
+        let over = next.idle && !running && self.shared.handles.load(Ordering::SeqCst) == 0;
+        Ok(Turn {
+            next,
+            fatal: inner.engine.fatal().cloned(),
+            // The stuck report scans every node: only when the run is over.
+            blocked: over.then(|| inner.engine.blocked()),
+            top_done: inner.top_done.clone(),
+        })
     }
 
     /// The driver loop. It is the one intentionally endless loop of the runtime: each turn ends in
@@ -439,57 +280,26 @@ impl Driver {
     async fn drive(self, sinks: &mut [Box<dyn TraceSink>]) -> Result<RunOutcome, Error> {
         let mut trace = Vec::new();
         let result = loop {
-            let (deadline, idle, running, fatal, blocked, top_done) = {
-                // A plain lock, not a `Session`: the driver decides itself what to do next, and
-                // waking itself would spin while the run waits for an event handle.
-                let mut inner = lock(&self.shared)?;
-                // Due timers fire here (cheap when none is due), whoever woke the driver.
-                let now = self.shared.now();
-                inner.engine.handle_timeout(now);
-                pump(&self.shared, &mut inner);
-                while let Some(ev) = inner.engine.poll_trace() {
-                    trace.push(ev);
-                }
-                let idle = inner.engine.is_idle();
-                let running = !inner.aborts.is_empty();
-                // The stuck report scans every node: only when the run is over.
-                let blocked = if idle && !running && self.shared.handles.load(Ordering::SeqCst) == 0
-                {
-                    inner.engine.blocked()
-                } else {
-                    Vec::new()
-                };
-                let deadline = inner.engine.poll_timeout();
-                inner.armed = deadline;
-                let fatal = inner.engine.fatal().cloned();
-                (
-                    deadline,
-                    idle,
-                    running,
-                    fatal,
-                    blocked,
-                    inner.top_done.clone(),
-                )
-            };
+            let turn = self.turn(&mut trace)?;
             for ev in trace.drain(..) {
                 for s in sinks.iter_mut() {
                     s.record(&ev);
                 }
             }
-            if let Some(f) = fatal {
+            if let Some(f) = turn.fatal {
                 break RunOutcome::Fatal(f);
             }
-            if let Some(outcome) = top_done {
+            if let Some(outcome) = turn.top_done {
                 break match outcome {
                     WatchOutcome::Reached => RunOutcome::Completed,
                     WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => RunOutcome::TaskFailed(f),
                     WatchOutcome::Terminated | WatchOutcome::Dead => RunOutcome::Terminated,
                 };
             }
-            if idle && !running && self.shared.handles.load(Ordering::SeqCst) == 0 {
+            if let Some(blocked) = turn.blocked {
                 break RunOutcome::Stuck(blocked);
             }
-            let mut sleep = deadline.map(|t| self.shared.start + t.since_start());
+            let mut sleep = turn.next.deadline.map(|t| self.shared.clock.instant(t));
             if let Some(timer) = &self.timer {
                 timer.set(sleep.map(tokio::time::Instant::into_std));
                 sleep = None;
@@ -498,11 +308,8 @@ impl Driver {
                 biased;
                 () = self.shared.wake.notified() => {}
                 () = sleep_until(sleep), if sleep.is_some() => {
-                    let mut inner = lock(&self.shared)?;
-                    let now = self.shared.now();
-                    inner.armed = None;
-                    inner.engine.handle_timeout(now);
-                    pump(&self.shared, &mut inner);
+                    // The next turn fires the timer; nobody need wake it for a deadline it set.
+                    lock(&self.shared)?.armed = None;
                 }
             }
         };
@@ -515,164 +322,8 @@ impl Driver {
     }
 }
 
-/// A running action ended: record it in the engine (under the lock) and wake the driver.
-fn finish(
-    shared: &Arc<Shared>,
-    node: NodeId,
-    tap: Option<WiretapId>,
-    res: Result<Result<Value, Failure>, Box<dyn Any + Send>>,
-) {
-    let result = match res {
-        Ok(r) => r,
-        Err(panic) => Err(Failure::new(
-            "ActionPanicked",
-            panic_message(panic.as_ref()),
-        )),
-    };
-    let Ok(mut inner) = shared.enter() else {
-        return;
-    };
-    if let Some(tap) = tap {
-        let now = shared.now();
-        let _ = inner
-            .engine
-            .tap_finished(now, node, tap, result.map(|_| ()));
-        return;
-    }
-    inner.aborts.remove(&node);
-    if inner.bypassed.remove(&node) {
-        let now = shared.now();
-        let _ = inner.engine.bypass(now, node);
-        return;
-    }
-    let now = shared.now();
-    let result = match result {
-        Ok(value) => {
-            if let Some(slot) = inner.values.get_mut(&node) {
-                *slot = Some(value);
-            }
-            Ok(())
-        }
-        Err(f) => Err(f),
-    };
-    // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
-    let _ = inner.engine.action_finished(now, node, result);
-}
-
-/// The abort handles of running actions, by the node's storage slot (dense, so a vector beats a
-/// hash map on the path every action takes).
-#[derive(Default)]
-struct Aborts {
-    slots: Vec<Option<(NodeId, AbortHandle)>>,
-    len: usize,
-}
-
-impl Aborts {
-    fn insert(&mut self, node: NodeId, h: AbortHandle) {
-        let i = node.slot() as usize;
-        if self.slots.len() <= i {
-            self.slots.resize_with(i + 1, || None);
-        }
-        if self.slots[i].replace((node, h)).is_none() {
-            self.len += 1;
-        }
-    }
-
-    fn remove(&mut self, node: &NodeId) -> Option<AbortHandle> {
-        let slot = self.slots.get_mut(node.slot() as usize)?;
-        match slot {
-            Some((id, _)) if id == node => {
-                self.len -= 1;
-                slot.take().map(|(_, h)| h)
-            }
-            _ => None,
-        }
-    }
-
-    fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
-    fn drain(&mut self) -> impl Iterator<Item = AbortHandle> + '_ {
-        self.len = 0;
-        self.slots
-            .iter_mut()
-            .filter_map(|s| s.take().map(|(_, h)| h))
-    }
-}
-
-/// What an [`Action`] needs to start: its context and where to spawn.
-pub(crate) struct Launch<'a> {
-    pub(crate) ctx: Ctx,
-    pub(crate) rt: Option<&'a tokio::runtime::Handle>,
-}
-
-impl Launch<'_> {
-    /// Spawns `f(ctx)` as a tokio task that reports its end (or its panic) to the engine; its
-    /// value is kept for whoever waits for it.
-    pub(crate) fn spawn<F, Fut, T>(self, f: F) -> tokio::task::JoinHandle<()>
-    where
-        F: FnOnce(Ctx) -> Fut,
-        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
-        T: Any + Send,
-    {
-        self.spawn_value(move |ctx| {
-            let fut = f(ctx);
-            async move { fut.await.map(|v| Box::new(v) as Value) }
-        })
-    }
-
-    /// As [`Launch::spawn`], for a future whose value is already erased.
-    pub(crate) fn spawn_value<F, Fut>(self, f: F) -> tokio::task::JoinHandle<()>
-    where
-        F: FnOnce(Ctx) -> Fut,
-        Fut: Future<Output = Result<Value, Failure>> + Send + 'static,
-    {
-        let Launch { ctx, rt } = self;
-        let (shared, node) = (ctx.shared.clone(), ctx.node);
-        let fut = f(ctx);
-        let task = async move {
-            let fut = std::pin::pin!(fut);
-            let res = CatchUnwind(fut).await;
-            finish(&shared, node, None, res);
-        };
-        match rt {
-            Some(rt) => rt.spawn(task),
-            None => tokio::spawn(task),
-        }
-    }
-}
-
-/// Polls a future, turning a panic into an error (a panicking action fails its node).
-struct CatchUnwind<F>(F);
-
-impl<F: Future + Unpin> Future for CatchUnwind<F> {
-    type Output = Result<F::Output, Box<dyn Any + Send>>;
-    fn poll(
-        mut self: Pin<&mut Self>,
-        cx: &mut std::task::Context<'_>,
-    ) -> std::task::Poll<Self::Output> {
-        let fut = &mut self.0;
-        match std::panic::catch_unwind(AssertUnwindSafe(|| Pin::new(fut).poll(cx))) {
-            Ok(std::task::Poll::Pending) => std::task::Poll::Pending,
-            Ok(std::task::Poll::Ready(v)) => std::task::Poll::Ready(Ok(v)),
-            Err(panic) => std::task::Poll::Ready(Err(panic)),
-        }
-    }
-}
-
 async fn sleep_until(at: Option<tokio::time::Instant>) {
     if let Some(at) = at {
         tokio::time::sleep_until(at).await;
-    }
-}
-
-fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
-    if let Some(s) = p.downcast_ref::<&str>() {
-        (*s).to_string()
-    } else if let Some(s) = p.downcast_ref::<String>() {
-        s.clone()
-    } else {
-        "panic with a non-string payload".to_string()
     }
 }

@@ -26,7 +26,7 @@ impl<W: Write + Send> TraceSink for JsonLines<W> {
     }
 }
 
-/// Writes TCM's text log (catalogue §5).
+/// Writes TCM's text log (docs/semantics.md, "TCM-compatible output").
 pub struct TextLogSink<W: Write + Send> {
     log: TextLog,
     out: W,

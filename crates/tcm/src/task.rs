@@ -25,7 +25,7 @@ pub struct Action(pub(crate) Box<Launcher>);
 
 /// The erased start of an action: spawn the task, return its handle.
 pub(crate) type Launcher =
-    dyn for<'a> FnOnce(crate::runtime::Launch<'a>) -> tokio::task::JoinHandle<()> + Send;
+    dyn for<'a> FnOnce(crate::host::Launch<'a>) -> tokio::task::JoinHandle<()> + Send;
 
 impl Action {
     fn new<F, Fut, T>(f: F) -> Action
@@ -34,7 +34,7 @@ impl Action {
         Fut: Future<Output = Result<T, Failure>> + Send + 'static,
         T: Any + Send,
     {
-        Action(Box::new(move |launch: crate::runtime::Launch<'_>| {
+        Action(Box::new(move |launch: crate::host::Launch<'_>| {
             launch.spawn(f)
         }))
     }
@@ -197,9 +197,9 @@ impl Task {
         let mut task = Task::bare(
             kind,
             name.into(),
-            Some(Action(Box::new(
-                move |launch: crate::runtime::Launch<'_>| launch.spawn_value(move |ctx| first(ctx)),
-            ))),
+            Some(Action(Box::new(move |launch: crate::host::Launch<'_>| {
+                launch.spawn_value(move |ctx| first(ctx))
+            }))),
         );
         task.retry = Some(fac);
         task

@@ -16,7 +16,7 @@
 
 use crate::{Recorder, Report, Runtime, Task};
 use tcm_trace::TraceEvent;
-pub use tcm_trace::story::{assert_order, handling, only, story};
+pub use tcm_trace::story::{assert_order, handler_choices, only, story};
 
 /// Runs `task` on `rt` with a recorder, and asserts that the run ends and that its trace passes
 /// the trace checker. Returns the report and the trace.

@@ -6,7 +6,7 @@
 //! the last stretch, and wakes the driver. It reads the real clock, so it is for real-time runs only;
 //! virtual-time runs (tokio's paused clock) keep tokio's timer.
 
-use crate::runtime::Shared;
+use crate::host::Shared;
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -16,19 +16,19 @@ use std::time::{Duration, Instant};
 const SPIN: Duration = Duration::from_micros(200);
 
 #[derive(Default)]
-struct State {
+struct TimerState {
     deadline: Option<Instant>,
     stop: bool,
 }
 
 pub(crate) struct PreciseTimer {
-    state: Arc<(Mutex<State>, Condvar)>,
+    state: Arc<(Mutex<TimerState>, Condvar)>,
     thread: Option<JoinHandle<()>>,
 }
 
 impl PreciseTimer {
     pub(crate) fn start(shared: Arc<Shared>) -> std::io::Result<PreciseTimer> {
-        let state: Arc<(Mutex<State>, Condvar)> = Arc::default();
+        let state: Arc<(Mutex<TimerState>, Condvar)> = Arc::default();
         let st = state.clone();
         let thread = std::thread::Builder::new()
             .name("tcm-timer".into())
@@ -65,7 +65,7 @@ impl Drop for PreciseTimer {
 }
 
 /// The timer thread: an intentionally endless loop until `stop`, each turn waiting for the deadline.
-fn run(state: &(Mutex<State>, Condvar), shared: &Shared) {
+fn run(state: &(Mutex<TimerState>, Condvar), shared: &Shared) {
     let (lock, cv) = state;
     let Ok(mut s) = lock.lock() else { return };
     loop {

@@ -25,19 +25,19 @@ pub struct ExceptionStory {
     pub message: String,
     /// What happened, in order: `handler detour {33} (attached to navigate_to_locn {20})`,
     /// `bypassed by ...`, `retried as {n}`, `no handler`.
-    pub handling: Vec<String>,
+    pub recovery: Vec<String>,
 }
 
 impl ExceptionStory {
     /// Whether some handler took it (and did not pass it on to nobody).
     pub fn handled(&self) -> bool {
-        self.handling.iter().any(|h| h.starts_with("handler"))
-            && !self.handling.iter().any(|h| h == "no handler")
+        self.recovery.iter().any(|h| h.starts_with("handler"))
+            && !self.recovery.iter().any(|h| h == "no handler")
     }
 
     /// The name of the last handler chosen for it, if any.
     pub fn handler(&self) -> Option<&str> {
-        self.handling
+        self.recovery
             .iter()
             .rev()
             .find_map(|h| h.strip_prefix("handler "))
@@ -172,7 +172,7 @@ fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<
                     node: label(&names, *node),
                     exception: exception.clone(),
                     message: message.clone(),
-                    handling: Vec::new(),
+                    recovery: Vec::new(),
                 });
             }
             TraceKind::HandlerChosen {
@@ -184,7 +184,7 @@ fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<
             } => {
                 if let Some(&i) = by_failing.get(failing) {
                     by_handler.insert(*node, i);
-                    stories[i].handling.push(format!(
+                    stories[i].recovery.push(format!(
                         "handler {handler} {{{node}}} (attached to {})",
                         label(&names, *attached)
                     ));
@@ -193,13 +193,13 @@ fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<
             TraceKind::Bypassed { node, .. } => {
                 if let Some(&i) = by_handler.get(node) {
                     stories[i]
-                        .handling
+                        .recovery
                         .push(format!("bypassed by {}", label(&names, *node)));
                 }
             }
             TraceKind::Retried { node, of } => {
                 if let Some(&i) = by_failing.get(of) {
-                    stories[i].handling.push(format!("retried as {{{node}}}"));
+                    stories[i].recovery.push(format!("retried as {{{node}}}"));
                 }
             }
             TraceKind::Warning {
@@ -207,7 +207,7 @@ fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<
                 message,
             } if message.starts_with("No exception handler found") => {
                 if let Some(&i) = by_failing.get(node) {
-                    stories[i].handling.push("no handler".to_string());
+                    stories[i].recovery.push("no handler".to_string());
                 }
             }
             TraceKind::Suspended { node } => {
@@ -285,10 +285,10 @@ impl fmt::Display for Summary {
                 e.exception,
                 e.message
             )?;
-            for h in &e.handling {
+            for h in &e.recovery {
                 writeln!(f, "             -> {h}")?;
             }
-            if e.handling.is_empty() {
+            if e.recovery.is_empty() {
                 writeln!(f, "             -> ended with its task (no handler search)")?;
             }
         }

@@ -1,5 +1,5 @@
 //! Exceptions: handler search up the tree, bypass, re-raise and retry (TDL paper, "Task Trees";
-//! catalogue §1.8, §3.5), and wiretaps (the TCA paper's wiretap monitors).
+//! docs/semantics.md, "Exceptions and handlers"). Wiretaps are in `wiretap.rs`.
 //!
 //! Handler search, as numbered steps:
 //! 1. A node's action fails with a [`Failure`]: the node is marked failed and the search starts at
@@ -14,7 +14,8 @@
 //!    for the handler's subtree, siblings go on. The handler decides what to terminate, add or retry.
 //! 4. Not found: the node stays failed with the warning TCM printed; under
 //!    [`crate::FailurePolicy::Fatal`] the run's outcome becomes that failure.
-//! 5. Bypass ([`Engine::bypass`]): the search goes on after the bypassing handler (same node's later
+//! 5. Bypass ([`Engine::request_bypass`], carried out when the handler's body ends): the search
+//!    goes on after the bypassing handler (same node's later
 //!    handlers first, then ancestors); the next handler node becomes a child of the bypassing one,
 //!    whose handling then completes.
 //! 6. Retry ([`Engine::retry`]): a fresh node of the failing task (same kind, name and arguments,
@@ -24,7 +25,7 @@
 use super::node::{Payload, Purpose};
 use super::{Engine, EngineError, Work};
 use crate::failure::{Failure, FailurePolicy, FatalFailure};
-use crate::ids::{NodeId, TapWhen, WiretapId};
+use crate::ids::NodeId;
 use crate::time::Time;
 use crate::{Name, NodeKind};
 use tcm_trace::{Facet, State, TraceKind};
@@ -53,29 +54,38 @@ pub(crate) struct HandlerCtx {
     pub(crate) failing: NodeId,
     pub(crate) attached: NodeId,
     pub(crate) index: usize,
-}
-
-pub(crate) struct Wiretap<F> {
-    pub(crate) task: Name,
-    pub(crate) when: TapWhen,
-    pub(crate) body: F,
+    /// The handler's body asked to pass the exception on when it ends.
+    pub(crate) bypass: bool,
 }
 
 impl<A, F: Clone> Engine<A, F> {
-    /// The handler node `node` passes its exception on (step 5); its handling completes.
-    pub fn bypass(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {
+    /// The handler node `node`, still running, asks to pass its exception on (step 5): when its
+    /// body ends, whatever it returns, the search goes on after it.
+    pub fn request_bypass(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {
         self.advance(now);
         let n = self.live(node)?;
         let display = n.display;
-        let Some(ctx) = n.handling() else {
+        if n.handler_ctx().is_none() {
             return Err(EngineError::NotAHandler(display));
-        };
+        }
         if n.state(Facet::Handling) != State::Active || !n.alive() {
             return Err(EngineError::NotRunning(node));
         }
+        if let Some(ctx) = self.node_mut(node).cold_mut().handler.as_mut() {
+            ctx.bypass = true;
+        }
+        Ok(())
+    }
+
+    /// Step 5: the body of the handler node `node`, which asked to bypass, ended.
+    pub(super) fn bypass(&mut self, node: NodeId) {
+        let n = self.node(node);
+        let display = n.display;
+        let Some(ctx) = n.handler_ctx() else {
+            return;
+        };
         let (failure, failing, attached, index) =
             (ctx.failure.clone(), ctx.failing, ctx.attached, ctx.index);
-        self.running -= 1;
         emit!(
             self,
             TraceKind::Bypassed {
@@ -85,8 +95,6 @@ impl<A, F: Clone> Engine<A, F> {
         );
         self.search(failing, failure, Some(attached), index + 1, node);
         self.complete_handling(node);
-        self.settle();
-        Ok(())
     }
 
     /// The handler node `node` asks for a fresh run of the task that failed (step 6). Returns the
@@ -95,7 +103,7 @@ impl<A, F: Clone> Engine<A, F> {
         self.advance(now);
         let n = self.live(node)?;
         let display = n.display;
-        let Some(ctx) = n.handling() else {
+        let Some(ctx) = n.handler_ctx() else {
             return Err(EngineError::NotAHandler(display));
         };
         let failing = ctx.failing;
@@ -119,109 +127,9 @@ impl<A, F: Clone> Engine<A, F> {
                 of: of_display,
             }
         );
-        self.work.push_back(Work::Check(id));
+        self.work.push_back(Work::Progress(id));
         self.settle();
         Ok(id)
-    }
-
-    /// Registers a wiretap: `body` runs whenever a node whose instance name is `task` is about to
-    /// start its action (`Before`) or has returned successfully (`After`), without touching that
-    /// task's code. A failing check fails the tapped node with the check's failure.
-    pub fn wiretap(&mut self, task: impl Into<Name>, when: TapWhen, body: F) -> WiretapId {
-        let id = WiretapId(self.taps.len() as u32);
-        self.taps.push(Wiretap {
-            task: task.into(),
-            when,
-            body,
-        });
-        id
-    }
-
-    /// A wiretap check on `node` finished.
-    pub fn tap_finished(
-        &mut self,
-        now: Time,
-        node: NodeId,
-        tap: WiretapId,
-        result: Result<(), Failure>,
-    ) -> Result<(), EngineError> {
-        self.advance(now);
-        let Some(when) = self.taps.get(tap.0 as usize).map(|t| t.when) else {
-            return Err(EngineError::NotRunning(node));
-        };
-        self.running = self.running.saturating_sub(1);
-        let Some(n) = self.nodes.get_mut(node) else {
-            return Ok(());
-        };
-        let alive = n.alive();
-        let c = n.cold_mut();
-        c.taps_pending = c.taps_pending.saturating_sub(1);
-        if let Err(f) = result {
-            if c.tap_failure.is_none() {
-                c.tap_failure = Some(f);
-            }
-        }
-        if c.taps_pending > 0 || !alive {
-            self.settle();
-            return Ok(());
-        }
-        let failure = c.tap_failure.take();
-        match (when, failure) {
-            (TapWhen::Before, None) => self.ready.push_back(node),
-            (TapWhen::Before, Some(f)) => {
-                // Vetoed: the action never runs; the node fails in its place.
-                self.fail(node, f);
-                self.complete_handling(node);
-            }
-            (TapWhen::After, None) => self.complete_handling(node),
-            (TapWhen::After, Some(f)) => {
-                self.fail(node, f);
-                self.complete_handling(node);
-            }
-        }
-        self.settle();
-        Ok(())
-    }
-
-    /// Starts the wiretaps of `node` for `when`; returns how many started.
-    pub(crate) fn start_taps(&mut self, node: NodeId, when: TapWhen) -> u32 {
-        if self.taps.is_empty() {
-            return 0;
-        }
-        let name = self.node(node).name.clone();
-        let matching: Vec<(WiretapId, F)> = self
-            .taps
-            .iter()
-            .enumerate()
-            .filter(|(_, t)| t.when == when && t.task == name)
-            .map(|(i, t)| (WiretapId(i as u32), t.body.clone()))
-            .collect();
-        let k = matching.len() as u32;
-        if k == 0 {
-            return 0;
-        }
-        let display = self.node(node).display;
-        self.node_mut(node).cold_mut().taps_pending += k;
-        for (tap, body) in matching {
-            self.running += 1;
-            emit!(
-                self,
-                TraceKind::Tapped {
-                    node: display,
-                    tap: tap.0,
-                    when: match when {
-                        TapWhen::Before => "before".into(),
-                        TapWhen::After => "after".into(),
-                    },
-                }
-            );
-            self.effects.push_back(super::Effect::Invoke {
-                node,
-                body,
-                purpose: Box::new(Purpose::Tap { tap, when }),
-            });
-        }
-        k
     }
 
     /// Step 1: `node`'s action failed.
@@ -236,7 +144,7 @@ impl<A, F: Clone> Engine<A, F> {
             }
         );
         // A handler's own failure searches above the node it was attached to.
-        let from = match self.node(node).handling() {
+        let from = match self.node(node).handler_ctx() {
             Some(ctx) => self.nodes.get(ctx.attached).and_then(|a| a.parent),
             None => Some(node),
         };
@@ -334,12 +242,13 @@ impl<A, F: Clone> Engine<A, F> {
                 handler,
             }
         );
-        self.node_mut(id).cold_mut().handling = Some(HandlerCtx {
+        self.node_mut(id).cold_mut().handler = Some(HandlerCtx {
             failure,
             failing,
             attached,
             index,
+            bypass: false,
         });
-        self.work.push_back(Work::Check(id));
+        self.work.push_back(Work::Progress(id));
     }
 }

@@ -17,15 +17,15 @@
 //!    completes when its running activations' subtrees do.
 //! 4. Terminating a monitor terminates its running activations with it, like any subtree.
 
-use super::node::{Payload, Purpose, WaitKind, Waiter};
+use super::node::{Payload, Purpose};
 use super::timers::TimerKind;
 use super::{Engine, EngineError, Work};
-use crate::constraint::{ActivateWhen, Constraint, NodeRef};
+use crate::constraint::{Constraint, NodeRef};
 use crate::ids::NodeId;
 use crate::time::Time;
 use crate::{Name, NodeKind};
 use std::time::Duration;
-use tcm_trace::{Facet, State, TraceConstraint, TraceKind};
+use tcm_trace::{Facet, State, TraceKind};
 
 /// Constraints between successive activations of one monitor (catalogue §1.3, monitor rows).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -293,7 +293,7 @@ impl<A, F: Clone> Engine<A, F> {
             mon.last = Some(id);
         }
         self.node_mut(monitor).last_spawned = Some(id);
-        self.work.push_back(Work::Check(id));
+        self.work.push_back(Work::Progress(id));
         if max.is_some_and(|max| number >= max) {
             self.monitor_done(monitor);
         }
@@ -310,120 +310,6 @@ impl<A, F: Clone> Engine<A, F> {
         }
         self.transition(monitor, Facet::Handling, State::Completed);
         self.bury_reservations(monitor);
-        self.work.push_back(Work::Check(monitor));
-    }
-
-    /// Applies an `activate` constraint to `node` (a monitor).
-    pub(crate) fn apply_activate(
-        &mut self,
-        node: NodeId,
-        parent: NodeId,
-        previous: Option<NodeId>,
-        when: ActivateWhen,
-    ) {
-        let display = self.node(node).display;
-        if self.node(node).monitor().is_none() {
-            self.void(node, || "`activate` applies to monitors only".into());
-            return;
-        }
-        match when {
-            ActivateWhen::Now => {
-                emit!(
-                    self,
-                    TraceKind::Constrained {
-                        node: display,
-                        constraint: TraceConstraint::ActivateNow,
-                    }
-                );
-                // TCM's "activate at self handling active", which avoids racing the monitor's start.
-                let w = Waiter {
-                    facet: Facet::Handling,
-                    point: tcm_trace::Point::Active,
-                    kind: WaitKind::Activate { monitor: node },
-                };
-                if self.node(node).reached(w.facet, w.point) {
-                    self.activation_due(node);
-                } else {
-                    self.node_mut(node).waiters.push(w);
-                }
-            }
-            ActivateWhen::Time(at) => {
-                emit!(
-                    self,
-                    TraceKind::Constrained {
-                        node: display,
-                        constraint: TraceConstraint::ActivateAtTime { at: at.as_nanos() },
-                    }
-                );
-                self.timers
-                    .push(at.max(self.now), TimerKind::ActivateOnce { monitor: node });
-            }
-            ActivateWhen::In(d) => {
-                self.apply_activate(node, parent, previous, ActivateWhen::Time(self.now + d))
-            }
-            ActivateWhen::External(x) => {
-                let Some(ext) = self.externals.get_mut(x.0 as usize) else {
-                    self.void(node, || "unknown external event".into());
-                    return;
-                };
-                ext.activators.push(node);
-                let name = ext.name.clone();
-                emit!(
-                    self,
-                    TraceKind::Constrained {
-                        node: display,
-                        constraint: TraceConstraint::ActivateAtExternal { name },
-                    }
-                );
-            }
-            ActivateWhen::Event(ev) | ActivateWhen::InAfter(_, ev) => {
-                let delay = match when {
-                    ActivateWhen::InAfter(d, _) => Some(d),
-                    _ => None,
-                };
-                let Some(r) = self.resolve(ev.node, node, parent, previous) else {
-                    self.void(node, || {
-                        "activate constraint names `previous`, but nothing was spawned before"
-                            .into()
-                    });
-                    return;
-                };
-                let event = self.event_ref(r, ev.facet, ev.point);
-                let constraint = match delay {
-                    Some(d) => TraceConstraint::ActivateInAfter {
-                        delay_ns: u64::try_from(d.as_nanos()).unwrap_or(u64::MAX),
-                        event,
-                    },
-                    None => TraceConstraint::ActivateAtEvent { event },
-                };
-                emit!(
-                    self,
-                    TraceKind::Constrained {
-                        node: display,
-                        constraint,
-                    }
-                );
-                let kind = match delay {
-                    Some(delay) => WaitKind::ActivateAfter {
-                        monitor: node,
-                        delay,
-                    },
-                    None => WaitKind::Activate { monitor: node },
-                };
-                let passed = match self.nodes.lookup(r) {
-                    crate::arena::Lookup::Gone(_) => true,
-                    crate::arena::Lookup::Live => self.node(r).reached(ev.facet, ev.point),
-                };
-                if passed {
-                    self.fire(kind, false);
-                } else {
-                    self.node_mut(r).waiters.push(Waiter {
-                        facet: ev.facet,
-                        point: ev.point,
-                        kind,
-                    });
-                }
-            }
-        }
+        self.work.push_back(Work::Progress(monitor));
     }
 }

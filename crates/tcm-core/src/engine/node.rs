@@ -2,6 +2,7 @@
 
 use super::exception::{HandlerCtx, HandlerEntry};
 use super::monitor::Monitor;
+use crate::constraint::Then;
 use crate::failure::Failure;
 use crate::ids::{NodeId, WatchToken};
 use crate::{Name, NodeKind};
@@ -11,31 +12,24 @@ use tcm_trace::{Facet, Point, State, Termination};
 /// What happens when a watched point of a node is reached.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum WaitKind {
-    /// One enablement constraint of `target`'s facet is satisfied.
-    Enable { target: NodeId, facet: Facet },
-    /// As `Enable`, `delay` after the point.
-    EnableAfter {
+    /// A trigger of `target` fires (after `delay`, if any): see `engine/arm.rs`.
+    Trigger {
         target: NodeId,
-        facet: Facet,
-        delay: Duration,
+        then: Then,
+        delay: Option<Duration>,
     },
-    /// Terminate `target`.
-    Terminate { target: NodeId },
-    /// Terminate `target`, `delay` after the point.
-    TerminateAfter { target: NodeId, delay: Duration },
     /// Tell the shell.
     Watch { token: WatchToken },
-    /// Activate the monitor (fires even when the watched node reached the point by termination).
-    Activate { monitor: NodeId },
-    /// Activate the monitor `delay` after the point.
-    ActivateAfter { monitor: NodeId, delay: Duration },
 }
 
 impl WaitKind {
     pub(crate) fn is_termination(&self) -> bool {
         matches!(
             self,
-            WaitKind::Terminate { .. } | WaitKind::TerminateAfter { .. }
+            WaitKind::Trigger {
+                then: Then::Terminate,
+                ..
+            }
         )
     }
 }
@@ -86,7 +80,8 @@ pub enum Purpose {
         /// The node that failed.
         of: NodeId,
     },
-    /// A wiretap check on `node` (no new node): report with `Engine::tap_finished`.
+    /// A wiretap check on `node` (no new node): report its end, with its `Job`, to
+    /// `Engine::handle_action_finished`.
     Tap {
         /// Which wiretap.
         tap: crate::ids::WiretapId,
@@ -248,7 +243,7 @@ pub(crate) struct Cold<A, F> {
     // Exception handlers attached to this node, in the order they are tried.
     pub(crate) handlers: Vec<HandlerEntry<F>>,
     // For handler nodes: what they handle.
-    pub(crate) handling: Option<HandlerCtx>,
+    pub(crate) handler: Option<HandlerCtx>,
     // A factory that re-runs this task, for retries.
     pub(crate) retry: Option<F>,
     // A handler took this node's failure.
@@ -271,7 +266,7 @@ impl<A, F> Default for Cold<A, F> {
             monitor: None,
             activation_of: None,
             handlers: Vec::new(),
-            handling: None,
+            handler: None,
             retry: None,
             handled: false,
             taps_pending: 0,
@@ -358,8 +353,14 @@ impl<A, F> Node<A, F> {
         self.cold.as_ref().map_or(&[], |c| c.handlers.as_slice())
     }
 
-    pub(crate) fn handling(&self) -> Option<&HandlerCtx> {
-        self.cold.as_ref().and_then(|c| c.handling.as_ref())
+    /// What a handler node handles.
+    pub(crate) fn handler_ctx(&self) -> Option<&HandlerCtx> {
+        self.cold.as_ref().and_then(|c| c.handler.as_ref())
+    }
+
+    /// A handler node whose body asked to pass its exception on.
+    pub(crate) fn bypass_requested(&self) -> bool {
+        self.handler_ctx().is_some_and(|h| h.bypass)
     }
 
     pub(crate) fn retry(&self) -> Option<&F> {

@@ -3,6 +3,7 @@
 use super::Engine;
 use super::node::WaitKind;
 use crate::NodeKind;
+use crate::constraint::Then;
 use crate::ids::NodeId;
 use std::fmt;
 use tcm_trace::{Facet, State, Termination};
@@ -84,21 +85,20 @@ impl<A, F: Clone> Engine<A, F> {
     }
 
     /// Every alive node whose facets cannot become enabled, with what each waits for: the report of a
-    /// stuck run (decision 3). Ordered by node number.
+    /// stuck run (docs/semantics.md, "Run outcome"). Ordered by node number.
     pub fn blocked(&self) -> Vec<Blocked> {
         use std::collections::BTreeMap;
         // (waiting node display, facet) -> reasons
         let mut reasons: BTreeMap<(u64, Facet), Vec<String>> = BTreeMap::new();
         for (_, n) in self.nodes.iter() {
             for w in n.waiters.iter() {
-                let (target, facet, after) = match w.kind {
-                    WaitKind::Enable { target, facet } => (target, facet, None),
-                    WaitKind::EnableAfter {
-                        target,
-                        facet,
-                        delay,
-                    } => (target, facet, Some(delay)),
-                    _ => continue,
+                let WaitKind::Trigger {
+                    target,
+                    then: Then::Enable(facet),
+                    delay: after,
+                } = w.kind
+                else {
+                    continue;
                 };
                 let Some(t) = self.nodes.get(target) else {
                     continue;
@@ -118,7 +118,12 @@ impl<A, F: Clone> Engine<A, F> {
         }
         for ext in &self.externals {
             for w in &ext.waiters {
-                if let WaitKind::Enable { target, facet } = w {
+                if let WaitKind::Trigger {
+                    target,
+                    then: Then::Enable(facet),
+                    ..
+                } = w
+                {
                     if let Some(t) = self.nodes.get(*target) {
                         reasons
                             .entry((t.display, *facet))

@@ -1,26 +1,22 @@
 //! The timer queue of the agenda: a binary heap ordered by (deadline, sequence number), so timers
-//! due at the same time fire in the order they were set (FIFO, catalogue §3.6).
+//! due at the same time fire in the order they were set (FIFO; docs/semantics.md, "Agenda and release order").
 //!
 //! Timers are never removed when they stop mattering (their node completed, was terminated or
 //! reclaimed); they are skipped when they surface, and the heap is compacted when stale entries
 //! could outnumber live ones, so memory stays proportional to live timers.
 
+use crate::constraint::Then;
 use crate::ids::NodeId;
 use crate::time::Time;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
-use tcm_trace::Facet;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum TimerKind {
-    /// One enablement constraint of the target's facet is satisfied.
-    Enable { target: NodeId, facet: Facet },
-    /// Terminate the target.
-    Terminate { target: NodeId },
+    /// A trigger of the target fires (see `engine/arm.rs`).
+    Trigger { target: NodeId, then: Then },
     /// Polling activation `k` of a monitor (due at its start + k periods).
     Poll { monitor: NodeId, k: u64 },
-    /// One activation of a monitor.
-    ActivateOnce { monitor: NodeId },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,7 +1,7 @@
 //! Unit tests for `check.rs`: valid hand-made traces pass, and each rule catches a trace that breaks it.
 
 use super::{Rule, check};
-use crate::event::{TraceConstraint, TraceEvent, TraceKind};
+use crate::event::{TraceConstraint, TraceEvent, TraceKind, TraceThen, TraceWhen};
 use crate::state::{NodeKind, Point};
 use crate::test_util::*;
 
@@ -59,7 +59,7 @@ fn terminate_running(b: &mut Tb) {
 }
 
 fn term_at_time(at: u64) -> TraceConstraint {
-    TraceConstraint::TerminateAtTime { at }
+    TraceConstraint::trigger(TraceWhen::At(at), TraceThen::Terminate)
 }
 
 #[test]
@@ -94,7 +94,7 @@ fn valid_terminate_at_time_passes_and_late_is_caught() {
     assert_eq!(r.n_terminations_checked, 1);
     b.at(3 * S);
     terminate_running(&mut b);
-    caught(&b.build(), Rule::TerminateAtTime);
+    caught(&b.build(), Rule::Terminate);
 }
 
 #[test]
@@ -107,7 +107,7 @@ fn terminate_at_time_not_owed_by_a_trace_that_ends_before() {
     passes(&b.build());
     // Going past the due time without terminating is caught at the end of the trace.
     b.at(11 * S).push(TraceKind::External { name: "y".into() });
-    caught(&b.build(), Rule::TerminateAtTime);
+    caught(&b.build(), Rule::Terminate);
 }
 
 #[test]
@@ -200,7 +200,10 @@ fn facet_and_termination_order() {
 fn constraint_records_rules() {
     let mut b = Tb::new();
     b.goal(1, 0, "a").tr(1, P, D, E);
-    b.constrain(1, TraceConstraint::DisableUntilTime { facet: H, at: S });
+    b.constrain(
+        1,
+        TraceConstraint::trigger(TraceWhen::At(S), TraceThen::Enable(H)),
+    );
     caught(&b.build(), Rule::LateConstraint);
     // Terminate forms may come later.
     let mut b = Tb::new();
@@ -212,10 +215,10 @@ fn constraint_records_rules() {
     b.goal(1, 0, "a");
     b.constrain(
         1,
-        TraceConstraint::DisableUntilEvent {
-            facet: H,
-            event: ev_ref(9, X, Point::Completed),
-        },
+        TraceConstraint::trigger(
+            TraceWhen::Event(ev_ref(9, X, Point::Completed)),
+            TraceThen::Enable(H),
+        ),
     );
     caught(&b.build(), Rule::UnknownReference);
 }
@@ -328,16 +331,16 @@ fn two_commands(c: Option<TraceConstraint>, t2: u64) -> Tb {
 
 #[test]
 fn disable_until_event() {
-    let c = TraceConstraint::DisableUntilEvent {
-        facet: X,
-        event: ev_ref(1, X, Point::Completed),
-    };
+    let c = TraceConstraint::trigger(
+        TraceWhen::Event(ev_ref(1, X, Point::Completed)),
+        TraceThen::Enable(X),
+    );
     let r = passes(&two_commands(Some(c.clone()), S).build());
     assert!(r.n_enablement_checks >= 1);
     let mut b = Tb::new();
     b.command(1, 0, "one").command(2, 0, "two").constrain(2, c);
     b.start_command(2);
-    caught(&b.build(), Rule::DisableUntilEvent);
+    caught(&b.build(), Rule::Disable);
     // A dead reference satisfies it.
     let mut b = Tb::new();
     b.goal(1, 0, "a").start_goal(1);
@@ -349,10 +352,10 @@ fn disable_until_event() {
     b.command(3, 1, "c");
     b.constrain(
         3,
-        TraceConstraint::DisableUntilEvent {
-            facet: X,
-            event: ev_ref(2, X, Point::Completed),
-        },
+        TraceConstraint::trigger(
+            TraceWhen::Event(ev_ref(2, X, Point::Completed)),
+            TraceThen::Enable(X),
+        ),
     );
     b.push(TraceKind::Dead { node: 2 });
     b.tr(1, X, D, E).start_command(3);
@@ -361,34 +364,24 @@ fn disable_until_event() {
 
 #[test]
 fn disable_until_time_and_for_after() {
-    let c = TraceConstraint::DisableUntilTime {
-        facet: X,
-        at: 2 * S,
-    };
+    let c = TraceConstraint::trigger(TraceWhen::At(2 * S), TraceThen::Enable(X));
     passes(&two_commands(Some(c.clone()), 2 * S).build());
-    caught(&two_commands(Some(c), S).build(), Rule::DisableUntilTime);
-    let c = TraceConstraint::DisableForAfter {
-        facet: X,
-        delay_ns: S,
-        event: ev_ref(1, H, Point::Completed),
-    };
-    passes(&two_commands(Some(c.clone()), 2 * S).build());
-    caught(
-        &two_commands(Some(c), S + S / 2).build(),
-        Rule::DisableForAfter,
+    caught(&two_commands(Some(c), S).build(), Rule::Disable);
+    let c = TraceConstraint::trigger(
+        TraceWhen::After {
+            delay_ns: S,
+            event: ev_ref(1, H, Point::Completed),
+        },
+        TraceThen::Enable(X),
     );
+    passes(&two_commands(Some(c.clone()), 2 * S).build());
+    caught(&two_commands(Some(c), S + S / 2).build(), Rule::Disable);
 }
 
 #[test]
 fn disable_until_external() {
-    let c = TraceConstraint::DisableUntilExternal {
-        facet: H,
-        name: "go".into(),
-    };
-    caught(
-        &two_commands(Some(c.clone()), S).build(),
-        Rule::DisableUntilExternal,
-    );
+    let c = TraceConstraint::trigger(TraceWhen::External("go".into()), TraceThen::Enable(H));
+    caught(&two_commands(Some(c.clone()), S).build(), Rule::Disable);
     let mut b = Tb::new();
     b.command(1, 0, "one")
         .constrain(1, c)
@@ -428,13 +421,16 @@ fn expand_first_and_delay_expansion() {
 fn terminate_now() {
     let mut b = Tb::new();
     running(&mut b);
-    b.at(S).constrain(1, TraceConstraint::TerminateNow);
+    b.at(S).constrain(
+        1,
+        TraceConstraint::trigger(TraceWhen::Now, TraceThen::Terminate),
+    );
     let mut ok = b.clone_for_test();
     terminate_running(&mut ok);
     passes(&ok.build());
     b.at(2 * S);
     terminate_running(&mut b);
-    caught(&b.build(), Rule::TerminateNow);
+    caught(&b.build(), Rule::Terminate);
 }
 
 // {1} "a" running with command {2}; command {3} "m" under the root, constrained by `c`; {3} runs and
@@ -452,20 +448,22 @@ fn watcher(c: TraceConstraint, tt: u64) -> Vec<TraceEvent> {
 
 #[test]
 fn terminate_at_event() {
-    let c = TraceConstraint::TerminateAtEvent {
-        event: ev_ref(3, X, Point::Completed),
-    };
+    let c = TraceConstraint::trigger(
+        TraceWhen::Event(ev_ref(3, X, Point::Completed)),
+        TraceThen::Terminate,
+    );
     passes(&watcher(c.clone(), S));
-    caught(&watcher(c, 2 * S), Rule::TerminateAtEvent);
+    caught(&watcher(c, 2 * S), Rule::Terminate);
     // An event reached because its node was terminating does not fire the constraint.
     let mut b = Tb::new();
     running(&mut b);
     b.command(3, 0, "m").start_command(3);
     b.constrain(
         1,
-        TraceConstraint::TerminateAtEvent {
-            event: ev_ref(3, X, Point::Completed),
-        },
+        TraceConstraint::trigger(
+            TraceWhen::Event(ev_ref(3, X, Point::Completed)),
+            TraceThen::Terminate,
+        ),
     );
     b.at(S)
         .push(TraceKind::Terminating { node: 3 })
@@ -479,12 +477,15 @@ fn terminate_at_event() {
 
 #[test]
 fn terminate_in_after() {
-    let c = TraceConstraint::TerminateInAfter {
-        delay_ns: S,
-        event: ev_ref(3, X, Point::Completed),
-    };
+    let c = TraceConstraint::trigger(
+        TraceWhen::After {
+            delay_ns: S,
+            event: ev_ref(3, X, Point::Completed),
+        },
+        TraceThen::Terminate,
+    );
     passes(&watcher(c.clone(), 2 * S));
-    caught(&watcher(c, 3 * S), Rule::TerminateInAfter);
+    caught(&watcher(c, 3 * S), Rule::Terminate);
 }
 
 #[test]
@@ -493,9 +494,7 @@ fn terminate_at_external() {
     running(&mut b);
     b.constrain(
         1,
-        TraceConstraint::TerminateAtExternal {
-            name: "stop".into(),
-        },
+        TraceConstraint::trigger(TraceWhen::External("stop".into()), TraceThen::Terminate),
     );
     b.at(S).push(TraceKind::External {
         name: "stop".into(),
@@ -505,7 +504,7 @@ fn terminate_at_external() {
     passes(&ok.build());
     b.at(2 * S);
     terminate_running(&mut b);
-    caught(&b.build(), Rule::TerminateAtExternal);
+    caught(&b.build(), Rule::Terminate);
 }
 
 #[test]
@@ -545,10 +544,10 @@ fn long_chain_checks_quickly() {
         if i > 1 {
             b.constrain(
                 i,
-                TraceConstraint::DisableUntilEvent {
-                    facet: X,
-                    event: ev_ref(i - 1, X, Point::Completed),
-                },
+                TraceConstraint::trigger(
+                    TraceWhen::Event(ev_ref(i - 1, X, Point::Completed)),
+                    TraceThen::Enable(X),
+                ),
             );
         }
         b.start_command(i).finish_command(i);
@@ -585,10 +584,10 @@ fn million_records() {
         if i > 1 {
             b.constrain(
                 i,
-                TraceConstraint::DisableUntilEvent {
-                    facet: X,
-                    event: ev_ref(i - 1, X, Point::Completed),
-                },
+                TraceConstraint::trigger(
+                    TraceWhen::Event(ev_ref(i - 1, X, Point::Completed)),
+                    TraceThen::Enable(X),
+                ),
             );
         }
         b.start_command(i).finish_command(i);

@@ -1,7 +1,7 @@
 //! Unit tests for `jsonl.rs`: exact serialisation, round trips, and errors naming the line.
 
 use super::{ReadError, read_jsonl, to_line, write_line};
-use crate::event::{TraceConstraint, TraceEvent, TraceKind};
+use crate::event::{TraceConstraint, TraceEvent, TraceKind, TraceThen, TraceWhen};
 use crate::state::Point;
 use crate::test_util::{S, Tb, X, ev_ref, small_run};
 
@@ -10,7 +10,7 @@ fn lines_serialise_flat_with_tags() {
     let t = small_run();
     assert_eq!(
         to_line(&t[0]),
-        r#"{"seq":0,"t":0,"ev":"run_started","version":1,"run":0}"#
+        r#"{"seq":0,"t":0,"ev":"run_started","version":2,"run":0}"#
     );
     assert_eq!(
         to_line(&t[1]),
@@ -25,16 +25,18 @@ fn lines_serialise_flat_with_tags() {
         t: S,
         kind: TraceKind::Constrained {
             node: 2,
-            constraint: TraceConstraint::DisableForAfter {
-                facet: X,
-                delay_ns: 5,
-                event: ev_ref(1, X, Point::Completed),
-            },
+            constraint: TraceConstraint::trigger(
+                TraceWhen::After {
+                    delay_ns: 5,
+                    event: ev_ref(1, X, Point::Completed),
+                },
+                TraceThen::Enable(X),
+            ),
         },
     };
     assert_eq!(
         to_line(&c),
-        r#"{"seq":3,"t":1000000000,"ev":"constrained","node":2,"constraint":{"form":"disable_for_after","facet":"execution","delay_ns":5,"event":{"node":1,"facet":"execution","point":"completed"}}}"#
+        r#"{"seq":3,"t":1000000000,"ev":"constrained","node":2,"constraint":{"form":"trigger","when":{"after":{"delay_ns":5,"event":{"node":1,"facet":"execution","point":"completed"}}},"then":{"enable":"execution"}}}"#
     );
 }
 
@@ -79,27 +81,26 @@ fn round_trip_every_kind() {
     for constraint in [
         TraceConstraint::ExpandFirst,
         TraceConstraint::DelayExpansion,
-        TraceConstraint::DisableUntilTime { facet: X, at: 7 },
-        TraceConstraint::DisableUntilExternal {
-            facet: X,
-            name: "go".into(),
-        },
-        TraceConstraint::DisableUntilEvent {
-            facet: X,
-            event: ev_ref(1, X, Point::Active),
-        },
-        TraceConstraint::TerminateNow,
-        TraceConstraint::TerminateAtEvent {
-            event: ev_ref(1, X, Point::Enabled),
-        },
-        TraceConstraint::TerminateAtTime { at: u64::MAX },
-        TraceConstraint::TerminateInAfter {
-            delay_ns: 1,
-            event: ev_ref(1, X, Point::Enabled),
-        },
-        TraceConstraint::TerminateAtExternal {
-            name: "stop".into(),
-        },
+        TraceConstraint::trigger(TraceWhen::At(7), TraceThen::Enable(X)),
+        TraceConstraint::trigger(TraceWhen::External("go".into()), TraceThen::Enable(X)),
+        TraceConstraint::trigger(
+            TraceWhen::Event(ev_ref(1, X, Point::Active)),
+            TraceThen::Enable(X),
+        ),
+        TraceConstraint::trigger(TraceWhen::Now, TraceThen::Terminate),
+        TraceConstraint::trigger(
+            TraceWhen::Event(ev_ref(1, X, Point::Enabled)),
+            TraceThen::Terminate,
+        ),
+        TraceConstraint::trigger(TraceWhen::At(u64::MAX), TraceThen::Terminate),
+        TraceConstraint::trigger(
+            TraceWhen::After {
+                delay_ns: 1,
+                event: ev_ref(1, X, Point::Enabled),
+            },
+            TraceThen::Terminate,
+        ),
+        TraceConstraint::trigger(TraceWhen::External("stop".into()), TraceThen::Terminate),
     ] {
         b.constrain(2, constraint);
     }
@@ -156,7 +157,7 @@ fn errors_name_the_line_and_the_problem() {
     let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":9,\"run\":0}");
     assert_eq!(
         e,
-        "line 1: the trace has format version 9, but this reader reads version 1 only"
+        "line 1: the trace has format version 9, but this reader reads versions 1 to 2"
     );
     assert!(matches!(
         read_jsonl(&b"\xff\n"[..]),
@@ -171,6 +172,10 @@ fn documented_examples_are_exact() {
     let doc = include_str!("../../../../docs/trace-format.md");
     let mut kinds = std::collections::BTreeSet::new();
     let mut forms = std::collections::BTreeSet::new();
+    let (mut whens, mut thens) = (
+        std::collections::BTreeSet::new(),
+        std::collections::BTreeSet::new(),
+    );
     for (i, line) in doc
         .lines()
         .enumerate()
@@ -185,8 +190,53 @@ fn documented_examples_are_exact() {
         kinds.insert(value["ev"].as_str().unwrap_or_default().to_string());
         if let Some(form) = value["constraint"]["form"].as_str() {
             forms.insert(form.to_string());
+            let key = |v: &serde_json::Value| match v {
+                serde_json::Value::Object(m) => m.keys().next().cloned().unwrap_or_default(),
+                other => other.as_str().unwrap_or_default().to_string(),
+            };
+            whens.insert(key(&value["constraint"]["when"]));
+            thens.insert(key(&value["constraint"]["then"]));
         }
     }
     assert_eq!(kinds.len(), 22, "{kinds:?}");
-    assert_eq!(forms.len(), 16, "{forms:?}");
+    assert_eq!(forms.len(), 3, "{forms:?}");
+    // Every kind of "when" with every kind of "then" is shown (the empty string is not a trigger).
+    assert_eq!(whens.len(), 6, "{whens:?}");
+    assert_eq!(thens.len(), 4, "{thens:?}");
+}
+
+#[test]
+fn version_1_constraints_read_as_version_2_triggers() {
+    // docs/trace-format.md, "Versions": each version 1 constraint object reads as the version 2
+    // example with the same `seq`.
+    let doc = include_str!("../../../../docs/trace-format.md");
+    let current: std::collections::BTreeMap<u64, TraceConstraint> = doc
+        .lines()
+        .filter(|l| l.starts_with("{\"seq\"") && l.contains("\"constrained\""))
+        .filter_map(|l| super::parse_line(l, 0).ok())
+        .filter_map(|ev| match ev.kind {
+            TraceKind::Constrained { constraint, .. } => Some((ev.seq, constraint)),
+            _ => None,
+        })
+        .collect();
+    let versions = &doc[doc.find("## Versions").unwrap_or(0)..];
+    let mut n = 0;
+    for line in versions.lines() {
+        let Some((seq, object)) = line.split_once(' ') else {
+            continue;
+        };
+        let Ok(seq) = seq.parse::<u64>() else {
+            continue;
+        };
+        let old: TraceConstraint =
+            serde_json::from_str(object).unwrap_or_else(|e| panic!("version 1 form {object}: {e}"));
+        assert_eq!(Some(&old), current.get(&seq), "version 1 form {object}");
+        n += 1;
+    }
+    assert_eq!(n, 14, "every version 1 trigger form is shown");
+    // A whole version 1 trace still reads, and the checker accepts its version.
+    let v1 = "{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":1,\"run\":0}\n";
+    let trace = read_jsonl(v1.as_bytes()).unwrap_or_default();
+    assert_eq!(trace.len(), 1);
+    assert!(crate::check(&trace).is_ok());
 }

@@ -26,7 +26,7 @@
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tcm::{Constraint, Event, Facet, Monitor, NodeRef, Point, Task, Until};
+use tcm::{Constraint, Event, Facet, Monitor, NodeRef, Point, Task, When};
 
 /// The simulated world: what the door sensor will report, and when the mail is taken.
 pub struct World {
@@ -184,9 +184,9 @@ pub fn center_on_door(x: f64, y: f64, world: Arc<World>) -> Task {
         if which_side != 0 {
             ctx.spawn(busy("move", secs(1))).start()?;
             ctx.spawn(center_on_door(x, y, world))
-                .with(Constraint::Disable(
+                .with(Constraint::disable(
                     Facet::Execution,
-                    Until::Event(Event::on(
+                    When::Event(Event::on(
                         NodeRef::Previous,
                         Facet::Execution,
                         Point::Completed,

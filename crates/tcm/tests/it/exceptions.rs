@@ -33,7 +33,7 @@ fn secs(s: f64) -> Duration {
     Duration::from_secs_f64(s)
 }
 
-use tcm::testing::handling as chosen;
+use tcm::testing::handler_choices as chosen;
 
 #[tokio::test(start_paused = true)]
 async fn navigate_to_locn_handlers_read_the_exception_data() {

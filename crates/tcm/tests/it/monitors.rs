@@ -5,7 +5,7 @@ use crate::fig4;
 use crate::util::{assert_order, only, run_checked, story};
 use std::sync::Arc;
 use std::time::Duration;
-use tcm::{ActivateWhen, Monitor, RunOutcome, Runtime, Task};
+use tcm::{Monitor, RunOutcome, Runtime, Task, When};
 
 #[tokio::test(start_paused = true)]
 async fn figure_6_monitor_under_deliver_mail() {
@@ -62,7 +62,7 @@ async fn a_monitor_activated_by_an_external_event_each_time() {
             tokio::time::sleep(Duration::from_millis(100 * u64::from(n))).await;
             Ok(())
         }))
-        .activate(ActivateWhen::External(bump))
+        .activate(When::External(bump))
         .start()?;
         Ok(())
     });

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::Duration;
 use tcm::{
     Constraint, Error, Event, Facet, Failure, FailurePolicy, NodeRef, Point, RunOutcome, Runtime,
-    Task, TerminateWhen, Until, WatchOutcome,
+    Task, WatchOutcome, When,
 };
 
 fn secs(s: u64) -> Duration {
@@ -181,13 +181,13 @@ async fn external_events_from_a_handle_gate_and_terminate() {
         let door = ctx.external("door_open")?;
         let stop = ctx.external("stop")?;
         ctx.spawn(sleeper("enter", secs(1)))
-            .with(Constraint::Disable(Facet::Handling, Until::External(door)))
+            .with(Constraint::disable(Facet::Handling, When::External(door)))
             .start()?;
         ctx.spawn(Task::command("patrol", |_| async move {
             std::future::pending::<()>().await;
             Ok(())
         }))
-        .with(Constraint::Terminate(TerminateWhen::External(stop)))
+        .with(Constraint::terminate(When::External(stop)))
         .start()?;
         Ok(())
     });
@@ -399,30 +399,28 @@ async fn every_constraint_form_through_the_api() {
             .disable_until(Facet::Handling, Event::new(a, Point::Active))
             .start()?;
         ctx.spawn(sleeper("for_after", secs(1)))
-            .with(Constraint::Disable(
+            .with(Constraint::disable(
                 Facet::Handling,
-                Until::ForAfter(secs(3), Event::new(a, Point::Completed)),
+                When::After(secs(3), Event::new(a, Point::Completed)),
             ))
             .start()?;
         ctx.spawn(sleeper("at_time", secs(1)))
-            .with(Constraint::Disable(
+            .with(Constraint::disable(
                 Facet::Handling,
-                Until::Time(tcm::Time::ZERO + secs(7)),
+                When::At(tcm::Time::ZERO + secs(7)),
             ))
             .start()?;
         ctx.spawn(sleeper("killed_at", secs(100)))
-            .with(Constraint::Terminate(TerminateWhen::Time(
-                tcm::Time::ZERO + secs(4),
-            )))
+            .with(Constraint::terminate(When::At(tcm::Time::ZERO + secs(4))))
             .start()?;
         ctx.spawn(sleeper("killed_after", secs(100)))
-            .with(Constraint::Terminate(TerminateWhen::InAfter(
+            .with(Constraint::terminate(When::After(
                 secs(1),
                 Event::new(a, Point::Completed),
             )))
             .start()?;
         ctx.spawn(sleeper("killed_now", secs(100)))
-            .with(Constraint::Terminate(TerminateWhen::Now))
+            .with(Constraint::terminate(When::Now))
             .start()?;
         ctx.spawn(Task::goal("ef", |ctx| async move {
             ctx.spawn(sleeper("ef_child", secs(1))).start()?;
@@ -481,7 +479,7 @@ async fn held_children_wait_for_the_body_and_a_wait_releases_them() {
         // Waiting runs the held children (TDL's `wait` runs the agenda).
         ctx.wait(b).await?;
         let c = ctx.spawn(sleeper("c", secs(1))).start()?;
-        ctx.constrain(c, Constraint::Disable(Facet::Handling, Until::For(secs(3))))?;
+        ctx.constrain(c, Constraint::disable(Facet::Handling, When::In(secs(3))))?;
         Ok(())
     });
     let (report, trace) = run_checked(Runtime::new(), task).await;

@@ -127,7 +127,7 @@ mod handlers {
         tokio::time::sleep(std::time::Duration::from_secs(s)).await;
     }
 
-    use tdl::testing::handling as chosen;
+    use tdl::testing::handler_choices as chosen;
 
     tdl::tdl! {
         pub exception HardwareFailure;

@@ -1,0 +1,98 @@
+//! The driver: the one loop that carries the engine's outputs out and feeds its inputs back, shared
+//! by every shell (the tokio runtime in `tcm`, the simulator in [`crate::sim`]).
+//!
+//! A shell implements [`Shell`]: how it starts an action, runs an invocation, cancels, answers a
+//! watcher and keeps a trace record. It then calls the driver's steps, in this order, each turn:
+//!
+//! 1. [`Driver::time`]: the clock moved to `now`; every timer due by then fires.
+//! 2. [`Driver::effects`]: every queued [`Effect`] is handed to the shell, in order. A shell that
+//!    runs an action at once (the simulator) may call the engine from inside; what that queues is
+//!    carried out in the same step.
+//! 3. [`Driver::trace`]: every trace record is handed to the shell.
+//! 4. [`Driver::next`]: what the shell waits for before the next turn ([`Next`]): the next
+//!    deadline, and whether the engine is idle (then a run whose task has not ended is stuck).
+//!
+//! [`Driver::turn`] runs the four steps. An input (an action finished, an external event) goes to
+//! the engine's `handle_*` methods between turns, with the time of the same clock the shell gives
+//! to step 1: one source of time per shell.
+
+use crate::engine::{Effect, Engine, Job, Purpose, WatchOutcome};
+use crate::ids::{NodeId, WatchToken};
+use crate::time::Time;
+use tcm_trace::TraceEvent;
+
+/// What a shell does with the engine's outputs. `A` is its action type, `F` its factory type.
+pub trait Shell<A, F> {
+    /// Runs a node's action; its end goes to [`Engine::handle_action_finished`] with `node`.
+    fn start(&mut self, engine: &mut Engine<A, F>, node: NodeId, action: A);
+    /// Runs a factory for `job` (a monitor activation, a handler, a retry, a wiretap check); its
+    /// end goes to [`Engine::handle_action_finished`] with `job`.
+    fn invoke(&mut self, engine: &mut Engine<A, F>, job: Job, body: F, purpose: Box<Purpose>);
+    /// Stops a running action; the engine already counts it as finished.
+    fn cancel(&mut self, node: NodeId);
+    /// A watched point was reached.
+    fn notify(&mut self, engine: &mut Engine<A, F>, token: WatchToken, outcome: WatchOutcome);
+    /// Keeps one trace record (the default drops it).
+    fn trace(&mut self, record: TraceEvent) {
+        let _ = record;
+    }
+}
+
+/// What the shell waits for after a turn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[must_use]
+pub struct Next {
+    /// The earliest pending timer: call [`Driver::time`] (or [`Driver::turn`]) then.
+    pub deadline: Option<Time>,
+    /// Nothing can happen without a new input (no action runs, no timer is pending).
+    pub idle: bool,
+}
+
+/// The driver's steps (see the module documentation).
+pub struct Driver;
+
+impl Driver {
+    /// Step 1: the time is `now`; fires every timer due by then.
+    pub fn time<A, F: Clone>(engine: &mut Engine<A, F>, now: Time) {
+        engine.handle_timeout(now);
+    }
+
+    /// Step 2: hands every queued effect to the shell.
+    pub fn effects<A, F: Clone>(engine: &mut Engine<A, F>, shell: &mut impl Shell<A, F>) {
+        while let Some(effect) = engine.poll_effect() {
+            match effect {
+                Effect::Start { node, action } => shell.start(engine, node, action),
+                Effect::Invoke { job, body, purpose } => shell.invoke(engine, job, body, purpose),
+                Effect::Cancel { node } => shell.cancel(node),
+                Effect::Notify { token, outcome } => shell.notify(engine, token, outcome),
+            }
+        }
+    }
+
+    /// Step 3: hands every trace record to the shell.
+    pub fn trace<A, F: Clone>(engine: &mut Engine<A, F>, shell: &mut impl Shell<A, F>) {
+        while let Some(record) = engine.poll_trace() {
+            shell.trace(record);
+        }
+    }
+
+    /// Step 4: what to wait for.
+    pub fn next<A, F: Clone>(engine: &mut Engine<A, F>) -> Next {
+        Next {
+            deadline: engine.poll_timeout(),
+            idle: engine.is_idle(),
+        }
+    }
+
+    /// One turn: the four steps in order.
+    pub fn turn<A, F: Clone>(
+        engine: &mut Engine<A, F>,
+        shell: &mut impl Shell<A, F>,
+        now: Time,
+    ) -> Next {
+        Driver::time(engine, now);
+        Driver::effects(engine, shell);
+        Driver::trace(engine, shell);
+        Driver::next(engine)
+    }
+}

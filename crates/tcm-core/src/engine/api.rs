@@ -1,0 +1,249 @@
+//! The engine's API types: what goes in ([`Spawn`], [`Job`]), what comes out ([`Effect`],
+//! [`WatchOutcome`], [`Stats`]) and what misuse returns ([`EngineError`]).
+
+use super::exception::HandlerSpec;
+use super::monitor::MonitorSpec;
+use super::node::{OnTerminate, Purpose};
+use crate::constraint::Constraint;
+use crate::failure::Failure;
+use crate::ids::{NodeId, WatchToken, WiretapId};
+use crate::{Name, NodeKind};
+use tcm_trace::Facet;
+
+/// An output of the engine for the shell to carry out.
+#[derive(Debug)]
+pub enum Effect<A, F = ()> {
+    /// Run this node's action. Report its end with [`Engine::handle_action_finished`].
+    Start {
+        /// The node.
+        node: NodeId,
+        /// Its action, handed over once.
+        action: A,
+    },
+    /// Run a factory (a monitor activation, an exception handler, a retry, a wiretap check).
+    /// Report its end with [`Engine::handle_action_finished`], giving back `job`.
+    Invoke {
+        /// What to report the end of; `job.node()` is the node it runs for.
+        job: Job,
+        /// The factory, given at spawn or registration.
+        body: F,
+        /// Why it runs, with what it needs to know (boxed: effects stay small).
+        purpose: Box<Purpose>,
+    },
+    /// Stop this node's running action; the engine already counts it as finished.
+    Cancel {
+        /// The node.
+        node: NodeId,
+    },
+    /// A watched point was reached (see [`Engine::watch`]).
+    Notify {
+        /// The token given to `watch`.
+        token: WatchToken,
+        /// How the node got there.
+        outcome: WatchOutcome,
+    },
+}
+
+/// How a watched node reached the watched point.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum WatchOutcome {
+    /// Normally; its action succeeded.
+    Reached,
+    /// Normally, but its own action failed with this failure and no handler took it.
+    Failed(Failure),
+    /// Its action failed with this failure and a handler took it; the handler's subtree is done.
+    Handled(Failure),
+    /// It was terminated (the point was passed without the work being done).
+    Terminated,
+    /// It was a reservation that was never spawned.
+    Dead,
+}
+
+/// A request to insert a node (see [`Engine::spawn`]).
+pub struct Spawn<A, F = ()> {
+    /// Where to insert it.
+    pub parent: NodeId,
+    /// Its kind.
+    pub kind: NodeKind,
+    /// Its instance name.
+    pub name: Name,
+    /// Its action (`None` for a monitor, which runs its body per activation).
+    pub action: Option<A>,
+    /// Constraints applied before insertion (terminate forms right after it).
+    pub constraints: Vec<Constraint>,
+    /// Keep the node after completion (not reclaimed).
+    pub persistent: bool,
+    /// Cleanup tasks run if the node is terminated while its action runs.
+    pub on_terminate: Vec<OnTerminate<A>>,
+    /// A reservation (from [`Engine::reserve`]) this spawn fulfils.
+    pub fulfils: Option<NodeId>,
+    /// For a monitor: its body and parameters.
+    pub monitor: Option<Box<MonitorSpec<F>>>,
+    /// Exception handlers attached to the node, in the order they are tried.
+    pub handlers: Vec<HandlerSpec<F>>,
+    /// A factory that re-runs this task (same arguments), so handlers can retry it.
+    pub retry: Option<F>,
+}
+
+impl<A, F: Clone> Spawn<A, F> {
+    /// A node with no constraints.
+    pub fn new(parent: NodeId, kind: NodeKind, name: impl Into<Name>, action: A) -> Spawn<A, F> {
+        Spawn {
+            parent,
+            kind,
+            name: name.into(),
+            action: Some(action),
+            constraints: Vec::new(),
+            persistent: false,
+            on_terminate: Vec::new(),
+            fulfils: None,
+            monitor: None,
+            handlers: Vec::new(),
+            retry: None,
+        }
+    }
+
+    /// A monitor node.
+    pub fn monitor(parent: NodeId, name: impl Into<Name>, spec: MonitorSpec<F>) -> Spawn<A, F> {
+        Spawn {
+            parent,
+            kind: NodeKind::Monitor,
+            name: name.into(),
+            action: None,
+            constraints: Vec::new(),
+            persistent: false,
+            on_terminate: Vec::new(),
+            fulfils: None,
+            monitor: Some(Box::new(spec)),
+            handlers: Vec::new(),
+            retry: None,
+        }
+    }
+
+    /// Adds a constraint.
+    pub fn with(mut self, c: Constraint) -> Spawn<A, F> {
+        self.constraints.push(c);
+        self
+    }
+}
+
+/// Misuse of the engine API. A failing action is not an error: see [`Failure`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum EngineError {
+    /// The handle belongs to another run.
+    #[error("{node} belongs to run {}, not to this run ({run}); handles cannot cross runs", node.run())]
+    ForeignNode {
+        /// The handle.
+        node: NodeId,
+        /// This engine's run.
+        run: u32,
+    },
+    /// The handle names a node that no longer exists.
+    #[error("{0} no longer exists (it completed or was terminated and was reclaimed)")]
+    Gone(NodeId),
+    /// The root cannot be terminated, suspended, or constrained.
+    #[error("the root node cannot be {0}")]
+    Root(&'static str),
+    /// A child cannot be added under a node whose execution already completed.
+    #[error("cannot spawn under {name} {{{node}}}: its execution already completed")]
+    ParentCompleted {
+        /// Display number of the parent.
+        node: u64,
+        /// Its name.
+        name: String,
+    },
+    /// `fulfils` names no open reservation of this parent.
+    #[error("{0} is not an open reservation of this parent")]
+    NotReserved(NodeId),
+    /// A constraint can no longer apply: its facet has started.
+    #[error(
+        "cannot apply {constraint} to {name} {{{node}}}: its {facet} already left the disabled state"
+    )]
+    TooLate {
+        /// Display number of the node.
+        node: u64,
+        /// Its name.
+        name: String,
+        /// The facet.
+        facet: Facet,
+        /// The constraint, as written.
+        constraint: String,
+    },
+    /// `expand first` and `delay expansion` together can never be satisfied.
+    #[error("`expand first` and `delay expansion` on one node can never both hold")]
+    Inconsistent,
+    /// `action_finished` for a node whose action is not running.
+    #[error("{0} has no running action")]
+    NotRunning(NodeId),
+    /// A monitor operation on a node that is not a monitor (or a monitor spawned without its body).
+    #[error("node {{{0}}} is not a monitor (a monitor is spawned with its body and parameters)")]
+    NotAMonitor(u64),
+    /// Activation of a monitor whose handling is not active.
+    #[error("monitor {{{0}}} is not active: it has not started, has completed, or was terminated")]
+    InactiveMonitor(u64),
+    /// `watch` needs a node handle; `previous`, `this` and `parent` only mean something in a spawn.
+    #[error("a watched event must name a node handle, not `previous`, `this` or `parent`")]
+    RelativeRef,
+    /// Bypass or retry from a node that is not an exception handler.
+    #[error("node {{{0}}} is not an exception handler")]
+    NotAHandler(u64),
+    /// Retry of a task spawned without a retry factory.
+    #[error("node {{{0}}} cannot be retried: it was spawned without a retry factory")]
+    NotRetryable(u64),
+}
+
+/// Counters for benchmarks and tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Nodes in the arena now (including the root and reservations).
+    pub live_nodes: usize,
+    /// The most nodes ever in the arena at once.
+    pub high_water: usize,
+    /// Nodes ever created.
+    pub created: u64,
+    /// Actions running now.
+    pub running: u32,
+}
+
+/// A piece of work the shell runs for the engine: a node's action or invocation, or one wiretap
+/// check on a node. The shell hands it back, unopened, when the work ends
+/// ([`Engine::handle_action_finished`]); the engine alone decides what the end means.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Job {
+    node: NodeId,
+    tap: Option<WiretapId>,
+}
+
+impl Job {
+    /// A wiretap check on `node`.
+    pub(crate) fn check(node: NodeId, tap: WiretapId) -> Job {
+        Job {
+            node,
+            tap: Some(tap),
+        }
+    }
+
+    /// The node the work runs for.
+    pub fn node(&self) -> NodeId {
+        self.node
+    }
+
+    /// The wiretap, for a wiretap check.
+    pub(crate) fn tap(&self) -> Option<WiretapId> {
+        self.tap
+    }
+
+    /// Whether it is stopped with its node ([`Effect::Cancel`]): a wiretap check is not, it runs
+    /// to its end.
+    pub fn cancellable(&self) -> bool {
+        self.tap.is_none()
+    }
+}
+
+impl From<NodeId> for Job {
+    /// A node's own action or invocation.
+    fn from(node: NodeId) -> Job {
+        Job { node, tap: None }
+    }
+}

@@ -1,0 +1,416 @@
+//! Progress: how a node moves forward, and the engine's work loop.
+//!
+//! This is where "an action finished" is handled ([`Engine::handle_action_finished`]): the node's
+//! handling completes (or its after-wiretaps start, or its handler bypasses), the `transition`
+//! fires the waiters left by constraints (`arm.rs`), and `settle` drains the work queue: each
+//! queued `progress` moves one node as far as its constraints allow, then the oldest ready node
+//! starts (`start`). Timers fire here too (`handle_timeout`).
+//!
+//! A node's progress, in the order `progress` tries it:
+//! 1. expansion, then execution, become enabled once nothing blocks them and the parent's same
+//!    facet is enabled (`expand first` and `delay expansion` add their conditions);
+//! 2. handling becomes enabled once its node's expansion (goal-like) or execution (command-like)
+//!    is, and the node joins the ready queue;
+//! 3. expansion, then execution, complete once the handling completed and no child is open;
+//! 4. a terminating node is terminated once its execution completed and its children are;
+//! 5. a completed node with no children left is reclaimed, unless persistent.
+
+use super::node::{Node, Payload, WaitKind, Waiters};
+use super::timers::TimerKind;
+use super::{Effect, Engine, EngineError, Job, WatchOutcome, Work};
+use crate::NodeKind;
+use crate::arena::{Arena, Fate};
+use crate::constraint::Then;
+use crate::failure::Failure;
+use crate::ids::{NodeId, TapWhen};
+use crate::time::Time;
+use tcm_trace::{Facet, State, Termination, TraceKind};
+
+impl<A, F: Clone> Engine<A, F> {
+    /// Input: a job the shell ran for the engine ended ([`Effect::Start`] or [`Effect::Invoke`]).
+    ///
+    /// For a node's action or invocation, its handling completes (failed, if `result` is a
+    /// failure), unless "after" wiretaps must first approve it; a handler that asked to bypass
+    /// (`request_bypass`) passes its exception on instead. For a wiretap check, see `wiretap.rs`.
+    /// A job whose node was terminated meanwhile has nothing left to finish: that is not an error.
+    pub fn handle_action_finished(
+        &mut self,
+        now: Time,
+        job: impl Into<Job>,
+        result: Result<(), Failure>,
+    ) -> Result<(), EngineError> {
+        let job = job.into();
+        self.advance(now);
+        let node = job.node();
+        self.check_run(node)?;
+        if let Some(tap) = job.tap() {
+            let res = self.tap_finished(node, tap, result);
+            self.settle();
+            return res;
+        }
+        let n = self.nodes.get(node).ok_or(EngineError::Gone(node))?;
+        if n.state(Facet::Handling) != State::Active
+            || !n.alive()
+            || n.monitor().is_some()
+            || n.taps_pending() > 0
+        {
+            // A cancelled action may still report; the engine already finished it.
+            if n.state(Facet::Handling) == State::Completed && !n.alive() {
+                return Ok(());
+            }
+            return Err(EngineError::NotRunning(node));
+        }
+        self.running -= 1;
+        if n.bypass_requested() {
+            // What the handler's body returned does not matter: it passed the exception on.
+            self.bypass(node);
+        } else {
+            match result {
+                Err(failure) => {
+                    self.fail(node, failure);
+                    self.complete_handling(node);
+                }
+                Ok(()) => {
+                    // "After" wiretaps decide whether the node succeeded.
+                    if self.start_taps(node, TapWhen::After) == 0 {
+                        self.complete_handling(node);
+                    }
+                }
+            }
+        }
+        self.settle();
+        Ok(())
+    }
+
+    /// Input: the time is `now`; fires every timer due at or before it.
+    pub fn handle_timeout(&mut self, now: Time) {
+        self.advance(now);
+        self.fire_timers(now, true);
+    }
+
+    /// Fires the live timers due before `now` (or at `now` too, if `inclusive`), in deadline order,
+    /// each at its own time.
+    pub(super) fn fire_timers(&mut self, now: Time, inclusive: bool) {
+        loop {
+            let nodes = &self.nodes;
+            let Some((at, entry)) = self
+                .timers
+                .pop_due(now, inclusive, |k| timer_is_live(nodes, k))
+            else {
+                break;
+            };
+            if at > self.now {
+                self.now = at;
+            }
+            match entry {
+                TimerKind::Trigger { target, then } => self.fire_trigger(target, then, true),
+                TimerKind::Poll { monitor, k } => self.poll(monitor, k),
+            }
+            self.settle();
+        }
+    }
+
+    /// Delivers all queued work, then starts ready nodes one at a time, until nothing is left.
+    pub(super) fn settle(&mut self) {
+        loop {
+            while let Some(w) = self.work.pop_front() {
+                match w {
+                    Work::Progress(id) => self.progress(id),
+                    Work::Terminate(id) => self.do_terminate(id),
+                }
+            }
+            match self.ready.pop_front() {
+                Some(id) => self.start(id),
+                None => break,
+            }
+        }
+    }
+
+    /// Moves a node as far as its constraints allow (see the module documentation).
+    fn progress(&mut self, id: NodeId) {
+        loop {
+            let Some(n) = self.nodes.get(id) else { return };
+            if n.reserved || n.kind == NodeKind::Root {
+                return;
+            }
+            let alive = n.alive();
+            let h = n.state(Facet::Handling);
+            let x = n.state(Facet::Expansion);
+            let e = n.state(Facet::Execution);
+            // Children of a holding action are not enabled at all until it releases them (only
+            // looked up while something is left to enable).
+            let can_enable = alive
+                && (h == State::Disabled || x == State::Disabled || e == State::Disabled)
+                && !n
+                    .parent
+                    .and_then(|p| self.nodes.get(p))
+                    .is_some_and(|p| p.holding && p.state(Facet::Handling) == State::Active);
+            if can_enable
+                && x == State::Disabled
+                && n.blocks[Facet::Expansion.index()] == 0
+                && self.parent_allows(n, Facet::Expansion)
+                && (!n.delay_expansion || e >= State::Enabled)
+            {
+                self.transition(id, Facet::Expansion, State::Enabled);
+                self.progress_children(id);
+                continue;
+            }
+            if can_enable
+                && e == State::Disabled
+                && n.blocks[Facet::Execution.index()] == 0
+                && self.parent_allows(n, Facet::Execution)
+                && (!n.expand_first || x == State::Completed)
+            {
+                self.transition(id, Facet::Execution, State::Enabled);
+                self.progress_children(id);
+                continue;
+            }
+            let gate = if n.kind.expands() { x } else { e };
+            if can_enable
+                && h == State::Disabled
+                && n.blocks[Facet::Handling.index()] == 0
+                && gate >= State::Enabled
+            {
+                self.transition(id, Facet::Handling, State::Enabled);
+                self.ready.push_back(id);
+                continue;
+            }
+            if x != State::Completed
+                && h == State::Completed
+                && n.open_expansions == 0
+                && (x >= State::Enabled || !alive)
+            {
+                self.transition(id, Facet::Expansion, State::Completed);
+                if let Some(p) = self.node(id).parent {
+                    if let Some(p) = self.nodes.get_mut(p) {
+                        p.open_expansions -= 1;
+                    }
+                    self.work.push_back(Work::Progress(p));
+                }
+                continue;
+            }
+            if e != State::Completed
+                && h == State::Completed
+                && x == State::Completed
+                && n.open_executions == 0
+                && (e >= State::Enabled || !alive)
+            {
+                self.transition(id, Facet::Execution, State::Completed);
+                if let Some(p) = self.node(id).parent {
+                    if let Some(p) = self.nodes.get_mut(p) {
+                        p.open_executions -= 1;
+                    }
+                    self.work.push_back(Work::Progress(p));
+                }
+                continue;
+            }
+            if n.termination == Termination::Terminating
+                && e == State::Completed
+                && n.open_executions == 0
+                && n.terminating_children == 0
+            {
+                self.node_mut(id).termination = Termination::Terminated;
+                let display = self.node(id).display;
+                emit!(self, TraceKind::Terminated { node: display });
+                if let Some(p) = self.node(id).parent {
+                    if let Some(pn) = self.nodes.get_mut(p) {
+                        pn.terminating_children -= 1;
+                    }
+                    self.work.push_back(Work::Progress(p));
+                }
+                continue;
+            }
+            if e == State::Completed
+                && n.termination != Termination::Terminating
+                && n.live_children == 0
+                && !n.persistent
+            {
+                self.reclaim(id);
+            }
+            return;
+        }
+    }
+
+    pub(super) fn progress_children(&mut self, id: NodeId) {
+        let mut c = self.first_child(id);
+        while let Some(child) = c {
+            self.work.push_back(Work::Progress(child));
+            c = self.next_sibling(child);
+        }
+    }
+
+    fn parent_allows(&self, n: &Node<A, F>, facet: Facet) -> bool {
+        match n.parent {
+            None => true,
+            Some(p) => self
+                .nodes
+                .get(p)
+                .is_none_or(|p| p.state(facet) >= State::Enabled),
+        }
+    }
+
+    /// Moves `facet` of `id` to `to`, traces it and fires the waiters whose point is now reached.
+    pub(super) fn transition(&mut self, id: NodeId, facet: Facet, to: State) {
+        let n = self.node_mut(id);
+        let from = n.states[facet.index()];
+        debug_assert!(from < to, "facets only move forward");
+        n.states[facet.index()] = to;
+        let display = n.display;
+        // Usually none or one fires: `Waiters` keeps one inline, so no allocation.
+        let fired = if n.waiters.is_empty() {
+            Waiters::None
+        } else {
+            let mut fired = Waiters::None;
+            n.waiters.retain(|w| {
+                if w.facet == facet && w.point.state() <= to {
+                    fired.push(*w);
+                    false
+                } else {
+                    true
+                }
+            });
+            fired
+        };
+        emit!(
+            self,
+            TraceKind::Transition {
+                node: display,
+                facet,
+                from,
+                to,
+            }
+        );
+        if !fired.is_empty() {
+            for w in fired {
+                self.fire_now(id, w.kind);
+            }
+        }
+    }
+
+    fn start(&mut self, id: NodeId) {
+        let Some(n) = self.nodes.get_mut(id) else {
+            return;
+        };
+        if n.state(Facet::Handling) != State::Enabled || !n.alive() {
+            return;
+        }
+        if n.suspended {
+            n.parked = true;
+            return;
+        }
+        let is_monitor = n.monitor().is_some();
+        let tapped = n.tapped_before();
+        if !is_monitor && !tapped && !self.taps.is_empty() {
+            n.cold_mut().tapped_before = true;
+            if self.start_taps(id, crate::ids::TapWhen::Before) > 0 {
+                // Stays enabled until its checks report (`tap_finished`).
+                return;
+            }
+        }
+        let Some(n) = self.nodes.get_mut(id) else {
+            return;
+        };
+        let payload = n.action.take();
+        if payload.is_none() && !is_monitor {
+            return;
+        }
+        let expands = n.kind.expands();
+        if !is_monitor {
+            self.running += 1;
+        }
+        self.transition(id, Facet::Handling, State::Active);
+        // Figure 3: the expansion (goals) or execution (commands) of the node and of every ancestor
+        // is active once some node of the right kind in the subtree is active.
+        let facet = if expands {
+            Facet::Expansion
+        } else {
+            Facet::Execution
+        };
+        let mut cur = Some(id);
+        while let Some(c) = cur {
+            let n = self.node(c);
+            if n.kind == NodeKind::Root || n.state(facet) != State::Enabled {
+                break;
+            }
+            let parent = n.parent;
+            self.transition(c, facet, State::Active);
+            cur = parent;
+        }
+        match payload {
+            Some(Payload::Action(action)) => {
+                self.effects.push_back(Effect::Start { node: id, action })
+            }
+            Some(Payload::Invoke(body, purpose)) => {
+                self.effects.push_back(Effect::Invoke {
+                    job: Job::from(id),
+                    body,
+                    purpose,
+                });
+            }
+            None => self.monitor_started(id),
+        }
+    }
+
+    pub(super) fn complete_handling(&mut self, id: NodeId) {
+        self.transition(id, Facet::Handling, State::Completed);
+        if std::mem::replace(&mut self.node_mut(id).holding, false) {
+            self.progress_children(id);
+        }
+        self.bury_reservations(id);
+        self.work.push_back(Work::Progress(id));
+    }
+
+    /// The body of `id` ended: reservations it never spawned are dead (catalogue §1.6).
+    pub(super) fn bury_reservations(&mut self, id: NodeId) {
+        let reservations = self.node_mut(id).take_cold(|c| &mut c.reservations);
+        for r in reservations {
+            let Some(node) = self.nodes.remove(r, Fate::Dead) else {
+                continue;
+            };
+            emit!(self, TraceKind::Dead { node: node.display });
+            for w in node.waiters {
+                match w.kind {
+                    WaitKind::Watch { token } => self.effects.push_back(Effect::Notify {
+                        token,
+                        outcome: WatchOutcome::Dead,
+                    }),
+                    // A dead event fires termination at once and drops the `after` part's event.
+                    other => self.fire(other, false),
+                }
+            }
+        }
+    }
+
+    fn reclaim(&mut self, id: NodeId) {
+        let fate = if self.node(id).termination == Termination::Terminated {
+            Fate::Terminated
+        } else {
+            Fate::Completed
+        };
+        let parent = self.node(id).parent;
+        self.unlink(id);
+        let display = self.node(id).display;
+        self.nodes.discard(id, fate);
+        emit!(self, TraceKind::Reclaimed { node: display });
+        if let Some(p) = parent {
+            self.work.push_back(Work::Progress(p));
+        }
+    }
+}
+
+/// Whether a timer still matters when it surfaces (stale ones are skipped, see `timers.rs`).
+pub(super) fn timer_is_live<A, F>(nodes: &Arena<A, F>, kind: &TimerKind) -> bool {
+    match *kind {
+        TimerKind::Trigger { target, then } => nodes.get(target).is_some_and(|n| {
+            n.alive()
+                && match then {
+                    Then::Enable(facet) => n.state(facet) == State::Disabled,
+                    Then::Terminate => n.state(Facet::Execution) != State::Completed,
+                    Then::Activate => n.state(Facet::Handling) != State::Completed,
+                }
+        }),
+        TimerKind::Poll { monitor, .. } => nodes
+            .get(monitor)
+            .is_some_and(|n| n.alive() && n.state(Facet::Handling) == State::Active),
+    }
+}

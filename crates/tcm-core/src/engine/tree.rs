@@ -1,0 +1,309 @@
+//! Tree links: inserting nodes (spawns, reservations, the engine's own insertions) and the sibling
+//! links between live nodes.
+//!
+//! A node is linked under its parent when it is inserted and unlinked when it is reclaimed
+//! (`progress.rs`). Each parent counts its live children and its children whose expansion or
+//! execution is still open, so the Figure 3 aggregates cost O(1) per transition.
+
+use super::exception::HandlerEntry;
+use super::monitor::Monitor;
+use super::node::{Link, Node, Payload};
+use super::{Engine, EngineError, Spawn, Work};
+use crate::constraint::Constraint;
+use crate::ids::NodeId;
+use crate::time::Time;
+use crate::{Name, NodeKind};
+use tcm_trace::{Facet, State, TraceKind};
+
+impl<A, F: Clone> Engine<A, F> {
+    /// Reserves a node under `parent` for a later spawn, so constraints can name it before it exists
+    /// (a forward reference). If the parent's action ends without spawning it, it is *dead*:
+    /// enablement constraints on it are void, `terminate at` it fires at once (catalogue §1.6).
+    pub fn reserve(
+        &mut self,
+        now: Time,
+        parent: NodeId,
+        name: impl Into<Name>,
+    ) -> Result<NodeId, EngineError> {
+        self.advance(now);
+        let pd = self.live(parent)?;
+        if pd.state(Facet::Execution) == State::Completed {
+            return Err(EngineError::ParentCompleted {
+                node: pd.display,
+                name: pd.name.to_string(),
+            });
+        }
+        let display = self.next_display();
+        let name = name.into();
+        let mut node = Node::new(display, NodeKind::Goal, name.clone(), Some(parent));
+        node.reserved = true;
+        let id = self.nodes.insert(node);
+        let parent_display = self.node(parent).display;
+        self.node_mut(parent).cold_mut().reservations.push(id);
+        emit!(
+            self,
+            TraceKind::Reserved {
+                node: display,
+                parent: parent_display,
+                name: name.into_owned(),
+            }
+        );
+        Ok(id)
+    }
+
+    /// Inserts a node (catalogue §3.3 step 1): applies its constraints, links it under its parent,
+    /// and settles. Returns its handle.
+    pub fn spawn(&mut self, now: Time, spec: Spawn<A, F>) -> Result<NodeId, EngineError> {
+        self.advance(now);
+        let Spawn {
+            parent,
+            kind,
+            name,
+            action,
+            constraints,
+            persistent,
+            on_terminate,
+            fulfils,
+            monitor,
+            handlers,
+            retry,
+        } = spec;
+        let pd = self.live(parent)?;
+        if (kind == NodeKind::Monitor) != monitor.is_some() {
+            return Err(EngineError::NotAMonitor(self.next_display));
+        }
+        if pd.state(Facet::Execution) == State::Completed {
+            return Err(EngineError::ParentCompleted {
+                node: pd.display,
+                name: pd.name.to_string(),
+            });
+        }
+        if constraints.len() >= 2
+            && constraints.contains(&Constraint::ExpandFirst)
+            && constraints.contains(&Constraint::DelayExpansion)
+        {
+            return Err(EngineError::Inconsistent);
+        }
+        let previous = pd.last_spawned;
+        for c in &constraints {
+            self.validate_refs(c)?;
+        }
+        let id = match fulfils {
+            Some(r) => {
+                let ok =
+                    matches!(self.nodes.get(r), Some(n) if n.reserved && n.parent == Some(parent));
+                if !ok {
+                    return Err(EngineError::NotReserved(r));
+                }
+                self.node_mut(parent)
+                    .cold_mut()
+                    .reservations
+                    .retain(|x| *x != r);
+                let node = self.node_mut(r);
+                node.reserved = false;
+                node.kind = kind;
+                node.name = name;
+                if !kind.expands() {
+                    node.states[Facet::Expansion.index()] = State::Completed;
+                }
+                r
+            }
+            None => {
+                let display = self.next_display();
+                self.nodes
+                    .insert(Node::new(display, kind, name, Some(parent)))
+            }
+        };
+        {
+            let parent_suspended = self.node(parent).suspended;
+            let node = self.node_mut(id);
+            node.action = action.map(Payload::Action);
+            node.persistent = persistent;
+            if !on_terminate.is_empty() {
+                node.cold_mut().on_terminate = on_terminate;
+            }
+            node.suspended = parent_suspended;
+            if let Some(m) = monitor {
+                node.cold_mut().monitor = Some(Monitor::new(*m));
+            }
+            if !handlers.is_empty() {
+                node.cold_mut().handlers = handlers
+                    .into_iter()
+                    .map(|spec| HandlerEntry { spec, uses: 0 })
+                    .collect();
+            }
+            if retry.is_some() {
+                node.cold_mut().retry = retry;
+            }
+        }
+        self.link(parent, id);
+        let display = self.emit_spawned(id, parent);
+        if let Some(m) = self.node(id).monitor() {
+            let record = TraceKind::MonitorParams {
+                node: display,
+                max_activations: m.spec.max_activations,
+                max_triggers: m.spec.max_triggers,
+                period_ns: m
+                    .spec
+                    .period
+                    .map(|p| u64::try_from(p.as_nanos()).unwrap_or(u64::MAX)),
+                initial_wait: m.spec.initial_wait,
+            };
+            emit!(self, record);
+        }
+        if self.node(id).suspended {
+            emit!(self, TraceKind::Suspended { node: display });
+        }
+        let deferred = self.node_mut(id).take_cold(|c| &mut c.deferred);
+        let mut later = Vec::new();
+        for (c, prev) in deferred {
+            if c.applies_after_link() {
+                later.push((c, prev));
+            } else {
+                self.apply(id, parent, prev, c);
+            }
+        }
+        for c in constraints {
+            if c.applies_after_link() {
+                later.push((c, previous));
+            } else {
+                self.apply(id, parent, previous, c);
+            }
+        }
+        self.node_mut(parent).last_spawned = Some(id);
+        for (c, prev) in later {
+            self.apply(id, parent, prev, c);
+        }
+        if !self.node(parent).alive() && !self.node(id).immune {
+            self.work.push_back(Work::Terminate(id));
+        }
+        self.work.push_back(Work::Progress(id));
+        self.settle();
+        Ok(id)
+    }
+
+    /// Holds (or releases) the start of the children a running action spawns: while held, they are
+    /// inserted and constrained but their handling is not enabled. TDL's semantics, where a task's
+    /// body always ends before any child it spawned runs (unless it waits), so constraint statements
+    /// after a spawn still apply. The hold ends by itself when the action returns.
+    /// Returns whether it was holding before.
+    pub fn hold_children(
+        &mut self,
+        now: Time,
+        node: NodeId,
+        on: bool,
+    ) -> Result<bool, EngineError> {
+        self.advance(now);
+        let n = self.live(node)?;
+        if n.kind == NodeKind::Root {
+            return Err(EngineError::Root("held"));
+        }
+        let was = std::mem::replace(&mut self.node_mut(node).holding, on);
+        if was && !on {
+            self.progress_children(node);
+            self.settle();
+        }
+        Ok(was)
+    }
+
+    fn link(&mut self, parent: NodeId, child: NodeId) {
+        let last = self.node(parent).last_child;
+        {
+            let c = self.node_mut(child);
+            c.prev_sibling = last;
+            c.next_sibling = Link::NONE;
+        }
+        if let Some(l) = self.nodes.id_at(last) {
+            self.node_mut(l).next_sibling = Link::to(child);
+        }
+        let child_expands = self.node(child).state(Facet::Expansion) != State::Completed;
+        let p = self.node_mut(parent);
+        if p.first_child == Link::NONE {
+            p.first_child = Link::to(child);
+        }
+        p.last_child = Link::to(child);
+        p.live_children += 1;
+        p.open_executions += 1;
+        if child_expands {
+            p.open_expansions += 1;
+        }
+    }
+
+    pub(super) fn unlink(&mut self, child: NodeId) {
+        let (parent, prev, next) = {
+            let c = self.node(child);
+            (c.parent, c.prev_sibling, c.next_sibling)
+        };
+        let Some(parent) = parent else { return };
+        match self.nodes.id_at(prev) {
+            Some(p) => self.node_mut(p).next_sibling = next,
+            None => self.node_mut(parent).first_child = next,
+        }
+        match self.nodes.id_at(next) {
+            Some(n) => self.node_mut(n).prev_sibling = prev,
+            None => self.node_mut(parent).last_child = prev,
+        }
+        self.node_mut(parent).live_children -= 1;
+    }
+
+    /// The first linked child of a live node.
+    pub(crate) fn first_child(&self, id: NodeId) -> Option<NodeId> {
+        self.nodes
+            .get(id)
+            .and_then(|n| self.nodes.id_at(n.first_child))
+    }
+
+    /// The next linked sibling of a live node.
+    pub(crate) fn next_sibling(&self, id: NodeId) -> Option<NodeId> {
+        self.nodes
+            .get(id)
+            .and_then(|n| self.nodes.id_at(n.next_sibling))
+    }
+
+    /// Allocates, links and traces a new node under `parent` with the given payload (activations,
+    /// handler nodes, retries, on-terminate tasks). The caller queues its progress.
+    pub(crate) fn insert(
+        &mut self,
+        parent: NodeId,
+        kind: NodeKind,
+        name: Name,
+        payload: Payload<A, F>,
+    ) -> NodeId {
+        let display = self.next_display();
+        let mut node = Node::new(display, kind, name, Some(parent));
+        node.action = Some(payload);
+        node.suspended = self.node(parent).suspended;
+        let id = self.nodes.insert(node);
+        self.link(parent, id);
+        self.emit_spawned(id, parent);
+        if self.node(id).suspended {
+            emit!(self, TraceKind::Suspended { node: display });
+        }
+        if !self.node(parent).alive() {
+            self.work.push_back(Work::Terminate(id));
+        }
+        id
+    }
+
+    /// Traces a node's insertion under `parent`; returns its display number.
+    fn emit_spawned(&mut self, id: NodeId, parent: NodeId) -> u64 {
+        let (display, kind) = (self.node(id).display, self.node(id).kind);
+        let parent = self.node(parent).display;
+        // The name is only copied when someone reads the trace.
+        let name = if self.tracing {
+            self.node(id).name.to_string()
+        } else {
+            String::new()
+        };
+        emit!(
+            self,
+            TraceKind::Spawned {
+                node: display,
+                parent,
+                kind,
+                name,
+            }
+        );
+        display
+    }
+}

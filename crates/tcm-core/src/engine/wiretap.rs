@@ -1,0 +1,123 @@
+//! Wiretaps (the TCA paper's wiretap monitors; docs/semantics.md, "Wiretaps"): checks attached
+//! from outside to a task name, without touching the task's code.
+//!
+//! 1. [`Engine::wiretap`] registers a check for a task name, before its action starts or after it
+//!    returned successfully.
+//! 2. When a node of that name is about to start (`start` in `progress.rs`) or has returned
+//!    (`handle_action_finished`), each matching check becomes an [`Effect::Invoke`] whose [`Job`]
+//!    names the check; the node waits, enabled or active, until every check has reported.
+//! 3. When the last check reports: all passed, the node starts (before) or completes (after); one
+//!    failed, the node fails with the first failure instead (a "before" check vetoes the action).
+
+use super::node::Purpose;
+use super::{Effect, Engine, EngineError, Job};
+use crate::Name;
+use crate::failure::Failure;
+use crate::ids::{NodeId, TapWhen, WiretapId};
+use tcm_trace::TraceKind;
+
+/// A registered wiretap.
+pub(crate) struct Wiretap<F> {
+    pub(crate) task: Name,
+    pub(crate) when: TapWhen,
+    pub(crate) body: F,
+}
+
+impl<A, F: Clone> Engine<A, F> {
+    /// Registers a wiretap: `body` runs whenever a node whose instance name is `task` is about to
+    /// start its action (`Before`) or has returned successfully (`After`), without touching that
+    /// task's code. A failing check fails the tapped node with the check's failure.
+    pub fn wiretap(&mut self, task: impl Into<Name>, when: TapWhen, body: F) -> WiretapId {
+        let id = WiretapId(self.taps.len() as u32);
+        self.taps.push(Wiretap {
+            task: task.into(),
+            when,
+            body,
+        });
+        id
+    }
+
+    /// Step 3: a wiretap check on `node` finished (reported through `handle_action_finished`,
+    /// which settles afterwards).
+    pub(super) fn tap_finished(
+        &mut self,
+        node: NodeId,
+        tap: WiretapId,
+        result: Result<(), Failure>,
+    ) -> Result<(), EngineError> {
+        let Some(when) = self.taps.get(tap.0 as usize).map(|t| t.when) else {
+            return Err(EngineError::NotRunning(node));
+        };
+        self.running = self.running.saturating_sub(1);
+        let Some(n) = self.nodes.get_mut(node) else {
+            return Ok(());
+        };
+        let alive = n.alive();
+        let c = n.cold_mut();
+        c.taps_pending = c.taps_pending.saturating_sub(1);
+        if let Err(f) = result {
+            if c.tap_failure.is_none() {
+                c.tap_failure = Some(f);
+            }
+        }
+        if c.taps_pending > 0 || !alive {
+            return Ok(());
+        }
+        let failure = c.tap_failure.take();
+        match (when, failure) {
+            (TapWhen::Before, None) => self.ready.push_back(node),
+            (TapWhen::Before, Some(f)) => {
+                // Vetoed: the action never runs; the node fails in its place.
+                self.fail(node, f);
+                self.complete_handling(node);
+            }
+            (TapWhen::After, None) => self.complete_handling(node),
+            (TapWhen::After, Some(f)) => {
+                self.fail(node, f);
+                self.complete_handling(node);
+            }
+        }
+        Ok(())
+    }
+
+    /// Starts the wiretaps of `node` for `when`; returns how many started.
+    pub(crate) fn start_taps(&mut self, node: NodeId, when: TapWhen) -> u32 {
+        if self.taps.is_empty() {
+            return 0;
+        }
+        let name = self.node(node).name.clone();
+        let matching: Vec<(WiretapId, F)> = self
+            .taps
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.when == when && t.task == name)
+            .map(|(i, t)| (WiretapId(i as u32), t.body.clone()))
+            .collect();
+        let k = matching.len() as u32;
+        if k == 0 {
+            return 0;
+        }
+        let display = self.node(node).display;
+        self.node_mut(node).cold_mut().taps_pending += k;
+        for (tap, body) in matching {
+            self.running += 1;
+            emit!(
+                self,
+                TraceKind::Tapped {
+                    node: display,
+                    tap: tap.0,
+                    when: match when {
+                        TapWhen::Before => "before".into(),
+                        TapWhen::After => "after".into(),
+                    },
+                }
+            );
+            self.effects.push_back(Effect::Invoke {
+                job: Job::check(node, tap),
+                body,
+                purpose: Box::new(Purpose::Tap { tap, when }),
+            });
+        }
+        k
+    }
+}

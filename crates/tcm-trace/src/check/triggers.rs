@@ -1,0 +1,290 @@
+//! The checker's side of triggers: every `constrained` record's trigger, the enabling ones checked
+//! when their facet becomes enabled ([`Rule::Disable`]), the terminating ones owed as terminations
+//! and verified when they fall due ([`Rule::Terminate`]). Activations are checked per activation
+//! record ([`Rule::Activation`]), not here.
+
+use super::{Checker, Rule, ref_text, secs};
+use crate::event::{TraceConstraint, TraceEvent, TraceEventRef, TraceKind, TraceThen, TraceWhen};
+use crate::replay::ReplayNode;
+use crate::state::{Facet, State, Termination};
+use std::cmp::Reverse;
+
+/// A termination that a `terminate` trigger made due.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(super) struct Owed {
+    due: u64,
+    // `seq` of the record that made it due (keeps the heap order deterministic).
+    seq: u64,
+    node: u64,
+    // Whether the trace owes it even if it ends at `due` (true for terminations due at once).
+    owed_at_end: bool,
+}
+
+/// A `terminate` trigger waiting for its event.
+#[derive(Clone, Debug)]
+pub(super) struct Watch {
+    target: u64,
+    facet: Facet,
+    state: State,
+    // `None` for `terminate at <event>`, the delay for `terminate in <delay> after <event>`.
+    delay: Option<u64>,
+}
+
+impl Checker {
+    pub(super) fn check_constrained(
+        &mut self,
+        ev: &TraceEvent,
+        node: u64,
+        constraint: &TraceConstraint,
+    ) {
+        let seq = ev.seq;
+        self.report.n_constraints += 1;
+        let late_ok = matches!(
+            constraint,
+            TraceConstraint::Trigger {
+                then: TraceThen::Terminate | TraceThen::Activate,
+                ..
+            }
+        );
+        if !late_ok && self.window != Some(node) {
+            let msg = format!(
+                "an enablement constraint ({constraint:?}) is applied to {} after its spawn records; only \
+                 `terminate` and `activate` triggers may come later",
+                self.name(node)
+            );
+            self.flag(seq, Some(node), Rule::LateConstraint, msg);
+        }
+        if let Some(r) = constraint.event() {
+            if self.replay.node(r.node).is_none() && r.node != node {
+                let msg = format!(
+                    "the constraint waits for {}, a node never seen in the trace",
+                    ref_text(&r)
+                );
+                self.flag(seq, Some(node), Rule::UnknownReference, msg);
+                return;
+            }
+        }
+        let TraceConstraint::Trigger {
+            when,
+            then: TraceThen::Terminate,
+        } = constraint
+        else {
+            return;
+        };
+        match when {
+            TraceWhen::Now => self.owe(node, ev.t, true, seq),
+            TraceWhen::At(at) => self.owe(node, (*at).max(ev.t), *at <= ev.t, seq),
+            TraceWhen::External(name) => {
+                if self.externals.contains(name) {
+                    self.owe(node, ev.t, true, seq);
+                } else {
+                    self.external_watches
+                        .entry(name.clone())
+                        .or_default()
+                        .push(node);
+                }
+            }
+            TraceWhen::Event(event) => self.watch(ev, node, event, None),
+            TraceWhen::After { delay_ns, event } => self.watch(ev, node, event, Some(*delay_ns)),
+        }
+    }
+
+    // A `terminate` trigger on `node` waiting for `event`: owed now, never, or watched.
+    fn watch(&mut self, ev: &TraceEvent, node: u64, event: &TraceEventRef, delay: Option<u64>) {
+        let delay_ns = delay.unwrap_or(0);
+        let Some(r) = self.replay.node(event.node) else {
+            return;
+        };
+        let passed = r.is_dead() || r.reached_at(event.facet, event.point).is_some();
+        if r.termination() != Termination::Alive && !r.is_dead() {
+            // A termination whose event's node is terminating never fires (docs/semantics.md,
+            // "Termination").
+        } else if passed {
+            self.owe(node, ev.t.saturating_add(delay_ns), delay_ns == 0, ev.seq);
+        } else {
+            self.watches.entry(event.node).or_default().push(Watch {
+                target: node,
+                facet: event.facet,
+                state: event.point.state(),
+                delay,
+            });
+        }
+    }
+
+    // Records that `node` must be terminating by the end of the records at time `due`, unless it has
+    // completed its execution or is terminating already.
+    fn owe(&mut self, node: u64, due: u64, owed_at_end: bool, seq: u64) {
+        let Some(n) = self.replay.node(node) else {
+            return;
+        };
+        if n.termination() != Termination::Alive || n.state(Facet::Execution) == State::Completed {
+            return;
+        }
+        self.owed.push(Reverse(Owed {
+            due,
+            seq,
+            node,
+            owed_at_end,
+        }));
+    }
+
+    // Verifies the terminations due before `now` (all of them at the end of the trace, `now == None`).
+    pub(super) fn settle_owed(&mut self, now: Option<u64>, seq: u64) {
+        let end_t = self.last.map_or(0, |(_, t)| t);
+        while let Some(Reverse(top)) = self.owed.peek() {
+            if now.is_some_and(|t| top.due >= t) {
+                return;
+            }
+            let Some(Reverse(owed)) = self.owed.pop() else {
+                return;
+            };
+            let Some(n) = self.replay.node(owed.node) else {
+                continue;
+            };
+            let done = n.termination() != Termination::Alive
+                || n.state(Facet::Execution) == State::Completed
+                || n.is_reclaimed();
+            // At the end of the trace, a timer due at (or after) the last record's time is not owed yet.
+            let owed_now = now.is_some() || owed.owed_at_end || owed.due < end_t;
+            if done || owed_now {
+                self.report.n_terminations_checked += 1;
+            }
+            if !done && owed_now {
+                let msg = format!(
+                    "{} should be terminating by t={} (made due by the record with seq {}), but it is still \
+                     alive and its execution is {}",
+                    self.name(owed.node),
+                    secs(owed.due),
+                    owed.seq,
+                    n.state(Facet::Execution)
+                );
+                self.flag(seq, Some(owed.node), Rule::Terminate, msg);
+            }
+        }
+    }
+
+    // Whether constraint `c` of node `n` still forbade `facet` from becoming enabled at `ev`.
+    pub(super) fn constraint_blocks(
+        &self,
+        ev: &TraceEvent,
+        n: &ReplayNode,
+        facet: Facet,
+        c: &TraceConstraint,
+    ) -> Option<(Rule, String)> {
+        let problem = match c {
+            TraceConstraint::Trigger {
+                when,
+                then: TraceThen::Enable(f),
+            } if *f == facet => self.trigger_pending(ev, when)?,
+            TraceConstraint::ExpandFirst if facet == Facet::Execution => {
+                return (n.state(Facet::Expansion) != State::Completed).then(|| {
+                    let state = n.state(Facet::Expansion);
+                    let msg = format!("`expand first`, but the expansion is {state}");
+                    (Rule::ExpandFirst, msg)
+                });
+            }
+            TraceConstraint::DelayExpansion if facet == Facet::Expansion => {
+                return (n.state(Facet::Execution) < State::Enabled).then(|| {
+                    let state = n.state(Facet::Execution);
+                    let msg = format!("`delay expansion`, but the execution is {state}");
+                    (Rule::DelayExpansion, msg)
+                });
+            }
+            _ => return None,
+        };
+        Some((Rule::Disable, problem))
+    }
+
+    // What an enabling trigger still waits for at `ev`, if it has not fired.
+    fn trigger_pending(&self, ev: &TraceEvent, when: &TraceWhen) -> Option<String> {
+        match when {
+            TraceWhen::Now => None,
+            TraceWhen::At(at) => {
+                (ev.t < *at).then(|| format!("it is disabled until t={}", secs(*at)))
+            }
+            TraceWhen::External(name) => (!self.externals.contains(name))
+                .then(|| format!("it waits for the external event `{name}`, not raised yet")),
+            TraceWhen::Event(event) => {
+                let ok = self.replay.node(event.node).is_some_and(|r| {
+                    r.is_dead() || r.reached_at(event.facet, event.point).is_some()
+                });
+                (!ok).then(|| format!("it waits for {}, which has not happened", ref_text(event)))
+            }
+            TraceWhen::After { delay_ns, event } => {
+                let since = self.replay.node(event.node).and_then(|r| {
+                    r.dead_at()
+                        .or_else(|| r.reached_at(event.facet, event.point))
+                });
+                let delay = secs(*delay_ns);
+                match since {
+                    None => Some(format!(
+                        "it waits {delay} after {}, which has not happened",
+                        ref_text(event)
+                    )),
+                    Some(s) if ev.t < s.saturating_add(*delay_ns) => Some(format!(
+                        "it waits {delay} after {} (at t={}), until t={}",
+                        ref_text(event),
+                        secs(s),
+                        secs(s.saturating_add(*delay_ns))
+                    )),
+                    Some(_) => None,
+                }
+            }
+        }
+    }
+
+    // Fires the `terminate` triggers the record's event sets off.
+    pub(super) fn after_record(&mut self, ev: &TraceEvent) {
+        match &ev.kind {
+            TraceKind::Transition {
+                node,
+                facet,
+                from,
+                to,
+            } => {
+                let Some(mut watches) = self.watches.remove(node) else {
+                    return;
+                };
+                // Termination triggers do not fire on points reached because the node was terminating.
+                let terminating = self
+                    .replay
+                    .node(*node)
+                    .is_some_and(|n| n.termination() != Termination::Alive);
+                let mut keep = Vec::new();
+                for w in watches.drain(..) {
+                    if w.facet == *facet && *from < w.state && w.state <= *to {
+                        if !terminating {
+                            self.fire_watch(ev, &w);
+                        }
+                    } else {
+                        keep.push(w);
+                    }
+                }
+                if !keep.is_empty() {
+                    self.watches.insert(*node, keep);
+                }
+            }
+            TraceKind::Dead { node } => {
+                if let Some(watches) = self.watches.remove(node) {
+                    for w in &watches {
+                        self.fire_watch(ev, w);
+                    }
+                }
+            }
+            TraceKind::External { name } => {
+                self.externals.insert(name.clone());
+                if let Some(targets) = self.external_watches.remove(name) {
+                    for target in targets {
+                        self.owe(target, ev.t, true, ev.seq);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn fire_watch(&mut self, ev: &TraceEvent, w: &Watch) {
+        let d = w.delay.unwrap_or(0);
+        self.owe(w.target, ev.t.saturating_add(d), d == 0, ev.seq);
+    }
+}
