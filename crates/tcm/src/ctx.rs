@@ -33,7 +33,7 @@ impl Ctx {
         self.shared.now().since_start()
     }
 
-    /// The engine time of the next occurrence of a time of day (`secs` since midnight, UTC), for
+    /// The engine time of today's occurrence of a time of day (`secs` since midnight, UTC), for
     /// `disable until` / `terminate at` an absolute time (docs/semantics.md, "Time": resolved against the
     /// wall clock now; a time already past today is due at once).
     pub fn time_of_day(&self, secs: f64) -> tcm_core::Time {

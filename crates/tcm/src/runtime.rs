@@ -31,7 +31,7 @@ static RUNS: AtomicU32 = AtomicU32::new(1);
 pub enum RunOutcome {
     /// The top-level task's execution completed (it and its whole subtree).
     Completed,
-    /// The top-level task's own action failed (no handler took the failure).
+    /// The top-level task's own action failed (whether or not a handler then took the failure).
     TaskFailed(Failure),
     /// The top-level task was terminated.
     Terminated,

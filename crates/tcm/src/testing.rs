@@ -48,3 +48,9 @@ pub fn assert_checked(trace: &[TraceEvent]) {
         }
     }
 }
+
+/// The trace as JSON lines without its first record (whose run number differs between runs), for
+/// comparing two runs of the same program byte for byte.
+pub fn lines(trace: &[TraceEvent]) -> Vec<String> {
+    trace.iter().skip(1).map(tcm_trace::to_line).collect()
+}

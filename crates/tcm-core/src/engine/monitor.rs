@@ -1,4 +1,4 @@
-//! Monitors (TDL paper, "Task Trees" and Figure 6; catalogue §1.9, §2.7).
+//! Monitors (TDL paper, "Task Trees" and Figure 6; docs/semantics.md, "Monitors").
 //!
 //! A monitor is a command-like node with no action of its own. While its handling is active, each
 //! *activation* inserts a child command node (`ACT-<monitor>`) that runs the monitor's body, from a
@@ -27,7 +27,7 @@ use crate::{Name, NodeKind};
 use std::time::Duration;
 use tcm_trace::{Facet, State, TraceKind};
 
-/// Constraints between successive activations of one monitor (catalogue §1.3, monitor rows).
+/// Constraints between successive activations of one monitor (docs/semantics.md, "Monitors").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct EachActivation {
     /// Each activation starts (expansion and execution) after the previous one's execution completed.

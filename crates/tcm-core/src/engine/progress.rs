@@ -360,7 +360,7 @@ impl<A, F: Clone> Engine<A, F> {
         self.work.push_back(Work::Progress(id));
     }
 
-    /// The body of `id` ended: reservations it never spawned are dead (catalogue §1.6).
+    /// The body of `id` ended: reservations it never spawned are dead (docs/semantics.md, "Tags and forward references").
     pub(super) fn bury_reservations(&mut self, id: NodeId) {
         let reservations = self.node_mut(id).take_cold(|c| &mut c.reservations);
         for r in reservations {

@@ -9,7 +9,7 @@ use std::collections::VecDeque;
 use tcm_trace::{Facet, State, Termination, TraceKind};
 
 impl<A, F: Clone> Engine<A, F> {
-    /// Terminates a node and its subtree (catalogue §3.4).
+    /// Terminates a node and its subtree (docs/semantics.md, "Termination").
     pub fn terminate(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {
         self.advance(now);
         let n = self.live(node)?;
@@ -52,7 +52,7 @@ impl<A, F: Clone> Engine<A, F> {
         Ok(())
     }
 
-    /// Terminates `id` and its subtree (catalogue §3.4, numbered as there):
+    /// Terminates `id` and its subtree (docs/semantics.md, "Termination", numbered as there):
     /// 1. each alive node goes Terminating (a node with delayed termination, an on-terminate task,
     ///    is skipped, so it runs to completion);
     /// 2. its termination waiters are dropped (they never fire), it is unsuspended;

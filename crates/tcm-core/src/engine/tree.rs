@@ -18,7 +18,7 @@ use tcm_trace::{Facet, State, TraceKind};
 impl<A, F: Clone> Engine<A, F> {
     /// Reserves a node under `parent` for a later spawn, so constraints can name it before it exists
     /// (a forward reference). If the parent's action ends without spawning it, it is *dead*:
-    /// enablement constraints on it are void, `terminate at` it fires at once (catalogue §1.6).
+    /// enablement constraints on it are void, `terminate at` it fires at once (docs/semantics.md, "Tags and forward references").
     pub fn reserve(
         &mut self,
         now: Time,
@@ -51,7 +51,7 @@ impl<A, F: Clone> Engine<A, F> {
         Ok(id)
     }
 
-    /// Inserts a node (catalogue §3.3 step 1): applies its constraints, links it under its parent,
+    /// Inserts a node (docs/semantics.md, "Constraints"): applies its constraints, links it under its parent,
     /// and settles. Returns its handle.
     pub fn spawn(&mut self, now: Time, spec: Spawn<A, F>) -> Result<NodeId, EngineError> {
         self.advance(now);

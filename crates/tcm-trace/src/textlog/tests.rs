@@ -27,7 +27,7 @@ Command             speak {2}:  ON HOLD  --> TCM             (Sent)
 }
 
 #[test]
-fn catalogue_examples_column_for_column() {
+fn tcm_log_examples_column_for_column() {
     let mut b = Tb::new();
     b.goal(1, 0, "A")
         .start_goal(1)
