@@ -134,20 +134,19 @@ impl<A, F> Arena<A, F> {
         self.live -= 1;
     }
 
-    /// The node a handle names, if it is live and of this run (a handle of another run names
-    /// nothing here, whatever its slot: the one place the run is checked for reads).
+    /// The node a handle names, if it is live. The run is not checked here (this is the engine's
+    /// hottest path): the engine's entry points check it once (`Engine::check_run`).
     pub(crate) fn get(&self, id: NodeId) -> Option<&Node<A, F>> {
         let slot = self.slot(id.idx)?;
-        if slot.generation != id.generation || id.run != self.run {
+        if slot.generation != id.generation {
             return None;
         }
         slot.node.as_ref()
     }
 
     pub(crate) fn get_mut(&mut self, id: NodeId) -> Option<&mut Node<A, F>> {
-        let run = self.run;
         let slot = self.slot_mut(id.idx)?;
-        if slot.generation != id.generation || id.run != run {
+        if slot.generation != id.generation {
             return None;
         }
         slot.node.as_mut()

@@ -25,8 +25,7 @@
 //!
 //! Every entry point that takes a node handle checks first that it belongs to this run
 //! (`check_run`, through `live` or `lookup`): a handle of another run is an error, never an alias.
-//! Queries answer as for a node that is gone: the arena's `get`, through which every read of a
-//! node goes, refuses a handle of another run.
+//! Queries go through `query`, which answers a handle of another run as a node that is gone.
 //!
 //! # How one event flows
 //!
@@ -196,7 +195,7 @@ impl<A, F: Clone> Engine<A, F> {
     /// Instance names from the top-level task down to `id`, joined by `/`.
     pub fn path(&self, id: NodeId) -> String {
         let mut names = Vec::new();
-        let mut cur = Some(id);
+        let mut cur = self.query(id).map(|_| id);
         while let Some(c) = cur {
             let Some(n) = self.nodes.get(c) else { break };
             if n.kind == NodeKind::Root {
@@ -289,6 +288,12 @@ impl<A, F: Clone> Engine<A, F> {
     fn live(&self, id: NodeId) -> Result<&Node<A, F>, EngineError> {
         self.check_run(id)?;
         self.nodes.get(id).ok_or(EngineError::Gone(id))
+    }
+
+    /// A live node of this run for a query: `None` for a handle of another run, as for one gone.
+    fn query(&self, id: NodeId) -> Option<&Node<A, F>> {
+        self.check_run(id).ok()?;
+        self.nodes.get(id)
     }
 
     pub(crate) fn node(&self, id: NodeId) -> &Node<A, F> {

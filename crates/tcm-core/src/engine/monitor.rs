@@ -151,7 +151,7 @@ impl<A, F: Clone> Engine<A, F> {
 
     /// Activations and triggers counted so far, for a monitor or one of its activation nodes.
     pub fn monitor_counts(&self, node: NodeId) -> Option<(u32, u32)> {
-        let n = self.nodes.get(node)?;
+        let n = self.query(node)?;
         let m = self.nodes.get(n.activation_of().unwrap_or(node))?;
         m.monitor().map(|m| (m.activations, m.triggers))
     }

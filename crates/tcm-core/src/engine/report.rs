@@ -56,7 +56,7 @@ impl fmt::Display for Blocked {
 impl<A, F: Clone> Engine<A, F> {
     /// A snapshot of a live node; `None` once it was reclaimed.
     pub fn info(&self, id: NodeId) -> Option<NodeInfo> {
-        let n = self.nodes.get(id)?;
+        let n = self.query(id)?;
         Some(NodeInfo {
             display: n.display,
             kind: n.kind,
@@ -70,12 +70,15 @@ impl<A, F: Clone> Engine<A, F> {
 
     /// The parent of a live node.
     pub fn parent(&self, id: NodeId) -> Option<NodeId> {
-        self.nodes.get(id)?.parent
+        self.query(id)?.parent
     }
 
     /// The live children of a node, in spawn order.
     pub fn children(&self, id: NodeId) -> Vec<NodeId> {
         let mut out = Vec::new();
+        if self.query(id).is_none() {
+            return out;
+        }
         let mut c = self.first_child(id);
         while let Some(ch) = c {
             out.push(ch);
