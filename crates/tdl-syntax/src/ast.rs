@@ -4,7 +4,8 @@
 //! The tree is plain data with public fields so a code generator can walk it with `match`.
 //! Rust fragments are kept as `syn` nodes (types, expressions, patterns, items) or, for ordinary
 //! statements, as their token streams with spans intact. Every TDL node carries the [`Span`] used
-//! by diagnostics. The parser that builds it is `parser.rs`; the checks over it are `check.rs`.
+//! by diagnostics. The parser that builds it is `parser.rs`; names are resolved in `resolve.rs`
+//! and the tree is diagnosed in `diagnose.rs`.
 
 #![allow(
     clippy::large_enum_variant,
@@ -31,7 +32,7 @@ pub enum Item {
     Rust(Box<syn::Item>),
 }
 
-/// The kind of a task definition (catalogue §1.2).
+/// The kind of a task definition (docs/semantics.md, "Task kinds").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum TaskKind {
     /// `goal`: expands into children.
@@ -75,7 +76,7 @@ pub struct Task {
     pub result: Option<syn::Type>,
     /// For handlers: the exception handled (`handles Exc`).
     pub handles: Option<Ident>,
-    /// Task-level constraints (catalogue §1.3).
+    /// Task-level constraints (docs/semantics.md, "Constraints").
     pub constraints: Vec<TaskConstraint>,
     /// The body.
     pub body: Block,
@@ -129,7 +130,7 @@ pub struct TaskConstraint {
     pub span: Span,
 }
 
-/// Task-level constraints (catalogue §1.3). Which kinds allow which is checked in `check.rs`.
+/// Task-level constraints (docs/semantics.md, "Constraints"). Which kinds allow which is diagnosed in `diagnose.rs`.
 #[derive(Clone, Debug)]
 pub enum TaskConstraintKind {
     /// `expand first`.
@@ -399,7 +400,7 @@ pub struct Constraint {
     pub span: Span,
 }
 
-/// Spawn, `with` group and constraint-statement constraints (TDL paper Fig. 5, catalogue §1.4).
+/// Spawn, `with` group and constraint-statement constraints (TDL paper Fig. 5; docs/semantics.md, "Constraints").
 #[derive(Clone, Debug)]
 pub enum ConstraintKind {
     /// `expand first`.
@@ -422,43 +423,13 @@ pub enum ConstraintKind {
     Parallel,
     /// `wait`: the spawn blocks until the child's execution completes.
     Wait,
-    /// `disable [facet] until EVENT|TIME`.
-    DisableUntil {
-        /// Interval disabled; `None` means handling.
-        facet: Option<Facet>,
-        /// When it becomes enabled.
-        until: When,
-    },
-    /// `disable [facet] for REL [after EVENT]`.
-    DisableFor {
-        /// Interval disabled; `None` means handling.
-        facet: Option<Facet>,
-        /// How long.
-        delay: RelTime,
-        /// Counted from this event; from now when absent.
-        after: Option<Event>,
-    },
-    /// `terminate`: terminate now.
-    Terminate,
-    /// `terminate at EVENT|TIME`.
-    TerminateAt(When),
-    /// `terminate in REL [after EVENT]`.
-    TerminateIn {
-        /// How long.
-        delay: RelTime,
-        /// Counted from this event; from now when absent.
-        after: Option<Event>,
-    },
-    /// `activate` (monitors): one activation now.
-    Activate,
-    /// `activate at EVENT|TIME` (monitors).
-    ActivateAt(When),
-    /// `activate in REL [after EVENT]` (monitors).
-    ActivateIn {
-        /// How long.
-        delay: RelTime,
-        /// Counted from this event; from now when absent.
-        after: Option<Event>,
+    /// `disable [facet] until|for …`, `terminate […]`, `activate […]`: when something happens,
+    /// do something (TDL paper Fig. 5). The three differ only in what they do then.
+    Trigger {
+        /// When it fires.
+        when: When,
+        /// What it does then.
+        then: Then,
     },
     /// `maximum activate N` (monitors).
     MaximumActivate(Count),
@@ -476,13 +447,41 @@ pub enum ConstraintKind {
     OnAgent(syn::Expr),
 }
 
-/// An event or an absolute time of day.
+/// When a [`ConstraintKind::Trigger`] fires: the one "when" of `disable`, `terminate` and
+/// `activate`. `disable` spells `at` as `until` and `in` as `for`.
 #[derive(Clone, Debug)]
 pub enum When {
-    /// `TAG [facet] state`.
+    /// No time given (`terminate`, `activate`): at once.
+    Now,
+    /// `at H:M:S[.frac]` (`until …` for `disable`): at a time of day.
+    At(TimeOfDay),
+    /// `in REL` (`for REL`): a delay from when the constraint is applied.
+    In(RelTime),
+    /// `at EVENT` (`until EVENT`): when a node's facet reaches a state.
     Event(Event),
-    /// `H:M:S[.frac]` time of day.
-    Time(TimeOfDay),
+    /// `in REL after EVENT` (`for REL after EVENT`): a delay from the event.
+    After(RelTime, Event),
+}
+
+impl When {
+    /// The event it waits for, if any.
+    pub fn event(&self) -> Option<&Event> {
+        match self {
+            When::Event(event) | When::After(_, event) => Some(event),
+            When::Now | When::At(_) | When::In(_) => None,
+        }
+    }
+}
+
+/// What a [`ConstraintKind::Trigger`] does when it fires.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Then {
+    /// `disable [facet] until|for …`: the facet (`None`: handling) is enabled.
+    Enable(Option<Facet>),
+    /// `terminate …`: the node and its subtree are terminated.
+    Terminate,
+    /// `activate …` (monitors): the monitor is activated once.
+    Activate,
 }
 
 /// `TAG [facet] state`: a state transition of a node.
@@ -493,7 +492,7 @@ pub struct Event {
     /// The interval; `None`: handling for enabled/active, execution for completed.
     pub facet: Option<Facet>,
     /// The state reached.
-    pub state: State,
+    pub point: Point,
 }
 
 /// A reference to a node from a constraint.
@@ -505,7 +504,7 @@ pub struct Tag {
     pub span: Span,
 }
 
-/// The kinds of tag (catalogue §1.6).
+/// The kinds of tag (docs/semantics.md, "Tags and forward references").
 #[derive(Clone, Debug)]
 pub enum TagKind {
     /// A task name spawned in this body or a label, with iteration indexes `name[i][j]`.
@@ -554,9 +553,9 @@ impl Facet {
     }
 }
 
-/// The state an [`Event`] waits for.
+/// The point an [`Event`] waits for (a facet's state: `tcm::Point` at run time).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub enum State {
+pub enum Point {
     /// `enabled`.
     Enabled,
     /// `active`.
@@ -565,13 +564,13 @@ pub enum State {
     Completed,
 }
 
-impl State {
+impl Point {
     /// The keyword.
     pub fn as_str(self) -> &'static str {
         match self {
-            State::Enabled => "enabled",
-            State::Active => "active",
-            State::Completed => "completed",
+            Point::Enabled => "enabled",
+            Point::Active => "active",
+            Point::Completed => "completed",
         }
     }
 }

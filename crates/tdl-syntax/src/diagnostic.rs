@@ -1,9 +1,10 @@
-//! Diagnostics: what the parser and the static checks report, and their text rendering.
+//! Diagnostics: what the parser, the static diagnosis and the code generator report, and their text
+//! rendering.
 //!
 //! A [`Diagnostic`] keeps the [`proc_macro2::Span`] it points at (so `tdl-macros` can turn it into a
 //! spanned `syn::Error`) and the 1-based line and column of that span (so `tdl-build` and the CLI can
 //! print `file:line:col` without the compiler). [`Diagnostic::render`] prints the rustc-like text form.
-//! The parser lives in `parser.rs`, the checks in `check.rs`.
+//! The parser lives in `parser.rs`, the static diagnosis in `diagnose.rs`.
 
 use std::fmt::Write as _;
 

@@ -10,8 +10,8 @@ use quote::ToTokens;
 
 use crate::ast::{
     Ast, Block, Constraint, ConstraintKind, Count, Else, Event, HandlerRef, If, Item, Match,
-    OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind, TimeOfDay,
-    When,
+    OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind, Then,
+    TimeOfDay, When,
 };
 use crate::time::format_nanos;
 
@@ -311,19 +311,29 @@ fn event(it: &Event) -> String {
         .facet
         .map(|it| format!(" {}", it.as_str()))
         .unwrap_or_default();
-    format!("{}{facet} {}", tag(&it.tag), it.state.as_str())
+    format!("{}{facet} {}", tag(&it.tag), it.point.as_str())
 }
 
-fn when(it: &When) -> String {
-    match it {
-        When::Event(it) => event(it),
-        When::Time(it) => time_of_day(it),
+/// A trigger in canonical spelling: `disable [facet] until|for …`, `terminate [at|in …]`,
+/// `activate [at|in …]`.
+fn trigger(when: &When, then: Then) -> String {
+    let (head, at, within) = match then {
+        Then::Enable(facet) => {
+            let facet = facet
+                .map(|it| format!(" {}", it.as_str()))
+                .unwrap_or_default();
+            (format!("disable{facet}"), "until", "for")
+        }
+        Then::Terminate => ("terminate".to_owned(), "at", "in"),
+        Then::Activate => ("activate".to_owned(), "at", "in"),
+    };
+    match when {
+        When::Now => head,
+        When::At(time) => format!("{head} {at} {}", time_of_day(time)),
+        When::Event(it) => format!("{head} {at} {}", event(it)),
+        When::In(delay) => format!("{head} {within} {}", rel(delay)),
+        When::After(delay, it) => format!("{head} {within} {} after {}", rel(delay), event(it)),
     }
-}
-
-fn after(it: Option<&Event>) -> String {
-    it.map(|it| format!(" after {}", event(it)))
-        .unwrap_or_default()
 }
 
 fn handler(it: &HandlerRef) -> String {
@@ -346,9 +356,6 @@ fn on_terminate(it: &OnTerminate) -> String {
 
 /// A constraint in canonical TDL spelling.
 fn constraint(it: &Constraint) -> String {
-    let facet = |it: Option<crate::ast::Facet>| {
-        it.map(|it| format!(" {}", it.as_str())).unwrap_or_default()
-    };
     let opt_tag = |it: Option<&Tag>| it.map(|it| format!(" {}", tag(it))).unwrap_or_default();
     match &it.kind {
         ConstraintKind::ExpandFirst => "expand first".to_owned(),
@@ -359,31 +366,7 @@ fn constraint(it: &Constraint) -> String {
         ConstraintKind::Serial { tag } => format!("serial{}", opt_tag(tag.as_ref())),
         ConstraintKind::Parallel => "parallel".to_owned(),
         ConstraintKind::Wait => "wait".to_owned(),
-        ConstraintKind::DisableUntil { facet: f, until } => {
-            format!("disable{} until {}", facet(*f), when(until))
-        }
-        ConstraintKind::DisableFor {
-            facet: f,
-            delay,
-            after: a,
-        } => {
-            format!(
-                "disable{} for {}{}",
-                facet(*f),
-                rel(delay),
-                after(a.as_ref())
-            )
-        }
-        ConstraintKind::Terminate => "terminate".to_owned(),
-        ConstraintKind::TerminateAt(w) => format!("terminate at {}", when(w)),
-        ConstraintKind::TerminateIn { delay, after: a } => {
-            format!("terminate in {}{}", rel(delay), after(a.as_ref()))
-        }
-        ConstraintKind::Activate => "activate".to_owned(),
-        ConstraintKind::ActivateAt(w) => format!("activate at {}", when(w)),
-        ConstraintKind::ActivateIn { delay, after: a } => {
-            format!("activate in {}{}", rel(delay), after(a.as_ref()))
-        }
+        ConstraintKind::Trigger { when, then } => trigger(when, *then),
         ConstraintKind::MaximumActivate(n) => format!("maximum activate {}", count(n)),
         ConstraintKind::MaximumTrigger(n) => format!("maximum trigger {}", count(n)),
         ConstraintKind::Period(t) => format!("period {}", rel(t)),

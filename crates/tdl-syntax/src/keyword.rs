@@ -2,7 +2,7 @@
 //!
 //! Constraint words are matched case-insensitively, and an identifier may join several words with
 //! any number of underscores (`expand_first`, `EXPAND__FIRST`, `expandfirst`, `disable_until`),
-//! as in TDL 1.5 (catalogue §1.1). Old TCA words are synonyms: `planning` is `expansion`,
+//! as in TDL 1.5 (docs/semantics.md, "Words"). Old TCA words are synonyms: `planning` is `expansion`,
 //! `achievement` is `execution`; the paper's `max`, `activations` and `triggers` are accepted too.
 //! The statement and item keywords (`spawn`, `with`, `goal`, ...) are plain lowercase Rust-style
 //! identifiers and are matched in `parser.rs`.

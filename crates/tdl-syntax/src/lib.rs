@@ -9,9 +9,17 @@
 //!   the [`Ast`] plus every [`Diagnostic`] found. Parsing never fails; it recovers at item and
 //!   statement boundaries (the parser is `parser.rs`).
 //! - The [`ast`] module is the tree: [`Item`]s, task bodies as trees of [`Stmt`]s, and
-//!   [`Constraint`]s over [`Tag`]s and [`Event`]s. A code generator walks it with `match`.
-//! - The static checks of catalogue §1.6 (unknown and ambiguous tags, duplicate labels, `wait` on
-//!   a forward reference, ...) run as part of parsing and add to the same diagnostics (`check.rs`).
+//!   [`Constraint`]s over [`Tag`]s and [`Event`]s. Every timed or event-driven constraint
+//!   (`disable … until|for`, `terminate …`, `activate …`) is one [`ConstraintKind::Trigger`] of a
+//!   [`When`] and a [`Then`]. A code generator walks it with `match`.
+//! - One scope and resolution pass (`resolve.rs`) works out what every name means: the tasks and
+//!   exceptions of the file, and per body its spawns, groups, loops and what each tag denotes.
+//!   Both consumers read it: the static diagnosis and the code generator.
+//! - The static diagnosis of docs/semantics.md, "Tags and forward references" (unknown and ambiguous tags, duplicate labels, `wait`
+//!   on a forward reference, ...) runs as part of parsing and adds to the same diagnostics
+//!   (`diagnose.rs`).
+//! - [`generate`] turns the tree into Rust calling the `tcm` runtime through the `tdl` crate
+//!   (`codegen.rs`, `codegen/`).
 //! - [`Diagnostic::render`] prints `file:line:col: error: message`, the source line, a caret and a
 //!   `= help:` hint; [`dump`] prints the tree compactly (used by the snapshot tests).
 //!
@@ -36,7 +44,7 @@
 //! assert!(text.starts_with("bad.tdl:1:34: error: unknown tag `nowhere`"));
 //! ```
 //!
-//! Language choices (the full reference is planned for `docs/language.md`):
+//! Language choices (the full reference is `docs/language.md`):
 //! - TDL keywords keep TDL's words. Constraint keywords are case-insensitive and two-word ones may
 //!   be joined with underscores (`expand_first`, `disable_until`); `planning` ≡ `expansion`,
 //!   `achievement` ≡ `execution`. Statement and item keywords are lowercase.
@@ -50,12 +58,13 @@
 #![warn(missing_docs)]
 
 pub mod ast;
-mod check;
 mod codegen;
+mod diagnose;
 mod diagnostic;
 mod dump;
 mod keyword;
 mod parser;
+mod resolve;
 mod time;
 
 use std::str::FromStr;
@@ -129,7 +138,7 @@ fn parse_with(tokens: TokenStream, eof: Option<Span>) -> Parse {
         }
     };
     let mut diagnostics = cx.diags;
-    check::check(&file, &mut diagnostics);
+    diagnose::diagnose(&file, &mut diagnostics);
     diagnostics.sort_by_key(|it| (it.start(), it.severity()));
     Parse { file, diagnostics }
 }

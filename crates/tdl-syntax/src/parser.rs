@@ -5,7 +5,7 @@
 //! statement boundary, so one mistake gives one diagnostic and parsing goes on. Brace and paren
 //! groups are parsed as fresh token streams ([`parse_group`]), so an error inside a group never
 //! leaks into the enclosing parse. Statements are in `parser/stmt.rs`, constraints in
-//! `parser/constraint.rs`; the checks run afterwards in `check.rs`.
+//! `parser/constraint.rs`; the static diagnosis runs afterwards in `diagnose.rs`.
 
 mod constraint;
 mod stmt;

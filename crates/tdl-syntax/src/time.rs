@@ -2,7 +2,7 @@
 //!
 //! Relative times are Rust-friendly suffixed literals (`30s`, `1.5s`, `200ms`, `2min`), TDL's
 //! `H:M:S[.frac]` (`0:0:30.0`, no range checks), an unsuffixed number of seconds (`0.5`), or a
-//! parenthesised Rust expression in seconds (`(period_s / 2.0)`), as in TDL 1.2 (catalogue §1.1).
+//! parenthesised Rust expression in seconds (`(period_s / 2.0)`), as in TDL 1.2 (docs/semantics.md, "Time").
 //! Absolute times of day are `H:M:S[.frac]` with H in 0-23 and M, S in 0-59.
 //! Constants are converted to nanoseconds exactly, with integer arithmetic.
 

@@ -52,7 +52,8 @@ fn expand_prints_readable_rust() {
         "{out}"
     );
     assert!(
-        out.contains(".terminate_in(::std::time::Duration::from_secs(30))"),
+        out.contains("::tdl::When::In(::std::time::Duration::from_secs(30))")
+            && out.contains("::tdl::Then::Terminate"),
         "{out}"
     );
     assert!(

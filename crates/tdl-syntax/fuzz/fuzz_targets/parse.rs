@@ -1,7 +1,7 @@
 //! Fuzz target for the TDL front end: arbitrary bytes, read as UTF-8 lossily, go through
-//! `parse_str` (which must never panic, whatever the input); when the parse has no errors, the tree
-//! also goes through the checks' diagnostics rendering, the tree dump and the code generator, whose
-//! output is pretty-printed as `tdl expand` does.
+//! `parse_str` (which must never panic, whatever the input) and the rendering of its diagnostics;
+//! when the parse has no errors, the tree also goes through the tree dump and the code generator,
+//! whose output is pretty-printed as `tdl expand` does.
 
 #![no_main]
 

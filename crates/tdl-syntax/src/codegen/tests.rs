@@ -38,7 +38,7 @@ fn fig4() {
         "let tdl_monitor_pickup = ctx.reserve(\"monitor_pickup\")?;",
         ".fulfils(tdl_monitor_pickup)",
         "tdl_spawn = tdl_spawn.sequential(::tdl::Facet::Execution, node);",
-        ".terminate_in(::std::time::Duration::from_secs(30))",
+        ".with(::tdl::Constraint::Trigger(::tdl::When::In(::std::time::Duration::from_secs(30)), ::tdl::Then::Terminate))",
         "::tdl::Event::new(tdl_monitor_pickup, ::tdl::Point::Completed),",
         ".wait_value::<i32>()",
         ".with(::tdl::Constraint::DelayExpansion)",
@@ -171,6 +171,92 @@ fn raw_and_odd_names_do_not_panic() {
         "struct Task_self_ {}",
         "struct Task__1 {}",
         "tdl_persistent_p.store(r#p);",
+    ] {
+        assert!(has(&out, line), "missing {line:?} in:\n{out}");
+    }
+}
+
+#[test]
+fn every_trigger_lowers_to_one_when_and_then() {
+    let out = expand(
+        "monitor m() { trigger; }
+         goal g() {
+             a: spawn work();
+             w: spawn m() with activate, activate at a completed, activate in 1s after a active,
+                 activate at 9:30:00, activate in 200ms;
+             spawn work() with disable until a completed, disable execution for 2s,
+                 disable expansion for 1s after a expansion completed, disable until 13:00:00,
+                 terminate, terminate at 6:00:00, terminate in 1s after a completed;
+             a terminate in 2s;
+             w activate;
+             a terminate;
+         }",
+    );
+    let trigger = |when: &str, then: &str| {
+        format!(".with(::tdl::Constraint::Trigger(::tdl::When::{when}, ::tdl::Then::{then}))")
+    };
+    let a_completed = "::tdl::Event::new(tdl_a, ::tdl::Point::Completed)";
+    for line in [
+        trigger("Now", "Activate"),
+        trigger(&format!("Event({a_completed})"), "Activate"),
+        trigger(
+            "After(::std::time::Duration::from_secs(1), ::tdl::Event::new(tdl_a, ::tdl::Point::Active))",
+            "Activate",
+        ),
+        trigger("At(ctx.time_of_day(34200.0))", "Activate"),
+        trigger("In(::std::time::Duration::from_millis(200))", "Activate"),
+        trigger(
+            &format!("Event({a_completed})"),
+            "Enable(::tdl::Facet::Handling)",
+        ),
+        trigger(
+            "In(::std::time::Duration::from_secs(2))",
+            "Enable(::tdl::Facet::Execution)",
+        ),
+        trigger(
+            "After(::std::time::Duration::from_secs(1), ::tdl::Event::on(tdl_a, ::tdl::Facet::Expansion, ::tdl::Point::Completed))",
+            "Enable(::tdl::Facet::Expansion)",
+        ),
+        trigger(
+            "At(ctx.time_of_day(46800.0))",
+            "Enable(::tdl::Facet::Handling)",
+        ),
+        trigger("Now", "Terminate"),
+        trigger("At(ctx.time_of_day(21600.0))", "Terminate"),
+        trigger(
+            &format!("After(::std::time::Duration::from_secs(1), {a_completed})"),
+            "Terminate",
+        ),
+        "ctx.constrain(tdl_a, ::tdl::Constraint::Trigger(::tdl::When::In(::std::time::Duration::from_secs(2)), ::tdl::Then::Terminate))?;".to_owned(),
+        "ctx.constrain(tdl_w, ::tdl::Constraint::Trigger(::tdl::When::Now, ::tdl::Then::Activate))?;".to_owned(),
+        "ctx.terminate(tdl_a)?;".to_owned(),
+    ] {
+        assert!(has(&out, &line), "missing {line:?} in:\n{out}");
+    }
+    for gone in [
+        "Until",
+        "TerminateWhen",
+        "ActivateWhen",
+        ".terminate_in(",
+        ".disable_until(",
+    ] {
+        assert!(!out.contains(gone), "{gone:?} in:\n{out}");
+    }
+}
+
+#[test]
+fn triggers_on_a_group_or_loop_tag_apply_once_per_node() {
+    let out = expand(
+        "goal g(n: u32) {
+             grp: with (parallel) { spawn a(); spawn b(); }
+             for i in 0..n { mv: spawn move_by(i); }
+             spawn c() with terminate at grp completed, disable until mv completed;
+         }",
+    );
+    for line in [
+        "for &node in &tdl_grp { tdl_spawn = tdl_spawn.with(::tdl::Constraint::Trigger(::tdl::When::Event(::tdl::Event::new(node, ::tdl::Point::Completed)), ::tdl::Then::Terminate)); }",
+        "for node in tdl_mv.values().copied().collect::<::std::vec::Vec<_>>() {",
+        "::tdl::When::Event(::tdl::Event::new(node, ::tdl::Point::Completed)), ::tdl::Then::Enable(::tdl::Facet::Handling)",
     ] {
         assert!(has(&out, line), "missing {line:?} in:\n{out}");
     }

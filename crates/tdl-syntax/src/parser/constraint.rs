@@ -1,8 +1,8 @@
-//! Parsing of constraints (TDL paper Fig. 5, catalogue §1.3-§1.6): spawn constraints, task-level
+//! Parsing of constraints (TDL paper Fig. 5; docs/semantics.md, "Constraints"): spawn constraints, task-level
 //! constraints, tags, events and counts.
 //!
 //! Constraint keywords go through `keyword.rs`, so joined and synonym forms are accepted
-//! everywhere. Which constraint is allowed where is mostly decided later, in `check.rs`; only the
+//! everywhere. Which constraint is allowed where is mostly decided later, in `diagnose.rs`; only the
 //! task-level list is narrowed here because it has its own AST type.
 
 use proc_macro2::{Delimiter, Ident, TokenTree};
@@ -12,8 +12,8 @@ use syn::{Token, Type};
 
 use super::{Cx, parse_group, parse_group_as, take_group};
 use crate::ast::{
-    Constraint, ConstraintKind, Count, Event, Facet, HandlerRef, OnTerminate, Persistent, State,
-    Tag, TagIndex, TagKind, TaskConstraint, TaskConstraintKind, When,
+    Constraint, ConstraintKind, Count, Event, Facet, HandlerRef, OnTerminate, Persistent, Point,
+    Tag, TagIndex, TagKind, TaskConstraint, TaskConstraintKind, Then, When,
 };
 use crate::keyword::{expect_phrase, peek_phrase, peek_words, take_words};
 use crate::time::{TIME_HINT, parse_rel_time, parse_time_of_day, peek_time_of_day};
@@ -33,11 +33,11 @@ fn facet_of(word: Option<&str>) -> Option<Facet> {
     }
 }
 
-fn state_of(word: Option<&str>) -> Option<State> {
+fn point_of(word: Option<&str>) -> Option<Point> {
     match word? {
-        "enabled" => Some(State::Enabled),
-        "active" => Some(State::Active),
-        "completed" => Some(State::Completed),
+        "enabled" => Some(Point::Enabled),
+        "active" => Some(Point::Active),
+        "completed" => Some(Point::Completed),
         _ => None,
     }
 }
@@ -171,37 +171,25 @@ fn timed(
     activate: bool,
     second: Option<&'static str>,
 ) -> syn::Result<ConstraintKind> {
-    Ok(match second {
-        Some("at") => {
+    let then = if activate {
+        Then::Activate
+    } else {
+        Then::Terminate
+    };
+    let when = match second {
+        Some(word @ ("at" | "in")) => {
             take_words(input, 2)?;
-            let when = parse_when(input, cx)?;
-            if activate {
-                ConstraintKind::ActivateAt(when)
-            } else {
-                ConstraintKind::TerminateAt(when)
-            }
-        }
-        Some("in") => {
-            take_words(input, 2)?;
-            let delay = parse_rel_time(input)?;
-            let after = optional_after(input)?;
-            if activate {
-                ConstraintKind::ActivateIn { delay, after }
-            } else {
-                ConstraintKind::TerminateIn { delay, after }
-            }
+            parse_when(input, cx, word == "in")?
         }
         _ => {
             take_words(input, 1)?;
-            if activate {
-                ConstraintKind::Activate
-            } else {
-                ConstraintKind::Terminate
-            }
+            When::Now
         }
-    })
+    };
+    Ok(ConstraintKind::Trigger { when, then })
 }
 
+/// `disable [facet]` followed by `until WHEN` or `for REL [after EVENT]`.
 fn disable(
     input: ParseStream,
     cx: &mut Cx,
@@ -214,37 +202,39 @@ fn disable(
         None => (None, second),
     };
     let n_words = if facet.is_some() { 3 } else { 2 };
-    match next {
-        Some("until") => {
-            take_words(input, n_words)?;
-            Ok(ConstraintKind::DisableUntil {
-                facet,
-                until: parse_when(input, cx)?,
-            })
+    let relative = match next {
+        Some("until") => false,
+        Some("for") => true,
+        _ => {
+            return Err(syn::Error::new(
+                span,
+                "expected `until` or `for` after `disable [handling|expansion|execution]`",
+            ));
         }
-        Some("for") => {
-            take_words(input, n_words)?;
-            let delay = parse_rel_time(input)?;
-            let after = optional_after(input)?;
-            Ok(ConstraintKind::DisableFor {
-                facet,
-                delay,
-                after,
-            })
-        }
-        _ => Err(syn::Error::new(
-            span,
-            "expected `until` or `for` after `disable [handling|expansion|execution]`",
-        )),
-    }
+    };
+    take_words(input, n_words)?;
+    Ok(ConstraintKind::Trigger {
+        when: parse_when(input, cx, relative)?,
+        then: Then::Enable(facet),
+    })
 }
 
-fn optional_after(input: ParseStream) -> syn::Result<Option<Event>> {
-    if peek_phrase(input, &["after"]) {
-        take_words(input, 1)?;
-        Ok(Some(parse_event(input)?))
+/// The "when" of a trigger after its `at`/`until` (`relative` false: an event or a time of day)
+/// or its `in`/`for` (`relative` true: a delay, optionally `after EVENT`).
+fn parse_when(input: ParseStream, cx: &mut Cx, relative: bool) -> syn::Result<When> {
+    if relative {
+        let delay = parse_rel_time(input)?;
+        return Ok(if peek_phrase(input, &["after"]) {
+            take_words(input, 1)?;
+            When::After(delay, parse_event(input)?)
+        } else {
+            When::In(delay)
+        });
+    }
+    if peek_time_of_day(input) {
+        Ok(When::At(parse_time_of_day(input, &mut cx.diags)?))
     } else {
-        Ok(None)
+        Ok(When::Event(parse_event(input)?))
     }
 }
 
@@ -256,30 +246,22 @@ fn optional_tag(input: ParseStream) -> syn::Result<Option<Tag>> {
     }
 }
 
-fn parse_when(input: ParseStream, cx: &mut Cx) -> syn::Result<When> {
-    if peek_time_of_day(input) {
-        Ok(When::Time(parse_time_of_day(input, &mut cx.diags)?))
-    } else {
-        Ok(When::Event(parse_event(input)?))
-    }
-}
-
 /// Parses `TAG [handling|expansion|execution] (enabled|active|completed)`.
 pub(crate) fn parse_event(input: ParseStream) -> syn::Result<Event> {
     let tag = parse_tag(input)?;
     let words = peek_words(input.cursor(), 2);
     let at = |i: usize| words.get(i).and_then(|it| it.text);
-    let (facet, state, n_words) = match facet_of(at(0)) {
-        Some(facet) => (Some(facet), state_of(at(1)), 2),
-        None => (None, state_of(at(0)), 1),
+    let (facet, point, n_words) = match facet_of(at(0)) {
+        Some(facet) => (Some(facet), point_of(at(1)), 2),
+        None => (None, point_of(at(0)), 1),
     };
-    let Some(state) = state else {
+    let Some(point) = point else {
         return Err(input.error(
             "expected `enabled`, `active` or `completed` after the tag, as in `t1 execution completed`",
         ));
     };
     take_words(input, n_words)?;
-    Ok(Event { tag, facet, state })
+    Ok(Event { tag, facet, point })
 }
 
 /// Parses a tag: a name with optional `[index]`s, `previous`, `self`/`child` or `parent`/`this`.
@@ -369,7 +351,7 @@ fn on_terminate(input: ParseStream, cx: &mut Cx) -> syn::Result<OnTerminate> {
     Ok(OnTerminate { labels, task, args })
 }
 
-/// Parses the task-level constraints between a task's arguments and its body (catalogue §1.3).
+/// Parses the task-level constraints between a task's arguments and its body (docs/semantics.md, "Constraints").
 pub(crate) fn parse_task_constraints(
     input: ParseStream,
     cx: &mut Cx,

@@ -1,7 +1,7 @@
 //! Parsing of task-body statements: TDL statements, the Rust control flow that contains them, and
 //! plain Rust statements kept as tokens.
 //!
-//! A statement is recognised by its first tokens (catalogue §1.7): `[label:]* spawn T`,
+//! A statement is recognised by its first tokens (docs/language.md): `[label:]* spawn T`,
 //! `[label:]* with (...)`, `let p = spawn T`, `succeed;`, `fail ...;`, `bypass;`, `trigger;`, and
 //! `TAG constraint;` (in Rust, `ident ident` never starts a statement). `if`, `for`, `while`,
 //! `loop`, `match` and blocks are walked only when they contain a TDL statement; otherwise they

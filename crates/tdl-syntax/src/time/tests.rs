@@ -37,7 +37,7 @@ fn hms_relative_times() {
     assert_eq!(rel("0:0:30.0"), Ok(30_000_000_000));
     assert_eq!(rel("0:0:1.5"), Ok(1_500_000_000));
     assert_eq!(rel("1:2:3"), Ok(3_723_000_000_000));
-    // Relative H:M:S has no range checks (catalogue §1.1).
+    // Relative H:M:S has no range checks (docs/semantics.md, "Time").
     assert_eq!(rel("0:90:0"), Ok(5_400_000_000_000));
     assert!(rel("0:30").is_err_and(|it| it.contains("all three parts")));
 }

@@ -3,7 +3,9 @@
 
 use std::str::FromStr;
 
-use tdl_syntax::{ConstraintKind, Facet, Item, RelTime, Severity, Stmt, TagKind};
+use tdl_syntax::{
+    ConstraintKind, Facet, Item, Point, RelTime, Severity, Stmt, TagKind, Then, When,
+};
 
 #[test]
 fn renders_file_line_column_source_caret_and_hint() {
@@ -112,9 +114,70 @@ fn waited_spawn_binds_the_result_and_times_are_nanos() {
     assert!(spawn.binding.as_ref().is_some_and(|it| it.ty.is_some()));
     assert!(matches!(
         spawn.constraints[1].kind,
-        ConstraintKind::TerminateIn {
-            delay: RelTime::Nanos(1_500_000_000),
-            after: None
+        ConstraintKind::Trigger {
+            when: When::In(RelTime::Nanos(1_500_000_000)),
+            then: Then::Terminate
         }
     ));
+}
+
+#[test]
+fn disable_terminate_and_activate_share_one_when() {
+    let parse = tdl_syntax::parse_str(
+        "a.tdl",
+        "monitor m() { trigger; }
+         goal g() {
+             a: spawn x();
+             spawn m() with disable execution for 2s after a completed,
+                 terminate in 2s after a completed, activate in 2s after a completed,
+                 disable until 13:00:00, terminate at 13:00:00, activate at 13:00:00,
+                 disable until a active, terminate, activate;
+         }",
+    );
+    assert!(parse.diagnostics.is_empty(), "{:?}", parse.diagnostics);
+    let Item::Task(task) = &parse.file.items[1] else {
+        panic!("expected a task")
+    };
+    let Stmt::Spawn(spawn) = &task.body.stmts[1] else {
+        panic!("expected a spawn")
+    };
+    let triggers: Vec<(&When, Then)> = spawn
+        .constraints
+        .iter()
+        .map(|it| match &it.kind {
+            ConstraintKind::Trigger { when, then } => (when, *then),
+            other => panic!("expected a trigger, found {other:?}"),
+        })
+        .collect();
+    let thens: Vec<Then> = triggers.iter().map(|it| it.1).collect();
+    let enable = Then::Enable(Some(Facet::Execution));
+    assert_eq!(
+        thens,
+        [
+            enable,
+            Then::Terminate,
+            Then::Activate,
+            Then::Enable(None),
+            Then::Terminate,
+            Then::Activate,
+            Then::Enable(None),
+            Then::Terminate,
+            Then::Activate
+        ]
+    );
+    for (when, _) in &triggers[..3] {
+        let When::After(RelTime::Nanos(2_000_000_000), event) = when else {
+            panic!("expected `2s after a completed`, found {when:?}")
+        };
+        assert!(matches!(&event.tag.kind, TagKind::Named { name, .. } if name == "a"));
+        assert_eq!(event.point, Point::Completed);
+    }
+    for (when, _) in &triggers[3..6] {
+        assert!(
+            matches!(when, When::At(time) if time.hour == 13 && time.minute == 0),
+            "{when:?}"
+        );
+    }
+    assert!(matches!(triggers[6].0, When::Event(event) if event.point == Point::Active));
+    assert!(matches!(triggers[7].0, When::Now) && matches!(triggers[8].0, When::Now));
 }

@@ -7,9 +7,4 @@ pub(crate) async fn run_checked(task: Task) -> (Report, Vec<TraceEvent>) {
     tcm::testing::run_checked(Runtime::new(), task).await
 }
 
-pub(crate) use tcm::testing::story;
-
-/// The trace without its first record (whose run number differs between runs), as JSON lines.
-pub(crate) fn lines(trace: &[TraceEvent]) -> Vec<String> {
-    trace.iter().skip(1).map(tcm_trace::to_line).collect()
-}
+pub(crate) use tcm::testing::{lines, story};

@@ -2,6 +2,7 @@
 
 use std::collections::BTreeMap;
 use std::time::Duration;
+pub(crate) use tcm::testing::lines;
 use tdl::{Facet, Recorder, State, TraceEvent, TraceKind, TraceSink};
 use xavier::summary::Summary;
 use xavier::{Done, Setup, display::EventLog};
@@ -49,11 +50,6 @@ pub(crate) fn log_of(trace: &[TraceEvent]) -> String {
         }
     }
     String::from_utf8_lossy(&buf).into_owned()
-}
-
-/// The trace without its first record (whose run number differs between runs), as JSON lines.
-pub(crate) fn lines(trace: &[TraceEvent]) -> Vec<String> {
-    trace.iter().skip(1).map(tcm_trace::to_line).collect()
 }
 
 /// Questions about a trace.

@@ -1,0 +1,575 @@
+//! The static diagnosis of a parsed [`Ast`] (docs/semantics.md, "Tags and forward references"): what is wrong with a source, as
+//! diagnostics, before any code is generated. It runs as part of parsing.
+//!
+//! It reads the scopes of `resolve.rs` and words what they found: duplicate tasks, exceptions and
+//! labels; unknown and ambiguous tags, wrong iteration index counts, forward references to `with`
+//! groups, `[.]` outside the loop it counts. It also finds, by itself: unknown exceptions
+//! (only when the file declares exceptions, since others may come from Rust), which task-level
+//! constraints each task kind allows, `wait` on a forward reference, circular constraints on
+//! `self`, monitor-only constraints on other tasks, and the statements that only handlers or
+//! monitors may use.
+
+use std::collections::BTreeSet;
+
+use proc_macro2::{Ident, Span};
+
+use crate::ast::{
+    Ast, Constraint, ConstraintKind, ConstraintStmt, Fail, Item, Spawn, Tag, TagIndex, TagKind,
+    Task, TaskConstraintKind, TaskKind, Then, When,
+};
+use crate::diagnostic::Diagnostic;
+use crate::resolve::{
+    BodyScope, Def, Duplicate, FileScope, IndexError, LoopId, Named, Refers, Resolution, Tdl,
+    refers,
+};
+
+const TAG_HINT: &str = "a tag is a task spawned in this body, a label (`t1: spawn a();`), \
+                        `previous`, `self` or `parent`";
+
+/// Diagnoses `ast` and appends the findings to `diags`.
+pub(crate) fn diagnose(ast: &Ast, diags: &mut Vec<Diagnostic>) {
+    let file = FileScope::new(ast);
+    for duplicate in &file.duplicates {
+        diags.push(match duplicate {
+            Duplicate::Task(task, first) => {
+                Diagnostic::error(task.span, format!("duplicate task `{}`", task.name))
+                    .with_label(first.span, "first defined here")
+                    .with_hint("rename one of the tasks")
+            }
+            Duplicate::Exception(exc, first) => {
+                Diagnostic::error(exc.span, format!("duplicate exception `{}`", exc.name))
+                    .with_label(first.span, "first declared here")
+                    .with_hint("rename one of the exceptions")
+            }
+        });
+    }
+    for item in &ast.items {
+        match item {
+            Item::Task(task) => {
+                task_header(&file, task, diags);
+                let body = Body {
+                    file: &file,
+                    task,
+                    scope: BodyScope::new(task),
+                };
+                body.diagnose(diags);
+            }
+            Item::Exception(exc) => {
+                if let Some(parent) = &exc.parent {
+                    exception(&file, parent, diags);
+                }
+            }
+            Item::Rust(_) => {}
+        }
+    }
+}
+
+/// Reports `name` when the file declares exceptions and `name` is not one of them.
+fn exception(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
+    let known: Vec<&str> = file.exception_names().collect();
+    if known.is_empty() || file.declares_exception(&name.to_string()) {
+        return;
+    }
+    diags.push(
+        Diagnostic::error(name.span(), format!("unknown exception `{name}`")).with_hint(format!(
+            "declare it with `exception {name};` or use one of: {}",
+            known.join(", ")
+        )),
+    );
+}
+
+/// Reports a handler reference that names a known task which is not a handler.
+fn handler(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
+    if let Some(kind) = file.kind_of(&name.to_string()) {
+        if kind != TaskKind::Handler {
+            diags.push(
+                Diagnostic::error(
+                    name.span(),
+                    format!("`{name}` is a {}, not an exception handler", kind.as_str()),
+                )
+                .with_hint("define it with `handler NAME(args) handles Exception { ... }`"),
+            );
+        }
+    }
+}
+
+fn task_constraint_name(kind: &TaskConstraintKind) -> &'static str {
+    match kind {
+        TaskConstraintKind::ExpandFirst => "expand first",
+        TaskConstraintKind::DelayExpansion => "delay expansion",
+        TaskConstraintKind::ExceptionHandler(_) => "exception handler",
+        TaskConstraintKind::OnTerminate(_) => "on terminate",
+        TaskConstraintKind::Persistent(_) => "persistent",
+        TaskConstraintKind::MaximumActivate(_) => "maximum activate",
+        TaskConstraintKind::MaximumTrigger(_) => "maximum trigger",
+        TaskConstraintKind::Period(_) => "period",
+        TaskConstraintKind::InitialWait => "initial wait",
+        TaskConstraintKind::Serial => "serial",
+        TaskConstraintKind::Sequential(_) => "sequential",
+    }
+}
+
+fn task_header(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
+    if let Some(handles) = &task.handles {
+        exception(file, handles, diags);
+    }
+    let mut expand_first = None;
+    let mut delay_expansion = None;
+    for constraint in &task.constraints {
+        let name = task_constraint_name(&constraint.kind);
+        let allowed = match (&constraint.kind, task.kind) {
+            (TaskConstraintKind::Persistent(_), _) => true,
+            (TaskConstraintKind::MaximumActivate(_), TaskKind::Monitor | TaskKind::Handler) => true,
+            (_, TaskKind::Handler) => false,
+            (
+                TaskConstraintKind::ExpandFirst
+                | TaskConstraintKind::DelayExpansion
+                | TaskConstraintKind::ExceptionHandler(_)
+                | TaskConstraintKind::OnTerminate(_),
+                _,
+            ) => true,
+            (TaskConstraintKind::Sequential(crate::ast::Facet::Handling), _) => false,
+            (_, kind) => kind == TaskKind::Monitor,
+        };
+        if !allowed {
+            let hint = match task.kind {
+                TaskKind::Handler => {
+                    "a handler takes only `maximum activate N` and `persistent` constraints"
+                }
+                _ if matches!(constraint.kind, TaskConstraintKind::Sequential(_)) => {
+                    "between monitor activations use `sequential expansion`, `sequential execution` or `serial`"
+                }
+                _ => "make the task a `monitor`, or put the constraint on a spawn of a monitor",
+            };
+            diags.push(
+                Diagnostic::error(
+                    constraint.span,
+                    format!("`{name}` is not allowed on a {}", task.kind.as_str()),
+                )
+                .with_hint(hint),
+            );
+        }
+        match &constraint.kind {
+            TaskConstraintKind::ExpandFirst => expand_first = Some(constraint.span),
+            TaskConstraintKind::DelayExpansion => delay_expansion = Some(constraint.span),
+            TaskConstraintKind::ExceptionHandler(it) => handler(file, &it.name, diags),
+            _ => {}
+        }
+    }
+    if let (Some(first), Some(delay)) = (expand_first, delay_expansion) {
+        diags.push(inconsistent_expansion(first, delay));
+    }
+}
+
+fn inconsistent_expansion(expand_first: Span, delay_expansion: Span) -> Diagnostic {
+    Diagnostic::error(
+        delay_expansion,
+        "inconsistent constraints: `delay expansion` with `expand first` on the same node",
+    )
+    .with_label(expand_first, "`expand first` is here")
+    .with_hint(
+        "`expand first` finishes expansion before execution starts, `delay expansion` waits for \
+         execution to be enabled; keep one",
+    )
+}
+
+/// What a constraint is attached to.
+#[derive(Clone, Copy)]
+enum Site<'a> {
+    /// A spawn of this task.
+    Spawn(&'a Ident),
+    /// A `with (...)` group.
+    With,
+    /// A constraint statement at this position, on this tag.
+    Stmt(usize, &'a Tag),
+}
+
+/// One task body being diagnosed.
+struct Body<'s, 'a> {
+    file: &'s FileScope<'a>,
+    task: &'a Task,
+    scope: BodyScope<'a>,
+}
+
+impl<'a> Body<'_, 'a> {
+    fn diagnose(&self, diags: &mut Vec<Diagnostic>) {
+        for (label, first) in &self.scope.duplicate_labels {
+            diags.push(
+                Diagnostic::error(label.span(), format!("duplicate label `{label}`"))
+                    .with_label(*first, "first used here")
+                    .with_hint("give each spawn or group its own label"),
+            );
+        }
+        let mut current = BTreeSet::new();
+        for stmt in &self.scope.stmts {
+            match stmt {
+                Tdl::Spawn(id) => {
+                    let def = &self.scope.spawns[*id];
+                    self.spawn(def.spawn, diags);
+                    // Group constraints apply at each member spawn, so `[.]` in them is diagnosed
+                    // against the loops around the member.
+                    for group in &def.groups {
+                        let constraints = &self.scope.groups[*group].group.constraints;
+                        self.current_indexes(constraints, &def.site.loops, &mut current, diags);
+                    }
+                    let own = &def.spawn.constraints;
+                    self.current_indexes(own, &def.site.loops, &mut current, diags);
+                }
+                Tdl::With(id) => {
+                    let constraints = &self.scope.groups[*id].group.constraints;
+                    self.constraint_list(constraints, Site::With, diags);
+                }
+                Tdl::Constrain(stmt, site) => {
+                    self.constraint_stmt(site.position, stmt, diags);
+                    self.current_index(&stmt.tag, &site.loops, &mut current, diags);
+                    let constraint = std::slice::from_ref(&stmt.constraint);
+                    self.current_indexes(constraint, &site.loops, &mut current, diags);
+                }
+                Tdl::Fail(fail) => self.fail(fail, diags),
+                Tdl::Bypass(span) if self.task.kind != TaskKind::Handler => diags.push(
+                    Diagnostic::error(*span, "`bypass` outside an exception handler").with_hint(
+                        "only a handler can pass its exception on; in other tasks use `fail`",
+                    ),
+                ),
+                Tdl::Retry(span) if self.task.kind != TaskKind::Handler => diags.push(
+                    Diagnostic::error(*span, "`retry` outside an exception handler").with_hint(
+                        "only a handler can run the failed task again; attach a `handler` that retries",
+                    ),
+                ),
+                Tdl::Trigger(span) if self.task.kind != TaskKind::Monitor => diags.push(
+                    Diagnostic::error(*span, "`trigger` outside a monitor").with_hint(
+                        "only a monitor's body can signal a trigger; make the task a `monitor`",
+                    ),
+                ),
+                Tdl::Bypass(_) | Tdl::Retry(_) | Tdl::Trigger(_) => {}
+            }
+        }
+        self.forward_group_refs(diags);
+    }
+
+    fn spawn(&self, spawn: &'a Spawn, diags: &mut Vec<Diagnostic>) {
+        self.constraint_list(&spawn.constraints, Site::Spawn(&spawn.task), diags);
+        let waits = spawn
+            .constraints
+            .iter()
+            .any(|it| matches!(it.kind, ConstraintKind::Wait));
+        if spawn.binding.is_some() && !waits {
+            diags.push(
+                Diagnostic::error(
+                    spawn.span,
+                    "a spawn bound with `let` must wait for its result",
+                )
+                .with_hint("add `with wait`: `let v = spawn task(args) with wait;`"),
+            );
+        }
+        if let [only] = spawn.constraints.as_slice() {
+            if matches!(only.kind, ConstraintKind::Parallel) {
+                diags.push(
+                    Diagnostic::warning(only.span, "`parallel` on a single spawn has no effect")
+                        .with_hint("spawns are parallel by default; use `parallel` on a `with (parallel) { ... }` group"),
+                );
+            }
+        }
+    }
+
+    fn fail(&self, fail: &Fail, diags: &mut Vec<Diagnostic>) {
+        match &fail.exception {
+            Some(exc) => exception(self.file, exc, diags),
+            None if self.task.kind == TaskKind::Handler => diags.push(
+                Diagnostic::warning(fail.span, "`fail;` without an exception in a handler")
+                    .with_hint("to pass the exception on to the next handler write `bypass;`"),
+            ),
+            None => diags.push(
+                Diagnostic::warning(fail.span, "`fail` without an exception")
+                    .with_hint("name the exception so a handler can match it: `fail Exc;`"),
+            ),
+        }
+    }
+
+    fn constraint_stmt(
+        &self,
+        position: usize,
+        stmt: &'a ConstraintStmt,
+        diags: &mut Vec<Diagnostic>,
+    ) {
+        let site = Site::Stmt(position, &stmt.tag);
+        self.tag(&stmt.tag, diags);
+        let terminates = matches!(
+            stmt.constraint.kind,
+            ConstraintKind::Trigger {
+                then: Then::Terminate,
+                ..
+            }
+        );
+        if terminates && matches!(stmt.tag.kind, TagKind::Child | TagKind::Parent) {
+            diags.push(
+                Diagnostic::warning(stmt.tag.span, "terminate constraint on the enclosing task")
+                    .with_hint("this terminates the task running this body; use `succeed;` or `fail Exc;` to end it"),
+            );
+        }
+        self.constraint_list(std::slice::from_ref(&stmt.constraint), site, diags);
+    }
+
+    /// Reports an unknown or ambiguous tag and wrong index counts; the definition it names.
+    fn tag(&self, tag: &Tag, diags: &mut Vec<Diagnostic>) -> Option<Named<'a>> {
+        let TagKind::Named { name, indexes } = &tag.kind else {
+            return None;
+        };
+        let named = match self.scope.resolve(tag) {
+            Resolution::Named(named) => named,
+            Resolution::Ambiguous(spawns) => {
+                let mut diag = Diagnostic::error(
+                    tag.span,
+                    format!(
+                        "ambiguous tag `{name}`: the task is spawned {} times in this body",
+                        spawns.len()
+                    ),
+                )
+                .with_hint("label the spawns (`t1: spawn a(1);`) and refer to a label");
+                for id in spawns {
+                    diag = diag.with_label(self.scope.spawns[id].spawn.task.span(), "spawned here");
+                }
+                diags.push(diag);
+                return None;
+            }
+            _ => {
+                diags.push(
+                    Diagnostic::error(tag.span, format!("unknown tag `{name}`")).with_hint(
+                        format!(
+                            "`{name}` is not spawned or labelled in `{}`; {TAG_HINT}",
+                            self.task.name
+                        ),
+                    ),
+                );
+                return None;
+            }
+        };
+        let depth = self.scope.site(named.def).loops.len();
+        if indexes.len() > depth {
+            let msg = if depth == 0 {
+                format!("`{name}` is not spawned in a loop, so it takes no iteration index")
+            } else {
+                format!(
+                    "too many iteration indexes for `{name}`: it is spawned inside {depth} loop{}, the tag has {}",
+                    if depth == 1 { "" } else { "s" },
+                    indexes.len()
+                )
+            };
+            diags.push(
+                Diagnostic::error(tag.span, msg)
+                    .with_label(named.span, "spawned here")
+                    .with_hint("give one `[index]` per enclosing loop, outermost first; `[.]` means the current iteration"),
+            );
+        }
+        Some(named)
+    }
+
+    fn constraint_list(
+        &self,
+        constraints: &[Constraint],
+        site: Site<'a>,
+        diags: &mut Vec<Diagnostic>,
+    ) {
+        let mut expand_first = None;
+        for constraint in constraints {
+            match &constraint.kind {
+                ConstraintKind::ExpandFirst => expand_first = Some(constraint.span),
+                ConstraintKind::DelayExpansion => {
+                    if let Some(first) = expand_first {
+                        diags.push(inconsistent_expansion(first, constraint.span));
+                    }
+                }
+                _ => {}
+            }
+            self.constraint(constraint, site, diags);
+        }
+        if let Some(first) = expand_first {
+            let delay = constraints
+                .iter()
+                .take_while(|it| !matches!(it.kind, ConstraintKind::ExpandFirst))
+                .find(|it| matches!(it.kind, ConstraintKind::DelayExpansion));
+            if let Some(delay) = delay {
+                diags.push(inconsistent_expansion(first, delay.span));
+            }
+        }
+    }
+
+    fn constraint(&self, constraint: &Constraint, site: Site<'a>, diags: &mut Vec<Diagnostic>) {
+        let span = constraint.span;
+        match (&constraint.kind, refers(&constraint.kind)) {
+            // The constrained node waits for the tag: `sequential`, `serial`, `disable until`.
+            (_, Some(Refers::WaitsOn(tag)))
+            | (
+                ConstraintKind::Trigger {
+                    when: When::Event(_),
+                    then: Then::Enable(_),
+                },
+                Some(Refers::Event(crate::ast::Event { tag, .. })),
+            ) => self.waits_on(tag, site, span, diags),
+            (_, Some(Refers::Event(event))) => {
+                self.tag(&event.tag, diags);
+            }
+            (ConstraintKind::ExceptionHandler(it), _) => {
+                handler(self.file, &it.name, diags);
+                if matches!(site, Site::With) {
+                    diags.push(
+                        Diagnostic::error(span, "`exception handler` is not allowed in `with (...)`")
+                            .with_hint("attach the handler to each spawn with `with exception handler ...`, or to the task definition"),
+                    );
+                }
+            }
+            (ConstraintKind::OnTerminate(_), _) if matches!(site, Site::With) => diags.push(
+                Diagnostic::error(span, "`on terminate` is not allowed in `with (...)`")
+                    .with_hint("put `on terminate` on a spawn or on the task definition"),
+            ),
+            (ConstraintKind::OnAgent(_), _) => diags.push(
+                Diagnostic::error(span, "distributed agents are not supported yet")
+                    .with_hint("remove `on ...`: every task runs in this process until distributed agents exist"),
+            ),
+            (ConstraintKind::Wait, _) => {
+                if let Site::Stmt(position, tag) = site {
+                    if let Some(named) = self.scope.named(tag) {
+                        if self.scope.site(named.def).position > position {
+                            diags.push(
+                                Diagnostic::error(tag.span, "`wait` on a task that is not spawned yet")
+                                    .with_label(named.span, "spawned later here")
+                                    .with_hint("move this statement after the spawn, or put `wait` on the spawn itself"),
+                            );
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+        if is_monitor_only(&constraint.kind) {
+            self.monitor_only(constraint, site, diags);
+        }
+    }
+
+    /// Diagnoses a tag that the constrained node waits on: it must exist and not be the node itself.
+    fn waits_on(&self, tag: &Tag, site: Site<'_>, span: Span, diags: &mut Vec<Diagnostic>) {
+        if matches!(tag.kind, TagKind::Child) && !matches!(site, Site::With) {
+            diags.push(
+                Diagnostic::error(span, "circular constraint: the task would wait for itself")
+                    .with_label(tag.span, "`self` is the task being constrained")
+                    .with_hint("refer to another task, `previous` or a label"),
+            );
+        }
+        self.tag(tag, diags);
+    }
+
+    fn monitor_only(&self, constraint: &Constraint, site: Site<'a>, diags: &mut Vec<Diagnostic>) {
+        let task = match site {
+            Site::Spawn(task) => Some(task),
+            Site::Stmt(_, tag) => self
+                .scope
+                .named(tag)
+                .and_then(|named| self.scope.task_of(named.def)),
+            Site::With => None,
+        };
+        let Some(task) = task else {
+            return;
+        };
+        let Some(kind) = self.file.kind_of(&task.to_string()) else {
+            return;
+        };
+        if kind != TaskKind::Monitor {
+            diags.push(
+                Diagnostic::error(
+                    constraint.span,
+                    format!("this constraint only applies to monitors, and `{task}` is a {}", kind.as_str()),
+                )
+                .with_hint("`activate`, `maximum activate`, `maximum trigger` and `period` configure monitors; remove it or make the task a `monitor`"),
+            );
+        }
+    }
+
+    /// Diagnoses `[.]` in the tags of `constraints` applied inside the loops `site`.
+    fn current_indexes(
+        &self,
+        constraints: &'a [Constraint],
+        site: &[LoopId],
+        reported: &mut BTreeSet<*const Tag>,
+        diags: &mut Vec<Diagnostic>,
+    ) {
+        for constraint in constraints {
+            match refers(&constraint.kind) {
+                Some(Refers::WaitsOn(tag)) => self.current_index(tag, site, reported, diags),
+                Some(Refers::Event(event)) => {
+                    self.current_index(&event.tag, site, reported, diags);
+                }
+                Some(Refers::Previous) | None => {}
+            }
+        }
+    }
+
+    /// Reports `[.]` in `tag` used outside the loop it counts (once per tag).
+    fn current_index(
+        &self,
+        tag: &'a Tag,
+        site: &[LoopId],
+        reported: &mut BTreeSet<*const Tag>,
+        diags: &mut Vec<Diagnostic>,
+    ) {
+        let TagKind::Named { indexes, .. } = &tag.kind else {
+            return;
+        };
+        if !indexes.iter().any(|it| matches!(it, TagIndex::Current)) {
+            return;
+        }
+        let Some(Named {
+            def: Def::Spawn(id),
+            ..
+        }) = self.scope.named(tag)
+        else {
+            return;
+        };
+        let outside = matches!(
+            self.scope.indexes(id, indexes, site),
+            Err(IndexError::CurrentOutside)
+        );
+        if outside && reported.insert(std::ptr::from_ref(tag)) {
+            diags.push(
+                Diagnostic::error(tag.span, "`[.]` outside the loop it counts")
+                    .with_hint("`[.]` means the current iteration of the loop around the spawn; use it inside that loop, or write the iteration number"),
+            );
+        }
+    }
+
+    /// Reports references to a `with` group written before it (once per group name).
+    fn forward_group_refs(&self, diags: &mut Vec<Diagnostic>) {
+        let mut reported = BTreeSet::new();
+        for r in &self.scope.refs {
+            let Some(Named {
+                def: Def::Group(id),
+                ..
+            }) = self.scope.named(r.tag)
+            else {
+                continue;
+            };
+            if r.position < self.scope.groups[id].site.position
+                && reported.insert(r.name.to_string())
+            {
+                diags.push(
+                    Diagnostic::error(
+                        r.tag.span,
+                        format!("forward reference to the `with` group `{}`", r.name),
+                    )
+                    .with_hint("a group's members are only known once it has run; move this after the group, or name one of its spawns"),
+                );
+            }
+        }
+    }
+}
+
+fn is_monitor_only(kind: &ConstraintKind) -> bool {
+    matches!(
+        kind,
+        ConstraintKind::Trigger {
+            then: Then::Activate,
+            ..
+        } | ConstraintKind::MaximumActivate(_)
+            | ConstraintKind::MaximumTrigger(_)
+            | ConstraintKind::Period(_)
+    )
+}

@@ -1,0 +1,637 @@
+//! The scope and resolution pass: what every name in a source means, worked out once and read by
+//! both consumers, the static diagnosis (`diagnose.rs`) and the code generator (`codegen/`).
+//!
+//! - [`FileScope`]: the tasks and exceptions the source declares (the first of a duplicated name
+//!   wins; the later ones are kept in [`FileScope::duplicates`]) and exception ancestries.
+//! - [`BodyScope`]: one task body. Its TDL statements in source order, flattened out of the Rust
+//!   control flow around them ([`Tdl`]), each at a [`Site`] (a position and the enclosing loops);
+//!   its spawns, `with` groups and loops, numbered in source order; the names a tag can use; every
+//!   named tag written in a constraint ([`Ref`]); and what the generated code must track at run
+//!   time: the local of each spawn or group that some tag names, the loops that count their
+//!   iterations, whether `previous` is used.
+//!
+//! Name rules (docs/semantics.md, "Tags and forward references"): tags are body-scoped, so forward references resolve. A label (of a
+//! spawn, a group or an on-terminate task) names that; the first of duplicated labels wins.
+//! Otherwise a task spawned exactly once in the body names its spawn, and one spawned several
+//! times is ambiguous. Unknown *task* names in spawns are not errors (tasks may come from other
+//! files), only unknown *tags* are.
+//!
+//! Resolution reports nothing itself: `diagnose` words what it finds (duplicates, unknown or
+//! ambiguous tags, wrong index counts, forward references to groups, `[.]` outside its loop), and
+//! the generator, which resolves the same tree again from [`crate::generate`], only reads it.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use proc_macro2::{Ident, Span};
+use quote::format_ident;
+
+use crate::ast::{
+    Ast, Block, Constraint, ConstraintKind, ConstraintStmt, Else, Event, ExceptionDecl, Fail, If,
+    Item, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskKind, WithGroup,
+};
+
+/// A spawn of a body, numbered in source order.
+pub(crate) type SpawnId = usize;
+/// A `with` group of a body, numbered in source order.
+pub(crate) type GroupId = usize;
+/// A `for`, `while` or `loop` of a body, numbered in source order.
+pub(crate) type LoopId = usize;
+
+/// The tasks and exceptions a source declares.
+pub(crate) struct FileScope<'a> {
+    tasks: BTreeMap<String, &'a Task>,
+    exceptions: BTreeMap<String, &'a ExceptionDecl>,
+    /// Declarations of a name already declared, in source order.
+    pub(crate) duplicates: Vec<Duplicate<'a>>,
+}
+
+/// A declaration of a name declared before: (this one, the first).
+pub(crate) enum Duplicate<'a> {
+    /// Two tasks of one name.
+    Task(&'a Task, &'a Task),
+    /// Two exceptions of one name.
+    Exception(&'a ExceptionDecl, &'a ExceptionDecl),
+}
+
+impl<'a> FileScope<'a> {
+    /// The declarations of `ast`.
+    pub(crate) fn new(ast: &'a Ast) -> FileScope<'a> {
+        let mut scope = FileScope {
+            tasks: BTreeMap::new(),
+            exceptions: BTreeMap::new(),
+            duplicates: Vec::new(),
+        };
+        for item in &ast.items {
+            match item {
+                Item::Task(task) => match scope.tasks.get(&task.name.to_string()) {
+                    Some(first) => scope.duplicates.push(Duplicate::Task(task, first)),
+                    None => {
+                        scope.tasks.insert(task.name.to_string(), task);
+                    }
+                },
+                Item::Exception(exc) => match scope.exceptions.get(&exc.name.to_string()) {
+                    Some(first) => scope.duplicates.push(Duplicate::Exception(exc, first)),
+                    None => {
+                        scope.exceptions.insert(exc.name.to_string(), exc);
+                    }
+                },
+                Item::Rust(_) => {}
+            }
+        }
+        scope
+    }
+
+    /// The task of this name defined in the source.
+    pub(crate) fn task(&self, name: &str) -> Option<&'a Task> {
+        self.tasks.get(name).copied()
+    }
+
+    /// The kind of the task of this name defined in the source.
+    pub(crate) fn kind_of(&self, name: &str) -> Option<TaskKind> {
+        self.task(name).map(|it| it.kind)
+    }
+
+    /// The names of the exceptions declared, sorted.
+    pub(crate) fn exception_names(&self) -> impl Iterator<Item = &str> {
+        self.exceptions.keys().map(String::as_str)
+    }
+
+    /// Whether `name` is an exception declared in the source.
+    pub(crate) fn declares_exception(&self, name: &str) -> bool {
+        self.exceptions.contains_key(name)
+    }
+
+    /// The ancestors of exception `name`, nearest first: its parent, the parent's parent, ... (a
+    /// parent declared elsewhere ends the chain; a cycle is cut).
+    pub(crate) fn ancestry(&self, name: &str) -> Vec<String> {
+        let parent_of = |name: &str| {
+            self.exceptions
+                .get(name)
+                .and_then(|it| it.parent.as_ref())
+                .map(ToString::to_string)
+        };
+        let mut out: Vec<String> = Vec::new();
+        let mut at = parent_of(name);
+        while let Some(parent) = at {
+            if parent == name || out.contains(&parent) {
+                break;
+            }
+            at = parent_of(&parent);
+            out.push(parent);
+        }
+        out
+    }
+}
+
+/// Where a TDL statement is: its position among the body's statements (Rust ones included, in
+/// source order) and its enclosing loops, outermost first.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Site {
+    /// Position in source order, from 1.
+    pub(crate) position: usize,
+    /// Enclosing loops, outermost first.
+    pub(crate) loops: Vec<LoopId>,
+}
+
+/// One TDL statement of a body, in source order.
+pub(crate) enum Tdl<'a> {
+    /// A spawn.
+    Spawn(SpawnId),
+    /// A `with` group; its members follow.
+    With(GroupId),
+    /// A constraint statement `TAG constraint;`.
+    Constrain(&'a ConstraintStmt, Site),
+    /// `fail ...;`.
+    Fail(&'a Fail),
+    /// `bypass;`.
+    Bypass(Span),
+    /// `trigger;`.
+    Trigger(Span),
+    /// `retry;`.
+    Retry(Span),
+}
+
+/// A spawn statement.
+pub(crate) struct SpawnDef<'a> {
+    /// The statement.
+    pub(crate) spawn: &'a Spawn,
+    /// Where it is.
+    pub(crate) site: Site,
+    /// The enclosing `with` groups, outermost first.
+    pub(crate) groups: Vec<GroupId>,
+    /// The local holding its node (a reservation, or a map by iteration in loops), when some tag
+    /// names it.
+    pub(crate) var: Option<Ident>,
+}
+
+/// A `with` group.
+pub(crate) struct GroupDef<'a> {
+    /// The statement.
+    pub(crate) group: &'a WithGroup,
+    /// Where it is.
+    pub(crate) site: Site,
+    /// The local collecting its members, when some tag names it.
+    pub(crate) var: Option<Ident>,
+}
+
+/// What a name used as a tag stands for.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Def<'a> {
+    /// A spawn, by its label or as the only spawn of its task.
+    Spawn(SpawnId),
+    /// A labelled `with` group.
+    Group(GroupId),
+    /// A labelled `on terminate` task of a spawn.
+    OnTerminate {
+        /// The spawn it is attached to.
+        spawn: SpawnId,
+        /// The on-terminate task.
+        task: &'a Ident,
+    },
+}
+
+/// A name's definition and where it is written: the label, or the spawned task's name.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Named<'a> {
+    /// What the name stands for.
+    pub(crate) def: Def<'a>,
+    /// The label, or the spawned task's name.
+    pub(crate) span: Span,
+}
+
+/// What a tag resolves to.
+pub(crate) enum Resolution<'a> {
+    /// `previous`: tracked at run time.
+    Previous,
+    /// `self`/`child`: the node being constrained.
+    This,
+    /// `parent`/`this`: the enclosing task's node.
+    Parent,
+    /// A spawn, group or on-terminate task of the body.
+    Named(Named<'a>),
+    /// No spawn or label of the body has this name.
+    Unknown,
+    /// The task is spawned several times and no label has its name: those spawns.
+    Ambiguous(Vec<SpawnId>),
+}
+
+/// A named tag written in a constraint, at the position of its statement.
+pub(crate) struct Ref<'a> {
+    /// The tag.
+    pub(crate) tag: &'a Tag,
+    /// Its name.
+    pub(crate) name: &'a Ident,
+    /// The position of the spawn, group or constraint statement it is written in.
+    pub(crate) position: usize,
+}
+
+/// One iteration index of a tag on a spawn inside loops.
+pub(crate) enum Index<'a> {
+    /// `[expr]`.
+    Expr(&'a syn::Expr),
+    /// `[.]`: the current iteration of this loop.
+    Current(LoopId),
+}
+
+/// Why a tag's iteration indexes do not fit its spawn.
+#[derive(Debug, PartialEq, Eq)]
+pub(crate) enum IndexError {
+    /// More indexes than loops around the spawn.
+    TooMany,
+    /// `[.]` where the loop it counts does not enclose the use.
+    CurrentOutside,
+}
+
+/// What a constraint refers to besides the node it constrains.
+pub(crate) enum Refers<'a> {
+    /// `sequential`/`serial` without a tag: `previous`.
+    Previous,
+    /// The tag of `sequential`/`serial`: the constrained node waits for it.
+    WaitsOn(&'a Tag),
+    /// The event of a trigger (`until`, `at`, `after`).
+    Event(&'a Event),
+}
+
+impl Refers<'_> {
+    /// Whether it is `previous`, written or implied.
+    fn is_previous(&self) -> bool {
+        match self {
+            Refers::Previous => true,
+            Refers::WaitsOn(tag) => matches!(tag.kind, TagKind::Previous),
+            Refers::Event(event) => matches!(event.tag.kind, TagKind::Previous),
+        }
+    }
+}
+
+/// The node `kind` refers to, if any.
+pub(crate) fn refers(kind: &ConstraintKind) -> Option<Refers<'_>> {
+    match kind {
+        ConstraintKind::Sequential { tag, .. } | ConstraintKind::Serial { tag } => {
+            Some(tag.as_ref().map_or(Refers::Previous, Refers::WaitsOn))
+        }
+        ConstraintKind::Trigger { when, .. } => when.event().map(Refers::Event),
+        _ => None,
+    }
+}
+
+/// Whether any of `constraints` refers to `previous`.
+pub(crate) fn uses_previous(constraints: &[Constraint]) -> bool {
+    constraints
+        .iter()
+        .filter_map(|it| refers(&it.kind))
+        .any(|it| it.is_previous())
+}
+
+/// One task body, resolved.
+pub(crate) struct BodyScope<'a> {
+    /// Its TDL statements in source order.
+    pub(crate) stmts: Vec<Tdl<'a>>,
+    /// Its spawns in source order.
+    pub(crate) spawns: Vec<SpawnDef<'a>>,
+    /// Its `with` groups in source order.
+    pub(crate) groups: Vec<GroupDef<'a>>,
+    /// Every named tag written in a constraint, in source order.
+    pub(crate) refs: Vec<Ref<'a>>,
+    /// Labels already used: (the later label, the first one's span).
+    pub(crate) duplicate_labels: Vec<(&'a Ident, Span)>,
+    /// Whether some constraint refers to `previous`.
+    pub(crate) uses_previous: bool,
+    /// Labels, the first of each.
+    labels: BTreeMap<String, Named<'a>>,
+    /// The spawns of each task.
+    by_task: BTreeMap<String, Vec<SpawnId>>,
+    spawn_ids: BTreeMap<*const Spawn, SpawnId>,
+    group_ids: BTreeMap<*const WithGroup, GroupId>,
+    /// Loops by their body.
+    loop_ids: BTreeMap<*const Block, LoopId>,
+    /// Loops that count their iterations, for iteration-indexed tags.
+    counted: BTreeSet<LoopId>,
+}
+
+impl<'a> BodyScope<'a> {
+    /// Resolves the body of `task`.
+    pub(crate) fn new(task: &'a Task) -> BodyScope<'a> {
+        let mut walk = Walk {
+            scope: BodyScope {
+                stmts: Vec::new(),
+                spawns: Vec::new(),
+                groups: Vec::new(),
+                refs: Vec::new(),
+                duplicate_labels: Vec::new(),
+                uses_previous: false,
+                labels: BTreeMap::new(),
+                by_task: BTreeMap::new(),
+                spawn_ids: BTreeMap::new(),
+                group_ids: BTreeMap::new(),
+                loop_ids: BTreeMap::new(),
+                counted: BTreeSet::new(),
+            },
+            position: 0,
+            loops: Vec::new(),
+            groups: Vec::new(),
+        };
+        walk.block(&task.body);
+        let mut scope = walk.scope;
+        scope.assign_vars();
+        scope
+    }
+
+    /// What `tag` denotes.
+    pub(crate) fn resolve(&self, tag: &Tag) -> Resolution<'a> {
+        match &tag.kind {
+            TagKind::Previous => Resolution::Previous,
+            TagKind::Child => Resolution::This,
+            TagKind::Parent => Resolution::Parent,
+            TagKind::Named { name, .. } => self.lookup(&name.to_string()),
+        }
+    }
+
+    /// What the name `name` denotes: a label, else a task spawned once.
+    fn lookup(&self, name: &str) -> Resolution<'a> {
+        if let Some(named) = self.labels.get(name) {
+            return Resolution::Named(*named);
+        }
+        match self.by_task.get(name).map(Vec::as_slice) {
+            None | Some([]) => Resolution::Unknown,
+            Some([only]) => Resolution::Named(Named {
+                def: Def::Spawn(*only),
+                span: self.spawns[*only].spawn.task.span(),
+            }),
+            Some(many) => Resolution::Ambiguous(many.to_vec()),
+        }
+    }
+
+    /// The named definition `tag` denotes, if it denotes one.
+    pub(crate) fn named(&self, tag: &Tag) -> Option<Named<'a>> {
+        match self.resolve(tag) {
+            Resolution::Named(named) => Some(named),
+            _ => None,
+        }
+    }
+
+    /// Where a definition is (an on-terminate task: where its spawn is).
+    pub(crate) fn site(&self, def: Def<'a>) -> &Site {
+        match def {
+            Def::Spawn(id) | Def::OnTerminate { spawn: id, .. } => &self.spawns[id].site,
+            Def::Group(id) => &self.groups[id].site,
+        }
+    }
+
+    /// The task a definition runs: a spawn's or an on-terminate task; none for a group.
+    pub(crate) fn task_of(&self, def: Def<'a>) -> Option<&'a Ident> {
+        match def {
+            Def::Spawn(id) => Some(&self.spawns[id].spawn.task),
+            Def::OnTerminate { task, .. } => Some(task),
+            Def::Group(_) => None,
+        }
+    }
+
+    /// The spawn statement `spawn`.
+    pub(crate) fn spawn_def(&self, spawn: &Spawn) -> Option<&SpawnDef<'a>> {
+        let id = self.spawn_ids.get(&std::ptr::from_ref(spawn))?;
+        self.spawns.get(*id)
+    }
+
+    /// The number of the group `group`.
+    pub(crate) fn group_id(&self, group: &WithGroup) -> Option<GroupId> {
+        self.group_ids.get(&std::ptr::from_ref(group)).copied()
+    }
+
+    /// The number of the loop whose body is `body`.
+    pub(crate) fn loop_id(&self, body: &Block) -> Option<LoopId> {
+        self.loop_ids.get(&std::ptr::from_ref(body)).copied()
+    }
+
+    /// Whether the loop counts its iterations (a tag names a spawn inside it).
+    pub(crate) fn is_counted(&self, id: LoopId) -> bool {
+        self.counted.contains(&id)
+    }
+
+    /// The iteration indexes of a tag naming spawn `id`, used inside the loops `site`: one per
+    /// index written. A spawn outside loops takes none (more are reported by the index count).
+    pub(crate) fn indexes<'t>(
+        &self,
+        id: SpawnId,
+        indexes: &'t [TagIndex],
+        site: &[LoopId],
+    ) -> Result<Vec<Index<'t>>, IndexError> {
+        let loops = &self.spawns[id].site.loops;
+        if loops.is_empty() {
+            return Ok(Vec::new());
+        }
+        let mut out = Vec::new();
+        for (level, index) in indexes.iter().enumerate() {
+            match index {
+                TagIndex::Expr(expr) => out.push(Index::Expr(expr)),
+                TagIndex::Current => {
+                    let Some(&loop_id) = loops.get(level) else {
+                        return Err(IndexError::TooMany);
+                    };
+                    if site.get(level) != Some(&loop_id) {
+                        return Err(IndexError::CurrentOutside);
+                    }
+                    out.push(Index::Current(loop_id));
+                }
+            }
+        }
+        if out.len() > loops.len() {
+            return Err(IndexError::TooMany);
+        }
+        Ok(out)
+    }
+
+    fn add_label(&mut self, label: &'a Ident, def: Def<'a>) {
+        let name = label.to_string();
+        if let Some(first) = self.labels.get(&name) {
+            self.duplicate_labels.push((label, first.span));
+            return;
+        }
+        let span = label.span();
+        self.labels.insert(name, Named { def, span });
+    }
+
+    /// Marks what the tags name and gives each named spawn or group its local.
+    fn assign_vars(&mut self) {
+        let mut spawns = BTreeSet::new();
+        let mut groups = BTreeSet::new();
+        for r in &self.refs {
+            match self.lookup(&r.name.to_string()) {
+                Resolution::Named(Named {
+                    def: Def::Spawn(id),
+                    ..
+                }) => {
+                    spawns.insert(id);
+                }
+                Resolution::Named(Named {
+                    def: Def::Group(id),
+                    ..
+                }) => {
+                    groups.insert(id);
+                }
+                _ => {}
+            }
+        }
+        let mut used = BTreeSet::new();
+        let mut local = |base: &str| {
+            let mut var = format!("tdl_{}", base.trim_start_matches("r#"));
+            while !used.insert(var.clone()) {
+                var.push('_');
+            }
+            format_ident!("{}", var)
+        };
+        for id in spawns {
+            let def = &mut self.spawns[id];
+            let spawn = def.spawn;
+            let base = spawn.labels.first().unwrap_or(&spawn.task).to_string();
+            def.var = Some(local(&base));
+            self.counted.extend(def.site.loops.iter().copied());
+        }
+        for id in groups {
+            let def = &mut self.groups[id];
+            let base = def
+                .group
+                .labels
+                .first()
+                .map(ToString::to_string)
+                .unwrap_or_default();
+            def.var = Some(local(&base));
+        }
+    }
+}
+
+/// The walk that builds a [`BodyScope`].
+struct Walk<'a> {
+    scope: BodyScope<'a>,
+    position: usize,
+    loops: Vec<LoopId>,
+    groups: Vec<GroupId>,
+}
+
+impl<'a> Walk<'a> {
+    fn block(&mut self, block: &'a Block) {
+        for stmt in &block.stmts {
+            self.stmt(stmt);
+        }
+    }
+
+    fn stmt(&mut self, stmt: &'a Stmt) {
+        self.position += 1;
+        let site = Site {
+            position: self.position,
+            loops: self.loops.clone(),
+        };
+        match stmt {
+            Stmt::Spawn(spawn) => {
+                let id = self.scope.spawns.len();
+                self.scope.spawn_ids.insert(std::ptr::from_ref(spawn), id);
+                self.scope
+                    .by_task
+                    .entry(spawn.task.to_string())
+                    .or_default()
+                    .push(id);
+                self.scope.spawns.push(SpawnDef {
+                    spawn,
+                    site,
+                    groups: self.groups.clone(),
+                    var: None,
+                });
+                self.scope.stmts.push(Tdl::Spawn(id));
+                for label in &spawn.labels {
+                    self.scope.add_label(label, Def::Spawn(id));
+                }
+                for constraint in &spawn.constraints {
+                    if let ConstraintKind::OnTerminate(it) = &constraint.kind {
+                        for label in &it.labels {
+                            let def = Def::OnTerminate {
+                                spawn: id,
+                                task: &it.task,
+                            };
+                            self.scope.add_label(label, def);
+                        }
+                    }
+                }
+                self.constraints(&spawn.constraints);
+            }
+            Stmt::With(group) => {
+                let id = self.scope.groups.len();
+                self.scope.group_ids.insert(std::ptr::from_ref(group), id);
+                self.scope.groups.push(GroupDef {
+                    group,
+                    site,
+                    var: None,
+                });
+                self.scope.stmts.push(Tdl::With(id));
+                for label in &group.labels {
+                    self.scope.add_label(label, Def::Group(id));
+                }
+                self.constraints(&group.constraints);
+                self.groups.push(id);
+                self.block(&group.body);
+                self.groups.pop();
+            }
+            Stmt::Constrain(it) => {
+                self.scope.stmts.push(Tdl::Constrain(it, site));
+                self.tag(&it.tag);
+                self.constraints(std::slice::from_ref(&it.constraint));
+            }
+            Stmt::Fail(it) => self.scope.stmts.push(Tdl::Fail(it)),
+            Stmt::Bypass(span) => self.scope.stmts.push(Tdl::Bypass(*span)),
+            Stmt::Trigger(span) => self.scope.stmts.push(Tdl::Trigger(*span)),
+            Stmt::Retry(span) => self.scope.stmts.push(Tdl::Retry(*span)),
+            Stmt::If(it) => self.if_stmt(it),
+            Stmt::For(it) => self.loop_body(&it.body),
+            Stmt::While(it) => self.loop_body(&it.body),
+            Stmt::Loop(it) => self.loop_body(&it.body),
+            Stmt::Match(it) => {
+                for arm in &it.arms {
+                    self.block(&arm.body);
+                }
+            }
+            Stmt::Block(it) => self.block(it),
+            Stmt::Rust(_) | Stmt::Succeed(_) => {}
+        }
+    }
+
+    fn if_stmt(&mut self, it: &'a If) {
+        self.block(&it.then_branch);
+        match it.else_branch.as_deref() {
+            Some(Else::If(next)) => self.if_stmt(next),
+            Some(Else::Block(block)) => self.block(block),
+            None => {}
+        }
+    }
+
+    fn loop_body(&mut self, body: &'a Block) {
+        let id = self.scope.loop_ids.len();
+        self.scope.loop_ids.insert(std::ptr::from_ref(body), id);
+        self.loops.push(id);
+        self.block(body);
+        self.loops.pop();
+    }
+
+    fn constraints(&mut self, constraints: &'a [Constraint]) {
+        for constraint in constraints {
+            match refers(&constraint.kind) {
+                Some(Refers::Previous) => self.scope.uses_previous = true,
+                Some(Refers::WaitsOn(tag)) => self.tag(tag),
+                Some(Refers::Event(event)) => self.tag(&event.tag),
+                None => {}
+            }
+        }
+    }
+
+    fn tag(&mut self, tag: &'a Tag) {
+        match &tag.kind {
+            TagKind::Previous => self.scope.uses_previous = true,
+            TagKind::Named { name, .. } => self.scope.refs.push(Ref {
+                tag,
+                name,
+                position: self.position,
+            }),
+            TagKind::Child | TagKind::Parent => {}
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
