@@ -249,7 +249,7 @@ pub(crate) struct Cold<A, F> {
     // A handler took this node's failure.
     pub(crate) handled: bool,
     // Wiretap checks running on this node, and whether the "before" checks already ran.
-    pub(crate) taps_pending: u32,
+    pub(crate) taps_open: Vec<crate::ids::WiretapId>,
     pub(crate) tapped_before: bool,
     pub(crate) tap_failure: Option<Failure>,
     // Constraints applied to a reservation before its spawn, with the `previous` of that moment;
@@ -269,7 +269,7 @@ impl<A, F> Default for Cold<A, F> {
             handler: None,
             retry: None,
             handled: false,
-            taps_pending: 0,
+            taps_open: Vec::new(),
             tapped_before: false,
             tap_failure: None,
             deferred: Vec::new(),
@@ -375,8 +375,8 @@ impl<A, F> Node<A, F> {
         self.cold.as_ref().is_some_and(|c| c.handled)
     }
 
-    pub(crate) fn taps_pending(&self) -> u32 {
-        self.cold.as_ref().map_or(0, |c| c.taps_pending)
+    pub(crate) fn taps_pending(&self) -> usize {
+        self.cold.as_ref().map_or(0, |c| c.taps_open.len())
     }
 
     pub(crate) fn tapped_before(&self) -> bool {

@@ -110,6 +110,10 @@ impl<A, F: Clone> Engine<A, F> {
             let action_running = h == State::Active
                 && self.node(c).monitor().is_none()
                 && self.node(c).taps_pending() == 0;
+            // Wiretap checks on it run to their end in the shell, but decide nothing any more:
+            // they stop counting as running now, and their reports are refused.
+            let checks = self.node_mut(c).take_cold(|c| &mut c.taps_open);
+            self.running -= checks.len() as u32;
             if h == State::Active {
                 if action_running {
                     self.running -= 1;
@@ -133,9 +137,9 @@ impl<A, F: Clone> Engine<A, F> {
         }
     }
 
-    /// Stops the running action of `node`. If its start is still queued (started and terminated
-    /// in one settle), the start is withdrawn, so the shell never runs it; otherwise the shell is
-    /// asked to cancel it. The queue is short: every shell drains it after each input.
+    /// Stops the running action of `node`. If its start is still queued (the shell has not taken
+    /// it yet), the start is withdrawn, so the shell never runs it; otherwise the shell is asked to
+    /// cancel it. The queue is short: every shell drains it after each input.
     fn cancel_action(&mut self, node: NodeId) {
         let queued = self.effects.iter().rposition(|e| match e {
             Effect::Start { node: n, .. } => *n == node,

@@ -48,19 +48,26 @@ impl<A, F: Clone> Engine<A, F> {
         let Some(when) = self.taps.get(tap.0 as usize).map(|t| t.when) else {
             return Err(EngineError::NotRunning(node));
         };
-        self.running = self.running.saturating_sub(1);
         let Some(n) = self.nodes.get_mut(node) else {
+            // Its node was terminated (and reclaimed) meanwhile: the check stopped counting as
+            // running then (`terminate.rs`) and has nothing left to decide.
             return Ok(());
         };
         let alive = n.alive();
         let c = n.cold_mut();
-        c.taps_pending = c.taps_pending.saturating_sub(1);
+        // Each check ends once: a second report of the same check, or the report of a check of
+        // a node terminated meanwhile, is refused.
+        let Some(i) = c.taps_open.iter().position(|t| *t == tap) else {
+            return Err(EngineError::NotRunning(node));
+        };
+        c.taps_open.swap_remove(i);
+        self.running -= 1;
         if let Err(f) = result {
             if c.tap_failure.is_none() {
                 c.tap_failure = Some(f);
             }
         }
-        if c.taps_pending > 0 || !alive {
+        if !c.taps_open.is_empty() || !alive {
             return Ok(());
         }
         let failure = c.tap_failure.take();
@@ -98,7 +105,8 @@ impl<A, F: Clone> Engine<A, F> {
             return 0;
         }
         let display = self.node(node).display;
-        self.node_mut(node).cold_mut().taps_pending += k;
+        let open = matching.iter().map(|(tap, _)| *tap);
+        self.node_mut(node).cold_mut().taps_open.extend(open);
         for (tap, body) in matching {
             self.running += 1;
             emit!(

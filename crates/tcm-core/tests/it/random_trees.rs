@@ -1,28 +1,67 @@
 //! Property test: random trees with random constraints run on virtual time and always pass the
 //! trace checker, and the same program always gives the same trace.
+//!
+//! Timed and event-driven constraints are generated as the engine sees them, one trigger: a "when"
+//! ([`when`]) combined with a "then" ([`then`]), so every combination comes up; with monitors,
+//! exception handlers, failures, and external events that the program raises itself.
 
 use proptest::prelude::*;
 use std::rc::Rc;
 use std::time::Duration;
 use tcm_core::sim::{Body, Factory, Outcome, Sim, SimEngine, body, factory};
 use tcm_core::{
-    Constraint, Event, Facet, Failure, HandlerSpec, MonitorSpec, NodeId, NodeKind, NodeRef, Point,
-    Purpose, Spawn, TerminateWhen, Time, Until,
+    Constraint, EngineError, Event, ExternalId, Facet, Failure, HandlerSpec, MonitorSpec, NodeId,
+    NodeKind, NodeRef, Point, Purpose, Spawn, Then, Time, When,
 };
 
 #[derive(Clone, Debug)]
 enum C {
     Sequential(Facet, Target),
     Serial(Target),
-    DisableFor(Facet, u8),
-    DisableAt(Facet, u8),
-    DisableAfter(Facet, u8, Target, Point),
-    DisableUntil(Facet, Target, Facet, Point),
-    TerminateIn(u8),
-    TerminateAt(Target, Point),
-    TerminateInAfter(u8, Target, Point),
+    /// Every timed or event-driven constraint: when something happens, do something.
+    Trigger(W, T),
     ExpandFirst,
     DelayExpansion,
+}
+
+impl C {
+    /// The sibling the constraint names, if it names one.
+    fn target(&self) -> Option<Target> {
+        match self {
+            C::Sequential(_, t) | C::Serial(t) => Some(*t),
+            C::Trigger(w, _) => w.target(),
+            C::ExpandFirst | C::DelayExpansion => None,
+        }
+    }
+}
+
+/// When a trigger fires ([`When`]); times in whole seconds.
+#[derive(Clone, Copy, Debug)]
+enum W {
+    Now,
+    At(u8),
+    In(u8),
+    Event(Target, Facet, Point),
+    After(u8, Target, Facet, Point),
+    /// External event `x<k>`, raised by the nodes whose plan says so.
+    External(u8),
+}
+
+impl W {
+    fn target(&self) -> Option<Target> {
+        match self {
+            W::Event(t, ..) | W::After(_, t, ..) => Some(*t),
+            _ => None,
+        }
+    }
+}
+
+/// What a trigger does then ([`Then`]).
+#[derive(Clone, Copy, Debug)]
+enum T {
+    Enable(Facet),
+    Terminate,
+    Activate,
 }
 
 /// Which node a constraint names, relative to the node being spawned (its index `i` among siblings).
@@ -44,6 +83,8 @@ struct Plan {
     // Which exception a failure raises: 0 = `A`, 1 = `B` (a kind of `A`).
     exc: u8,
     never: bool,
+    /// Raises external event `x<k>` once its action has spawned its children.
+    raise: Option<u8>,
     constraints: Vec<C>,
     children: Vec<Plan>,
     monitor: Option<Mon>,
@@ -71,7 +112,7 @@ struct H {
 
 fn mon() -> impl Strategy<Value = Option<Mon>> {
     prop::option::weighted(
-        0.1,
+        0.15,
         (
             300u16..2000,
             1u8..5,
@@ -131,17 +172,33 @@ fn target() -> impl Strategy<Value = Target> {
     ]
 }
 
+/// One generator for "when", whatever the trigger does.
+fn when() -> impl Strategy<Value = W> {
+    prop_oneof![
+        1 => Just(W::Now),
+        2 => (0u8..12).prop_map(W::At),
+        3 => (0u8..10).prop_map(W::In),
+        4 => (target(), facet(), point()).prop_map(|(t, f, p)| W::Event(t, f, p)),
+        2 => (0u8..4, target(), facet(), point()).prop_map(|(s, t, f, p)| W::After(s, t, f, p)),
+        1 => (0u8..2).prop_map(W::External),
+    ]
+}
+
+/// One generator for "then", whatever triggers it (`activate` on a node that is not a monitor is
+/// void, which the trace shows and the checker reads).
+fn then() -> impl Strategy<Value = T> {
+    prop_oneof![
+        4 => facet().prop_map(T::Enable),
+        3 => Just(T::Terminate),
+        2 => Just(T::Activate),
+    ]
+}
+
 fn constraint() -> impl Strategy<Value = C> {
     prop_oneof![
         4 => (facet(), target()).prop_map(|(f, t)| C::Sequential(f, t)),
         2 => target().prop_map(C::Serial),
-        1 => (facet(), 0u8..6).prop_map(|(f, s)| C::DisableFor(f, s)),
-        1 => (facet(), 0u8..12).prop_map(|(f, s)| C::DisableAt(f, s)),
-        1 => (facet(), 0u8..4, target(), point()).prop_map(|(f, s, t, p)| C::DisableAfter(f, s, t, p)),
-        2 => (facet(), target(), facet(), point()).prop_map(|(f, t, g, p)| C::DisableUntil(f, t, g, p)),
-        1 => (1u8..10).prop_map(C::TerminateIn),
-        1 => (target(), point()).prop_map(|(t, p)| C::TerminateAt(t, p)),
-        1 => (0u8..4, target(), point()).prop_map(|(s, t, p)| C::TerminateInAfter(s, t, p)),
+        8 => (when(), then()).prop_map(|(w, t)| C::Trigger(w, t)),
         1 => Just(C::ExpandFirst),
         1 => Just(C::DelayExpansion),
     ]
@@ -150,18 +207,22 @@ fn constraint() -> impl Strategy<Value = C> {
 fn leaf() -> impl Strategy<Value = Plan> {
     (
         (any::<bool>(), 0u8..4, prop::bool::weighted(0.15), 0u8..2),
-        prop::bool::weighted(0.05),
+        (
+            prop::bool::weighted(0.05),
+            prop::option::weighted(0.1, 0u8..2),
+        ),
         prop::collection::vec(constraint(), 0..3),
         mon(),
         handlers(),
     )
         .prop_map(
-            |((goal, secs, fail, exc), never, constraints, monitor, handlers)| Plan {
+            |((goal, secs, fail, exc), (never, raise), constraints, monitor, handlers)| Plan {
                 goal,
                 secs,
                 fail,
                 exc,
                 never,
+                raise,
                 constraints,
                 children: vec![],
                 monitor,
@@ -180,25 +241,30 @@ fn plan() -> impl Strategy<Value = Plan> {
     })
 }
 
-fn lower(c: &C, resolve: &dyn Fn(Target) -> Option<NodeRef>) -> Option<Constraint> {
+fn lower(
+    c: &C,
+    resolve: &dyn Fn(Target) -> Option<NodeRef>,
+    externals: &[ExternalId; 2],
+) -> Option<Constraint> {
     let s = |n: u8| Duration::from_secs(u64::from(n));
     Some(match c {
         C::Sequential(f, t) => Constraint::Sequential(*f, resolve(*t)?),
         C::Serial(t) => Constraint::Serial(resolve(*t)?),
-        C::DisableFor(f, n) => Constraint::Disable(*f, Until::For(s(*n))),
-        C::DisableAt(f, n) => Constraint::Disable(*f, Until::Time(Time::ZERO + s(*n))),
-        C::DisableAfter(f, n, t, p) => {
-            Constraint::Disable(*f, Until::ForAfter(s(*n), Event::new(resolve(*t)?, *p)))
-        }
-        C::DisableUntil(f, t, g, p) => {
-            Constraint::Disable(*f, Until::Event(Event::on(resolve(*t)?, *g, *p)))
-        }
-        C::TerminateIn(n) => Constraint::Terminate(TerminateWhen::In(s(*n))),
-        C::TerminateAt(t, p) => {
-            Constraint::Terminate(TerminateWhen::Event(Event::new(resolve(*t)?, *p)))
-        }
-        C::TerminateInAfter(n, t, p) => {
-            Constraint::Terminate(TerminateWhen::InAfter(s(*n), Event::new(resolve(*t)?, *p)))
+        C::Trigger(w, t) => {
+            let when = match *w {
+                W::Now => When::Now,
+                W::At(n) => When::At(Time::ZERO + s(n)),
+                W::In(n) => When::In(s(n)),
+                W::Event(t, f, p) => When::Event(Event::on(resolve(t)?, f, p)),
+                W::After(n, t, f, p) => When::After(s(n), Event::on(resolve(t)?, f, p)),
+                W::External(k) => When::External(externals[usize::from(k)]),
+            };
+            let then = match *t {
+                T::Enable(f) => Then::Enable(f),
+                T::Terminate => Then::Terminate,
+                T::Activate => Then::Activate,
+            };
+            Constraint::Trigger(when, then)
         }
         C::ExpandFirst => Constraint::ExpandFirst,
         C::DelayExpansion => Constraint::DelayExpansion,
@@ -207,6 +273,7 @@ fn lower(c: &C, resolve: &dyn Fn(Target) -> Option<NodeRef>) -> Option<Constrain
 
 fn action(plan: Rc<Plan>) -> Body {
     body(move |e: &mut SimEngine, me: NodeId, now: Time| {
+        let externals = [e.external("x0"), e.external("x1")];
         let n = plan.children.len();
         // Reserve every child named by an earlier sibling's forward reference, plus one extra
         // reservation per forward reference past the end (a dead reference).
@@ -214,15 +281,7 @@ fn action(plan: Rc<Plan>) -> Body {
         let mut dead: Option<NodeId> = None;
         for (i, child) in plan.children.iter().enumerate() {
             for c in &child.constraints {
-                let t = match c {
-                    C::Sequential(_, t)
-                    | C::Serial(t)
-                    | C::DisableAfter(_, _, t, _)
-                    | C::DisableUntil(_, t, _, _) => *t,
-                    C::TerminateAt(t, _) | C::TerminateInAfter(_, t, _) => *t,
-                    _ => continue,
-                };
-                if let Target::Ahead(k) = t {
+                if let Some(Target::Ahead(k)) = c.target() {
                     let j = i + usize::from(k);
                     if j < n {
                         if ids[j].is_none() {
@@ -270,7 +329,7 @@ fn action(plan: Rc<Plan>) -> Body {
             }
             let mut has_first = false;
             for c in &child.constraints {
-                if let Some(lc) = lower(c, &resolve) {
+                if let Some(lc) = lower(c, &resolve, &externals) {
                     // `expand first` with `delay expansion` is refused by the engine; keep one.
                     match lc {
                         Constraint::ExpandFirst => has_first = true,
@@ -289,8 +348,18 @@ fn action(plan: Rc<Plan>) -> Body {
                 }
             }
             spec.fulfils = ids[i];
-            let id = e.spawn(now, spec).expect("spawn");
-            ids[i] = Some(id);
+            ids[i] = match e.spawn(now, spec) {
+                Ok(id) => Some(id),
+                // A child's constraint may terminate this node at once (`terminate when parent
+                // execution active`, fired by the first command below it): then the rest of the
+                // body is refused, as a `tcm` action's would be, and its end does not matter.
+                Err(EngineError::Gone(n)) if n == me => return Outcome::done(),
+                Err(err) => panic!("spawn: {err}"),
+            };
+        }
+        // Raised after the spawns: it may terminate this very node.
+        if let Some(k) = plan.raise {
+            e.handle_external(now, externals[usize::from(k)]);
         }
         if plan.never {
             return Outcome::Never;
@@ -373,7 +442,7 @@ fn run(plan: &Plan) -> Vec<tcm_trace::TraceEvent> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 1024, ..ProptestConfig::default() })]
 
     #[test]
     fn random_programs_pass_the_trace_checker(plan in plan()) {

@@ -1,0 +1,314 @@
+//! The engine through its API without the simulator: what a shell sees ([`Effect`]s, [`Job`]s),
+//! what misuse returns, and memory.
+
+use super::{AFTER_PREVIOUS, assert_checked, cmd, goal, never, run, s, spawns};
+use crate::sim::{Sim, noop};
+use crate::*;
+use tcm_trace::{TraceEvent, TraceKind};
+
+/// An engine whose actions and factories are names.
+type Bare = Engine<&'static str, &'static str>;
+
+/// Spawns the node `name` under `up` at time zero; its action is its name.
+fn spawn(
+    e: &mut Bare,
+    up: NodeId,
+    kind: NodeKind,
+    name: &'static str,
+    cs: &[Constraint],
+) -> NodeId {
+    let mut spec = Spawn::new(up, kind, name, name);
+    spec.constraints = cs.to_vec();
+    e.spawn(Time::ZERO, spec).expect("spawn")
+}
+
+/// Spawns the command `name` under the root.
+fn command(e: &mut Bare, name: &'static str, cs: &[Constraint]) -> NodeId {
+    spawn(e, e.root(), NodeKind::Command, name, cs)
+}
+
+/// The next effect, which must start `node`.
+#[track_caller]
+fn started(e: &mut Bare, node: NodeId) {
+    match e.poll_effect() {
+        Some(Effect::Start { node: n, .. }) if n == node => {}
+        other => panic!("expected the start of {node}, got {other:?}"),
+    }
+}
+
+/// The next effect, which must be an invocation: its job, factory and purpose.
+#[track_caller]
+fn invoked(e: &mut Bare) -> (Job, &'static str, Purpose) {
+    match e.poll_effect() {
+        Some(Effect::Invoke { job, body, purpose }) => (job, body, *purpose),
+        other => panic!("expected an invocation, got {other:?}"),
+    }
+}
+
+/// The engine's trace so far, which the trace checker passed.
+#[track_caller]
+fn checked_trace(e: &mut Bare) -> Vec<TraceEvent> {
+    let trace: Vec<TraceEvent> = std::iter::from_fn(|| e.poll_trace()).collect();
+    assert_checked(&trace);
+    trace
+}
+
+#[test]
+fn a_start_is_withdrawn_when_its_node_is_terminated_before_the_shell_saw_it() {
+    let mut e: Bare = Engine::new(1);
+    // Started and terminated within one call: `x` is terminated when its handling goes active.
+    let this_active = When::Event(Event::new(NodeRef::This, Point::Active));
+    command(&mut e, "x", &[Constraint::terminate(this_active)]);
+    assert!(e.poll_effect().is_none(), "neither a start nor a cancel");
+    // Started by one call, terminated by the next before the shell polled.
+    let y = command(&mut e, "y", &[]);
+    e.terminate(Time::ZERO, y).expect("terminate");
+    assert!(e.poll_effect().is_none(), "neither a start nor a cancel");
+    // Once the shell has taken the start, termination cancels.
+    let z = command(&mut e, "z", &[]);
+    started(&mut e, z);
+    e.terminate(Time::ZERO, z).expect("terminate");
+    assert!(matches!(e.poll_effect(), Some(Effect::Cancel { node }) if node == z));
+    assert!(e.poll_effect().is_none());
+    assert_eq!(e.stats().running, 0);
+    assert!(e.is_idle());
+    let trace = checked_trace(&mut e);
+    let terminated = trace
+        .iter()
+        .filter(|r| matches!(r.kind, TraceKind::Terminated { .. }));
+    assert_eq!(terminated.count(), 3);
+}
+
+#[test]
+fn a_wiretap_check_is_a_job_reported_like_an_action() {
+    let mut e: Bare = Engine::new(1);
+    e.wiretap("move", TapWhen::Before, "stable?");
+    let t = |secs| Time::ZERO + s(secs);
+    let m = command(&mut e, "move", &[]);
+    let (job, body, purpose) = invoked(&mut e);
+    assert_eq!((job.node(), body), (m, "stable?"));
+    assert!(!job.cancellable(), "a check runs to its end");
+    assert_ne!(job, Job::from(m));
+    assert!(matches!(
+        purpose,
+        Purpose::Tap {
+            when: TapWhen::Before,
+            ..
+        }
+    ));
+    assert!(e.poll_effect().is_none(), "the action waits for its check");
+    // The node's own end cannot be reported while only its check runs.
+    let early = e.handle_action_finished(t(1.0), m, Ok(()));
+    assert_eq!(early, Err(EngineError::NotRunning(m)));
+    e.handle_action_finished(t(1.0), job, Ok(()))
+        .expect("the check passed");
+    started(&mut e, m);
+    e.handle_action_finished(t(2.0), m, Ok(()))
+        .expect("the action ended");
+    // Reported twice, an action's end is refused.
+    let again = e.handle_action_finished(t(3.0), m, Ok(()));
+    assert_eq!(again, Err(EngineError::Gone(m)));
+    assert!(e.is_idle());
+    checked_trace(&mut e);
+}
+
+#[test]
+fn a_wiretap_check_reported_twice_is_refused() {
+    let mut e: Bare = Engine::new(1);
+    e.wiretap("move", TapWhen::Before, "stable?");
+    e.wiretap("move", TapWhen::Before, "charged?");
+    let m = command(&mut e, "move", &[]);
+    let (stable, _, _) = invoked(&mut e);
+    let (charged, _, _) = invoked(&mut e);
+    e.handle_action_finished(Time::ZERO, stable, Ok(()))
+        .expect("the first check passed");
+    let again = e.handle_action_finished(Time::ZERO, stable, Ok(()));
+    assert_eq!(again, Err(EngineError::NotRunning(m)));
+    assert!(
+        e.poll_effect().is_none(),
+        "move must not start while charged? runs"
+    );
+    assert_eq!(e.stats().running, 1, "charged? still runs");
+    e.handle_action_finished(Time::ZERO, charged, Ok(()))
+        .expect("the second check passed");
+    started(&mut e, m);
+    e.handle_action_finished(Time::ZERO, m, Ok(()))
+        .expect("the action ended");
+    assert!(e.is_idle());
+    checked_trace(&mut e);
+}
+
+#[test]
+fn checks_of_a_terminated_node_stop_counting_and_their_reports_are_refused() {
+    let mut e: Bare = Engine::new(1);
+    e.wiretap("move", TapWhen::Before, "stable?");
+    let m = command(&mut e, "move", &[]);
+    let (stable, _, _) = invoked(&mut e);
+    assert_eq!(e.stats().running, 1, "the check runs");
+    e.terminate(Time::ZERO, m).expect("terminate");
+    assert_eq!(
+        e.stats().running,
+        0,
+        "a check of a terminated node decides nothing"
+    );
+    assert!(e.is_idle(), "the run does not wait for it");
+    // Its late report changes nothing, whether the node is still there or reclaimed.
+    let late = e.handle_action_finished(Time::ZERO, stable, Err(Failure::new("Tilted", "")));
+    assert!(
+        matches!(late, Ok(()) | Err(EngineError::NotRunning(_))),
+        "{late:?}"
+    );
+    assert_eq!(e.stats().running, 0);
+    assert!(e.poll_effect().is_none(), "move never starts");
+    checked_trace(&mut e);
+}
+
+#[test]
+fn a_handler_bypasses_by_request_during_its_body() {
+    let mut e: Bare = Engine::new(1);
+    let mut top = Spawn::new(e.root(), NodeKind::Goal, "top", "top");
+    top.handlers.push(HandlerSpec {
+        name: "skip".into(),
+        exception: "Blocked".into(),
+        max_activations: None,
+        body: "skip",
+    });
+    let top = e.spawn(Time::ZERO, top).expect("spawn");
+    started(&mut e, top);
+    let leaf = spawn(&mut e, top, NodeKind::Command, "leaf", &[]);
+    started(&mut e, leaf);
+    e.handle_action_finished(Time::ZERO, top, Ok(()))
+        .expect("top's body ended");
+    // Only a handler may bypass.
+    let not_a_handler = e.request_bypass(Time::ZERO, leaf);
+    assert!(matches!(not_a_handler, Err(EngineError::NotAHandler(_))));
+    let failure = Failure::new("Blocked", "cart in the way");
+    e.handle_action_finished(Time::ZERO, leaf, Err(failure))
+        .expect("leaf failed");
+    let (job, body, purpose) = invoked(&mut e);
+    assert_eq!(body, "skip");
+    assert!(matches!(purpose, Purpose::Handler { failing, .. } if failing == leaf));
+    e.request_bypass(Time::ZERO, job.node()).expect("bypass");
+    e.handle_action_finished(Time::ZERO, job, Ok(()))
+        .expect("the handler's body ended");
+    assert!(e.is_idle());
+    let choices = tcm_trace::story::handler_choices(&checked_trace(&mut e));
+    assert_eq!(choices, ["skip<-Blocked", "bypass"]);
+}
+
+#[test]
+fn misuse_gets_errors_not_panics() {
+    let mut sim = Sim::new();
+    let root = sim.engine.root();
+    let e = &mut sim.engine;
+    assert_eq!(
+        e.terminate(Time::ZERO, root),
+        Err(EngineError::Root("terminated"))
+    );
+    let mut other: Engine<()> = Engine::new(2);
+    let foreign = Spawn::new(other.root(), NodeKind::Command, "x", ());
+    let foreign = other.spawn(Time::ZERO, foreign).expect("spawn");
+    let serial = Constraint::Serial(foreign.into());
+    let err = e.spawn(
+        Time::ZERO,
+        Spawn::new(root, NodeKind::Command, "y", noop()).with(serial),
+    );
+    assert!(
+        matches!(err, Err(EngineError::ForeignNode { .. })),
+        "{:?}",
+        err.err()
+    );
+    let err = e.terminate(Time::ZERO, foreign);
+    assert!(matches!(err, Err(EngineError::ForeignNode { .. })));
+    let err = e.handle_action_finished(Time::ZERO, foreign, Ok(()));
+    assert!(matches!(err, Err(EngineError::ForeignNode { .. })));
+    let both = Spawn::new(root, NodeKind::Goal, "z", noop())
+        .with(Constraint::ExpandFirst)
+        .with(Constraint::DelayExpansion);
+    assert_eq!(
+        e.spawn(Time::ZERO, both).err(),
+        Some(EngineError::Inconsistent)
+    );
+    // Nothing was applied: the trace is the run's start alone, and it reads.
+    sim.run();
+    assert_eq!(
+        tcm_trace::check(sim.trace()).map(|r| r.n_transitions),
+        Ok(0)
+    );
+}
+
+#[test]
+fn watching_a_relative_reference_is_refused() {
+    let mut sim = Sim::new();
+    let previous = Event::new(NodeRef::Previous, Point::Completed);
+    let err = sim.engine.watch(Time::ZERO, previous, WatchToken(1));
+    assert_eq!(err, Err(EngineError::RelativeRef));
+}
+
+#[test]
+fn completed_subtrees_are_reclaimed() {
+    let r = run(|e, root| {
+        let g = spawns(0.0, |e, me, _| {
+            for _ in 0..100 {
+                cmd(e, me, "c", noop(), &[AFTER_PREVIOUS]);
+            }
+        });
+        goal(e, root, "g", g, &[]);
+    });
+    assert_eq!(r.sim.engine.stats().live_nodes, 1, "only the root is left");
+    assert_eq!(r.sim.engine.stats().created, 101);
+}
+
+#[test]
+fn a_million_waited_children_keep_the_tree_small() {
+    // See: issue 2 (a robot that runs for days must not grow).
+    const N: u64 = 1_000_000;
+    use std::cell::Cell;
+    use std::rc::Rc;
+    let done = Rc::new(Cell::new(0u64));
+    let d2 = done.clone();
+    let mut sim = Sim::new()
+        .without_trace()
+        .on_notify(move |e, token, _, now| {
+            let parent = NodeId {
+                run: 1,
+                idx: (token.0 >> 32) as u32,
+                generation: token.0 as u32,
+            };
+            d2.set(d2.get() + 1);
+            if d2.get() < N {
+                let child = Spawn::new(parent, NodeKind::Command, "child", noop());
+                let child = e.spawn(now, child).expect("spawn");
+                let done = Event::new(child, Point::Completed);
+                e.watch(now, done, token).expect("watch");
+            }
+        });
+    let root = sim.engine.root();
+    let g = Spawn::new(root, NodeKind::Goal, "spawner", never());
+    let g = sim.engine.spawn(Time::ZERO, g).expect("spawn");
+    let token = WatchToken(((g.idx as u64) << 32) | g.generation as u64);
+    let child = Spawn::new(g, NodeKind::Command, "child", noop());
+    let child = sim.engine.spawn(Time::ZERO, child).expect("spawn");
+    let done_event = Event::new(child, Point::Completed);
+    sim.engine
+        .watch(Time::ZERO, done_event, token)
+        .expect("watch");
+    sim.run();
+    assert_eq!(done.get(), N);
+    let stats = sim.engine.stats();
+    assert!(
+        stats.high_water < 10,
+        "high-water mark {}",
+        stats.high_water
+    );
+    assert_eq!(stats.created, N + 1);
+}
+
+#[test]
+fn a_node_stays_small() {
+    // Nodes are the engine's bulk: a million alive at once must fit in a few hundred megabytes.
+    // See: issue 6 (1M-node W1 within 250 MB).
+    let size =
+        std::mem::size_of::<crate::engine::node::Node<crate::sim::Body, crate::sim::Factory>>();
+    assert!(size <= 208, "a node takes {size} bytes");
+}
