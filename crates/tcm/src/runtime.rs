@@ -1,10 +1,10 @@
 //! The shell: runs a task tree on tokio, real or virtual time.
 //!
-//! The driver loop ([`Runtime::run`]) owns no semantics. Each turn it drains the engine's effects
-//! (start an action as a tokio task, abort a cancelled one, answer a waiter), hands trace records to
-//! the sinks, then sleeps until one of three things: an action finished, an action or handle touched
-//! the engine (spawn, terminate, raise …), or the next timer is due. The engine itself sits behind a
-//! mutex so that actions, on any worker thread, call it directly and briefly.
+//! The driver loop (`RunLoop`, behind [`Runtime::run`]) owns no semantics. Each turn it runs the
+//! core's `Driver::turn` under the engine's lock (due timers fire, effects are carried out by the
+//! `Host` of `host.rs`, trace records are taken), hands the records to the sinks outside the lock,
+//! then sleeps until an action or handle touched the engine (spawn, terminate, raise …, each ending
+//! in a `Session` that wakes it when needed) or the next deadline, converted by `clock.rs`.
 
 use crate::Error;
 use crate::clock::Clock;
