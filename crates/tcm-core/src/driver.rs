@@ -28,7 +28,7 @@ pub trait Shell<A, F> {
     /// Runs a factory for `job` (a monitor activation, a handler, a retry, a wiretap check); its
     /// end goes to [`Engine::handle_action_finished`] with `job`.
     fn invoke(&mut self, engine: &mut Engine<A, F>, job: Job, body: F, purpose: Box<Purpose>);
-    /// Stops a running action; the engine already counts it as finished.
+    /// Stops a running action; report to [`Engine::handle_action_stopped`] once it stopped.
     fn cancel(&mut self, node: NodeId);
     /// A watched point was reached.
     fn notify(&mut self, engine: &mut Engine<A, F>, token: WatchToken, outcome: WatchOutcome);

@@ -88,6 +88,7 @@ pub fn noop() -> Body {
 enum Finish {
     Done(Job, Result<(), Failure>),
     Bypass(NodeId),
+    Stopped(NodeId),
 }
 
 /// Called for each watch notification, with the engine, so a "waiting" body can continue.
@@ -193,6 +194,11 @@ impl Sim {
                     sh.by_node.remove(&job.node());
                     self.engine.handle_action_finished(sh.now, job, res)
                 }
+                Finish::Stopped(node) => {
+                    sh.by_node.remove(&node);
+                    self.engine.handle_action_stopped(sh.now, node);
+                    Ok(())
+                }
                 Finish::Bypass(node) => {
                     sh.by_node.remove(&node);
                     let _ = self.engine.request_bypass(sh.now, node);
@@ -242,10 +248,12 @@ impl Shell<Body, Factory> for SimShell {
         self.outcome(job, outcome);
     }
 
+    /// The action stops at once; the stop is reported at the same time.
     fn cancel(&mut self, node: NodeId) {
         if let Some(key) = self.by_node.remove(&node) {
             self.pending.remove(&key);
         }
+        self.schedule(Duration::ZERO, Finish::Stopped(node), Job::from(node));
     }
 
     fn notify(&mut self, engine: &mut SimEngine, token: WatchToken, outcome: WatchOutcome) {

@@ -20,6 +20,7 @@ mod constraints;
 mod exceptions;
 mod monitors;
 mod references;
+mod tcm_semantics;
 mod termination;
 mod triggers;
 

@@ -15,7 +15,7 @@ use std::future::Future;
 use std::panic::AssertUnwindSafe;
 use std::pin::Pin;
 use std::sync::atomic::AtomicUsize;
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 use tcm_core::{
     Driver, Engine, Failure, Job, NodeId, Purpose, Shell, Time, WatchOutcome, WatchToken,
 };
@@ -42,11 +42,14 @@ pub(crate) struct Inner {
     pub(crate) armed: Option<Time>,
     // Trace records taken from the engine, for the driver to hand to the sinks outside the lock.
     pub(crate) trace: Vec<TraceEvent>,
+    // Jobs whose task was dropped unfinished (see `Reporter`), for the driver to report.
+    stopped: mpsc::Receiver<Job>,
 }
 
 impl Inner {
-    pub(crate) fn new(engine: Engine<Action, Factory>) -> Inner {
+    pub(crate) fn new(engine: Engine<Action, Factory>, stopped: mpsc::Receiver<Job>) -> Inner {
         Inner {
+            stopped,
             engine,
             watchers: BTreeMap::new(),
             values: BTreeMap::new(),
@@ -56,6 +59,13 @@ impl Inner {
             top_done: None,
             armed: None,
             trace: Vec::new(),
+        }
+    }
+
+    /// Reports to the engine the jobs whose task was dropped unfinished since the last call.
+    pub(crate) fn report_stopped(&mut self, now: Time) {
+        while let Ok(job) = self.stopped.try_recv() {
+            self.engine.handle_action_stopped(now, job);
         }
     }
 
@@ -100,6 +110,8 @@ pub(crate) struct Shared {
     pub(crate) clock: Clock,
     // Open event handles: while any is open, an idle run waits instead of ending stuck.
     pub(crate) handles: AtomicUsize,
+    // Where a `Reporter` sends the job of a task dropped unfinished (it must not take the lock).
+    pub(crate) stopped: Mutex<mpsc::Sender<Job>>,
 }
 
 impl Shared {
@@ -188,10 +200,10 @@ impl Shell<Action, Factory> for Host<'_> {
             purpose: Some(Arc::from(p)),
         };
         let fut = body(ctx);
-        let sh = self.shared.clone();
+        let reporter = Reporter::new(self.shared.clone(), job);
         let task = async move {
             let res = CatchUnwind(fut).await;
-            finish(&sh, job, res);
+            reporter.finish(res);
         };
         let h = match self.spawner {
             Some(rt) => rt.spawn(task),
@@ -327,17 +339,54 @@ impl Launch<'_> {
         Fut: Future<Output = Result<Value, Failure>> + Send + 'static,
     {
         let Launch { ctx, rt } = self;
-        let (shared, node) = (ctx.shared.clone(), ctx.node);
+        let reporter = Reporter::new(ctx.shared.clone(), Job::from(ctx.node));
         let fut = f(ctx);
         let task = async move {
             let fut = std::pin::pin!(fut);
             let res = CatchUnwind(fut).await;
-            finish(&shared, Job::from(node), res);
+            reporter.finish(res);
         };
         match rt {
             Some(rt) => rt.spawn(task),
             None => tokio::spawn(task),
         }
+    }
+}
+
+/// Reports a job's end exactly once: when its task returns ([`finish`]), or, when the task is
+/// dropped unfinished (aborted after its node was terminated), as stopped: the engine terminates
+/// the node only then (docs/semantics.md, "Termination"). A drop can happen anywhere, even while
+/// the engine's lock is held, so the stop goes through a channel the driver drains.
+struct Reporter {
+    shared: Arc<Shared>,
+    job: Job,
+    done: bool,
+}
+
+impl Reporter {
+    fn new(shared: Arc<Shared>, job: Job) -> Reporter {
+        Reporter {
+            shared,
+            job,
+            done: false,
+        }
+    }
+
+    fn finish(mut self, res: Result<Result<Value, Failure>, Box<dyn Any + Send>>) {
+        self.done = true;
+        finish(&self.shared, self.job, res);
+    }
+}
+
+impl Drop for Reporter {
+    fn drop(&mut self) {
+        if self.done {
+            return;
+        }
+        if let Ok(tx) = self.shared.stopped.lock() {
+            let _ = tx.send(self.job);
+        }
+        self.shared.wake.notify_one();
     }
 }
 

@@ -128,9 +128,11 @@ impl Runtime {
     /// A new run. Time zero is now (on tokio's clock: paused in tests, for virtual time).
     pub fn new() -> Runtime {
         let run = RUNS.fetch_add(1, Ordering::Relaxed);
+        let (stopped, stopped_rx) = std::sync::mpsc::channel();
         Runtime {
             shared: Arc::new(Shared {
-                inner: Mutex::new(Inner::new(Engine::new(run))),
+                inner: Mutex::new(Inner::new(Engine::new(run), stopped_rx)),
+                stopped: Mutex::new(stopped),
                 wake: Notify::new(),
                 clock: Clock::new(),
                 handles: AtomicUsize::new(0),
@@ -260,6 +262,7 @@ impl RunLoop {
         // itself would spin while the run waits for an event handle.
         let mut inner = lock(&self.shared)?;
         let now = self.shared.now();
+        inner.report_stopped(now);
         let (engine, mut host) = inner.split(&self.shared);
         let next = tcm_core::Driver::turn(engine, &mut host, now);
         trace.append(&mut inner.trace);

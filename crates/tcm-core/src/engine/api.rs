@@ -30,7 +30,10 @@ pub enum Effect<A, F = ()> {
         /// Why it runs, with what it needs to know (boxed: effects stay small).
         purpose: Box<Purpose>,
     },
-    /// Stop this node's running action; the engine already counts it as finished.
+    /// Stop this node's running action, then report that it stopped: to
+    /// [`Engine::handle_action_stopped`] (or, if it ended first, to
+    /// [`Engine::handle_action_finished`]). Until then it counts as running and its node, already
+    /// terminating, is not terminated.
     Cancel {
         /// The node.
         node: NodeId,

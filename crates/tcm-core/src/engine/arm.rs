@@ -468,7 +468,10 @@ impl<A, F: Clone> Engine<A, F> {
                     self.satisfy(target, facet);
                 }
             }
-            Then::Terminate => self.work.push_back(Work::Terminate(target)),
+            Then::Terminate => self.work.push_back(Work::Terminate {
+                node: target,
+                explicit: false,
+            }),
             Then::Activate => self.activation_due(target),
         }
     }
@@ -504,8 +507,15 @@ impl<A, F: Clone> Engine<A, F> {
                 then,
                 delay: Some(d),
             } => {
-                self.timers
-                    .push(self.now + d, TimerKind::Trigger { target, then });
+                // A terminating node that has not started waits for events, not for delays.
+                let forced = matches!(then, Then::Enable(_))
+                    && self.nodes.get(target).is_some_and(|n| !n.alive());
+                if forced {
+                    self.fire_trigger(target, then, true);
+                } else {
+                    self.timers
+                        .push(self.now + d, TimerKind::Trigger { target, then });
+                }
             }
             // Only reached through `fire_now`, which supplies the outcome.
             WaitKind::Watch { .. } => {}

@@ -145,11 +145,54 @@ impl<A, F: Clone> Engine<A, F> {
         );
         // A handler's own failure searches above the node it was attached to.
         let from = match self.node(node).handler_ctx() {
-            Some(ctx) => self.nodes.get(ctx.attached).and_then(|a| a.parent),
+            Some(ctx) => {
+                let attached = ctx.attached;
+                self.warn_skipped(node, attached, &failure);
+                self.nodes.get(attached).and_then(|a| a.parent)
+            }
             None => Some(node),
         };
         self.node_mut(node).cold_mut().failure = Some(failure.clone());
         self.search(node, failure, from, 0, node);
+    }
+
+    /// A failing handler's search skips the nodes from itself up to its attachment, where TCM
+    /// searched first: the handlers there that would have matched are named in a warning, so the
+    /// difference shows in the trace (docs/semantics.md, "Exceptions and handlers", rule 6).
+    fn warn_skipped(&mut self, handler: NodeId, attached: NodeId, failure: &Failure) {
+        if !self.tracing {
+            return;
+        }
+        let mut skipped = Vec::new();
+        let mut cur = Some(handler);
+        while let Some(at) = cur {
+            let Some(n) = self.nodes.get(at) else { break };
+            for h in n.handlers() {
+                if failure.is_a(&h.spec.exception)
+                    && h.spec.max_activations.is_none_or(|m| h.uses < m)
+                {
+                    skipped.push(format!("{} (on {} {{{}}})", h.spec.name, n.name, n.display));
+                }
+            }
+            if at == attached {
+                break;
+            }
+            cur = n.parent;
+        }
+        if skipped.is_empty() {
+            return;
+        }
+        let n = self.node(handler);
+        let message = format!(
+            "Handler {} {{{}}} failed with \"{}\": searching above the node it was attached to, \
+             so these handlers TCM would have tried first are skipped: {}",
+            n.name,
+            n.display,
+            failure.exception,
+            skipped.join(", ")
+        );
+        let node = Some(n.display);
+        emit!(self, TraceKind::Warning { node, message });
     }
 
     /// Steps 2 to 4: searches from `(from, index)` upward; a found handler's node goes under

@@ -11,7 +11,7 @@
 //!
 //! | family | methods | file |
 //! |---|---|---|
-//! | inputs | [`Engine::handle_action_finished`], [`Engine::handle_timeout`] | `progress.rs` |
+//! | inputs | [`Engine::handle_action_finished`], [`Engine::handle_action_stopped`], [`Engine::handle_timeout`] | `progress.rs` |
 //! | | [`Engine::handle_external`] | `arm.rs` |
 //! | commands: the tree | [`Engine::spawn`], [`Engine::reserve`], [`Engine::hold_children`] | `tree.rs` |
 //! | commands: constraints | [`Engine::constrain`], [`Engine::watch`], [`Engine::external`] | `arm.rs` |
@@ -93,8 +93,9 @@ use wiretap::Wiretap;
 enum Work {
     /// Move the node as far as its constraints allow (`progress.rs`).
     Progress(NodeId),
-    /// Terminate the node and its subtree (`terminate.rs`).
-    Terminate(NodeId),
+    /// Terminate the node and its subtree (`terminate.rs`); `explicit`: asked for by a command,
+    /// not made due by a termination constraint.
+    Terminate { node: NodeId, explicit: bool },
 }
 
 /// The deterministic task-tree engine. `A` is the shell's action type; the engine only stores it and

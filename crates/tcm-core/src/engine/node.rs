@@ -214,6 +214,9 @@ pub(crate) struct Node<A, F> {
     pub(crate) reserved: bool,
     // Delayed termination (on-terminate nodes): a terminating ancestor does not terminate it.
     pub(crate) immune: bool,
+    // Terminated while its action ran: the shell was asked to stop it and has not yet reported
+    // that it did. The node is not terminated (nor reclaimed) before: its body may still spawn.
+    pub(crate) stopping: bool,
     // Invariant: the number of linked children whose expansion is not completed.
     pub(crate) open_expansions: u32,
     // Invariant: the number of linked children whose execution is not completed.
@@ -309,6 +312,7 @@ impl<A, F> Node<A, F> {
             persistent: false,
             reserved: false,
             immune: false,
+            stopping: false,
             open_expansions: 0,
             open_executions: 0,
             terminating_children: 0,

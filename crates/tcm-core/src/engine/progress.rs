@@ -49,6 +49,12 @@ impl<A, F: Clone> Engine<A, F> {
             return res;
         }
         let n = self.nodes.get(node).ok_or(EngineError::Gone(node))?;
+        if n.stopping {
+            // A terminated node's action ended before it could be stopped: whatever it returned,
+            // the node was terminated (docs/semantics.md, "Termination").
+            self.handle_action_stopped(now, node);
+            return Ok(());
+        }
         if n.state(Facet::Handling) != State::Active
             || !n.alive()
             || n.monitor().is_some()
@@ -80,6 +86,22 @@ impl<A, F: Clone> Engine<A, F> {
         }
         self.settle();
         Ok(())
+    }
+
+    /// Input: a job the shell was asked to cancel ([`Effect::Cancel`]) has stopped without
+    /// reporting an end (its task was dropped). Its terminated node can now be terminated for
+    /// good. A report for a job that was not being stopped changes nothing.
+    pub fn handle_action_stopped(&mut self, now: Time, job: impl Into<Job>) {
+        let node = job.into().node();
+        self.advance(now);
+        let stopping =
+            self.check_run(node).is_ok() && self.nodes.get(node).is_some_and(|n| n.stopping);
+        if stopping {
+            self.node_mut(node).stopping = false;
+            self.running -= 1;
+            self.work.push_back(Work::Progress(node));
+            self.settle();
+        }
     }
 
     /// Input: the time is `now`; fires every timer due at or before it.
@@ -116,7 +138,7 @@ impl<A, F: Clone> Engine<A, F> {
             while let Some(w) = self.work.pop_front() {
                 match w {
                     Work::Progress(id) => self.progress(id),
-                    Work::Terminate(id) => self.do_terminate(id),
+                    Work::Terminate { node, explicit } => self.do_terminate(node, explicit),
                 }
             }
             match self.ready.pop_front() {
@@ -134,12 +156,14 @@ impl<A, F: Clone> Engine<A, F> {
                 return;
             }
             let alive = n.alive();
+            let terminated = n.termination == Termination::Terminated;
             let h = n.state(Facet::Handling);
             let x = n.state(Facet::Expansion);
             let e = n.state(Facet::Execution);
             // Children of a holding action are not enabled at all until it releases them (only
-            // looked up while something is left to enable).
-            let can_enable = alive
+            // looked up while something is left to enable). A terminating node that had not
+            // started is still enabled in the plan's order; it just never starts.
+            let can_enable = !terminated
                 && (h == State::Disabled || x == State::Disabled || e == State::Disabled)
                 && !n
                     .parent
@@ -172,13 +196,19 @@ impl<A, F: Clone> Engine<A, F> {
                 && gate >= State::Enabled
             {
                 self.transition(id, Facet::Handling, State::Enabled);
-                self.ready.push_back(id);
+                if alive {
+                    self.ready.push_back(id);
+                } else {
+                    self.transition(id, Facet::Handling, State::Completed);
+                    self.bury_reservations(id);
+                }
                 continue;
             }
             if x != State::Completed
                 && h == State::Completed
                 && n.open_expansions == 0
-                && (x >= State::Enabled || !alive)
+                && x >= State::Enabled
+                && !n.stopping
             {
                 self.transition(id, Facet::Expansion, State::Completed);
                 if let Some(p) = self.node(id).parent {
@@ -193,7 +223,8 @@ impl<A, F: Clone> Engine<A, F> {
                 && h == State::Completed
                 && x == State::Completed
                 && n.open_executions == 0
-                && (e >= State::Enabled || !alive)
+                && e >= State::Enabled
+                && !n.stopping
             {
                 self.transition(id, Facet::Execution, State::Completed);
                 if let Some(p) = self.node(id).parent {
@@ -208,6 +239,7 @@ impl<A, F: Clone> Engine<A, F> {
                 && e == State::Completed
                 && n.open_executions == 0
                 && n.terminating_children == 0
+                && !n.stopping
             {
                 self.node_mut(id).termination = Termination::Terminated;
                 let display = self.node(id).display;
@@ -223,7 +255,7 @@ impl<A, F: Clone> Engine<A, F> {
             if e == State::Completed
                 && n.termination != Termination::Terminating
                 && n.live_children == 0
-                && !n.persistent
+                && (!n.persistent || terminated)
             {
                 self.reclaim(id);
             }
@@ -401,13 +433,11 @@ impl<A, F: Clone> Engine<A, F> {
 /// Whether a timer still matters when it surfaces (stale ones are skipped, see `timers.rs`).
 pub(super) fn timer_is_live<A, F>(nodes: &Arena<A, F>, kind: &TimerKind) -> bool {
     match *kind {
-        TimerKind::Trigger { target, then } => nodes.get(target).is_some_and(|n| {
-            n.alive()
-                && match then {
-                    Then::Enable(facet) => n.state(facet) == State::Disabled,
-                    Then::Terminate => n.state(Facet::Execution) != State::Completed,
-                    Then::Activate => n.state(Facet::Handling) != State::Completed,
-                }
+        // A terminating node that has not started still needs its enabling timers.
+        TimerKind::Trigger { target, then } => nodes.get(target).is_some_and(|n| match then {
+            Then::Enable(facet) => n.state(facet) == State::Disabled,
+            Then::Terminate => n.alive() && n.state(Facet::Execution) != State::Completed,
+            Then::Activate => n.alive() && n.state(Facet::Handling) != State::Completed,
         }),
         TimerKind::Poll { monitor, .. } => nodes
             .get(monitor)

@@ -1,22 +1,48 @@
 //! Termination and suspension of subtrees (docs/semantics.md, "Termination" and "Suspension").
 
-use super::node::{OnTerminate, Payload};
+use super::node::{OnTerminate, Payload, WaitKind};
 use super::{Effect, Engine, EngineError, Work};
 use crate::NodeKind;
+use crate::arena::{Fate, Lookup};
+use crate::constraint::Then;
 use crate::ids::NodeId;
 use crate::time::Time;
 use std::collections::VecDeque;
 use tcm_trace::{Facet, State, Termination, TraceKind};
 
 impl<A, F: Clone> Engine<A, F> {
-    /// Terminates a node and its subtree (docs/semantics.md, "Termination").
+    /// Terminates a node and its subtree (docs/semantics.md, "Termination"). A node already gone
+    /// (completed and reclaimed, terminated, or a dead reservation) is not an error: a warning is
+    /// traced and nothing else happens, as for a node already terminating.
     pub fn terminate(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {
         self.advance(now);
-        let n = self.live(node)?;
-        if n.kind == NodeKind::Root {
+        match self.lookup(node)? {
+            Lookup::Gone(fate) => {
+                emit!(
+                    self,
+                    TraceKind::Warning {
+                        node: None,
+                        message: format!(
+                            "Trying to terminate already dead node {node} ({})",
+                            match fate {
+                                Fate::Completed => "completed",
+                                Fate::Terminated => "terminated",
+                                Fate::Dead => "never spawned",
+                            }
+                        ),
+                    }
+                );
+                return Ok(());
+            }
+            Lookup::Live => {}
+        }
+        if self.node(node).kind == NodeKind::Root {
             return Err(EngineError::Root("terminated"));
         }
-        self.work.push_back(Work::Terminate(node));
+        self.work.push_back(Work::Terminate {
+            node,
+            explicit: true,
+        });
         self.settle();
         Ok(())
     }
@@ -27,7 +53,10 @@ impl<A, F: Clone> Engine<A, F> {
         self.live(node)?;
         let mut c = self.first_child(node);
         while let Some(child) = c {
-            self.work.push_back(Work::Terminate(child));
+            self.work.push_back(Work::Terminate {
+                node: child,
+                explicit: true,
+            });
             c = self.next_sibling(child);
         }
         self.settle();
@@ -44,7 +73,10 @@ impl<A, F: Clone> Engine<A, F> {
         let mut c = self.first_child(parent);
         while let Some(child) = c {
             if child != node {
-                self.work.push_back(Work::Terminate(child));
+                self.work.push_back(Work::Terminate {
+                    node: child,
+                    explicit: true,
+                });
             }
             c = self.next_sibling(child);
         }
@@ -52,16 +84,21 @@ impl<A, F: Clone> Engine<A, F> {
         Ok(())
     }
 
-    /// Terminates `id` and its subtree (docs/semantics.md, "Termination", numbered as there):
+    /// Terminates `id` and its subtree (docs/semantics.md, "Termination", numbered as there).
+    /// `explicit`: asked for by a command, not made due by a termination constraint; only an
+    /// explicit termination reaches a node whose execution already completed (a persistent one).
     /// 1. each alive node goes Terminating (a node with delayed termination, an on-terminate task,
     ///    is skipped, so it runs to completion);
     /// 2. its termination waiters are dropped (they never fire), it is unsuspended;
-    /// 3. a running action is cancelled and its on-terminate tasks inserted as children; an action
-    ///    not yet started never starts; either way the handling completes at once;
+    /// 3. a running action is asked to stop (the node is terminated once the shell reports it
+    ///    stopped); a node that started and did not complete gets its on-terminate tasks as
+    ///    children; an action not yet started never starts, and its handling completes once its
+    ///    constraints would have let it start (delays and external events no longer hold it);
     /// 4. its reservations are dead; its children are terminated the same way;
-    /// 5. progress then completes expansion and execution bottom-up, so constraints waiting on these
-    ///    nodes are released, and each node is Terminated once its children are.
-    pub(super) fn do_terminate(&mut self, id: NodeId) {
+    /// 5. progress then completes expansion and execution bottom-up, each once it is enabled, so
+    ///    constraints waiting on these nodes are released in the plan's order, and each node is
+    ///    Terminated once its children are.
+    pub(super) fn do_terminate(&mut self, id: NodeId, explicit: bool) {
         let Some(n) = self.nodes.get(id) else { return };
         // The root never terminates; an on-terminate task runs to completion whatever happens.
         if n.kind == NodeKind::Root || n.immune {
@@ -81,16 +118,17 @@ impl<A, F: Clone> Engine<A, F> {
             );
             return;
         }
-        if n.state(Facet::Execution) == State::Completed {
+        if n.state(Facet::Execution) == State::Completed && !explicit {
             return;
         }
         let mut queue = VecDeque::from([id]);
+        // Nodes terminated before their handling was enabled: their delays are released below.
+        let mut unstarted = Vec::new();
         while let Some(c) = queue.pop_front() {
             let Some(n) = self.nodes.get_mut(c) else {
                 continue;
             };
-            if !n.alive() || (c != id && n.immune) || n.state(Facet::Execution) == State::Completed
-            {
+            if !n.alive() || (c != id && n.immune) {
                 continue;
             }
             n.termination = Termination::Terminating;
@@ -98,6 +136,7 @@ impl<A, F: Clone> Engine<A, F> {
             let was_suspended = std::mem::replace(&mut n.suspended, false);
             n.parked = false;
             let h = n.state(Facet::Handling);
+            let completed = n.state(Facet::Execution) == State::Completed;
             let display = n.display;
             let parent = n.parent;
             if let Some(p) = parent.and_then(|p| self.nodes.get_mut(p)) {
@@ -114,19 +153,22 @@ impl<A, F: Clone> Engine<A, F> {
             // they stop counting as running now, and their reports are refused.
             let checks = self.node_mut(c).take_cold(|c| &mut c.taps_open);
             self.running -= checks.len() as u32;
-            if h == State::Active {
-                if action_running {
-                    self.running -= 1;
-                    self.cancel_action(c);
-                }
+            if action_running && !self.cancel_action(c) {
+                self.node_mut(c).stopping = true;
+            }
+            if h >= State::Active && !completed {
                 let cleanups = self.node_mut(c).take_cold(|c| &mut c.on_terminate);
                 for ot in cleanups {
                     self.spawn_cleanup(c, ot);
                 }
             }
-            if h != State::Completed {
-                self.transition(c, Facet::Handling, State::Completed);
-                self.bury_reservations(c);
+            match h {
+                State::Active | State::Enabled => {
+                    self.transition(c, Facet::Handling, State::Completed);
+                    self.bury_reservations(c);
+                }
+                State::Disabled => unstarted.push(c),
+                State::Completed => {}
             }
             let mut child = self.first_child(c);
             while let Some(ch) = child {
@@ -135,20 +177,57 @@ impl<A, F: Clone> Engine<A, F> {
             }
             self.work.push_back(Work::Progress(c));
         }
+        if !unstarted.is_empty() {
+            self.release_delays(&unstarted);
+        }
+    }
+
+    /// Nodes terminated before they started wait only for the events of other nodes (the plan's
+    /// order): their pending delays and their waits on external events are released at once.
+    fn release_delays(&mut self, nodes: &[NodeId]) {
+        let forced = |id: NodeId| nodes.contains(&id);
+        for (target, then) in self.timers.take_enables(forced) {
+            self.fire_trigger(target, then, true);
+        }
+        let mut released = Vec::new();
+        for ext in &mut self.externals {
+            ext.waiters.retain(|w| match *w {
+                WaitKind::Trigger {
+                    target,
+                    then: then @ Then::Enable(_),
+                    ..
+                } if forced(target) => {
+                    released.push((target, then));
+                    false
+                }
+                _ => true,
+            });
+        }
+        for (target, then) in released {
+            self.fire_trigger(target, then, true);
+        }
     }
 
     /// Stops the running action of `node`. If its start is still queued (the shell has not taken
     /// it yet), the start is withdrawn, so the shell never runs it; otherwise the shell is asked to
     /// cancel it. The queue is short: every shell drains it after each input.
-    fn cancel_action(&mut self, node: NodeId) {
+    /// Returns whether the start was withdrawn (then the action no longer counts as running).
+    fn cancel_action(&mut self, node: NodeId) -> bool {
         let queued = self.effects.iter().rposition(|e| match e {
             Effect::Start { node: n, .. } => *n == node,
             Effect::Invoke { job, .. } => job.node() == node && job.cancellable(),
             _ => false,
         });
         match queued {
-            Some(i) => drop(self.effects.remove(i)),
-            None => self.effects.push_back(Effect::Cancel { node }),
+            Some(i) => {
+                drop(self.effects.remove(i));
+                self.running -= 1;
+                true
+            }
+            None => {
+                self.effects.push_back(Effect::Cancel { node });
+                false
+            }
         }
     }
 

@@ -64,6 +64,35 @@ impl Timers {
         }
     }
 
+    /// Removes the enabling timers whose target `forced` names and returns them in the order they
+    /// would have fired: a node terminated before it started has its delays released at once
+    /// (docs/semantics.md, "Termination").
+    pub(crate) fn take_enables(
+        &mut self,
+        forced: impl Fn(NodeId) -> bool,
+    ) -> Vec<(NodeId, crate::constraint::Then)> {
+        let (mut taken, kept): (Vec<Entry>, Vec<Entry>) = std::mem::take(&mut self.heap)
+            .into_vec()
+            .into_iter()
+            .map(|Reverse(e)| e)
+            .partition(|e| match e.kind {
+                TimerKind::Trigger {
+                    target,
+                    then: Then::Enable(_),
+                } => forced(target),
+                _ => false,
+            });
+        self.heap = kept.into_iter().map(Reverse).collect();
+        taken.sort();
+        taken
+            .into_iter()
+            .filter_map(|e| match e.kind {
+                TimerKind::Trigger { target, then } => Some((target, then)),
+                TimerKind::Poll { .. } => None,
+            })
+            .collect()
+    }
+
     /// The earliest deadline among live timers; stale timers on top are dropped.
     pub(crate) fn next_deadline(&mut self, live: impl Fn(&TimerKind) -> bool) -> Option<Time> {
         self.compact(&live);

@@ -26,13 +26,7 @@ impl<A, F: Clone> Engine<A, F> {
         name: impl Into<Name>,
     ) -> Result<NodeId, EngineError> {
         self.advance(now);
-        let pd = self.live(parent)?;
-        if pd.state(Facet::Execution) == State::Completed {
-            return Err(EngineError::ParentCompleted {
-                node: pd.display,
-                name: pd.name.to_string(),
-            });
-        }
+        self.check_parent_open(parent)?;
         let display = self.next_display();
         let name = name.into();
         let mut node = Node::new(display, NodeKind::Goal, name.clone(), Some(parent));
@@ -68,16 +62,12 @@ impl<A, F: Clone> Engine<A, F> {
             handlers,
             retry,
         } = spec;
-        let pd = self.live(parent)?;
+        self.live(parent)?;
         if (kind == NodeKind::Monitor) != monitor.is_some() {
             return Err(EngineError::NotAMonitor(self.next_display));
         }
-        if pd.state(Facet::Execution) == State::Completed {
-            return Err(EngineError::ParentCompleted {
-                node: pd.display,
-                name: pd.name.to_string(),
-            });
-        }
+        self.check_parent_open(parent)?;
+        let pd = self.node(parent);
         if constraints.len() >= 2
             && constraints.contains(&Constraint::ExpandFirst)
             && constraints.contains(&Constraint::DelayExpansion)
@@ -175,11 +165,41 @@ impl<A, F: Clone> Engine<A, F> {
             self.apply(id, parent, prev, c);
         }
         if !self.node(parent).alive() && !self.node(id).immune {
-            self.work.push_back(Work::Terminate(id));
+            self.work.push_back(Work::Terminate {
+                node: id,
+                explicit: false,
+            });
         }
         self.work.push_back(Work::Progress(id));
         self.settle();
         Ok(id)
+    }
+
+    /// A node can take children until its execution completed; a completed persistent node still
+    /// can, with a warning, as in TCM (docs/semantics.md, "Persistent tasks and reclamation").
+    fn check_parent_open(&mut self, parent: NodeId) -> Result<(), EngineError> {
+        let pd = self.live(parent)?;
+        if pd.state(Facet::Execution) != State::Completed {
+            return Ok(());
+        }
+        if !pd.persistent || !pd.alive() {
+            return Err(EngineError::ParentCompleted {
+                node: pd.display,
+                name: pd.name.to_string(),
+            });
+        }
+        let display = pd.display;
+        emit!(
+            self,
+            TraceKind::Warning {
+                node: Some(display),
+                message: format!(
+                    "Adding a child to completed persistent node {} {{{display}}}",
+                    pd.name
+                ),
+            }
+        );
+        Ok(())
     }
 
     /// Holds (or releases) the start of the children a running action spawns: while held, they are
@@ -280,7 +300,10 @@ impl<A, F: Clone> Engine<A, F> {
             emit!(self, TraceKind::Suspended { node: display });
         }
         if !self.node(parent).alive() {
-            self.work.push_back(Work::Terminate(id));
+            self.work.push_back(Work::Terminate {
+                node: id,
+                explicit: false,
+            });
         }
         id
     }

@@ -70,6 +70,12 @@ fn a_start_is_withdrawn_when_its_node_is_terminated_before_the_shell_saw_it() {
     e.terminate(Time::ZERO, z).expect("terminate");
     assert!(matches!(e.poll_effect(), Some(Effect::Cancel { node }) if node == z));
     assert!(e.poll_effect().is_none());
+    // The cancelled action counts as running, and its node is not terminated, until the shell
+    // reports that it stopped.
+    assert_eq!(e.stats().running, 1);
+    assert!(!e.is_idle());
+    e.handle_action_finished(Time::ZERO, z, Ok(()))
+        .expect("the stop is reported");
     assert_eq!(e.stats().running, 0);
     assert!(e.is_idle());
     let trace = checked_trace(&mut e);

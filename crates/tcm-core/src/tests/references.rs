@@ -85,10 +85,10 @@ fn dead_reference_voids_enablement_and_fires_termination() {
         1 doomed terminating
         1 doomed handling completed
         1 errand expansion completed
-        1 doomed execution completed
-        1 doomed terminated
         1 waits handling active
         1 waits execution active
+        1 doomed execution completed
+        1 doomed terminated
         1 waits handling completed
         1 waits execution completed
         1 errand execution completed

@@ -99,6 +99,8 @@ fn terminate_now_never_starts_the_action() {
         },
         "
         0 x terminating
+        0 x execution enabled
+        0 x handling enabled
         0 x handling completed
         0 x execution completed
         0 x terminated
@@ -185,9 +187,11 @@ fn termination_of_a_middle_node_spares_siblings_and_releases_waiters() {
         2 leaf1 terminating
         2 leaf1 handling completed
         2 leaf2 terminating
-        2 leaf2 handling completed
         2 leaf1 execution completed
         2 leaf1 terminated
+        2 leaf2 execution enabled
+        2 leaf2 handling enabled
+        2 leaf2 handling completed
         2 leaf2 execution completed
         2 leaf2 terminated
         2 mid execution completed
@@ -265,6 +269,7 @@ fn on_terminate_task_runs_to_completion() {
         1 release-onTerminate handling active
         1 release-onTerminate execution active
         1 never terminating
+        1 never handling enabled
         1 never handling completed
         1 never execution completed
         1 never terminated

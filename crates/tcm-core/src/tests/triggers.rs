@@ -118,12 +118,12 @@ fn external_events_gate_and_terminate() {
         3 enter execution active
         3 patrol terminating
         3 patrol handling completed
-        3 patrol execution completed
-        3 patrol terminated
         3 button handling completed
         3 button execution completed
         3 enter handling completed
         3 enter execution completed
+        3 patrol execution completed
+        3 patrol terminated
         ",
     );
 }

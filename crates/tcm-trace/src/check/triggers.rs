@@ -175,7 +175,9 @@ impl Checker {
             TraceConstraint::Trigger {
                 when,
                 then: TraceThen::Enable(f),
-            } if *f == facet => self.trigger_pending(ev, when)?,
+            } if *f == facet => {
+                self.trigger_pending(ev, when, n.termination() != Termination::Alive)?
+            }
             TraceConstraint::ExpandFirst if facet == Facet::Execution => {
                 return (n.state(Facet::Expansion) != State::Completed).then(|| {
                     let state = n.state(Facet::Expansion);
@@ -195,10 +197,18 @@ impl Checker {
         Some((Rule::Disable, problem))
     }
 
-    // What an enabling trigger still waits for at `ev`, if it has not fired.
-    fn trigger_pending(&self, ev: &TraceEvent, when: &TraceWhen) -> Option<String> {
+    // What an enabling trigger still waits for at `ev`, if it has not fired. A terminating node
+    // that has not started waits only for other nodes' events: its delays and external events are
+    // released (docs/semantics.md, "Termination").
+    fn trigger_pending(
+        &self,
+        ev: &TraceEvent,
+        when: &TraceWhen,
+        terminating: bool,
+    ) -> Option<String> {
         match when {
             TraceWhen::Now => None,
+            TraceWhen::At(_) | TraceWhen::External(_) if terminating => None,
             TraceWhen::At(at) => {
                 (ev.t < *at).then(|| format!("it is disabled until t={}", secs(*at)))
             }
@@ -217,6 +227,7 @@ impl Checker {
                 });
                 let delay = secs(*delay_ns);
                 match since {
+                    Some(_) if terminating => None,
                     None => Some(format!(
                         "it waits {delay} after {}, which has not happened",
                         ref_text(event)

@@ -111,7 +111,7 @@ async fn references_to_a_spawn_that_never_ran_are_dead() {
         &[
             "0 optional handling active",
             "5 optional execution completed",
-            "5 watcher terminated",
+            "5 watcher terminating",
             "5 after handling active",
             "6 maybe execution completed",
         ],

@@ -1,0 +1,486 @@
+//! What a program ported from TCM relies on (issue 11): terminating what is already gone,
+//! a body that terminates itself and goes on, the plan's order kept by a node terminated before it
+//! started, persistent goals, on-terminate tasks of a body that already ended, and handler search
+//! from a failing handler. Each story is numbered as docs/semantics.md, "Termination".
+
+use super::{AFTER_PREVIOUS, check, cmd, goal, never, not_before, run, s, spawns};
+use crate::sim::{Outcome, SimEngine, body, factory, noop, takes};
+use crate::*;
+use std::cell::Cell;
+use std::rc::Rc;
+use tcm_trace::{TraceEvent, TraceKind};
+
+/// The warnings of a trace, in order.
+fn warnings(trace: &[TraceEvent]) -> Vec<String> {
+    trace
+        .iter()
+        .filter_map(|r| match &r.kind {
+            TraceKind::Warning { message, .. } => Some(message.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A persistent goal under `up` whose body spawns with `f`, then ends after `secs`.
+fn persistent_goal(
+    e: &mut SimEngine,
+    up: NodeId,
+    name: &'static str,
+    secs: f64,
+    f: impl FnOnce(&mut SimEngine, NodeId, Time) + 'static,
+) -> NodeId {
+    let mut spec = Spawn::new(up, NodeKind::Goal, name, spawns(secs, f));
+    spec.persistent = true;
+    let now = e.now();
+    e.spawn(now, spec).expect("spawn")
+}
+
+#[test]
+fn terminating_a_node_already_gone_or_terminating_warns_and_goes_on() {
+    let r = check(
+        |e, root| {
+            let quick = cmd(e, root, "quick", takes(s(1.0)), &[]);
+            let slow = cmd(e, root, "slow", never(), &[]);
+            let killer = body(move |e, _, now| {
+                // Neither is an error: TCM warned and went on.
+                e.terminate(now, quick).expect("a reclaimed node");
+                e.terminate(now, slow).expect("a running node");
+                e.terminate(now, slow).expect("a node already terminating");
+                Outcome::done()
+            });
+            cmd(e, root, "killer", killer, &[not_before(2.0)]);
+        },
+        "
+        0 quick execution enabled
+        0 quick handling enabled
+        0 quick handling active
+        0 quick execution active
+        0 slow execution enabled
+        0 slow handling enabled
+        0 slow handling active
+        0 slow execution active
+        0 killer execution enabled
+        1 quick handling completed
+        1 quick execution completed
+        2 killer handling enabled
+        2 killer handling active
+        2 killer execution active
+        2 slow terminating
+        2 slow handling completed
+        2 killer handling completed
+        2 killer execution completed
+        2 slow execution completed
+        2 slow terminated
+        ",
+    );
+    let w = warnings(r.trace());
+    assert_eq!(w.len(), 2, "{w:?}");
+    assert!(
+        w[0].starts_with("Trying to terminate already dead node"),
+        "{w:?}"
+    );
+    assert!(w[0].ends_with("(completed)"), "{w:?}");
+    assert!(w[1].contains("slow"), "{w:?}");
+}
+
+#[test]
+fn a_goal_that_terminates_itself_still_spawns_children_that_wind_down_with_it() {
+    let spawned = Rc::new(Cell::new(0));
+    let seen = spawned.clone();
+    let r = check(
+        |e, root| {
+            let me_first = body(move |e, me, now| {
+                e.terminate(now, me).expect("terminate itself");
+                // TCM created these: they are terminated at once, with their parent.
+                for name in ["after1", "after2"] {
+                    let child = Spawn::new(
+                        me,
+                        NodeKind::Command,
+                        name,
+                        body(|_, _, _| panic!("a child of a terminated goal never runs")),
+                    );
+                    e.spawn(now, child).expect("spawn under a terminating goal");
+                    seen.set(seen.get() + 1);
+                }
+                Outcome::after(s(1.0))
+            });
+            goal(e, root, "quitter", me_first, &[]);
+            cmd(e, root, "next", noop(), &[AFTER_PREVIOUS]);
+        },
+        "
+        0 quitter expansion enabled
+        0 quitter execution enabled
+        0 quitter handling enabled
+        0 quitter handling active
+        0 quitter expansion active
+        0 quitter terminating
+        0 quitter handling completed
+        0 after1 terminating
+        0 after1 execution enabled
+        0 after1 handling enabled
+        0 after1 handling completed
+        0 after1 execution completed
+        0 after1 terminated
+        0 after2 terminating
+        0 after2 execution enabled
+        0 after2 handling enabled
+        0 after2 handling completed
+        0 after2 execution completed
+        0 after2 terminated
+        0 quitter expansion completed
+        0 quitter execution completed
+        0 quitter terminated
+        0 next execution enabled
+        0 next handling enabled
+        0 next handling active
+        0 next execution active
+        0 next handling completed
+        0 next execution completed
+        ",
+    );
+    assert_eq!(spawned.get(), 2);
+    assert_eq!(r.sim.engine.stats().live_nodes, 1, "only the root is left");
+}
+
+#[test]
+fn a_node_terminated_before_it_started_completes_in_the_plans_order() {
+    // first (2 s), then second, then third: second is terminated at 1 s, before it started. Its
+    // completion, which third waits for, still comes after first's: third never overtakes first.
+    check(
+        |e, root| {
+            cmd(e, root, "first", takes(s(2.0)), &[]);
+            let second = cmd(
+                e,
+                root,
+                "second",
+                body(|_, _, _| panic!("never starts")),
+                &[AFTER_PREVIOUS],
+            );
+            cmd(e, root, "third", takes(s(1.0)), &[AFTER_PREVIOUS]);
+            let killer = body(move |e, _, now| {
+                e.terminate(now, second).expect("terminate");
+                Outcome::done()
+            });
+            cmd(e, root, "killer", killer, &[not_before(1.0)]);
+        },
+        "
+        0 first execution enabled
+        0 first handling enabled
+        0 first handling active
+        0 first execution active
+        0 killer execution enabled
+        1 killer handling enabled
+        1 killer handling active
+        1 killer execution active
+        1 second terminating
+        1 killer handling completed
+        1 killer execution completed
+        2 first handling completed
+        2 first execution completed
+        2 second execution enabled
+        2 second handling enabled
+        2 second handling completed
+        2 second execution completed
+        2 second terminated
+        2 third execution enabled
+        2 third handling enabled
+        2 third handling active
+        2 third execution active
+        3 third handling completed
+        3 third execution completed
+        ",
+    );
+}
+
+#[test]
+fn a_node_terminated_before_it_started_does_not_wait_for_its_delays() {
+    // Its own delay (10 s) and external event are released; its dependant goes on at once.
+    check(
+        |e, root| {
+            let gate = e.external("never-raised");
+            let waits = [
+                not_before(10.0),
+                Constraint::disable(Facet::Handling, When::External(gate)),
+            ];
+            let late = cmd(
+                e,
+                root,
+                "late",
+                body(|_, _, _| panic!("never starts")),
+                &waits,
+            );
+            cmd(e, root, "then", noop(), &[AFTER_PREVIOUS]);
+            let killer = body(move |e, _, now| {
+                e.terminate(now, late).expect("terminate");
+                Outcome::done()
+            });
+            cmd(e, root, "killer", killer, &[not_before(1.0)]);
+        },
+        "
+        0 late execution enabled
+        0 killer execution enabled
+        1 killer handling enabled
+        1 killer handling active
+        1 killer execution active
+        1 late terminating
+        1 late handling enabled
+        1 late handling completed
+        1 late execution completed
+        1 late terminated
+        1 then execution enabled
+        1 then handling enabled
+        1 then handling active
+        1 then execution active
+        1 killer handling completed
+        1 killer execution completed
+        1 then handling completed
+        1 then execution completed
+        ",
+    );
+}
+
+#[test]
+fn terminating_a_completed_persistent_goal_terminates_and_reclaims_its_subtree() {
+    let r = check(
+        |e, root| {
+            let keeper = persistent_goal(e, root, "keeper", 0.0, |e, me, now| {
+                let mut child = Spawn::new(me, NodeKind::Goal, "kept", noop());
+                child.persistent = true;
+                e.spawn(now, child).expect("spawn");
+            });
+            let killer = body(move |e, _, now| {
+                e.terminate(now, keeper)
+                    .expect("terminate a completed persistent goal");
+                Outcome::done()
+            });
+            cmd(e, root, "killer", killer, &[not_before(5.0)]);
+        },
+        "
+        0 keeper expansion enabled
+        0 keeper execution enabled
+        0 keeper handling enabled
+        0 keeper handling active
+        0 keeper expansion active
+        0 killer execution enabled
+        0 kept expansion enabled
+        0 kept execution enabled
+        0 kept handling enabled
+        0 kept handling active
+        0 kept expansion active
+        0 keeper handling completed
+        0 kept handling completed
+        0 kept expansion completed
+        0 kept execution completed
+        0 keeper expansion completed
+        0 keeper execution completed
+        5 killer handling enabled
+        5 killer handling active
+        5 killer execution active
+        5 keeper terminating
+        5 kept terminating
+        5 kept terminated
+        5 keeper terminated
+        5 killer handling completed
+        5 killer execution completed
+        ",
+    );
+    assert_eq!(r.sim.engine.stats().live_nodes, 1, "only the root is left");
+}
+
+#[test]
+fn a_child_spawned_under_a_completed_persistent_goal_runs_with_a_warning() {
+    let r = check(
+        |e, root| {
+            let keeper = persistent_goal(e, root, "keeper", 0.0, |_, _, _| {});
+            let late = body(move |e, _, now| {
+                let child = Spawn::new(keeper, NodeKind::Command, "late-child", takes(s(1.0)));
+                e.spawn(now, child)
+                    .expect("spawn under a completed persistent goal");
+                Outcome::done()
+            });
+            cmd(e, root, "adder", late, &[not_before(3.0)]);
+        },
+        "
+        0 keeper expansion enabled
+        0 keeper execution enabled
+        0 keeper handling enabled
+        0 keeper handling active
+        0 keeper expansion active
+        0 adder execution enabled
+        0 keeper handling completed
+        0 keeper expansion completed
+        0 keeper execution completed
+        3 adder handling enabled
+        3 adder handling active
+        3 adder execution active
+        3 late-child execution enabled
+        3 late-child handling enabled
+        3 late-child handling active
+        3 late-child execution active
+        3 adder handling completed
+        3 adder execution completed
+        4 late-child handling completed
+        4 late-child execution completed
+        ",
+    );
+    let w = warnings(r.trace());
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with("Adding a child to completed persistent node keeper"),
+        "{w:?}"
+    );
+}
+
+#[test]
+fn on_terminate_tasks_run_when_the_body_ended_but_the_subtree_still_runs() {
+    // outer's body ended at 1 s; its child inner's body ended too; a grandchild still runs. At 3 s
+    // outer is terminated: both outer's and inner's on-terminate tasks run, outer's first.
+    let cleanup = |name: &'static str| OnTerminate {
+        kind: NodeKind::Command,
+        name: Name::Borrowed(name),
+        action: takes(s(1.0)),
+    };
+    check(
+        |e, root| {
+            let mut outer = Spawn::new(
+                root,
+                NodeKind::Goal,
+                "outer",
+                spawns(1.0, move |e, me, now| {
+                    let mut inner = Spawn::new(
+                        me,
+                        NodeKind::Goal,
+                        "inner",
+                        spawns(0.5, |e, me, now| {
+                            let leaf = Spawn::new(me, NodeKind::Command, "leaf", never());
+                            e.spawn(now, leaf).expect("spawn");
+                        }),
+                    );
+                    inner.on_terminate.push(cleanup("inner-cleanup"));
+                    e.spawn(now, inner).expect("spawn");
+                }),
+            );
+            outer.on_terminate.push(cleanup("outer-cleanup"));
+            outer
+                .constraints
+                .push(Constraint::terminate(When::In(s(3.0))));
+            e.spawn(Time::ZERO, outer).expect("spawn");
+        },
+        "
+        0 outer expansion enabled
+        0 outer execution enabled
+        0 outer handling enabled
+        0 outer handling active
+        0 outer expansion active
+        0 inner expansion enabled
+        0 inner execution enabled
+        0 inner handling enabled
+        0 inner handling active
+        0 inner expansion active
+        0 leaf execution enabled
+        0 leaf handling enabled
+        0 leaf handling active
+        0 leaf execution active
+        0 inner execution active
+        0 outer execution active
+        0.5 inner handling completed
+        0.5 inner expansion completed
+        1 outer handling completed
+        1 outer expansion completed
+        3 outer terminating
+        3 inner terminating
+        3 leaf terminating
+        3 leaf handling completed
+        3 outer-cleanup execution enabled
+        3 outer-cleanup handling enabled
+        3 inner-cleanup execution enabled
+        3 inner-cleanup handling enabled
+        3 outer-cleanup handling active
+        3 outer-cleanup execution active
+        3 inner-cleanup handling active
+        3 inner-cleanup execution active
+        3 leaf execution completed
+        3 leaf terminated
+        4 outer-cleanup handling completed
+        4 outer-cleanup execution completed
+        4 inner-cleanup handling completed
+        4 inner-cleanup execution completed
+        4 inner execution completed
+        4 inner terminated
+        4 outer execution completed
+        4 outer terminated
+        ",
+    );
+}
+
+#[test]
+fn a_failing_handler_is_searched_above_its_attachment_and_the_skipped_handlers_are_named() {
+    // `task` fails with Fault; its own handler `fix` takes it and fails with Fault again. The
+    // search goes on above `task` (to `mission`'s handler `last`), not back to `fix`, which had
+    // uses left: the trace names it as skipped.
+    let r = run(|e, root| {
+        let mut mission = Spawn::new(
+            root,
+            NodeKind::Goal,
+            "mission",
+            spawns(0.0, |e, me, now| {
+                let mut task = Spawn::new(
+                    me,
+                    NodeKind::Command,
+                    "task",
+                    body(|_, _, _| Outcome::fail(s(1.0), "Fault")),
+                );
+                task.handlers.push(HandlerSpec {
+                    name: Name::Borrowed("fix"),
+                    exception: Name::Borrowed("Fault"),
+                    max_activations: Some(3),
+                    body: factory(|_, _, _, _| Outcome::fail(s(1.0), "Fault")),
+                });
+                e.spawn(now, task).expect("spawn");
+            }),
+        );
+        mission.handlers.push(HandlerSpec {
+            name: Name::Borrowed("last"),
+            exception: Name::Borrowed("Fault"),
+            max_activations: None,
+            body: factory(|_, _, _, _| Outcome::done()),
+        });
+        e.spawn(Time::ZERO, mission).expect("spawn");
+    });
+    assert_eq!(
+        tcm_trace::story::handler_choices(r.trace()),
+        ["fix<-Fault", "last<-Fault"]
+    );
+    let w = warnings(r.trace());
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].contains("fix"), "{w:?}");
+}
+
+#[test]
+fn activate_at_completed_fires_when_the_node_was_terminated() {
+    // `watch` is activated when `a` completes and when `b` completes: `a` is terminated while it
+    // runs, `b` before it started; terminated counts as completed for activations.
+    let r = run(|e, root| {
+        let a = cmd(e, root, "a", never(), &[super::stop_in(1.0)]);
+        let b = cmd(
+            e,
+            root,
+            "b",
+            never(),
+            &[not_before(5.0), super::stop_in(2.0)],
+        );
+        let mut spec = MonitorSpec::new(factory(|_, _, _, _| Outcome::done()));
+        spec.max_activations = Some(2);
+        let on = |n: NodeId| Constraint::activate(When::Event(Event::new(n, Point::Completed)));
+        super::spawn_with(e, Spawn::monitor(root, "watch", spec), &[on(a), on(b)]);
+    });
+    let activations: Vec<&String> = r
+        .story
+        .iter()
+        .filter(|l| l.contains("ACT-watch handling active"))
+        .collect();
+    assert_eq!(
+        activations,
+        ["1 ACT-watch handling active", "2 ACT-watch handling active"]
+    );
+}
