@@ -50,6 +50,8 @@ pub struct Checker {
     pending_reserved: BTreeSet<u64>,
     externals: BTreeSet<String>,
     watches: BTreeMap<u64, Vec<Watch>>,
+    // `terminate` triggers on a whole group: members still to reach their event.
+    groups: Vec<triggers::GroupWatch>,
     external_watches: BTreeMap<String, Vec<u64>>,
     owed: BinaryHeap<Reverse<Owed>>,
 }

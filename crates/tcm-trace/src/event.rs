@@ -95,6 +95,15 @@ pub enum TraceWhen {
     },
     /// When the named external event is raised.
     External(String),
+    /// When every one of these events happened (a `with` group's event: each member reached
+    /// it), after a delay if any. With no event, at once.
+    All {
+        /// The members' events.
+        events: Vec<TraceEventRef>,
+        /// Delay after the last of them (ns).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        delay_ns: Option<u64>,
+    },
 }
 
 impl TraceWhen {

@@ -98,6 +98,22 @@ impl Ctx {
         self.with_engine(|e, now| e.constrain(now, node, c))
     }
 
+    /// Arms a trigger on a whole group: `then` happens to `target` once every member of `members`
+    /// reached `point` of `facet` (after `delay`, if any); with no members it fires at once
+    /// (docs/semantics.md, "Tags and forward references"). TDL's `terminate at <group> …` and
+    /// `activate at <group> …` use it.
+    pub fn trigger_group(
+        &self,
+        target: NodeId,
+        members: &[NodeId],
+        facet: Facet,
+        point: Point,
+        delay: Option<Duration>,
+        then: tcm_core::Then,
+    ) -> Result<(), Error> {
+        self.with_engine(|e, now| e.trigger_group(now, target, members, facet, point, delay, then))
+    }
+
     /// Terminates `node` and its subtree.
     pub fn terminate(&self, node: NodeId) -> Result<(), Error> {
         self.with_engine(|e, now| e.terminate(now, node))

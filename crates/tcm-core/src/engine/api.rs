@@ -173,6 +173,12 @@ pub enum EngineError {
         /// The constraint, as written.
         constraint: String,
     },
+    /// `Engine::trigger_group` asked to enable a facet.
+    #[error(
+        "an enablement constraint on a group is given to each member at the spawn (it waits for every one); \
+         a group trigger only terminates or activates"
+    )]
+    GroupEnable,
     /// `expand first` and `delay expansion` together can never be satisfied.
     #[error("`expand first` and `delay expansion` on one node can never both hold")]
     Inconsistent,

@@ -41,6 +41,16 @@ pub(super) struct External {
     pub(super) activators: Vec<NodeId>,
 }
 
+/// A trigger on a whole group: it fires once `remaining` members reached their event.
+pub(super) struct Join {
+    target: NodeId,
+    then: Then,
+    delay: Option<Duration>,
+    remaining: u32,
+    // A member reached its event because it was terminating: a termination never fires.
+    never: bool,
+}
+
 impl Then {
     /// How the trace writes it.
     fn traced(self) -> TraceThen {
@@ -117,6 +127,114 @@ impl<A, F: Clone> Engine<A, F> {
         self.work.push_back(Work::Progress(node));
         self.settle();
         Ok(())
+    }
+
+    /// Arms a trigger on a whole group (TDL's `with` group, or `previous` when it was one): `then`
+    /// happens to `target` once every member reached `point` of `facet` (after `delay`, if any),
+    /// and at once when there is no member (docs/semantics.md, "Tags and forward references").
+    /// As for one node, a member that reached the point only because it was terminating never
+    /// fires a termination, and a member never spawned (dead) counts as reached. `then` is a
+    /// termination or an activation: an enablement constraint on a group is given to each member
+    /// at the spawn, which already waits for every one ([`EngineError::GroupEnable`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn trigger_group(
+        &mut self,
+        now: Time,
+        target: NodeId,
+        members: &[NodeId],
+        facet: Facet,
+        point: Point,
+        delay: Option<Duration>,
+        then: Then,
+    ) -> Result<(), EngineError> {
+        self.advance(now);
+        let n = self.live(target)?;
+        if n.kind == NodeKind::Root {
+            return Err(EngineError::Root("constrained"));
+        }
+        for m in members {
+            self.check_run(*m)?;
+        }
+        if let Then::Enable(_) = then {
+            return Err(EngineError::GroupEnable);
+        }
+        if then == Then::Activate && n.monitor().is_none() {
+            self.void(target, || "`activate` applies to monitors only".into());
+            return Ok(());
+        }
+        let events = members
+            .iter()
+            .map(|m| self.event_ref(*m, facet, point))
+            .collect();
+        self.constrained(target, || {
+            let delay_ns = delay.map(nanos);
+            TraceConstraint::trigger(TraceWhen::All { events, delay_ns }, then.traced())
+        });
+        let slot = match self.joins.iter().position(Option::is_none) {
+            Some(i) => i,
+            None => {
+                self.joins.push(None);
+                self.joins.len() - 1
+            }
+        };
+        let join = slot as u32;
+        // One count per member, and one more so it cannot fire before all are watched.
+        self.joins[slot] = Some(Join {
+            target,
+            then,
+            delay,
+            remaining: members.len() as u32 + 1,
+            never: false,
+        });
+        self.block(target, then);
+        for &m in members {
+            let reached = match self.nodes.lookup(m) {
+                Lookup::Gone(Fate::Terminated) => Some(true),
+                Lookup::Gone(_) => Some(false),
+                Lookup::Live => {
+                    let w = self.node(m);
+                    w.reached(facet, point).then(|| !w.alive())
+                }
+            };
+            match reached {
+                Some(by_termination) => self.join_reached(join, by_termination),
+                None => self.node_mut(m).waiters.push(Waiter {
+                    facet,
+                    point,
+                    kind: WaitKind::Join { join, then },
+                }),
+            }
+        }
+        self.join_reached(join, false);
+        self.work.push_back(Work::Progress(target));
+        self.settle();
+        Ok(())
+    }
+
+    /// One member of group trigger `join` reached its event: the last one fires the trigger.
+    fn join_reached(&mut self, join: u32, by_termination: bool) {
+        let Some(Some(j)) = self.joins.get_mut(join as usize) else {
+            return;
+        };
+        j.never |= by_termination && j.then == Then::Terminate;
+        j.remaining = j.remaining.saturating_sub(1);
+        if j.remaining > 0 {
+            return;
+        }
+        let Some(j) = self.joins[join as usize].take() else {
+            return;
+        };
+        if j.never {
+            return;
+        }
+        self.fire(
+            WaitKind::Trigger {
+                target: j.target,
+                then: j.then,
+                delay: j.delay,
+            },
+            false,
+        );
     }
 
     /// Interns a named external event (or manual signal gate).
@@ -517,6 +635,7 @@ impl<A, F: Clone> Engine<A, F> {
                         .push(self.now + d, TimerKind::Trigger { target, then });
                 }
             }
+            WaitKind::Join { join, .. } => self.join_reached(join, by_termination),
             // Only reached through `fire_now`, which supplies the outcome.
             WaitKind::Watch { .. } => {}
         }

@@ -14,7 +14,7 @@
 //! | inputs | [`Engine::handle_action_finished`], [`Engine::handle_action_stopped`], [`Engine::handle_timeout`] | `progress.rs` |
 //! | | [`Engine::handle_external`] | `arm.rs` |
 //! | commands: the tree | [`Engine::spawn`], [`Engine::reserve`], [`Engine::hold_children`] | `tree.rs` |
-//! | commands: constraints | [`Engine::constrain`], [`Engine::watch`], [`Engine::external`] | `arm.rs` |
+//! | commands: constraints | [`Engine::constrain`], [`Engine::trigger_group`], [`Engine::watch`], [`Engine::external`] | `arm.rs` |
 //! | commands: termination | [`Engine::terminate`], [`Engine::terminate_children`], [`Engine::terminate_siblings`], [`Engine::suspend`], [`Engine::unsuspend`] | `terminate.rs` |
 //! | commands: monitors | [`Engine::activate`], [`Engine::trigger`] | `monitor.rs` |
 //! | commands: exceptions | [`Engine::request_bypass`], [`Engine::retry`] | `exception.rs` |
@@ -76,7 +76,7 @@ use crate::ids::{ExternalId, NodeId};
 use crate::time::Time;
 use crate::{Name, NodeKind};
 pub use api::{Effect, EngineError, Job, Spawn, Stats, WatchOutcome};
-use arm::External;
+use arm::{External, Join};
 pub use exception::HandlerSpec;
 pub use monitor::{EachActivation, MonitorSpec};
 use node::Node;
@@ -115,6 +115,8 @@ pub struct Engine<A, F = ()> {
     effects: VecDeque<Effect<A, F>>,
     timers: Timers,
     externals: Vec<External>,
+    // Group triggers still waiting for members (`arm.rs`); a slot is reused once it fired.
+    joins: Vec<Option<Join>>,
     external_ids: BTreeMap<String, ExternalId>,
     // Invariant: the number of actions, invocations and wiretap checks handed out and not yet
     // finished or cancelled.
@@ -145,6 +147,7 @@ impl<A, F: Clone> Engine<A, F> {
             effects: VecDeque::new(),
             timers: Timers::default(),
             externals: Vec::new(),
+            joins: Vec::new(),
             external_ids: BTreeMap::new(),
             running: 0,
             policy: FailurePolicy::Warn,

@@ -20,6 +20,8 @@ pub(crate) enum WaitKind {
     },
     /// Tell the shell.
     Watch { token: WatchToken },
+    /// One member of a group trigger reached its event (see `engine/arm.rs`, `trigger_group`).
+    Join { join: u32, then: Then },
 }
 
 impl WaitKind {
@@ -27,6 +29,9 @@ impl WaitKind {
         matches!(
             self,
             WaitKind::Trigger {
+                then: Then::Terminate,
+                ..
+            } | WaitKind::Join {
                 then: Then::Terminate,
                 ..
             }

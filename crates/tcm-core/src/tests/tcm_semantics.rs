@@ -484,3 +484,56 @@ fn activate_at_completed_fires_when_the_node_was_terminated() {
         ["1 ACT-watch handling active", "2 ACT-watch handling active"]
     );
 }
+
+#[test]
+fn a_group_trigger_fires_when_every_member_reached_the_event_or_at_once_when_empty() {
+    // `stop` is terminated when both `a` (1 s) and `b` (3 s) completed: at 3 s, not at 1 s.
+    // `empty` waits on a group with no member: it is terminated at once. `spared` waits on a
+    // group whose member `c` is terminated: it never fires.
+    let r = run(|e, root| {
+        let a = cmd(e, root, "a", takes(s(1.0)), &[]);
+        let b = cmd(e, root, "b", takes(s(3.0)), &[]);
+        let c = cmd(e, root, "c", never(), &[super::stop_in(2.0)]);
+        let stop = cmd(e, root, "stop", never(), &[]);
+        let empty = cmd(e, root, "empty", never(), &[]);
+        let spared = cmd(e, root, "spared", takes(s(5.0)), &[]);
+        let (x, done) = (Facet::Execution, Point::Completed);
+        let now = e.now();
+        e.trigger_group(now, stop, &[a, b], x, done, None, Then::Terminate)
+            .expect("group trigger");
+        e.trigger_group(now, empty, &[], x, done, None, Then::Terminate)
+            .expect("empty group trigger");
+        e.trigger_group(now, spared, &[a, c], x, done, None, Then::Terminate)
+            .expect("group trigger");
+    });
+    let ends: Vec<&String> = r
+        .story
+        .iter()
+        .filter(|l| l.ends_with("terminating") || l.ends_with("execution completed"))
+        .collect();
+    assert_eq!(
+        ends,
+        [
+            "0 empty terminating",
+            "0 empty execution completed",
+            "1 a execution completed",
+            "2 c terminating",
+            "2 c execution completed",
+            "3 b execution completed",
+            "3 stop terminating",
+            "3 stop execution completed",
+            "5 spared execution completed",
+        ]
+    );
+}
+
+#[test]
+fn a_group_enablement_is_refused_it_is_given_to_each_member() {
+    let mut e = SimEngine::new(1);
+    let root = e.root();
+    let a = cmd(&mut e, root, "a", noop(), &[]);
+    let late = cmd(&mut e, root, "late", noop(), &[]);
+    let (x, done, h) = (Facet::Execution, Point::Completed, Facet::Handling);
+    let res = e.trigger_group(Time::ZERO, late, &[a], x, done, None, Then::Enable(h));
+    assert!(matches!(res, Err(EngineError::GroupEnable)), "{res:?}");
+}

@@ -28,6 +28,18 @@ pub(super) struct Watch {
     state: State,
     // `None` for `terminate at <event>`, the delay for `terminate in <delay> after <event>`.
     delay: Option<u64>,
+    // For a member of a group trigger: the index of its `GroupWatch`.
+    group: Option<usize>,
+}
+
+/// A `terminate` trigger on a whole group: it is owed once every member reached its event, and
+/// never if one reached it because it was terminating.
+#[derive(Clone, Debug)]
+pub(super) struct GroupWatch {
+    target: u64,
+    delay: Option<u64>,
+    remaining: usize,
+    never: bool,
 }
 
 impl Checker {
@@ -84,29 +96,85 @@ impl Checker {
                         .push(node);
                 }
             }
-            TraceWhen::Event(event) => self.watch(ev, node, event, None),
-            TraceWhen::After { delay_ns, event } => self.watch(ev, node, event, Some(*delay_ns)),
+            TraceWhen::Event(event) => self.watch(ev, node, event, None, None),
+            TraceWhen::After { delay_ns, event } => {
+                self.watch(ev, node, event, Some(*delay_ns), None)
+            }
+            TraceWhen::All { events, delay_ns } => self.watch_group(ev, node, events, *delay_ns),
         }
     }
 
-    // A `terminate` trigger on `node` waiting for `event`: owed now, never, or watched.
-    fn watch(&mut self, ev: &TraceEvent, node: u64, event: &TraceEventRef, delay: Option<u64>) {
+    // A `terminate` trigger on a whole group: owed once every member's event happened.
+    fn watch_group(
+        &mut self,
+        ev: &TraceEvent,
+        node: u64,
+        events: &[TraceEventRef],
+        delay: Option<u64>,
+    ) {
+        let g = self.groups.len();
+        self.groups.push(GroupWatch {
+            target: node,
+            delay,
+            remaining: events.len() + 1,
+            never: false,
+        });
+        for event in events {
+            self.watch(ev, node, event, delay, Some(g));
+        }
+        // The extra count keeps the group from firing before all members are watched.
+        self.group_reached(ev, g, false);
+    }
+
+    // One member of group `g` reached its event (`by_termination`: because it was terminating).
+    fn group_reached(&mut self, ev: &TraceEvent, g: usize, by_termination: bool) {
+        let Some(gw) = self.groups.get_mut(g) else {
+            return;
+        };
+        gw.never |= by_termination;
+        gw.remaining = gw.remaining.saturating_sub(1);
+        if gw.remaining == 0 && !gw.never {
+            let (target, d) = (gw.target, gw.delay.unwrap_or(0));
+            self.owe(target, ev.t.saturating_add(d), d == 0, ev.seq);
+        }
+    }
+
+    // A `terminate` trigger on `node` waiting for `event`: owed now, never, or watched. For a
+    // member of a group trigger, its group counts it instead.
+    fn watch(
+        &mut self,
+        ev: &TraceEvent,
+        node: u64,
+        event: &TraceEventRef,
+        delay: Option<u64>,
+        group: Option<usize>,
+    ) {
         let delay_ns = delay.unwrap_or(0);
         let Some(r) = self.replay.node(event.node) else {
+            if let Some(g) = group {
+                self.group_reached(ev, g, true);
+            }
             return;
         };
         let passed = r.is_dead() || r.reached_at(event.facet, event.point).is_some();
         if r.termination() != Termination::Alive && !r.is_dead() {
             // A termination whose event's node is terminating never fires (docs/semantics.md,
             // "Termination").
+            if let Some(g) = group {
+                self.group_reached(ev, g, true);
+            }
         } else if passed {
-            self.owe(node, ev.t.saturating_add(delay_ns), delay_ns == 0, ev.seq);
+            match group {
+                Some(g) => self.group_reached(ev, g, false),
+                None => self.owe(node, ev.t.saturating_add(delay_ns), delay_ns == 0, ev.seq),
+            }
         } else {
             self.watches.entry(event.node).or_default().push(Watch {
                 target: node,
                 facet: event.facet,
                 state: event.point.state(),
                 delay,
+                group,
             });
         }
     }
@@ -220,6 +288,27 @@ impl Checker {
                 });
                 (!ok).then(|| format!("it waits for {}, which has not happened", ref_text(event)))
             }
+            TraceWhen::All { events, delay_ns } => {
+                let mut last = 0;
+                for event in events {
+                    let since = self.replay.node(event.node).and_then(|r| {
+                        r.dead_at()
+                            .or_else(|| r.reached_at(event.facet, event.point))
+                    });
+                    match since {
+                        Some(s) => last = last.max(s),
+                        None => {
+                            return Some(format!(
+                                "it waits for every member of a group, and {} has not happened",
+                                ref_text(event)
+                            ));
+                        }
+                    }
+                }
+                let until = last.saturating_add(delay_ns.unwrap_or(0));
+                (ev.t < until && !terminating)
+                    .then(|| format!("it waits for a group's event, until t={}", secs(until)))
+            }
             TraceWhen::After { delay_ns, event } => {
                 let since = self.replay.node(event.node).and_then(|r| {
                     r.dead_at()
@@ -264,8 +353,10 @@ impl Checker {
                 let mut keep = Vec::new();
                 for w in watches.drain(..) {
                     if w.facet == *facet && *from < w.state && w.state <= *to {
-                        if !terminating {
-                            self.fire_watch(ev, &w);
+                        match w.group {
+                            Some(g) => self.group_reached(ev, g, terminating),
+                            None if !terminating => self.fire_watch(ev, &w),
+                            None => {}
                         }
                     } else {
                         keep.push(w);
@@ -295,6 +386,9 @@ impl Checker {
     }
 
     fn fire_watch(&mut self, ev: &TraceEvent, w: &Watch) {
+        if let Some(g) = w.group {
+            return self.group_reached(ev, g, false);
+        }
         let d = w.delay.unwrap_or(0);
         self.owe(w.target, ev.t.saturating_add(d), d == 0, ev.seq);
     }

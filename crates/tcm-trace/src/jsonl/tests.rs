@@ -89,6 +89,23 @@ fn round_trip_every_kind() {
         ),
         TraceConstraint::trigger(TraceWhen::Now, TraceThen::Terminate),
         TraceConstraint::trigger(
+            TraceWhen::All {
+                events: vec![
+                    ev_ref(1, X, Point::Completed),
+                    ev_ref(2, X, Point::Completed),
+                ],
+                delay_ns: Some(5),
+            },
+            TraceThen::Terminate,
+        ),
+        TraceConstraint::trigger(
+            TraceWhen::All {
+                events: vec![],
+                delay_ns: None,
+            },
+            TraceThen::Activate,
+        ),
+        TraceConstraint::trigger(
             TraceWhen::Event(ev_ref(1, X, Point::Enabled)),
             TraceThen::Terminate,
         ),
