@@ -8,6 +8,7 @@ mod groups;
 mod loops;
 mod monitors;
 mod paper;
+mod porting;
 mod refs;
 mod ui;
 mod util;
