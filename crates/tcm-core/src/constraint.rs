@@ -19,7 +19,9 @@ use crate::time::Time;
 pub enum NodeRef {
     /// A node handle (possibly reserved for a later spawn: a forward reference).
     Node(NodeId),
-    /// The node spawned by the same parent just before this one; none means the constraint is void.
+    /// The node spawned by the same parent just before this one. If there is none, a constraint
+    /// on its event is void, and `After(d, previous …)` keeps its delay, counted from when it is
+    /// applied (TDL drops the `after` part).
     Previous,
     /// The node being constrained itself (TDL `self` / `child`).
     This,

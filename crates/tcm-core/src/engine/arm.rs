@@ -467,6 +467,10 @@ impl<A, F: Clone> Engine<A, F> {
                     _ => None,
                 };
                 let Some(watched) = self.resolve(ev.node, node, parent, previous) else {
+                    if let Some(d) = delay {
+                        // TDL: a missing `previous` drops the `after` part, the delay stays.
+                        return self.arm_at(node, self.now + d, then);
+                    }
                     return self.void(node, || {
                         format!(
                             "{} constraint names `previous`, but nothing was spawned before",

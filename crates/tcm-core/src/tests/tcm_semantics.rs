@@ -537,3 +537,30 @@ fn a_group_enablement_is_refused_it_is_given_to_each_member() {
     let res = e.trigger_group(Time::ZERO, late, &[a], x, done, None, Then::Enable(h));
     assert!(matches!(res, Err(EngineError::GroupEnable)), "{res:?}");
 }
+
+#[test]
+fn a_delay_after_a_missing_previous_keeps_its_delay() {
+    // The first spawn has no `previous`: `disable for 2 s after previous completed` is `disable
+    // for 2 s`, and `terminate in 3 s after previous completed` is `terminate in 3 s`.
+    let after_previous =
+        |d: f64| When::After(s(d), Event::new(NodeRef::Previous, Point::Completed));
+    check(
+        |e, root| {
+            let cs = [
+                Constraint::disable(Facet::Handling, after_previous(2.0)),
+                Constraint::terminate(after_previous(3.0)),
+            ];
+            cmd(e, root, "first", never(), &cs);
+        },
+        "
+        0 first execution enabled
+        2 first handling enabled
+        2 first handling active
+        2 first execution active
+        3 first terminating
+        3 first handling completed
+        3 first execution completed
+        3 first terminated
+        ",
+    );
+}
