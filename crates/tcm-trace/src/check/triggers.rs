@@ -196,7 +196,7 @@ impl Checker {
     }
 
     // What an enabling trigger still waits for at `ev`, if it has not fired.
-    fn trigger_pending(&self, ev: &TraceEvent, when: &TraceWhen) -> Option<String> {
+    pub(super) fn trigger_pending(&self, ev: &TraceEvent, when: &TraceWhen) -> Option<String> {
         match when {
             TraceWhen::Now => None,
             TraceWhen::At(at) => {
