@@ -10,7 +10,8 @@
 //!    carried out in the same step.
 //! 3. [`Driver::trace`]: every trace record is handed to the shell.
 //! 4. [`Driver::next`]: what the shell waits for before the next turn ([`Next`]): the next
-//!    deadline, and whether the engine is idle (then a run whose task has not ended is stuck).
+//!    deadline, whether the engine is idle (then a run whose task has not ended is stuck), and
+//!    whether it is settled (only running actions can change it).
 //!
 //! [`Driver::turn`] runs the four steps. An input (an action finished, an external event) goes to
 //! the engine's `handle_*` methods between turns, with the time of the same clock the shell gives
@@ -46,6 +47,10 @@ pub struct Next {
     pub deadline: Option<Time>,
     /// Nothing can happen without a new input (no action runs, no timer is pending).
     pub idle: bool,
+    /// Only the running actions (or a new input) can change anything: nothing is ready and no timer
+    /// is pending ([`Engine::is_settled`]). A shell whose running actions all await the engine
+    /// itself is stuck then (docs/semantics.md, "Run outcome").
+    pub settled: bool,
 }
 
 /// The driver's steps (see the module documentation).
@@ -78,9 +83,11 @@ impl Driver {
 
     /// Step 4: what to wait for.
     pub fn next<A, F: Clone>(engine: &mut Engine<A, F>) -> Next {
+        let settled = engine.is_settled();
         Next {
             deadline: engine.poll_timeout(),
-            idle: engine.is_idle(),
+            idle: settled && engine.stats().running == 0,
+            settled,
         }
     }
 

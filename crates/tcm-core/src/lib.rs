@@ -46,8 +46,8 @@ mod tests;
 pub use constraint::{Constraint, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{
-    Blocked, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorSpec, NodeInfo,
-    OnTerminate, Purpose, Spawn, Stats, WatchOutcome,
+    Blocked, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorInfo,
+    MonitorSpec, NodeInfo, OnTerminate, Purpose, Spawn, Stats, WatchOutcome,
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, short_type_name};
 pub use ids::{ExternalId, NodeId, TapWhen, WatchToken, WiretapId};

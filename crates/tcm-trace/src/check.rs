@@ -12,7 +12,7 @@
 //! change, which is amortised constant time. Due terminations wait in a binary heap keyed by time.
 
 use crate::event::{
-    OLDEST_READABLE_VERSION, TRACE_FORMAT_VERSION, TraceEvent, TraceEventRef, TraceKind,
+    OLDEST_READABLE_VERSION, TRACE_FORMAT_VERSION, TraceEvent, TraceEventRef, TraceKind, TraceWhen,
 };
 use crate::replay::Replay;
 use crate::state::{Facet, State, Termination};
@@ -54,6 +54,8 @@ pub struct Checker {
     groups: Vec<triggers::GroupWatch>,
     external_watches: BTreeMap<String, Vec<u64>>,
     owed: BinaryHeap<Reverse<Owed>>,
+    // Timer callbacks set: when each runs, and whether it ran.
+    callbacks: BTreeMap<u64, (TraceWhen, bool)>,
 }
 
 fn ref_text(r: &TraceEventRef) -> String {
@@ -314,6 +316,12 @@ impl Checker {
             TraceKind::HandlerChosen { node, failing, .. } => {
                 self.check_handler(seq, *node, *failing)
             }
+            TraceKind::CallbackSet { callback, when, .. } => {
+                self.check_callback_set(seq, *callback, when)
+            }
+            TraceKind::CallbackRan { callback, name } => {
+                self.check_callback_ran(ev, *callback, name)
+            }
             TraceKind::Retried { node, .. } | TraceKind::Bypassed { node, .. } => {
                 let parent_or_self = match &ev.kind {
                     TraceKind::Retried { .. } => self.replay.node(*node).and_then(|n| n.parent()),
@@ -372,6 +380,41 @@ impl Checker {
                 problems.join("; ")
             );
             self.flag(seq, Some(node), Rule::Activation, msg);
+        }
+    }
+
+    fn check_callback_set(&mut self, seq: u64, callback: u64, when: &TraceWhen) {
+        if let Some(r) = when.event() {
+            if self.replay.node(r.node).is_none() {
+                let msg = format!(
+                    "callback {callback} waits for {}, a node never seen in the trace",
+                    ref_text(&r)
+                );
+                self.flag(seq, None, Rule::UnknownReference, msg);
+            }
+        }
+        if self
+            .callbacks
+            .insert(callback, (when.clone(), false))
+            .is_some()
+        {
+            let msg = format!("callback {callback} is set twice");
+            self.flag(seq, None, Rule::Callback, msg);
+        }
+    }
+
+    fn check_callback_ran(&mut self, ev: &TraceEvent, callback: u64, name: &str) {
+        let problem = match self.callbacks.get(&callback).cloned() {
+            None => Some("it was never set".to_string()),
+            Some((_, true)) => Some("it already ran".to_string()),
+            Some((when, false)) => {
+                self.callbacks.insert(callback, (when.clone(), true));
+                self.trigger_pending(ev, &when, false)
+            }
+        };
+        if let Some(problem) = problem {
+            let msg = format!("callback {callback} (`{name}`) ran, but {problem}");
+            self.flag(ev.seq, None, Rule::Callback, msg);
         }
     }
 

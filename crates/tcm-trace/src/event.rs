@@ -400,6 +400,26 @@ pub enum TraceKind {
         /// `before` (the action has not started) or `after` (it returned successfully).
         when: String,
     },
+    /// A timer callback was set (TCM's `InvokeWhen`, `InvokeAfter`): a function the shell runs at
+    /// an event or a time. It is no node of the tree.
+    CallbackSet {
+        /// The callback's number, chosen by the shell; `callback_ran` names it again.
+        callback: u64,
+        /// The callback's name, for people.
+        name: String,
+        /// The node whose action set it, if any (`null` when the program set it).
+        node: Option<u64>,
+        /// When it runs: at an event (`event`), at a time (`at`), or at once (`now`, when its
+        /// event had passed long before: its node was reclaimed).
+        when: TraceWhen,
+    },
+    /// A timer callback's event happened or its time came: the shell runs it now.
+    CallbackRan {
+        /// The callback's number, as in its `callback_set` record.
+        callback: u64,
+        /// The callback's name.
+        name: String,
+    },
     /// Something worth a person's attention; the run goes on.
     Warning {
         /// Node concerned, if any.
@@ -413,8 +433,10 @@ impl TraceKind {
     /// The node this record is about, if any.
     pub fn node(&self) -> Option<u64> {
         match self {
-            TraceKind::RunStarted { .. } | TraceKind::External { .. } => None,
-            TraceKind::Warning { node, .. } => *node,
+            TraceKind::RunStarted { .. }
+            | TraceKind::External { .. }
+            | TraceKind::CallbackRan { .. } => None,
+            TraceKind::Warning { node, .. } | TraceKind::CallbackSet { node, .. } => *node,
             TraceKind::Reserved { node, .. }
             | TraceKind::Spawned { node, .. }
             | TraceKind::Constrained { node, .. }

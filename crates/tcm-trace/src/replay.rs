@@ -431,7 +431,11 @@ impl Replay {
                 it.dead = true;
                 it.dead_t = Some(t);
             }
-            TraceKind::External { .. } | TraceKind::Warning { .. } | TraceKind::Tapped { .. } => {}
+            TraceKind::External { .. }
+            | TraceKind::Warning { .. }
+            | TraceKind::Tapped { .. }
+            | TraceKind::CallbackSet { .. }
+            | TraceKind::CallbackRan { .. } => {}
             TraceKind::MonitorParams {
                 node,
                 max_activations,

@@ -9,8 +9,8 @@
 use crate::event::{TraceEvent, TraceKind};
 use std::collections::BTreeMap;
 
-/// Renders a trace as story lines: facet transitions, termination, failures, dead reservations
-/// and suspension. Other records (constraints, reclamation, …) are left out.
+/// Renders a trace as story lines: facet transitions, termination, failures, dead reservations,
+/// suspension and timer callbacks run (`callback <name> ran`). Other records (constraints, reclamation, …) are left out.
 pub fn story(trace: &[TraceEvent]) -> Vec<String> {
     let mut names: BTreeMap<u64, String> = BTreeMap::new();
     let mut out = Vec::new();
@@ -35,6 +35,7 @@ pub fn story(trace: &[TraceEvent]) -> Vec<String> {
             TraceKind::Dead { node } => format!("{} dead", name(&names, node)),
             TraceKind::Suspended { node } => format!("{} suspended", name(&names, node)),
             TraceKind::Unsuspended { node } => format!("{} unsuspended", name(&names, node)),
+            TraceKind::CallbackRan { name, .. } => format!("callback {name} ran"),
             _ => continue,
         };
         out.push(format!("{} {line}", ev.t as f64 / 1e9));

@@ -9,8 +9,8 @@ use std::any::Any;
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::{
-    Constraint, Event, ExternalId, Facet, Failure, NodeId, NodeRef, Point, Purpose, Spawn,
-    WatchOutcome, WatchToken, When,
+    Constraint, Event, ExternalId, Facet, Failure, Job, Name, NodeId, NodeRef, Point, Purpose,
+    Spawn, WatchOutcome, WatchToken, When,
 };
 use tokio::sync::oneshot;
 
@@ -20,6 +20,10 @@ pub struct Ctx {
     pub(crate) shared: Arc<Shared>,
     pub(crate) node: NodeId,
     pub(crate) purpose: Option<Arc<Purpose>>,
+    // The job this context belongs to: the node's action or invocation, or a wiretap check; `None`
+    // for a timer callback or the program's session. Its awaits on the engine count as parked
+    // (docs/semantics.md, "Run outcome").
+    pub(crate) job: Option<Job>,
 }
 
 impl Ctx {
@@ -42,11 +46,13 @@ impl Ctx {
 
     /// Starts building a spawn of `task` as a child of this node.
     pub fn spawn(&self, task: Task) -> Spawner<'_> {
+        let task_name = task.renamed();
         let (spec, n_task_handlers) = task.into_spawn(self.node);
         Spawner {
             ctx: self,
             spec,
             n_task_handlers,
+            task_name,
         }
     }
 
@@ -59,15 +65,23 @@ impl Ctx {
     /// Holds (`true`) or releases the start of the children this action spawns. While held, they
     /// are inserted and constrained but do not start; they start when the action returns, when it
     /// releases them, or while it waits ([`Ctx::wait`] releases and then holds again). This is
-    /// TDL's semantics (a body ends before its children run), which generated code uses so that
-    /// constraint statements after a spawn still apply.
+    /// TDL's semantics (a body ends before its children run), so that constraint statements after
+    /// a spawn still apply; every action starts holding (docs/semantics.md, "Bodies and
+    /// children"). An action that wants its children to start at once calls
+    /// `ctx.hold_children(false)?` first; so must one that awaits a child by other means than a
+    /// wait (a channel), or the child never starts.
     pub fn hold_children(&self, on: bool) -> Result<(), Error> {
         self.with_engine(|e, now| e.hold_children(now, self.node, on).map(|_| ()))
     }
 
     /// Waits until `node`'s execution completes (the node and its whole subtree), as TDL's `wait`.
+    /// The action's held children start meanwhile. While it waits, the action counts as parked: if
+    /// every running action is parked and nothing else can happen, the run is stuck
+    /// (docs/semantics.md, "Run outcome").
     pub async fn wait(&self, node: NodeId) -> Result<WatchOutcome, Error> {
-        let held = self.with_engine(|e, now| e.hold_children(now, self.node, false))?;
+        // Only an action holds children (not a callback's or the program's context).
+        let held = self.job.is_some()
+            && self.with_engine(|e, now| e.hold_children(now, self.node, false))?;
         let res = self.wait_released(node).await;
         if held {
             self.with_engine(|e, now| e.hold_children(now, self.node, true))?;
@@ -76,20 +90,33 @@ impl Ctx {
     }
 
     async fn wait_released(&self, node: NodeId) -> Result<WatchOutcome, Error> {
-        let rx = {
+        let event = Event::on(node, Facet::Execution, Point::Completed);
+        let (rx, token) = {
             let mut inner = self.shared.enter()?;
             let token = inner.next_token();
             let (tx, rx) = oneshot::channel();
             inner.watchers.insert(token, tx);
             let now = self.shared.now();
-            inner.engine.watch(
-                now,
-                Event::on(node, Facet::Execution, Point::Completed),
-                WatchToken(token),
-            )?;
-            rx
+            if let Err(e) = inner.engine.watch(now, event, WatchToken(token)) {
+                inner.watchers.remove(&token);
+                return Err(e.into());
+            }
+            // Parked until the notification (carried out when this access ends, if the node
+            // already completed) or until this future is dropped.
+            if let Some(job) = self.job {
+                inner.park(token, job, event);
+            }
+            (rx, token)
         };
-        rx.await.map_err(|_| Error::RunEnded)
+        let mut unpark = crate::host::Unpark {
+            shared: &self.shared,
+            token,
+            armed: self.job.is_some(),
+        };
+        let res = rx.await;
+        // Answered: the notification already unparked it.
+        unpark.armed = unpark.armed && res.is_err();
+        res.map_err(|_| Error::RunEnded)
     }
 
     /// Applies a constraint to an existing node (termination and activation constraints at any
@@ -236,7 +263,15 @@ impl Ctx {
     /// In a handler: runs the failed task again (a fresh node with the same arguments, under this
     /// handler). The task must be [`Task::retryable`]. Wait for the returned node to see how it went.
     pub fn retry(&self) -> Result<NodeId, Error> {
-        self.with_engine(|e, now| e.retry(now, self.node))
+        let mut inner = self.shared.enter()?;
+        let now = self.shared.now();
+        let id = inner.engine.retry(now, self.node)?;
+        // A fresh run of the same task: an instance of the same task, renamed or not.
+        if let Some(name) = self.failing_node().and_then(|f| inner.task_names.get(&f)) {
+            let name = name.clone();
+            inner.task_names.insert(id, name);
+        }
+        Ok(id)
     }
 
     fn with_engine<T>(
@@ -258,6 +293,8 @@ pub struct Spawner<'a> {
     ctx: &'a Ctx,
     spec: Spawn<Action, Factory>,
     n_task_handlers: usize,
+    // The task's name, when `Task::named` gave the instance another.
+    task_name: Option<Name>,
 }
 
 impl Spawner<'_> {
@@ -374,7 +411,7 @@ impl Spawner<'_> {
     pub fn start(self) -> Result<NodeId, Error> {
         let mut inner = self.ctx.shared.enter()?;
         let now = self.ctx.shared.now();
-        Ok(inner.engine.spawn(now, self.spec)?)
+        Ok(inner.spawn(now, self.spec, self.task_name)?)
     }
 
     /// Inserts the node and waits until its execution completes (TDL's `with wait`).
@@ -390,7 +427,7 @@ impl Spawner<'_> {
         let id = {
             let mut inner = ctx.shared.enter()?;
             let now = ctx.shared.now();
-            let id = inner.engine.spawn(now, self.spec)?;
+            let id = inner.spawn(now, self.spec, self.task_name)?;
             inner.values.insert(id, None);
             id
         };

@@ -1,30 +1,148 @@
 //! The host: the runtime's side of the core's [`Driver`]. It owns the engine behind a mutex, carries
-//! its effects out on tokio (start an action as a task, abort a cancelled one, answer a waiter) and
-//! reports each task's end back to the engine.
+//! its effects out on tokio (start an action as a task, abort a cancelled one, answer a waiter, queue
+//! a due timer callback) and reports each task's end back to the engine.
 //!
 //! Effects are carried out in one place, [`Host::effects`], whoever changed the engine: an action
-//! (through [`Session`], whose end runs it), an event handle, or the driver loop in `runtime.rs`.
+//! (through [`Access`], whose end runs it), an event handle, the program's [`crate::Session`], or
+//! the driver loop in `runtime.rs`.
+//!
+//! The host also keeps what the engine need not know: the actions parked in an await on an engine
+//! watch ([`Parking`]; docs/semantics.md, "Run outcome"), the top-level tasks and how each ended,
+//! timer callbacks, activation data, task names and the panics of actions.
 
 use crate::Error;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
 use crate::task::{Action, Factory, Value};
 use std::any::Any;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
 use std::future::Future;
 use std::panic::AssertUnwindSafe;
 use std::pin::Pin;
 use std::sync::atomic::AtomicUsize;
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 use tcm_core::{
-    Driver, Engine, Failure, Job, NodeId, Purpose, Shell, Time, WatchOutcome, WatchToken,
+    Driver, Engine, EngineError, Event, Failure, Job, Name, NodeId, Purpose, Shell, Spawn, Time,
+    WatchOutcome, WatchToken,
 };
 use tcm_trace::TraceEvent;
-use tokio::sync::{Notify, oneshot};
+use tokio::sync::{Notify, oneshot, watch};
 use tokio::task::AbortHandle;
 
-/// The token of the watch on the top-level task.
-pub(crate) const TOP: u64 = 0;
+/// A timer callback (`Ctx::invoke_when`, `Ctx::invoke_after`): run once, on the driver's task.
+pub(crate) type Callback = Box<dyn FnOnce(Ctx, WatchOutcome) + Send>;
+
+/// A timer callback waiting for its event or time.
+pub(crate) struct PendingCallback {
+    pub(crate) name: Name,
+    // The node whose context set it; the callback gets a context of this node.
+    pub(crate) node: NodeId,
+    pub(crate) f: Callback,
+}
+
+/// A timer callback whose event happened or whose time came: the driver traces it and runs it
+/// outside the lock.
+pub(crate) struct DueCallback {
+    pub(crate) token: WatchToken,
+    pub(crate) name: Name,
+    pub(crate) node: NodeId,
+    pub(crate) f: Callback,
+    pub(crate) outcome: WatchOutcome,
+}
+
+/// A top-level task and how it ended.
+pub(crate) struct Root {
+    pub(crate) node: NodeId,
+    token: u64,
+    pub(crate) outcome: Option<WatchOutcome>,
+}
+
+/// An action (or wiretap check, or timer callback) that panicked: its node failed with
+/// `ActionPanicked`, and the run went on (docs/semantics.md, "Exceptions and handlers").
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Panicked {
+    /// Display number of the node whose action panicked (for a callback, of the node that set it;
+    /// `None` when the program set it).
+    pub node: Option<u64>,
+    /// The node's instance name, or the callback's name.
+    pub name: String,
+    /// Instance names from the top-level task down to the node, joined by `/`.
+    pub path: String,
+    /// Whether it was a timer callback rather than an action.
+    pub callback: bool,
+    /// The panic's message.
+    pub message: String,
+}
+
+impl fmt::Display for Panicked {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let what = if self.callback { "callback" } else { "action" };
+        write!(f, "{what} {}", self.name)?;
+        if let Some(n) = self.node {
+            write!(f, " {{{n}}}")?;
+        }
+        if !self.path.is_empty() {
+            write!(f, " ({})", self.path)?;
+        }
+        write!(f, " panicked: {}", self.message)
+    }
+}
+
+/// The actions parked in an await on an engine watch (`Ctx::wait` and the waits built on it), by
+/// watch token. An entry lives from the watch until its notification, or until the awaiting future
+/// is dropped, or its job ends; only jobs that run are entered, so `jobs()` never counts more than
+/// the engine's running jobs.
+#[derive(Default)]
+pub(crate) struct Parking {
+    by_token: BTreeMap<u64, (Job, Event)>,
+    // Invariant: the number of entries of `by_token` per job, for the jobs that have any.
+    by_job: BTreeMap<Job, u32>,
+}
+
+impl Parking {
+    fn park(&mut self, token: u64, job: Job, event: Event) {
+        if self.by_token.insert(token, (job, event)).is_none() {
+            *self.by_job.entry(job).or_default() += 1;
+        }
+    }
+
+    pub(crate) fn unpark(&mut self, token: u64) {
+        let Some((job, _)) = self.by_token.remove(&token) else {
+            return;
+        };
+        if let Some(n) = self.by_job.get_mut(&job) {
+            *n -= 1;
+            if *n == 0 {
+                self.by_job.remove(&job);
+            }
+        }
+    }
+
+    /// The job ended (or was cancelled): whatever it left parked no longer counts.
+    fn forget_job(&mut self, job: Job) {
+        if self.by_job.remove(&job).is_some() {
+            self.by_token.retain(|_, (j, _)| *j != job);
+        }
+    }
+
+    /// How many running jobs are parked.
+    pub(crate) fn jobs(&self) -> usize {
+        self.by_job.len()
+    }
+
+    /// What each parked job awaits, in the order the awaits began, for the stuck report.
+    pub(crate) fn awaits(&self) -> Vec<(NodeId, Event)> {
+        self.by_token
+            .values()
+            .map(|(job, event)| (job.node(), *event))
+            .collect()
+    }
+}
+
+/// How often the maps keyed by node are swept for nodes that are gone: when they hold more than
+/// this, and twice what the last sweep left (amortised O(1) per entry).
+const SWEEP_MIN: usize = 256;
 
 pub(crate) struct Inner {
     pub(crate) engine: Engine<Action, Factory>,
@@ -33,11 +151,27 @@ pub(crate) struct Inner {
     pub(crate) values: BTreeMap<NodeId, Option<Value>>,
     // Running actions, to abort on cancellation.
     pub(crate) aborts: Aborts,
+    // Running wiretap checks (not cancellable, so not in `aborts`).
+    checks: BTreeSet<Job>,
+    pub(crate) parking: Parking,
     next_token: u64,
-    // Where actions are spawned: the tokio runtime of `Runtime::run`.
+    // Where actions are spawned: the tokio runtime of `Runtime::run` or `Runtime::start`.
     pub(crate) spawner: Option<tokio::runtime::Handle>,
-    // How the top-level task ended, once it did.
-    pub(crate) top_done: Option<WatchOutcome>,
+    // The top-level tasks, in spawn order, and whether one ended since the driver last looked.
+    pub(crate) roots: Vec<Root>,
+    roots_changed: bool,
+    // The run ends once the roots are done (or it is stuck); a session sets it at `finish`.
+    pub(crate) finishing: bool,
+    // The driver loop ended: nothing more runs.
+    pub(crate) ended: bool,
+    pub(crate) callbacks: BTreeMap<u64, PendingCallback>,
+    pub(crate) due: Vec<DueCallback>,
+    // Data given to a monitor activation (`Ctx::activate_with`), by activation node.
+    pub(crate) activation_data: BTreeMap<NodeId, Arc<dyn Any + Send + Sync>>,
+    // Task names of nodes whose instance name differs (`Task::named`).
+    pub(crate) task_names: BTreeMap<NodeId, Name>,
+    sweep_at: usize,
+    pub(crate) panics: Vec<Panicked>,
     // The deadline the driver sleeps until; an earlier timer must wake it.
     pub(crate) armed: Option<Time>,
     // Trace records taken from the engine, for the driver to hand to the sinks outside the lock.
@@ -54,9 +188,20 @@ impl Inner {
             watchers: BTreeMap::new(),
             values: BTreeMap::new(),
             aborts: Aborts::default(),
-            next_token: TOP,
+            checks: BTreeSet::new(),
+            parking: Parking::default(),
+            next_token: 0,
             spawner: None,
-            top_done: None,
+            roots: Vec::new(),
+            roots_changed: false,
+            finishing: false,
+            ended: false,
+            callbacks: BTreeMap::new(),
+            due: Vec::new(),
+            activation_data: BTreeMap::new(),
+            task_names: BTreeMap::new(),
+            sweep_at: SWEEP_MIN,
+            panics: Vec::new(),
             armed: None,
             trace: Vec::new(),
         }
@@ -67,6 +212,11 @@ impl Inner {
         while let Ok(job) = self.stopped.try_recv() {
             self.engine.handle_action_stopped(now, job);
         }
+    }
+
+    /// The driver looked at the roots.
+    pub(crate) fn clear_roots_changed(&mut self) {
+        self.roots_changed = false;
     }
 
     pub(crate) fn next_token(&mut self) -> u64 {
@@ -82,26 +232,127 @@ impl Inner {
         let host = Host {
             shared,
             aborts: &mut self.aborts,
+            checks: &mut self.checks,
+            parking: &mut self.parking,
             spawner: self.spawner.as_ref(),
             watchers: &mut self.watchers,
-            top_done: &mut self.top_done,
+            roots: &mut self.roots,
+            roots_changed: &mut self.roots_changed,
+            callbacks: &mut self.callbacks,
+            due: &mut self.due,
+            activation_data: &mut self.activation_data,
             trace: &mut self.trace,
         };
         (&mut self.engine, host)
     }
 
     /// Carries out the engine's effects; returns whether the driver must wake (only for what only
-    /// it can do: hand trace records to the sinks, re-arm the timer, end the run).
+    /// it can do: hand trace records to the sinks, re-arm the timer, run a due callback, see that a
+    /// top-level task ended or that the run is quiet).
     pub(crate) fn effects(&mut self, shared: &Arc<Shared>) -> bool {
         let (engine, mut host) = self.split(shared);
         Driver::effects(engine, &mut host);
-        let mut wake =
-            self.top_done.is_some() || self.engine.fatal().is_some() || self.engine.has_trace();
+        let mut wake = self.roots_changed
+            || !self.due.is_empty()
+            || self.engine.fatal().is_some()
+            || self.engine.has_trace();
         if let Some(t) = self.engine.poll_timeout() {
             wake = wake || self.armed.is_none_or(|a| t < a);
         }
-        wake || (self.aborts.is_empty() && self.engine.is_idle())
+        wake || self.quiet()
     }
+
+    /// Whether nothing can happen on its own any more (docs/semantics.md, "Run outcome"): nothing
+    /// is ready, no timer is pending, no callback is due, and every running job (action,
+    /// invocation, wiretap check) is parked in an await on an engine watch.
+    pub(crate) fn quiet(&mut self) -> bool {
+        // Cheapest first: while an action runs unparked, the answer is no.
+        self.engine.stats().running as usize <= self.parking.jobs()
+            && self.due.is_empty()
+            && self.engine.is_settled()
+    }
+
+    /// Enters an await of `job` on `event` (watch `token`) as parked, if the job runs (a task an
+    /// action left behind is no running job).
+    pub(crate) fn park(&mut self, token: u64, job: Job, event: Event) {
+        let running = if job.cancellable() {
+            self.aborts.contains(job.node())
+        } else {
+            self.checks.contains(&job)
+        };
+        if running {
+            self.parking.park(token, job, event);
+        }
+    }
+
+    /// Inserts a node for the program or an action, and keeps its task name if it differs from its
+    /// instance name (`Task::named`).
+    pub(crate) fn spawn(
+        &mut self,
+        now: Time,
+        spec: Spawn<Action, Factory>,
+        task_name: Option<Name>,
+    ) -> Result<NodeId, EngineError> {
+        let id = self.engine.spawn(now, spec)?;
+        if let Some(name) = task_name {
+            self.task_names.insert(id, name);
+            self.sweep();
+        }
+        Ok(id)
+    }
+
+    /// Inserts a top-level task and watches its end.
+    pub(crate) fn spawn_root(
+        &mut self,
+        now: Time,
+        spec: Spawn<Action, Factory>,
+        task_name: Option<Name>,
+    ) -> Result<NodeId, EngineError> {
+        let id = self.spawn(now, spec, task_name)?;
+        let token = self.next_token();
+        self.roots.push(Root {
+            node: id,
+            token,
+            outcome: None,
+        });
+        self.engine.watch(
+            now,
+            tcm_core::Event::on(id, tcm_core::Facet::Execution, tcm_core::Point::Completed),
+            WatchToken(token),
+        )?;
+        Ok(id)
+    }
+
+    /// Keeps data for a monitor activation.
+    pub(crate) fn keep_activation_data(&mut self, node: NodeId, data: Arc<dyn Any + Send + Sync>) {
+        self.activation_data.insert(node, data);
+        self.sweep();
+    }
+
+    /// Drops what the maps keyed by node keep for nodes that are gone (an activation terminated
+    /// before it ran never reports its end).
+    fn sweep(&mut self) {
+        if self.task_names.len() + self.activation_data.len() <= self.sweep_at {
+            return;
+        }
+        let engine = &self.engine;
+        // Nodes in these maps are never the root, whose parent is `None` too.
+        self.task_names.retain(|id, _| engine.parent(*id).is_some());
+        self.activation_data
+            .retain(|id, _| engine.parent(*id).is_some());
+        self.sweep_at = SWEEP_MIN.max(2 * (self.task_names.len() + self.activation_data.len()));
+    }
+}
+
+/// The status the driver publishes after each turn, for [`crate::Session::quiescent`].
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Status {
+    // Turns so far.
+    pub(crate) turn: u64,
+    // Whether the run was quiet after that turn (`Inner::quiet`).
+    pub(crate) quiet: bool,
+    // Whether the driver loop ended.
+    pub(crate) ended: bool,
 }
 
 pub(crate) struct Shared {
@@ -112,6 +363,8 @@ pub(crate) struct Shared {
     pub(crate) handles: AtomicUsize,
     // Where a `Reporter` sends the job of a task dropped unfinished (it must not take the lock).
     pub(crate) stopped: Mutex<mpsc::Sender<Job>>,
+    // Published by the driver under the engine's lock.
+    pub(crate) status: watch::Sender<Status>,
 }
 
 impl Shared {
@@ -120,9 +373,9 @@ impl Shared {
         self.clock.now()
     }
 
-    /// Exclusive access to the engine; its effects are carried out when the session ends.
-    pub(crate) fn enter(self: &Arc<Shared>) -> Result<Session<'_>, Error> {
-        Ok(Session {
+    /// Exclusive access to the engine; its effects are carried out when the access ends.
+    pub(crate) fn enter(self: &Arc<Shared>) -> Result<Access<'_>, Error> {
+        Ok(Access {
             guard: lock(self)?,
             shared: self,
         })
@@ -135,28 +388,47 @@ pub(crate) fn lock(shared: &Shared) -> Result<MutexGuard<'_, Inner>, Error> {
 
 /// Exclusive access to the engine. When it ends, the engine's effects are carried out at once, by
 /// whoever changed the engine, and the driver is woken if it must.
-pub(crate) struct Session<'a> {
+pub(crate) struct Access<'a> {
     guard: MutexGuard<'a, Inner>,
     shared: &'a Arc<Shared>,
 }
 
-impl std::ops::Deref for Session<'_> {
+impl std::ops::Deref for Access<'_> {
     type Target = Inner;
     fn deref(&self) -> &Inner {
         &self.guard
     }
 }
 
-impl std::ops::DerefMut for Session<'_> {
+impl std::ops::DerefMut for Access<'_> {
     fn deref_mut(&mut self) -> &mut Inner {
         &mut self.guard
     }
 }
 
-impl Drop for Session<'_> {
+impl Drop for Access<'_> {
     fn drop(&mut self) {
         if self.guard.effects(self.shared) {
             self.shared.wake.notify_one();
+        }
+    }
+}
+
+/// Removes a parked await when its future is dropped before the notification (or the run ended
+/// under it); a notified await was already removed by [`Host::notify`].
+pub(crate) struct Unpark<'a> {
+    pub(crate) shared: &'a Shared,
+    pub(crate) token: u64,
+    pub(crate) armed: bool,
+}
+
+impl Drop for Unpark<'_> {
+    fn drop(&mut self) {
+        if self.armed {
+            if let Ok(mut inner) = self.shared.inner.lock() {
+                inner.parking.unpark(self.token);
+                inner.watchers.remove(&self.token);
+            }
         }
     }
 }
@@ -165,20 +437,30 @@ impl Drop for Session<'_> {
 pub(crate) struct Host<'a> {
     shared: &'a Arc<Shared>,
     aborts: &'a mut Aborts,
+    checks: &'a mut BTreeSet<Job>,
+    parking: &'a mut Parking,
     spawner: Option<&'a tokio::runtime::Handle>,
     watchers: &'a mut BTreeMap<u64, oneshot::Sender<WatchOutcome>>,
-    top_done: &'a mut Option<WatchOutcome>,
+    roots: &'a mut Vec<Root>,
+    roots_changed: &'a mut bool,
+    callbacks: &'a mut BTreeMap<u64, PendingCallback>,
+    due: &'a mut Vec<DueCallback>,
+    activation_data: &'a mut BTreeMap<NodeId, Arc<dyn Any + Send + Sync>>,
     trace: &'a mut Vec<TraceEvent>,
 }
 
 impl Shell<Action, Factory> for Host<'_> {
-    fn start(&mut self, _: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
+    fn start(&mut self, engine: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
+        // A hand-written action holds its children until it returns or waits, as generated TDL
+        // does (docs/semantics.md, "Bodies and children"); `Ctx::hold_children(false)` opts out.
+        let _ = engine.hold_children(engine.now(), node, true);
         // Spawned under the lock: the task's own end takes the lock, so its abort handle is
         // recorded before it can finish.
         let ctx = Ctx {
             shared: self.shared.clone(),
             node,
             purpose: None,
+            job: Some(Job::from(node)),
         };
         let h = (action.0)(Launch {
             ctx,
@@ -189,15 +471,20 @@ impl Shell<Action, Factory> for Host<'_> {
 
     fn invoke(
         &mut self,
-        _: &mut Engine<Action, Factory>,
+        engine: &mut Engine<Action, Factory>,
         job: Job,
         body: Factory,
         p: Box<Purpose>,
     ) {
+        if job.cancellable() {
+            // A monitor activation, a handler or a retry is a body like any action's.
+            let _ = engine.hold_children(engine.now(), job.node(), true);
+        }
         let ctx = Ctx {
             shared: self.shared.clone(),
             node: job.node(),
             purpose: Some(Arc::from(p)),
+            job: Some(job),
         };
         let fut = body(ctx);
         let reporter = Reporter::new(self.shared.clone(), job);
@@ -211,6 +498,8 @@ impl Shell<Action, Factory> for Host<'_> {
         };
         if job.cancellable() {
             self.aborts.insert(job.node(), h.abort_handle());
+        } else {
+            self.checks.insert(job);
         }
     }
 
@@ -218,6 +507,8 @@ impl Shell<Action, Factory> for Host<'_> {
         if let Some(h) = self.aborts.remove(&node) {
             h.abort();
         }
+        self.parking.forget_job(Job::from(node));
+        self.activation_data.remove(&node);
     }
 
     fn notify(
@@ -226,10 +517,20 @@ impl Shell<Action, Factory> for Host<'_> {
         token: WatchToken,
         outcome: WatchOutcome,
     ) {
-        if token.0 == TOP {
-            *self.top_done = Some(outcome);
-        } else if let Some(tx) = self.watchers.remove(&token.0) {
+        if let Some(tx) = self.watchers.remove(&token.0) {
+            self.parking.unpark(token.0);
             let _ = tx.send(outcome);
+        } else if let Some(root) = self.roots.iter_mut().find(|r| r.token == token.0) {
+            root.outcome = Some(outcome);
+            *self.roots_changed = true;
+        } else if let Some(cb) = self.callbacks.remove(&token.0) {
+            self.due.push(DueCallback {
+                token,
+                name: cb.name,
+                node: cb.node,
+                f: cb.f,
+                outcome,
+            });
         }
     }
 
@@ -238,27 +539,38 @@ impl Shell<Action, Factory> for Host<'_> {
     }
 }
 
-/// A job's task ended: report it to the engine (under the lock); the session carries out what
+/// A job's task ended: report it to the engine (under the lock); the access carries out what
 /// follows.
 fn finish(
     shared: &Arc<Shared>,
     job: Job,
     res: Result<Result<Value, Failure>, Box<dyn Any + Send>>,
 ) {
-    let result = match res {
-        Ok(r) => r,
-        Err(panic) => Err(Failure::new(
-            "ActionPanicked",
-            panic_message(panic.as_ref()),
-        )),
+    let (result, panic) = match res {
+        Ok(r) => (r, None),
+        Err(panic) => {
+            let message = panic_message(panic.as_ref());
+            (
+                Err(Failure::new("ActionPanicked", message.clone())),
+                Some(message),
+            )
+        }
     };
     let Ok(mut inner) = shared.enter() else {
         return;
     };
     let node = job.node();
+    if let Some(message) = panic {
+        let record = panicked(&inner.engine, Some(node), String::new(), false, message);
+        inner.panics.push(record);
+    }
     if job.cancellable() {
         inner.aborts.remove(&node);
+        inner.activation_data.remove(&node);
+    } else {
+        inner.checks.remove(&job);
     }
+    inner.parking.forget_job(job);
     let result = result.map(|value| {
         if let Some(slot) = inner.values.get_mut(&node) {
             *slot = Some(value);
@@ -267,6 +579,29 @@ fn finish(
     // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
     let now = shared.now();
     let _ = inner.engine.handle_action_finished(now, job, result);
+}
+
+/// The record of a panic in the action (or callback) of `node`.
+pub(crate) fn panicked(
+    engine: &Engine<Action, Factory>,
+    node: Option<NodeId>,
+    name: String,
+    callback: bool,
+    message: String,
+) -> Panicked {
+    let info = node.and_then(|n| engine.info(n));
+    let path = node.map(|n| engine.path(n)).unwrap_or_default();
+    let name = match (&info, callback) {
+        (Some(i), false) => i.name.clone(),
+        _ => name,
+    };
+    Panicked {
+        node: info.map(|i| i.display),
+        name,
+        path,
+        callback,
+        message,
+    }
 }
 
 /// The abort handles of running actions, by the node's storage slot (dense, so a vector beats a
@@ -299,8 +634,8 @@ impl Aborts {
         }
     }
 
-    pub(crate) fn is_empty(&self) -> bool {
-        self.len == 0
+    fn contains(&self, node: NodeId) -> bool {
+        matches!(self.slots.get(node.slot() as usize), Some(Some((id, _))) if *id == node)
     }
 
     pub(crate) fn drain(&mut self) -> impl Iterator<Item = AbortHandle> + '_ {
@@ -408,7 +743,7 @@ impl<F: Future + Unpin> Future for CatchUnwind<F> {
     }
 }
 
-fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
+pub(crate) fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
     if let Some(s) = p.downcast_ref::<&str>() {
         (*s).to_string()
     } else if let Some(s) = p.downcast_ref::<String>() {

@@ -1,7 +1,9 @@
 //! TCM, the task-tree runtime of TDL, for Rust: async actions on tokio over a deterministic core.
 //!
 //! A [`Task`] is a goal or a command with an async action. [`Runtime::run`] inserts it as the
-//! top-level task and drives the tree until its execution completes. Goals spawn children through
+//! top-level task and drives the tree until its execution completes; [`Runtime::start`] gives a
+//! [`Session`] for a program in TCM's style (several top-level tasks, wait until quiescent,
+//! inspect, terminate, finish). Goals spawn children through
 //! their [`Ctx`], with the synchronisation constraints of the TDL paper (Figure 5) given on a
 //! [`Spawner`]; commands await their hardware. Returning completes a node's handling, an error fails
 //! it (this replaces TDL's POSTPONE/Resume), and a panicking action fails its node while the run
@@ -20,19 +22,25 @@
 mod clock;
 mod ctx;
 mod host;
+mod invoke;
+mod query;
 mod runtime;
+mod session;
 mod sink;
 mod task;
 pub mod testing;
 mod timer;
 
 pub use ctx::{Ctx, Spawner};
+pub use host::Panicked;
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
+pub use session::Session;
 pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink};
 pub use task::{Action, ActionFuture, Exception, Factory, Handler, Monitor, Task, Value, factory};
 pub use tcm_core::{
     Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,
-    FatalFailure, NodeId, NodeKind, NodeRef, Point, State, Stats, Time, WatchOutcome,
+    FatalFailure, MonitorInfo, NodeId, NodeInfo, NodeKind, NodeRef, Point, State, Stats,
+    Termination, Time, WatchOutcome,
 };
 pub use tcm_core::{EachActivation, TapWhen, Then, When, WiretapId};
 pub use tcm_trace::{TraceEvent, TraceKind};
@@ -62,6 +70,9 @@ pub enum Error {
     /// The awaited child returned no value of the expected type.
     #[error("the awaited child returned no value of type {0}")]
     NoValue(&'static str),
+    /// `Runtime::start` was called outside a tokio runtime, where the driver cannot run.
+    #[error("`Runtime::start` must be called inside a tokio runtime")]
+    NoRuntime,
 }
 
 /// Runs `fut` on a new single-threaded tokio runtime whose clock is paused: virtual time, which

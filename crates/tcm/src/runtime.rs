@@ -1,15 +1,21 @@
 //! The shell: runs a task tree on tokio, real or virtual time.
 //!
-//! The driver loop (`RunLoop`, behind [`Runtime::run`]) owns no semantics. Each turn it runs the
-//! core's `Driver::turn` under the engine's lock (due timers fire, effects are carried out by the
-//! `Host` of `host.rs`, trace records are taken), hands the records to the sinks outside the lock,
-//! then sleeps until an action or handle touched the engine (spawn, terminate, raise …, each ending
-//! in a `Session` that wakes it when needed) or the next deadline, converted by `clock.rs`.
+//! The driver loop (`RunLoop`, behind [`Runtime::run`] and the program's [`Session`]) owns no
+//! semantics. Each turn it runs the core's `Driver::turn` under the engine's lock (due timers fire,
+//! effects are carried out by the `Host` of `host.rs`, trace records are taken), hands the records
+//! to the sinks outside the lock, runs the timer callbacks that came due, then sleeps until an
+//! action or handle touched the engine (spawn, terminate, raise …, each ending in an `Access` that
+//! wakes it when needed) or the next deadline, converted by `clock.rs`.
+//!
+//! [`Runtime::run`] drives the loop in the caller's task until its one top-level task ended;
+//! [`Runtime::start`] drives the same loop on a task of its own, for a program that spawns several
+//! top-level tasks, waits until the run is quiescent, inspects and terminates, then finishes.
 
 use crate::Error;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
-use crate::host::{Inner, Shared, TOP, lock};
+use crate::host::{DueCallback, Inner, Panicked, Root, Shared, Status, lock, panic_message};
+use crate::session::Session;
 use crate::sink::TraceSink;
 use crate::task::Task;
 use std::any::Any;
@@ -18,11 +24,9 @@ use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tcm_core::{
-    Blocked, Engine, Event, Failure, FailurePolicy, FatalFailure, Next, Stats, TapWhen,
-    WatchOutcome, WatchToken,
+    Blocked, Engine, Failure, FailurePolicy, FatalFailure, Next, Stats, TapWhen, WatchOutcome,
 };
-use tcm_trace::{Facet, Point};
-use tokio::sync::Notify;
+use tokio::sync::{Notify, watch};
 
 static RUNS: AtomicU32 = AtomicU32::new(1);
 
@@ -37,9 +41,35 @@ pub enum RunOutcome {
     Terminated,
     /// An unhandled failure under [`FailurePolicy::Fatal`].
     Fatal(FatalFailure),
-    /// Nothing can progress, no timer is pending and no event handle is open: these nodes wait on
-    /// events that will never come (docs/semantics.md, "Run outcome").
+    /// Nothing can progress (no action runs but those parked in an await on the engine, nothing is
+    /// ready, no timer is pending) and no event handle is open: these nodes wait on events that
+    /// will never come (docs/semantics.md, "Run outcome").
     Stuck(Vec<Blocked>),
+}
+
+impl RunOutcome {
+    /// How a run of these top-level tasks ended, once each did: the first, in spawn order, that
+    /// did not complete normally decides (its action failed, or it was terminated); otherwise the
+    /// run completed. `None` while one runs.
+    fn of_roots(roots: &[Root]) -> Option<RunOutcome> {
+        let mut outcome = RunOutcome::Completed;
+        for r in roots {
+            match r.outcome.as_ref()? {
+                WatchOutcome::Reached => {}
+                WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => {
+                    if outcome == RunOutcome::Completed {
+                        outcome = RunOutcome::TaskFailed(f.clone());
+                    }
+                }
+                WatchOutcome::Terminated | WatchOutcome::Dead => {
+                    if outcome == RunOutcome::Completed {
+                        outcome = RunOutcome::Terminated;
+                    }
+                }
+            }
+        }
+        Some(outcome)
+    }
 }
 
 /// The result of [`Runtime::run`].
@@ -51,6 +81,9 @@ pub struct Report {
     pub elapsed: Duration,
     /// Engine counters at the end.
     pub stats: Stats,
+    /// The actions (and timer callbacks) that panicked, in order. Each panic failed its node and
+    /// the run went on; `tcm::testing::run_checked` fails the test for them.
+    pub panics: Vec<Panicked>,
 }
 
 /// A handle to raise named external events from any thread or task. While any handle is open, a
@@ -60,6 +93,11 @@ pub struct EventHandle {
 }
 
 impl EventHandle {
+    /// A handle counted among the open ones.
+    pub(crate) fn new(shared: Arc<Shared>) -> EventHandle {
+        EventHandle { shared }
+    }
+
     /// Raises the event `name` (latched: constraints applied later find it raised).
     pub fn raise(&self, name: &str) -> Result<(), Error> {
         let mut s = self.shared.enter()?;
@@ -136,6 +174,7 @@ impl Runtime {
                 wake: Notify::new(),
                 clock: Clock::new(),
                 handles: AtomicUsize::new(0),
+                status: watch::Sender::new(Status::default()),
             }),
             sinks: Vec::new(),
             precise: false,
@@ -196,56 +235,114 @@ impl Runtime {
     }
 
     /// Runs `task` as the top-level task until its execution completes, it fails fatally, or the run
-    /// is stuck. Actions run as tokio tasks of the current runtime.
+    /// is stuck. Actions run as tokio tasks of the current runtime. The same as
+    /// [`Runtime::start`], [`Session::spawn`] and [`Session::finish`], with the driver loop in the
+    /// caller's task.
     pub async fn run(mut self, task: Task) -> Result<Report, Error> {
-        let shared = self.shared.clone();
-        let top = {
+        let shared = self.prepare(tokio::runtime::Handle::current())?;
+        {
             let mut inner = shared.enter()?;
-            inner.spawner = Some(tokio::runtime::Handle::current());
-            // Nobody reads the trace: do not build it.
-            inner.engine.set_tracing(!self.sinks.is_empty());
+            inner.finishing = true;
             let now = shared.now();
             let root = inner.engine.root();
-            let top = inner.engine.spawn(now, task.into_spawn(root).0)?;
-            inner.engine.watch(
-                now,
-                Event::on(top, Facet::Execution, Point::Completed),
-                WatchToken(TOP),
-            )?;
-            top
-        };
-        let _ = top;
-        let timer = if self.precise {
-            Some(crate::timer::PreciseTimer::start(shared.clone()).map_err(Error::Timer)?)
-        } else {
-            None
-        };
+            let task_name = task.renamed();
+            inner.spawn_root(now, task.into_spawn(root).0, task_name)?;
+        }
+        let timer = self.timer()?;
         let outcome = RunLoop::new(shared.clone(), timer)
             .drive(&mut self.sinks)
             .await;
         for s in &mut self.sinks {
             s.flush();
         }
-        let outcome = outcome?;
-        let stats = lock(&shared)?.engine.stats();
-        Ok(Report {
-            outcome,
-            elapsed: shared.now().since_start(),
-            stats,
-        })
+        report(&shared, outcome?)
     }
+
+    /// Starts the run for a program in TCM's style (TCM's `TCM_ProcessAgenda`): spawn several
+    /// top-level tasks with [`Session::spawn`], wait until nothing more can run with
+    /// [`Session::quiescent`], inspect or terminate nodes, and end with [`Session::finish`]. The
+    /// driver loop runs on a task of the current tokio runtime meanwhile (an error outside one).
+    ///
+    /// ```
+    /// # #[tokio::main(flavor = "current_thread", start_paused = true)]
+    /// # async fn main() -> Result<(), tcm::Error> {
+    /// use tcm::{Constraint, Facet, RunOutcome, Runtime, State, Task, When};
+    ///
+    /// let session = Runtime::new().start()?;
+    /// let beep = session.spawn(Task::command("beep", |_| async { Ok(()) }))?;
+    /// let door = session.external("door_open")?;
+    /// let enter = session.spawn(
+    ///     Task::command("enter", |_| async { Ok(()) })
+    ///         .with(Constraint::disable(Facet::Handling, When::External(door))),
+    /// )?;
+    /// // Nothing more can run: `beep` is done, `enter` waits for an event nobody raises.
+    /// session.quiescent().await?;
+    /// assert!(session.info(beep)?.is_none(), "completed, and reclaimed");
+    /// let state = session.info(enter)?.map(|i| i.state(Facet::Handling));
+    /// assert_eq!(state, Some(State::Disabled));
+    /// session.terminate(enter)?;
+    /// let report = session.finish().await?;
+    /// assert_eq!(report.outcome, RunOutcome::Terminated);
+    /// # Ok(())
+    /// # }
+    /// ```
+    pub fn start(mut self) -> Result<Session, Error> {
+        let handle = tokio::runtime::Handle::try_current().map_err(|_| Error::NoRuntime)?;
+        let shared = self.prepare(handle.clone())?;
+        let root = lock(&shared)?.engine.root();
+        let timer = self.timer()?;
+        let mut sinks = std::mem::take(&mut self.sinks);
+        let driver = RunLoop::new(shared.clone(), timer);
+        let driver = handle.spawn(async move {
+            let outcome = driver.drive(&mut sinks).await;
+            for s in &mut sinks {
+                s.flush();
+            }
+            outcome
+        });
+        Ok(Session::new(shared, root, driver))
+    }
+
+    /// Makes the run ready to drive: where actions are spawned, and whether to build the trace.
+    fn prepare(&self, rt: tokio::runtime::Handle) -> Result<Arc<Shared>, Error> {
+        let mut inner = lock(&self.shared)?;
+        inner.spawner = Some(rt);
+        // Nobody reads the trace: do not build it.
+        inner.engine.set_tracing(!self.sinks.is_empty());
+        Ok(self.shared.clone())
+    }
+
+    fn timer(&self) -> Result<Option<crate::timer::PreciseTimer>, Error> {
+        if self.precise {
+            let t = crate::timer::PreciseTimer::start(self.shared.clone()).map_err(Error::Timer)?;
+            Ok(Some(t))
+        } else {
+            Ok(None)
+        }
+    }
+}
+
+/// The report of a run that ended with `outcome`.
+pub(crate) fn report(shared: &Shared, outcome: RunOutcome) -> Result<Report, Error> {
+    let mut inner = lock(shared)?;
+    Ok(Report {
+        outcome,
+        elapsed: shared.now().since_start(),
+        stats: inner.engine.stats(),
+        panics: std::mem::take(&mut inner.panics),
+    })
 }
 
 /// The driver loop's view of the run after one turn.
 struct Turn {
     next: Next,
-    fatal: Option<FatalFailure>,
-    // The stuck report, when the run can no longer progress.
-    blocked: Option<Vec<Blocked>>,
-    top_done: Option<WatchOutcome>,
+    // How the run ended, if it did.
+    end: Option<RunOutcome>,
+    // Timer callbacks that came due, to run outside the lock.
+    due: Vec<DueCallback>,
 }
 
-struct RunLoop {
+pub(crate) struct RunLoop {
     shared: Arc<Shared>,
     timer: Option<crate::timer::PreciseTimer>,
 }
@@ -256,9 +353,10 @@ impl RunLoop {
     }
 
     /// One turn of the core's driver under the lock: due timers fire, effects are carried out,
-    /// trace records are taken for the sinks.
+    /// trace records and due callbacks are taken; then whether the run ended, and, for
+    /// [`Session::quiescent`], whether it is quiet.
     fn turn(&self, trace: &mut Vec<tcm_trace::TraceEvent>) -> Result<Turn, Error> {
-        // A plain lock, not a `Session`: the driver decides itself what to do next, and waking
+        // A plain lock, not an `Access`: the driver decides itself what to do next, and waking
         // itself would spin while the run waits for an event handle.
         let mut inner = lock(&self.shared)?;
         let now = self.shared.now();
@@ -267,15 +365,42 @@ impl RunLoop {
         let next = tcm_core::Driver::turn(engine, &mut host, now);
         trace.append(&mut inner.trace);
         inner.armed = next.deadline;
-        let running = !inner.aborts.is_empty();
-        let over = next.idle && !running && self.shared.handles.load(Ordering::SeqCst) == 0;
-        Ok(Turn {
-            next,
-            fatal: inner.engine.fatal().cloned(),
+        inner.clear_roots_changed();
+        let mut due = std::mem::take(&mut inner.due);
+        let quiet = due.is_empty() && inner.quiet();
+        let end = if let Some(f) = inner.engine.fatal() {
+            // The run ends at once: due callbacks do not run.
+            due.clear();
+            Some(RunOutcome::Fatal(f.clone()))
+        } else if !due.is_empty() {
+            // They run first, even if the run is about to end: they came due before it did.
+            for d in &due {
+                inner.engine.callback_ran(d.token, &d.name);
+            }
+            let (engine, mut host) = inner.split(&self.shared);
+            tcm_core::Driver::trace(engine, &mut host);
+            trace.append(&mut inner.trace);
+            None
+        } else if !inner.finishing {
+            None
+        } else if let Some(outcome) = RunOutcome::of_roots(&inner.roots) {
+            Some(outcome)
+        } else if quiet && self.shared.handles.load(Ordering::SeqCst) == 0 {
             // The stuck report scans every node: only when the run is over.
-            blocked: over.then(|| inner.engine.blocked()),
-            top_done: inner.top_done.clone(),
-        })
+            let awaits = inner.parking.awaits();
+            Some(RunOutcome::Stuck(inner.engine.blocked_awaiting(&awaits)))
+        } else {
+            None
+        };
+        // Published under the lock, so a program that reads the turn number under it sees a turn
+        // that began after its own changes (`Session::quiescent`).
+        let ended = end.is_some();
+        self.shared.status.send_modify(|s| {
+            s.turn += 1;
+            s.quiet = quiet;
+            s.ended = ended;
+        });
+        Ok(Turn { next, end, due })
     }
 
     /// The driver loop. It is the one intentionally endless loop of the runtime: each turn ends in
@@ -283,24 +408,27 @@ impl RunLoop {
     async fn drive(self, sinks: &mut [Box<dyn TraceSink>]) -> Result<RunOutcome, Error> {
         let mut trace = Vec::new();
         let result = loop {
-            let turn = self.turn(&mut trace)?;
+            let turn = match self.turn(&mut trace) {
+                Ok(turn) => turn,
+                Err(e) => {
+                    self.end();
+                    return Err(e);
+                }
+            };
             for ev in trace.drain(..) {
                 for s in sinks.iter_mut() {
                     s.record(&ev);
                 }
             }
-            if let Some(f) = turn.fatal {
-                break RunOutcome::Fatal(f);
+            if let Some(end) = turn.end {
+                break end;
             }
-            if let Some(outcome) = turn.top_done {
-                break match outcome {
-                    WatchOutcome::Reached => RunOutcome::Completed,
-                    WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => RunOutcome::TaskFailed(f),
-                    WatchOutcome::Terminated | WatchOutcome::Dead => RunOutcome::Terminated,
-                };
-            }
-            if let Some(blocked) = turn.blocked {
-                break RunOutcome::Stuck(blocked);
+            if !turn.due.is_empty() {
+                for due in turn.due {
+                    self.run_callback(due);
+                }
+                // The callbacks may have changed the engine: look again at once.
+                continue;
             }
             let mut sleep = turn.next.deadline.map(|t| self.shared.clock.instant(t));
             if let Some(timer) = &self.timer {
@@ -316,12 +444,55 @@ impl RunLoop {
                 }
             }
         };
-        // Whatever still runs belongs to a run that is over.
-        let mut inner = lock(&self.shared)?;
+        self.end();
+        Ok(result)
+    }
+
+    /// Runs a timer callback on the driver's task, outside the lock (it may call the engine). A
+    /// panic is recorded, like an action's, and the run goes on.
+    fn run_callback(&self, due: DueCallback) {
+        let DueCallback {
+            name,
+            node,
+            f,
+            outcome,
+            ..
+        } = due;
+        let ctx = Ctx {
+            shared: self.shared.clone(),
+            node,
+            purpose: None,
+            job: None,
+        };
+        let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(ctx, outcome)));
+        if let Err(panic) = res {
+            if let Ok(mut inner) = lock(&self.shared) {
+                let by = (node != inner.engine.root()).then_some(node);
+                let message = panic_message(panic.as_ref());
+                let record =
+                    crate::host::panicked(&inner.engine, by, name.to_string(), true, message);
+                inner.panics.push(record);
+            }
+        }
+    }
+
+    fn end(&self) {
+        end_run(&self.shared);
+    }
+}
+
+/// The run is over: whatever still runs belongs to a run that is over, no callback will run, and
+/// whoever waits is told.
+pub(crate) fn end_run(shared: &Shared) {
+    if let Ok(mut inner) = lock(shared) {
+        inner.ended = true;
         for h in inner.aborts.drain() {
             h.abort();
         }
-        Ok(result)
+        inner.callbacks.clear();
+        inner.due.clear();
+        inner.watchers.clear();
+        shared.status.send_modify(|s| s.ended = true);
     }
 }
 

@@ -151,6 +151,8 @@ impl Handler {
 pub struct Task {
     pub(crate) kind: NodeKind,
     pub(crate) name: Name,
+    // The task's own name; the instance name differs once `named` renamed it.
+    pub(crate) task_name: Name,
     pub(crate) action: Option<Action>,
     pub(crate) constraints: Vec<Constraint>,
     pub(crate) on_terminate: Vec<Task>,
@@ -164,6 +166,7 @@ impl Task {
     fn bare(kind: NodeKind, name: Name, action: Option<Action>) -> Task {
         Task {
             kind,
+            task_name: name.clone(),
             name,
             action,
             constraints: Vec::new(),
@@ -251,6 +254,17 @@ impl Task {
         &self.name
     }
 
+    /// The task's own name, which [`Task::named`] leaves alone (TCM's type name, TDL's task name):
+    /// what [`Ctx::is_instance_of`] compares with.
+    pub fn task_name(&self) -> &str {
+        &self.task_name
+    }
+
+    /// The task name to keep beside the node, when it differs from the instance name.
+    pub(crate) fn renamed(&self) -> Option<Name> {
+        (self.task_name != self.name).then(|| self.task_name.clone())
+    }
+
     /// The node kind.
     pub fn kind(&self) -> NodeKind {
         self.kind
@@ -284,7 +298,8 @@ impl Task {
         self
     }
 
-    /// Renames the instance (TDL's `name` constraint).
+    /// Renames the instance (TDL's `name` constraint); the task name stays (see
+    /// [`Task::task_name`]).
     pub fn named(mut self, name: impl Into<Name>) -> Task {
         self.name = name.into();
         self

@@ -13,14 +13,27 @@
 //! ```
 //!
 //! These are test helpers: they panic, with the story of the run, when something is wrong.
+//!
+//! A panicking action (an `assert!` in a body) only fails its node, and the run goes on
+//! (docs/semantics.md, "Exceptions and handlers"); here it fails the test instead, with the panic's
+//! message: [`run_checked`] panics after the run, naming the action and its node's path. A test
+//! about panics uses [`run_checked_allowing_panics`].
 
 use crate::{Recorder, Report, Runtime, Task};
 use tcm_trace::TraceEvent;
 pub use tcm_trace::story::{assert_order, handler_choices, only, story};
 
-/// Runs `task` on `rt` with a recorder, and asserts that the run ends and that its trace passes
-/// the trace checker. Returns the report and the trace.
+/// Runs `task` on `rt` with a recorder, and asserts that the run ends, that no action panicked and
+/// that its trace passes the trace checker. Returns the report and the trace.
 pub async fn run_checked(rt: Runtime, task: Task) -> (Report, Vec<TraceEvent>) {
+    let (report, trace) = run_checked_allowing_panics(rt, task).await;
+    assert_no_panics(&report, &trace);
+    (report, trace)
+}
+
+/// As [`run_checked`], but an action's panic only fails its node, as outside tests: for tests of
+/// what a panic does. The panics are in [`Report::panics`].
+pub async fn run_checked_allowing_panics(rt: Runtime, task: Task) -> (Report, Vec<TraceEvent>) {
     let rec = Recorder::new();
     let res = rt.with_sink(rec.clone()).run(task).await;
     let trace = rec.events();
@@ -30,6 +43,16 @@ pub async fn run_checked(rt: Runtime, task: Task) -> (Report, Vec<TraceEvent>) {
             (report, trace)
         }
         Err(e) => panic!("the run failed: {e}\nstory:\n{}", story(&trace).join("\n")),
+    }
+}
+
+/// Asserts that no action (or timer callback) of the run panicked: otherwise panics with each
+/// panic's message, as `action <name> {<node>} (<path>) panicked: <message>`, and the story.
+#[track_caller]
+pub fn assert_no_panics(report: &Report, trace: &[TraceEvent]) {
+    if !report.panics.is_empty() {
+        let text: Vec<String> = report.panics.iter().map(ToString::to_string).collect();
+        panic!("{}\n\nstory:\n{}", text.join("\n"), story(trace).join("\n"));
     }
 }
 

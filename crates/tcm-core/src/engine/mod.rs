@@ -19,9 +19,10 @@
 //! | commands: monitors | [`Engine::activate`], [`Engine::trigger`] | `monitor.rs` |
 //! | commands: exceptions | [`Engine::request_bypass`], [`Engine::retry`] | `exception.rs` |
 //! | commands: wiretaps | [`Engine::wiretap`] | `wiretap.rs` |
+//! | commands: timer callbacks | [`Engine::invoke_when`], [`Engine::invoke_at`], [`Engine::notify_at`], [`Engine::callback_ran`] | `callback.rs` |
 //! | outputs | [`Engine::poll_effect`], [`Engine::poll_trace`], [`Engine::poll_timeout`] | here |
-//! | queries | [`Engine::root`], [`Engine::now`], [`Engine::stats`], [`Engine::path`], [`Engine::fatal`], [`Engine::is_idle`] | here |
-//! | | [`Engine::info`], [`Engine::parent`], [`Engine::children`], [`Engine::blocked`] | `report.rs` |
+//! | queries | [`Engine::root`], [`Engine::now`], [`Engine::stats`], [`Engine::path`], [`Engine::fatal`], [`Engine::is_idle`], [`Engine::is_settled`] | here |
+//! | | [`Engine::info`], [`Engine::parent`], [`Engine::children`], [`Engine::monitor_info`], [`Engine::blocked`], [`Engine::blocked_awaiting`] | `report.rs` |
 //!
 //! Every entry point that takes a node handle checks first that it belongs to this run
 //! (`check_run`, through `live` or `lookup`): a handle of another run is an error, never an alias.
@@ -60,6 +61,7 @@ macro_rules! emit {
 
 mod api;
 mod arm;
+mod callback;
 mod exception;
 mod monitor;
 pub(crate) mod node;
@@ -82,7 +84,7 @@ pub use monitor::{EachActivation, MonitorSpec};
 use node::Node;
 pub use node::{OnTerminate, Purpose};
 use progress::timer_is_live;
-pub use report::{Blocked, NodeInfo};
+pub use report::{Blocked, MonitorInfo, NodeInfo};
 use std::collections::{BTreeMap, VecDeque};
 use tcm_trace::{State, TRACE_FORMAT_VERSION, TraceEvent, TraceKind};
 use timers::Timers;
@@ -239,10 +241,15 @@ impl<A, F: Clone> Engine<A, F> {
     /// Whether nothing can happen without a new input: no action runs, no timer is pending, nothing
     /// is ready. A run that is idle before its task completed is stuck (see [`Engine::blocked`]).
     pub fn is_idle(&mut self) -> bool {
-        self.running == 0
-            && self.ready.is_empty()
-            && self.work.is_empty()
-            && self.poll_timeout().is_none()
+        self.running == 0 && self.is_settled()
+    }
+
+    /// Whether only the running actions (or a new input) can change anything: nothing is ready and
+    /// no timer is pending. A shell that knows every running action waits on the engine itself
+    /// (parked in an await on a watch) knows the run is stuck then (docs/semantics.md, "Run
+    /// outcome").
+    pub fn is_settled(&mut self) -> bool {
+        self.ready.is_empty() && self.work.is_empty() && self.poll_timeout().is_none()
     }
 
     /// Moves the engine's clock to `now`. It never skips a deadline: timers due before `now` fire

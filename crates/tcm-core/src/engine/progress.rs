@@ -127,6 +127,10 @@ impl<A, F: Clone> Engine<A, F> {
             match entry {
                 TimerKind::Trigger { target, then } => self.fire_trigger(target, then, true),
                 TimerKind::Poll { monitor, k } => self.poll(monitor, k),
+                TimerKind::Notify { token } => self.effects.push_back(Effect::Notify {
+                    token,
+                    outcome: WatchOutcome::Reached,
+                }),
             }
             self.settle();
         }
@@ -442,5 +446,7 @@ pub(super) fn timer_is_live<A, F>(nodes: &Arena<A, F>, kind: &TimerKind) -> bool
         TimerKind::Poll { monitor, .. } => nodes
             .get(monitor)
             .is_some_and(|n| n.alive() && n.state(Facet::Handling) == State::Active),
+        // A timer callback belongs to no node: it matters until it fires.
+        TimerKind::Notify { .. } => true,
     }
 }

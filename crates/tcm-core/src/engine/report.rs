@@ -1,12 +1,14 @@
-//! Read-only views of the engine: node information and the report of a stuck run.
+//! Read-only views of the engine: node and monitor information, and the report of a stuck run.
 
 use super::Engine;
-use super::node::WaitKind;
+use super::node::{Node, WaitKind};
 use crate::NodeKind;
-use crate::constraint::Then;
+use crate::constraint::{Event, NodeRef, Then};
 use crate::ids::NodeId;
+use std::collections::BTreeMap;
 use std::fmt;
-use tcm_trace::{Facet, State, Termination};
+use std::time::Duration;
+use tcm_trace::{Facet, Point, State, Termination};
 
 /// A snapshot of one node.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -27,6 +29,49 @@ pub struct NodeInfo {
     pub failed: bool,
 }
 
+impl NodeInfo {
+    /// The state of one facet.
+    pub fn state(&self, facet: Facet) -> State {
+        self.states[facet.index()]
+    }
+
+    /// Whether `facet` is at or past `point` (docs/semantics.md, "Events": a facet that skipped a
+    /// state has passed it).
+    pub fn reached(&self, facet: Facet, point: Point) -> bool {
+        self.state(facet) >= point.state()
+    }
+
+    /// Whether it was asked to terminate and its subtree is still winding down.
+    pub fn is_terminating(&self) -> bool {
+        self.termination == Termination::Terminating
+    }
+
+    /// Whether it and its subtree are terminated.
+    pub fn is_terminated(&self) -> bool {
+        self.termination == Termination::Terminated
+    }
+}
+
+/// A monitor's counts and parameters (TCM's `TCM_NumActivations`, `TCM_NumTriggers` and the
+/// monitor getters).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MonitorInfo {
+    /// The monitor (an activation node's query answers for its monitor).
+    pub monitor: NodeId,
+    /// Activations made so far.
+    pub activations: u32,
+    /// Triggers counted so far.
+    pub triggers: u32,
+    /// The monitor completes after this many activations.
+    pub max_activations: Option<u32>,
+    /// The monitor completes after this many triggers.
+    pub max_triggers: Option<u32>,
+    /// Polling period, if it polls.
+    pub period: Option<Duration>,
+    /// Whether the polling activation at start is skipped.
+    pub initial_wait: bool,
+}
+
 /// A node that cannot progress, and what it waits for.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Blocked {
@@ -34,17 +79,27 @@ pub struct Blocked {
     pub node: u64,
     /// Its instance name.
     pub name: String,
-    /// The facet that cannot become enabled.
+    /// The facet that cannot move on.
     pub facet: Facet,
+    /// The point the facet cannot reach: `Enabled` for a facet its constraints (or its parent) hold
+    /// disabled; `Active` for an enabled handling that cannot start (its node is suspended);
+    /// `Completed` for an active handling that cannot complete (its action is parked in an await on
+    /// the engine, or it is a monitor that no activation can reach).
+    pub point: Point,
     /// What it waits for, in words.
     pub waits_for: Vec<String>,
 }
 
 impl fmt::Display for Blocked {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let how = match self.point {
+            Point::Enabled => "",
+            Point::Active => " is enabled and",
+            Point::Completed => " is active and",
+        };
         write!(
             f,
-            "{} {{{}}} {} waits for {}",
+            "{} {{{}}} {}{how} waits for {}",
             self.name,
             self.node,
             self.facet,
@@ -87,17 +142,104 @@ impl<A, F: Clone> Engine<A, F> {
         out
     }
 
-    /// Every alive node whose facets cannot become enabled, with what each waits for: the report of a
-    /// stuck run (docs/semantics.md, "Run outcome"). Ordered by node number.
+    /// The counts and parameters of a live monitor, given the monitor or one of its activation
+    /// nodes; `None` for any other node.
+    pub fn monitor_info(&self, id: NodeId) -> Option<MonitorInfo> {
+        let n = self.query(id)?;
+        let monitor = n.activation_of().unwrap_or(id);
+        let m = self.nodes.get(monitor)?.monitor()?;
+        Some(MonitorInfo {
+            monitor,
+            activations: m.activations,
+            triggers: m.triggers,
+            max_activations: m.spec.max_activations,
+            max_triggers: m.spec.max_triggers,
+            period: m.spec.period,
+            initial_wait: m.spec.initial_wait,
+        })
+    }
+
+    /// Every alive node that cannot progress, with what each waits for: the report of a stuck run
+    /// (docs/semantics.md, "Run outcome"). Ordered by node number. The same as
+    /// [`Engine::blocked_awaiting`] with no action parked.
     pub fn blocked(&self) -> Vec<Blocked> {
-        use std::collections::BTreeMap;
-        // (waiting node display, facet) -> reasons
-        let mut reasons: BTreeMap<(u64, Facet), Vec<String>> = BTreeMap::new();
+        self.blocked_awaiting(&[])
+    }
+
+    /// The report of a stuck run, given the actions the shell knows are parked in an await on an
+    /// engine event (`awaits`: the node whose action, or wiretap check, awaits, and the event).
+    ///
+    /// Every waiting node is named (docs/semantics.md, "Run outcome"): a facet held disabled, with
+    /// the events, timers or gates it waits for, its parent's facet, or its parent's held children;
+    /// an enabled handling of a suspended node; an active handling whose action is parked, with each
+    /// event it awaits; and a monitor whose handling waits for activations, with those armed.
+    /// Ordered by node number, then facet, then point.
+    pub fn blocked_awaiting(&self, awaits: &[(NodeId, Event)]) -> Vec<Blocked> {
+        let Reasons {
+            mut enable,
+            mut activate,
+        } = self.reasons();
+        let mut parked = self.parked(awaits);
+        let mut out = Vec::new();
+        for (_, n) in self.nodes.iter() {
+            if n.reserved || n.kind == NodeKind::Root || !n.alive() {
+                continue;
+            }
+            let mut push = |facet, point, waits_for| {
+                out.push(Blocked {
+                    node: n.display,
+                    name: n.name.to_string(),
+                    facet,
+                    point,
+                    waits_for,
+                });
+            };
+            for facet in Facet::ALL {
+                if n.state(facet) != State::Disabled {
+                    continue;
+                }
+                let mut waits_for = enable.remove(&(n.display, facet)).unwrap_or_default();
+                if waits_for.is_empty() {
+                    match self.disabled_for(n, facet) {
+                        Some(why) => waits_for.push(why),
+                        None => continue,
+                    }
+                }
+                push(facet, Point::Enabled, waits_for);
+            }
+            match n.state(Facet::Handling) {
+                State::Enabled if n.suspended => {
+                    push(
+                        Facet::Handling,
+                        Point::Active,
+                        vec!["being unsuspended".into()],
+                    );
+                }
+                State::Active => {
+                    if let Some(w) = parked.remove(&n.display) {
+                        push(Facet::Handling, Point::Completed, w);
+                    } else if n.monitor().is_some() {
+                        let w = activate
+                            .remove(&n.display)
+                            .unwrap_or_else(|| vec!["an activation, and none is armed".into()]);
+                        push(Facet::Handling, Point::Completed, w);
+                    }
+                }
+                _ => {}
+            }
+        }
+        out.sort_by_key(|b| (b.node, b.facet, b.point));
+        out
+    }
+
+    /// What the waiters of every node and external event wait for, by the node they would release.
+    fn reasons(&self) -> Reasons {
+        let mut r = Reasons::default();
         for (_, n) in self.nodes.iter() {
             for w in n.waiters.iter() {
                 let WaitKind::Trigger {
                     target,
-                    then: Then::Enable(facet),
+                    then,
                     delay: after,
                 } = w.kind
                 else {
@@ -106,17 +248,20 @@ impl<A, F: Clone> Engine<A, F> {
                 let Some(t) = self.nodes.get(target) else {
                     continue;
                 };
-                let mut what = format!(
-                    "{} {{{}}} {} {}",
-                    n.name,
-                    n.display,
-                    w.facet,
-                    w.point.as_str()
-                );
+                let mut what = describe(n, w.facet, w.point);
                 if let Some(d) = after {
                     what = format!("{d:?} after {what}");
                 }
-                reasons.entry((t.display, facet)).or_default().push(what);
+                match then {
+                    Then::Enable(facet) => {
+                        r.enable.entry((t.display, facet)).or_default().push(what)
+                    }
+                    Then::Activate => {
+                        let what = format!("an activation when {what}");
+                        r.activate.entry(t.display).or_default().push(what);
+                    }
+                    Then::Terminate => {}
+                }
             }
         }
         for ext in &self.externals {
@@ -128,57 +273,93 @@ impl<A, F: Clone> Engine<A, F> {
                 } = w
                 {
                     if let Some(t) = self.nodes.get(*target) {
-                        reasons
+                        r.enable
                             .entry((t.display, *facet))
                             .or_default()
                             .push(format!("external event `{}`", ext.name));
                     }
                 }
             }
-        }
-        let mut out = Vec::new();
-        for (_, n) in self.nodes.iter() {
-            if n.reserved || n.kind == NodeKind::Root || !n.alive() {
-                continue;
-            }
-            for facet in Facet::ALL {
-                if n.state(facet) != State::Disabled {
-                    continue;
+            for m in &ext.activators {
+                if let Some(t) = self.nodes.get(*m) {
+                    r.activate
+                        .entry(t.display)
+                        .or_default()
+                        .push(format!("an activation on external event `{}`", ext.name));
                 }
-                let mut waits_for = reasons.remove(&(n.display, facet)).unwrap_or_default();
-                if waits_for.is_empty() {
-                    if n.suspended {
-                        waits_for.push("being unsuspended".into());
-                    } else if facet == Facet::Handling && n.blocks[0] == 0 {
-                        continue; // Gated by its own expansion or execution, reported there.
-                    } else if n.blocks[facet.index()] == 0 {
-                        let parent_waits = n
-                            .parent
-                            .and_then(|p| self.nodes.get(p))
-                            .is_some_and(|p| p.state(facet) == State::Disabled);
-                        if parent_waits {
-                            continue; // Its parent's facet is reported instead.
-                        }
-                        if facet == Facet::Execution && n.expand_first {
-                            waits_for.push("its own expansion (expand first)".into());
-                        } else if facet == Facet::Expansion && n.delay_expansion {
-                            waits_for.push("its own execution (delay expansion)".into());
-                        } else {
-                            continue;
-                        }
-                    } else {
-                        waits_for.push(format!("{} timer(s) or gate(s)", n.blocks[facet.index()]));
-                    }
-                }
-                out.push(Blocked {
-                    node: n.display,
-                    name: n.name.to_string(),
-                    facet,
-                    waits_for,
-                });
             }
         }
-        out.sort_by_key(|b| (b.node, b.facet));
-        out
+        r
     }
+
+    /// What each parked action awaits, by the display number of its node, in the order given.
+    fn parked(&self, awaits: &[(NodeId, Event)]) -> BTreeMap<u64, Vec<String>> {
+        let mut parked: BTreeMap<u64, Vec<String>> = BTreeMap::new();
+        for (node, event) in awaits {
+            let Some(n) = self.query(*node) else { continue };
+            let what = match event.node {
+                NodeRef::Node(id) => match self.query(id) {
+                    Some(e) => describe(e, event.facet, event.point),
+                    None => format!("{id} {} {}", event.facet, event.point.as_str()),
+                },
+                other => format!("{other:?} {} {}", event.facet, event.point.as_str()),
+            };
+            parked
+                .entry(n.display)
+                .or_default()
+                .push(format!("its action, which awaits {what}"));
+        }
+        parked
+    }
+
+    /// Why a disabled facet with no trigger left on it stays disabled, if the engine knows; `None`
+    /// when it is only gated by another facet of its own node, reported there.
+    fn disabled_for(&self, n: &Node<A, F>, facet: Facet) -> Option<String> {
+        if n.suspended {
+            return Some("being unsuspended".into());
+        }
+        let blocks = n.blocks[facet.index()];
+        if blocks > 0 {
+            return Some(format!("{blocks} timer(s) or gate(s)"));
+        }
+        if facet == Facet::Handling {
+            // Gated by its own expansion (goal-like) or execution (command-like).
+            return None;
+        }
+        if let Some(p) = n.parent.and_then(|p| self.nodes.get(p)) {
+            if p.kind != NodeKind::Root && p.state(facet) == State::Disabled {
+                return Some(format!(
+                    "its parent {} {{{}}} {facet} enabled",
+                    p.name, p.display
+                ));
+            }
+            if p.holding && p.state(Facet::Handling) == State::Active {
+                return Some(format!(
+                    "its parent {} {{{}}} to return or wait (it holds its children)",
+                    p.name, p.display
+                ));
+            }
+        }
+        if facet == Facet::Execution && n.expand_first {
+            return Some("its own expansion (expand first)".into());
+        }
+        if facet == Facet::Expansion && n.delay_expansion {
+            return Some("its own execution (delay expansion)".into());
+        }
+        None
+    }
+}
+
+/// What waiters wait for, by the node they would release.
+#[derive(Default)]
+struct Reasons {
+    // (waiting node display, facet) -> why its facet is held disabled.
+    enable: BTreeMap<(u64, Facet), Vec<String>>,
+    // Monitor display -> the armed activations that could still come.
+    activate: BTreeMap<u64, Vec<String>>,
+}
+
+/// `name {display} facet point`, as the report writes an event.
+fn describe<A, F>(n: &Node<A, F>, facet: Facet, point: Point) -> String {
+    format!("{} {{{}}} {} {}", n.name, n.display, facet, point.as_str())
 }

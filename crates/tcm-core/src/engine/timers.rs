@@ -6,7 +6,7 @@
 //! could outnumber live ones, so memory stays proportional to live timers.
 
 use crate::constraint::Then;
-use crate::ids::NodeId;
+use crate::ids::{NodeId, WatchToken};
 use crate::time::Time;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -17,6 +17,8 @@ pub(crate) enum TimerKind {
     Trigger { target: NodeId, then: Then },
     /// Polling activation `k` of a monitor (due at its start + k periods).
     Poll { monitor: NodeId, k: u64 },
+    /// Tell the shell ([`super::Effect::Notify`]): a timer callback is due (`callback.rs`).
+    Notify { token: WatchToken },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -88,7 +90,7 @@ impl Timers {
             .into_iter()
             .filter_map(|e| match e.kind {
                 TimerKind::Trigger { target, then } => Some((target, then)),
-                TimerKind::Poll { .. } => None,
+                TimerKind::Poll { .. } | TimerKind::Notify { .. } => None,
             })
             .collect()
     }

@@ -318,3 +318,130 @@ fn a_node_stays_small() {
         std::mem::size_of::<crate::engine::node::Node<crate::sim::Body, crate::sim::Factory>>();
     assert!(size <= 208, "a node takes {size} bytes");
 }
+
+#[test]
+fn timer_callbacks_notify_their_token_and_a_timed_one_is_a_pending_timer() {
+    let mut e: Bare = Engine::new(1);
+    let a = command(&mut e, "a", &[]);
+    started(&mut e, a);
+    let at = Time::ZERO + s(2.0);
+    e.invoke_at(Time::ZERO, at, WatchToken(7), "later", Some(a))
+        .expect("invoke_at");
+    e.invoke_when(
+        Time::ZERO,
+        Event::on(a, Facet::Execution, Point::Completed),
+        WatchToken(8),
+        "after a",
+        None,
+    )
+    .expect("invoke_when");
+    // The timed one is a deadline: the engine is not settled while it is pending.
+    assert_eq!(e.poll_timeout(), Some(at));
+    assert!(!e.is_settled());
+    assert!(e.poll_effect().is_none());
+    e.handle_action_finished(Time::ZERO + s(1.0), a, Ok(()))
+        .expect("finished");
+    assert!(matches!(
+        e.poll_effect(),
+        Some(Effect::Notify {
+            token: WatchToken(8),
+            outcome: WatchOutcome::Reached
+        })
+    ));
+    e.handle_timeout(at);
+    assert!(matches!(
+        e.poll_effect(),
+        Some(Effect::Notify {
+            token: WatchToken(7),
+            outcome: WatchOutcome::Reached
+        })
+    ));
+    e.callback_ran(WatchToken(7), "later");
+    assert!(e.is_settled() && e.is_idle());
+    let trace = checked_trace(&mut e);
+    let callbacks: Vec<&TraceKind> = trace
+        .iter()
+        .map(|ev| &ev.kind)
+        .filter(|k| {
+            matches!(
+                k,
+                TraceKind::CallbackSet { .. } | TraceKind::CallbackRan { .. }
+            )
+        })
+        .collect();
+    assert!(matches!(
+        callbacks[..],
+        [
+            TraceKind::CallbackSet {
+                callback: 7,
+                node: Some(1),
+                ..
+            },
+            TraceKind::CallbackSet {
+                callback: 8,
+                node: None,
+                ..
+            },
+            TraceKind::CallbackRan { callback: 7, .. },
+        ]
+    ));
+}
+
+#[test]
+fn the_stuck_report_names_parked_actions_and_their_waiting_children() {
+    let mut e: Bare = Engine::new(1);
+    let root = e.root();
+    // `plan` expands first; its action waits for `measure`, whose execution waits for `plan`'s.
+    let plan = spawn(
+        &mut e,
+        root,
+        NodeKind::Goal,
+        "plan",
+        &[Constraint::ExpandFirst],
+    );
+    started(&mut e, plan);
+    let measure = spawn(&mut e, plan, NodeKind::Command, "measure", &[]);
+    let awaited = Event::on(measure, Facet::Execution, Point::Completed);
+    e.watch(Time::ZERO, awaited, WatchToken(1)).expect("watch");
+    assert!(
+        e.is_settled() && !e.is_idle(),
+        "only the parked action runs"
+    );
+    let text = |b: Vec<Blocked>| b.iter().map(ToString::to_string).collect::<Vec<_>>();
+    assert_eq!(
+        text(e.blocked_awaiting(&[(plan, awaited)])),
+        [
+            "plan {1} handling is active and waits for its action, which awaits measure {2} \
+             execution completed",
+            "plan {1} execution waits for its own expansion (expand first)",
+            "measure {2} execution waits for its parent plan {1} execution enabled",
+        ]
+    );
+    // Without the parked action, the engine alone still names both nodes.
+    assert_eq!(text(e.blocked()).len(), 2);
+    let info = e.info(plan).expect("plan");
+    assert!(info.reached(Facet::Handling, Point::Active) && !info.is_terminating());
+    checked_trace(&mut e);
+}
+
+#[test]
+fn monitor_info_answers_for_the_monitor_and_its_activations() {
+    let mut e: Bare = Engine::new(1);
+    let mut spec = MonitorSpec::new("body");
+    spec.max_activations = Some(4);
+    spec.period = Some(s(1.5));
+    let m = e
+        .spawn(Time::ZERO, Spawn::monitor(e.root(), "m", spec))
+        .expect("spawn");
+    let (job, _, _) = invoked(&mut e);
+    let from_activation = e.monitor_info(job.node()).expect("an activation");
+    let info = e.monitor_info(m).expect("a monitor");
+    assert_eq!(info, from_activation);
+    assert_eq!(info.monitor, m);
+    assert_eq!((info.activations, info.triggers), (1, 0));
+    assert_eq!(info.max_activations, Some(4));
+    assert_eq!(info.period, Some(s(1.5)));
+    assert!(!info.initial_wait);
+    assert_eq!(e.monitor_info(e.root()), None);
+    checked_trace(&mut e);
+}

@@ -99,6 +99,9 @@ pub enum Rule {
     Handler,
     /// A retry not under a handler node, or a bypass from a node that is not a handler node.
     Retry,
+    /// A timer callback set twice under one number, run without being set, run twice, or run before
+    /// its event happened (its node reached the point, or was found dead) or its time came.
+    Callback,
 }
 
 impl Rule {
@@ -140,6 +143,7 @@ impl Rule {
             Rule::MonitorComplete => "monitor-complete",
             Rule::Handler => "handler",
             Rule::Retry => "retry",
+            Rule::Callback => "callback",
         }
     }
 }

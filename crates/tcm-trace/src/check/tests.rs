@@ -621,3 +621,42 @@ fn million_records() {
     eprintln!("checked {} records in {:?}", trace.len(), started.elapsed());
     assert_eq!(r.n_nodes, n + depth + 1);
 }
+
+#[test]
+fn callbacks_run_once_after_they_are_set_and_not_before_their_event_or_time() {
+    let set = |callback: u64, when: TraceWhen| TraceKind::CallbackSet {
+        callback,
+        name: format!("cb{callback}"),
+        node: Some(1),
+        when,
+    };
+    let ran = |callback: u64| TraceKind::CallbackRan {
+        callback,
+        name: format!("cb{callback}"),
+    };
+    let mut b = Tb::new();
+    running(&mut b);
+    b.push(set(1, TraceWhen::At(2 * S)))
+        .push(set(2, TraceWhen::Event(ev_ref(2, X, Point::Completed))));
+    // Set, not run: passes.
+    passes(&b.build());
+    let mut early = b.clone_for_test();
+    early.at(S).push(ran(1));
+    caught(&early.build(), Rule::Callback);
+    let mut before_event = b.clone_for_test();
+    before_event.at(3 * S).push(ran(2));
+    caught(&before_event.build(), Rule::Callback);
+    let mut twice = b.clone_for_test();
+    twice.at(2 * S).push(ran(1)).push(ran(1));
+    caught(&twice.build(), Rule::Callback);
+    let mut unset = b.clone_for_test();
+    unset.push(ran(9));
+    caught(&unset.build(), Rule::Callback);
+    let mut again = b.clone_for_test();
+    again.push(set(1, TraceWhen::Now));
+    caught(&again.build(), Rule::Callback);
+    // On time, and after the event: passes.
+    b.at(2 * S).push(ran(1));
+    b.at(3 * S).finish_command(2).push(ran(2));
+    passes(&b.build());
+}

@@ -268,7 +268,7 @@ impl Checker {
     // What an enabling trigger still waits for at `ev`, if it has not fired. A terminating node
     // that has not started waits only for other nodes' events: its delays and external events are
     // released (docs/semantics.md, "Termination").
-    fn trigger_pending(
+    pub(super) fn trigger_pending(
         &self,
         ev: &TraceEvent,
         when: &TraceWhen,

@@ -4,8 +4,15 @@
 #[path = "../../examples/paper/fig4.rs"]
 mod fig4;
 
+mod activation_data;
+mod callbacks;
 mod exceptions;
+mod held_children;
+mod introspection;
 mod monitors;
+mod panics;
 mod paper;
 mod runtime;
+mod session;
+mod stuck;
 mod util;

@@ -1,0 +1,72 @@
+//! Activation data (issue 11, point 12): a monitor activated with data (TCM's
+//! `TCM_Activate(monitor, data)`) hands it to that activation's body, and to no other.
+
+use crate::util::{only, run_checked, story};
+use std::sync::{Arc, Mutex};
+use tcm::{Monitor, RunOutcome, Runtime, Task};
+
+#[derive(Debug, PartialEq)]
+struct Bump {
+    side: &'static str,
+}
+
+/// What each activation saw: its number, its data, and whether data of another type read as some.
+type Seen = Arc<Mutex<Vec<(u32, Option<&'static str>, bool)>>>;
+
+#[tokio::test(start_paused = true)]
+async fn each_activation_reads_the_data_it_was_activated_with() {
+    let seen: Seen = Arc::default();
+    let s = seen.clone();
+    let task = Task::goal("g", move |ctx| async move {
+        // The monitor must be active before it is activated: start it at once.
+        ctx.hold_children(false)?;
+        let params = Monitor {
+            max_activations: Some(3),
+            ..Monitor::default()
+        };
+        let bumper = ctx
+            .spawn(Task::monitor("bumper", params, move |ctx| {
+                let s = s.clone();
+                async move {
+                    let (n, _) = ctx.activation().unwrap_or_default();
+                    let bump = ctx.activation_data::<Bump>().map(|b| b.side);
+                    // Data of another type reads as none.
+                    let wrong = ctx.activation_data::<u32>().is_some();
+                    s.lock().expect("seen").push((n, bump, wrong));
+                    Ok(())
+                }
+            }))
+            .start()?;
+        let first = ctx.activate_with(bumper, Bump { side: "left" })?;
+        assert!(first.is_some());
+        ctx.activate(bumper)?;
+        ctx.activate_with(bumper, Bump { side: "right" })?;
+        // Past the maximum: no activation, and the data is dropped.
+        assert_eq!(ctx.activate_with(bumper, Bump { side: "front" }).ok(), None);
+        Ok(())
+    });
+    let (report, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(
+        *seen.lock().expect("seen"),
+        [
+            (1, Some("left"), false),
+            (2, None, false),
+            (3, Some("right"), false)
+        ]
+    );
+    assert_eq!(
+        only(&story(&trace), &["ACT-bumper handling completed"]).len(),
+        3
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn data_outside_an_activation_reads_as_none() {
+    let task = Task::goal("g", |ctx| async move {
+        assert!(ctx.activation_data::<Bump>().is_none());
+        Ok(())
+    });
+    let (report, _) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+}
