@@ -9,7 +9,7 @@ use crate::state::{Facet, NodeKind, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 2;
+pub const TRACE_FORMAT_VERSION: u32 = 3;
 
 /// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
 pub const OLDEST_READABLE_VERSION: u32 = 1;
