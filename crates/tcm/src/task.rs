@@ -319,6 +319,7 @@ impl Task {
             kind: self.kind,
             name: self.name,
             action: self.action?,
+            fulfils: None,
         })
     }
 }

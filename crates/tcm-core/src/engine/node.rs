@@ -185,6 +185,10 @@ pub struct OnTerminate<A> {
     pub name: Name,
     /// Its action.
     pub action: A,
+    /// A reservation its node fulfils when it is inserted (a TDL label on the on-terminate task);
+    /// the node that carries this task takes the reservation over at its spawn, so it dies when that
+    /// node's handling completes without termination.
+    pub fulfils: Option<NodeId>,
 }
 
 pub(crate) struct Node<A, F> {
