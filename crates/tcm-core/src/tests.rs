@@ -12,12 +12,13 @@
 //! - `triggers`: the one trigger concept, every "when" with every "then";
 //! - `termination`: terminate constraints, cascades, on-terminate tasks, suspension;
 //! - `references`: reservations, forward and dead references, `previous`, held children;
-//! - `monitors` and `exceptions` (handlers, retry, wiretaps, unhandled failures);
+//! - `monitors`, `monitor_limits` (limits changed after the spawn) and `exceptions` (handlers, retry, wiretaps, unhandled failures);
 //! - `api`: the engine's inputs, outputs and errors without the simulator, and memory.
 
 mod api;
 mod constraints;
 mod exceptions;
+mod monitor_limits;
 mod monitors;
 mod references;
 mod tcm_semantics;

@@ -443,12 +443,15 @@ impl Replay {
                 period_ns,
                 ..
             } => {
-                self.node_mut(*node)?.monitor = Some(MonitorInfo {
+                // Parameters changed after the spawn keep the counts so far.
+                let it = self.node_mut(*node)?;
+                let counts = it.monitor.unwrap_or_default();
+                it.monitor = Some(MonitorInfo {
                     max_activations: *max_activations,
                     max_triggers: *max_triggers,
                     period_ns: *period_ns,
-                    activations: 0,
-                    triggers: 0,
+                    activations: counts.activations,
+                    triggers: counts.triggers,
                 });
             }
             TraceKind::Activated {

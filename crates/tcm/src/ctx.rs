@@ -443,3 +443,44 @@ impl Spawner<'_> {
         }
     }
 }
+
+// ---- Monitor limits and on-terminate labels set from a body (TDL constraint statements,
+// `on terminate label: spawn …`).
+
+impl Ctx {
+    /// Sets a monitor's maximum activations (TDL's `m maximum activate N;` after the spawn): before
+    /// the monitor starts it replaces the spawned value; once it runs, a maximum already reached
+    /// completes the monitor's handling at once (docs/semantics.md, "Monitors"). A monitor that
+    /// completed or was terminated is left alone.
+    pub fn set_max_activations(&self, monitor: NodeId, n: u32) -> Result<(), Error> {
+        self.with_engine(|e, now| e.set_max_activations(now, monitor, n))
+    }
+
+    /// Sets a monitor's maximum triggers (TDL's `m maximum trigger N;`), as
+    /// [`Ctx::set_max_activations`] does the maximum activations.
+    pub fn set_max_triggers(&self, monitor: NodeId, n: u32) -> Result<(), Error> {
+        self.with_engine(|e, now| e.set_max_triggers(now, monitor, n))
+    }
+
+    /// Sets a monitor's polling period (TDL's `m period T;`): before the monitor starts it replaces
+    /// the spawned value; once it polls, the poll already due keeps its time and the next ones come
+    /// every `period` after it.
+    pub fn set_period(&self, monitor: NodeId, period: Duration) -> Result<(), Error> {
+        self.with_engine(|e, now| e.set_period(now, monitor, period))
+    }
+}
+
+impl Spawner<'_> {
+    /// `on terminate label: spawn <task>`: as [`Spawner::on_terminate`], and the on-terminate node,
+    /// if it is ever inserted, fulfils `reserved` (a reservation of the spawning node, made with
+    /// [`Ctx::reserve`]). The spawned node takes the reservation over, so it dies when that node's
+    /// handling completes without being terminated while running (docs/semantics.md, "Tags and
+    /// forward references").
+    pub fn on_terminate_fulfils(mut self, task: Task, reserved: NodeId) -> Self {
+        if let Some(mut ot) = task.into_cleanup() {
+            ot.fulfils = Some(reserved);
+            self.spec.on_terminate.push(ot);
+        }
+        self
+    }
+}

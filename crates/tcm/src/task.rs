@@ -334,6 +334,7 @@ impl Task {
             kind: self.kind,
             name: self.name,
             action: self.action?,
+            fulfils: None,
         })
     }
 }

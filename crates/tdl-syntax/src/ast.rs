@@ -213,6 +213,8 @@ pub enum Stmt {
     With(WithGroup),
     /// `TAG constraint;`.
     Constrain(ConstraintStmt),
+    /// `bind name = expr;`: a node held in Rust made a tag.
+    Bind(Bind),
     /// `succeed;`.
     Succeed(Span),
     /// `fail [Exc [{ field: value, ... }]];`.
@@ -294,6 +296,18 @@ pub struct ConstraintStmt {
     /// The constraint.
     pub constraint: Constraint,
     /// Span of the tag.
+    pub span: Span,
+}
+
+/// `bind name = expr;`: makes the node `expr` (a `tdl::NodeId`) the tag `name` for the
+/// constraints after it (TDL's `TDL_BIND(expr, name)`); binding again replaces the node.
+#[derive(Clone, Debug)]
+pub struct Bind {
+    /// The tag.
+    pub name: Ident,
+    /// The node, a Rust expression.
+    pub expr: syn::Expr,
+    /// Span of the `bind` keyword.
     pub span: Span,
 }
 
@@ -443,6 +457,9 @@ pub enum ConstraintKind {
     OnTerminate(OnTerminate),
     /// `name "instance name"`.
     Name(syn::Expr),
+    /// `parent EXPR` (spawn only): insert the node under the node `EXPR` (a `tdl::NodeId`) instead
+    /// of the task whose body runs.
+    Parent(syn::Expr),
     /// `on AGENT`: rejected until distributed agents exist.
     OnAgent(syn::Expr),
 }

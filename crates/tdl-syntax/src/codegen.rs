@@ -211,6 +211,7 @@ fn task_items(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) ->
     let mut params = TokenStream::new();
     let mut each = TokenStream::new();
     let mut n_handlers = 0usize;
+    let mut n_on_terminate = 0usize;
     for constraint in &task.constraints {
         let span = constraint.span;
         match &constraint.kind {
@@ -225,18 +226,12 @@ fn task_items(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) ->
                 modifiers.extend(quote!(.with(::tdl::Constraint::DelayExpansion)));
             }
             TaskConstraintKind::OnTerminate(it) => {
+                // One local each: a task may have several (labels are refused by the diagnosis).
                 let (name, args) = (&it.task, &it.args);
-                if let Some(label) = it.labels.first() {
-                    diags.push(
-                        Diagnostic::error(
-                            label.span(),
-                            "labels on `on terminate` tasks are not supported by the code generator yet",
-                        )
-                        .with_hint("remove the label"),
-                    );
-                }
-                prelude.extend(quote!(let tdl_on_terminate = #name(#(#args),*);));
-                modifiers.extend(quote!(.on_terminate(tdl_on_terminate)));
+                let var = format_ident!("tdl_on_terminate_{}", n_on_terminate);
+                n_on_terminate += 1;
+                prelude.extend(quote!(let #var = #name(#(#args),*);));
+                modifiers.extend(quote!(.on_terminate(#var)));
             }
             TaskConstraintKind::ExceptionHandler(it) => {
                 let var = format_ident!("tdl_handler_{}", n_handlers);
@@ -355,8 +350,8 @@ fn task_items(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) ->
             }
         }
     };
-    let allow = if action.tracks_previous {
-        Allow::Previous
+    let allow = if action.reassigns {
+        Allow::Reassigns
     } else {
         Allow::Nothing
     };
@@ -377,8 +372,9 @@ fn arg_pat(arg: &crate::ast::Arg) -> TokenStream {
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Allow {
     Nothing,
-    /// `previous` is tracked in a local that the last spawn may update for nothing.
-    Previous,
+    /// `previous` or a tag bound at run time is tracked in a local that the last statement may
+    /// update for nothing.
+    Reassigns,
     /// A stub never uses the arguments.
     Stub,
 }
@@ -413,7 +409,7 @@ fn task_shell(task: &Task, body: &TokenStream, allow: Allow) -> TokenStream {
     let method_doc = format!(" {method_doc}");
     let allow = match allow {
         Allow::Nothing => TokenStream::new(),
-        Allow::Previous => quote!(#[allow(unused_assignments)]),
+        Allow::Reassigns => quote!(#[allow(unused_assignments)]),
         Allow::Stub => quote!(#[allow(unused_variables)]),
     };
     let fields = if names.is_empty() {

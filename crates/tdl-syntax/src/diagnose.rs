@@ -6,8 +6,8 @@
 //! groups, `[.]` outside the loop it counts. It also finds, by itself: unknown exceptions
 //! (only when the file declares exceptions, since others may come from Rust), which task-level
 //! constraints each task kind allows, `wait` on a forward reference, circular constraints on
-//! `self`, monitor-only constraints on other tasks, and the statements that only handlers or
-//! monitors may use.
+//! `self`, monitor-only constraints on other tasks, constraints that only go on a spawn, misused
+//! `node!(tag)`, `bind` and `parent`, and the statements that only handlers or monitors may use.
 
 use std::collections::BTreeSet;
 
@@ -19,12 +19,12 @@ use crate::ast::{
 };
 use crate::diagnostic::Diagnostic;
 use crate::resolve::{
-    BodyScope, Def, Duplicate, FileScope, IndexError, LoopId, Named, Refers, Resolution, Tdl,
-    refers,
+    BodyScope, Def, Duplicate, FileScope, IndexError, LoopId, Named, NodeUse, Refers, Resolution,
+    Tdl, refers,
 };
 
 const TAG_HINT: &str = "a tag is a task spawned in this body, a label (`t1: spawn a();`), \
-                        `previous`, `self` or `parent`";
+                        a name bound with `bind name = node;`, `previous`, `self` or `parent`";
 
 /// Diagnoses `ast` and appends the findings to `diags`.
 pub(crate) fn diagnose(ast: &Ast, diags: &mut Vec<Diagnostic>) {
@@ -153,6 +153,14 @@ fn task_header(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
             TaskConstraintKind::ExpandFirst => expand_first = Some(constraint.span),
             TaskConstraintKind::DelayExpansion => delay_expansion = Some(constraint.span),
             TaskConstraintKind::ExceptionHandler(it) => handler(file, &it.name, diags),
+            TaskConstraintKind::OnTerminate(it) => {
+                if let Some(label) = it.labels.first() {
+                    diags.push(
+                        Diagnostic::error(label.span(), "a task-level `on terminate` takes no label")
+                            .with_hint("labels name the on-terminate tasks of a spawn: `spawn t() with on terminate l: spawn c();`"),
+                    );
+                }
+            }
             _ => {}
         }
     }
@@ -244,7 +252,11 @@ impl<'a> Body<'_, 'a> {
                 Tdl::Bypass(_) | Tdl::Retry(_) | Tdl::Trigger(_) => {}
             }
         }
+        for it in &self.scope.node_uses {
+            self.node_use(it, diags);
+        }
         self.forward_group_refs(diags);
+        self.unbound_refs(diags);
     }
 
     fn spawn(&self, spawn: &'a Spawn, diags: &mut Vec<Diagnostic>) {
@@ -262,6 +274,7 @@ impl<'a> Body<'_, 'a> {
                 .with_hint("add `with wait`: `let v = spawn task(args) with wait;`"),
             );
         }
+        self.parent(spawn, diags);
         if let [only] = spawn.constraints.as_slice() {
             if matches!(only.kind, ConstraintKind::Parallel) {
                 diags.push(
@@ -269,6 +282,46 @@ impl<'a> Body<'_, 'a> {
                         .with_hint("spawns are parallel by default; use `parallel` on a `with (parallel) { ... }` group"),
                 );
             }
+        }
+    }
+
+    /// A spawn with `parent`: its node is not this body's child, so it cannot fulfil a reservation
+    /// of the body; what needs one is refused.
+    fn parent(&self, spawn: &'a Spawn, diags: &mut Vec<Diagnostic>) {
+        let Some(parent) = spawn
+            .constraints
+            .iter()
+            .find(|it| matches!(it.kind, ConstraintKind::Parent(_)))
+        else {
+            return;
+        };
+        let refuse = |what: &str, hint: &str| {
+            Diagnostic::error(parent.span, format!("`parent` on {what}")).with_hint(hint.to_owned())
+        };
+        if spawn.binding.is_some() {
+            diags.push(refuse(
+                "a spawn bound with `let`",
+                "spawn it with `parent` and `wait`, then read its result another way, or spawn it under this task",
+            ));
+        }
+        let labelled = spawn
+            .constraints
+            .iter()
+            .any(|it| matches!(&it.kind, ConstraintKind::OnTerminate(ot) if !ot.labels.is_empty()));
+        if labelled {
+            diags.push(refuse(
+                "a spawn whose `on terminate` task has a label",
+                "an on-terminate label is a reservation of this task; spawn under this task, or drop the label",
+            ));
+        }
+        let Some(def) = self.scope.spawn_def(spawn) else {
+            return;
+        };
+        if def.var.is_some() && !def.site.loops.is_empty() {
+            diags.push(refuse(
+                "a spawn inside a loop that a tag names",
+                "a tag cannot name the spawns of a loop made under another parent yet; `bind` each node to a tag instead",
+            ));
         }
     }
 
@@ -345,7 +398,18 @@ impl<'a> Body<'_, 'a> {
             }
         };
         let depth = self.scope.site(named.def).loops.len();
-        if indexes.len() > depth {
+        if !indexes.is_empty() && matches!(named.def, Def::Bound(_)) {
+            diags.push(
+                Diagnostic::error(
+                    tag.span,
+                    format!("`{name}` is bound with `bind`, so it takes no iteration index"),
+                )
+                .with_label(named.span, "bound here")
+                .with_hint(
+                    "a bound tag names the one node bound last; bind each node to its own name",
+                ),
+            );
+        } else if indexes.len() > depth {
             let msg = if depth == 0 {
                 format!("`{name}` is not spawned in a loop, so it takes no iteration index")
             } else {
@@ -422,28 +486,65 @@ impl<'a> Body<'_, 'a> {
                 Diagnostic::error(span, "`on terminate` is not allowed in `with (...)`")
                     .with_hint("put `on terminate` on a spawn or on the task definition"),
             ),
+            (ConstraintKind::Parent(_), _) if matches!(site, Site::With) => diags.push(
+                Diagnostic::error(span, "`parent` is not allowed in `with (...)`")
+                    .with_hint("put `parent` on each spawn that goes under another node"),
+            ),
             (ConstraintKind::OnAgent(_), _) => diags.push(
                 Diagnostic::error(span, "distributed agents are not supported yet")
                     .with_hint("remove `on ...`: every task runs in this process until distributed agents exist"),
             ),
             (ConstraintKind::Wait, _) => {
-                if let Site::Stmt(position, tag) = site {
-                    if let Some(named) = self.scope.named(tag) {
-                        if self.scope.site(named.def).position > position {
-                            diags.push(
-                                Diagnostic::error(tag.span, "`wait` on a task that is not spawned yet")
-                                    .with_label(named.span, "spawned later here")
-                                    .with_hint("move this statement after the spawn, or put `wait` on the spawn itself"),
-                            );
-                        }
-                    }
+                if let Some((tag, named)) = self.forward(site) {
+                    diags.push(
+                        Diagnostic::error(tag.span, "`wait` on a task that is not spawned yet")
+                            .with_label(named.span, "spawned later here")
+                            .with_hint("move this statement after the spawn, or put `wait` on the spawn itself"),
+                    );
+                }
+            }
+            (
+                ConstraintKind::MaximumActivate(_)
+                | ConstraintKind::MaximumTrigger(_)
+                | ConstraintKind::Period(_),
+                _,
+            ) => {
+                if let Some((_, named)) = self.forward(site) {
+                    diags.push(
+                        Diagnostic::error(span, "a monitor limit set before the monitor is spawned")
+                            .with_label(named.span, "spawned later here")
+                            .with_hint("put it on the spawn (the spawn's value wins anyway), or move this statement after the spawn"),
+                    );
                 }
             }
             _ => {}
         }
+        let spawn_only = matches!(
+            constraint.kind,
+            ConstraintKind::Name(_)
+                | ConstraintKind::OnTerminate(_)
+                | ConstraintKind::ExceptionHandler(_)
+                | ConstraintKind::Parent(_)
+        );
+        if spawn_only && matches!(site, Site::Stmt(..)) {
+            diags.push(
+                Diagnostic::error(span, "this constraint can only be given on the spawn")
+                    .with_hint("move it into the spawn's `with` list"),
+            );
+        }
         if is_monitor_only(&constraint.kind) {
             self.monitor_only(constraint, site, diags);
         }
+    }
+
+    /// At a constraint statement naming a task spawned further down (a forward reference): its
+    /// tag and that task.
+    fn forward(&self, site: Site<'a>) -> Option<(&'a Tag, Named<'a>)> {
+        let Site::Stmt(position, tag) = site else {
+            return None;
+        };
+        let named = self.scope.named(tag)?;
+        (self.scope.site(named.def).position > position).then_some((tag, named))
     }
 
     /// Diagnoses a tag that the constrained node waits on: it must exist and not be the node itself.
@@ -533,6 +634,106 @@ impl<'a> Body<'_, 'a> {
                 Diagnostic::error(tag.span, "`[.]` outside the loop it counts")
                     .with_hint("`[.]` means the current iteration of the loop around the spawn; use it inside that loop, or write the iteration number"),
             );
+        }
+    }
+
+    /// Diagnoses one `node!(tag)`: the tag must name one node.
+    fn node_use(&self, it: &NodeUse, diags: &mut Vec<Diagnostic>) {
+        const HINT: &str = "`node!(tag)` takes a task spawned once in this body, a label, a bound \
+                            name or `parent`, with one index per loop around its spawn";
+        let tag = match &it.tag {
+            Ok(tag) => tag,
+            Err(err) => {
+                diags.push(
+                    Diagnostic::error(it.span, format!("`node!(…)` needs a tag: {err}"))
+                        .with_hint(HINT),
+                );
+                return;
+            }
+        };
+        let several = |what: &str| {
+            Diagnostic::error(tag.span, format!("`node!` names one node, and {what}"))
+                .with_hint(HINT)
+        };
+        let TagKind::Named { name, indexes } = &tag.kind else {
+            match tag.kind {
+                TagKind::Previous => diags.push(several("`previous` may be a whole group")),
+                TagKind::Child => diags.push(
+                    Diagnostic::error(tag.span, "`node!(self)` outside a spawn")
+                        .with_hint("`self` is the node being spawned; `node!(parent)` is the node running this body"),
+                ),
+                _ => {}
+            }
+            return;
+        };
+        let Some(named) = self.tag(tag, diags) else {
+            return;
+        };
+        let depth = self.scope.site(named.def).loops.len();
+        match named.def {
+            Def::Group(_) => diags.push(several(&format!("`{name}` is a `with` group"))),
+            Def::Spawn(_) | Def::OnTerminate(_) if indexes.len() < depth => {
+                diags.push(several(&format!(
+                    "`{name}` is spawned inside {depth} loop{}: give one index per loop",
+                    if depth == 1 { "" } else { "s" }
+                )));
+            }
+            Def::Spawn(id) | Def::OnTerminate(id)
+                if matches!(
+                    self.scope
+                        .indexes(self.spawn_of(named.def, id), indexes, &it.site.loops),
+                    Err(IndexError::CurrentOutside)
+                ) =>
+            {
+                diags.push(
+                    Diagnostic::error(tag.span, "`[.]` outside the loop it counts")
+                        .with_hint("`[.]` means the current iteration of the loop around the spawn; use it inside that loop, or write the iteration number"),
+                );
+            }
+            _ => {}
+        }
+    }
+
+    /// The spawn a spawn or on-terminate definition belongs to (`id` is its own number).
+    fn spawn_of(&self, def: Def<'a>, id: usize) -> usize {
+        match def {
+            Def::OnTerminate(_) => self.scope.cleanups[id].spawn,
+            _ => id,
+        }
+    }
+
+    /// Reports tags whose node is only known once a statement ran (a `bind`, a spawn with
+    /// `parent`) used before that statement (once per name).
+    fn unbound_refs(&self, diags: &mut Vec<Diagnostic>) {
+        let uses = self.scope.node_uses.iter().filter_map(|it| {
+            let tag = it.tag.as_ref().ok()?;
+            let TagKind::Named { name, .. } = &tag.kind else {
+                return None;
+            };
+            Some((tag, name, it.site.position))
+        });
+        let refs = self.scope.refs.iter().map(|r| (r.tag, r.name, r.position));
+        let mut reported = BTreeSet::new();
+        for (tag, name, position) in refs.chain(uses) {
+            let Some(named) = self.scope.named(tag) else {
+                continue;
+            };
+            if self.scope.is_late(named.def)
+                && position < self.scope.site(named.def).position
+                && reported.insert(name.to_string())
+            {
+                let what = match named.def {
+                    Def::Bound(_) => "bound",
+                    _ => "spawned (under another `parent`)",
+                };
+                diags.push(
+                    Diagnostic::error(tag.span, format!("`{name}` is used before it is {what}"))
+                        .with_label(named.span, format!("{what} here"))
+                        .with_hint(
+                            "its node is only known once that statement ran; move this after it",
+                        ),
+                );
+            }
         }
     }
 

@@ -152,6 +152,11 @@ fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
                 &format!("constrain {} {}", tag(&it.tag), constraint(&it.constraint)),
             );
         }
+        Stmt::Bind(it) => line(
+            out,
+            depth,
+            &format!("bind {} = {}", it.name, tokens(&it.expr)),
+        ),
         Stmt::Succeed(_) => line(out, depth, "succeed"),
         Stmt::Fail(it) => {
             let exc = it
@@ -373,6 +378,7 @@ fn constraint(it: &Constraint) -> String {
         ConstraintKind::ExceptionHandler(h) => handler(h),
         ConstraintKind::OnTerminate(t) => on_terminate(t),
         ConstraintKind::Name(e) => format!("name {}", tokens(e)),
+        ConstraintKind::Parent(e) => format!("parent {}", tokens(e)),
         ConstraintKind::OnAgent(e) => format!("on {}", tokens(e)),
     }
 }

@@ -40,6 +40,7 @@ const VOCABULARY: &[&str] = &[
     "name",
     "on",
     "parallel",
+    "parent",
     "period",
     "persistent",
     "planning",
@@ -204,6 +205,7 @@ pub(crate) fn starts_constraint(word: &str) -> bool {
             | "handler"
             | "on"
             | "name"
+            | "parent"
     )
 }
 

@@ -6,15 +6,17 @@
 //! - [`BodyScope`]: one task body. Its TDL statements in source order, flattened out of the Rust
 //!   control flow around them ([`Tdl`]), each at a [`Site`] (a position and the enclosing loops);
 //!   its spawns, `with` groups and loops, numbered in source order; the names a tag can use; every
-//!   named tag written in a constraint ([`Ref`]); and what the generated code must track at run
-//!   time: the local of each spawn or group that some tag names, the loops that count their
-//!   iterations, whether `previous` is used.
+//!   named tag written in a constraint ([`Ref`]) and every `node!(tag)` in its Rust code
+//!   ([`NodeUse`]); and what the generated code must track at run time: the local of each spawn,
+//!   group, labelled on-terminate task or bound tag that some tag names, the loops that count
+//!   their iterations, whether `previous` is used.
 //!
-//! Name rules (docs/semantics.md, "Tags and forward references"): tags are body-scoped, so forward references resolve. A label (of a
-//! spawn, a group or an on-terminate task) names that; the first of duplicated labels wins.
-//! Otherwise a task spawned exactly once in the body names its spawn, and one spawned several
-//! times is ambiguous. Unknown *task* names in spawns are not errors (tasks may come from other
-//! files), only unknown *tags* are.
+//! Name rules (docs/semantics.md, "Tags and forward references"): tags are body-scoped, so forward
+//! references resolve. A label (of a spawn, a group or an on-terminate task) or a `bind` names
+//! that; the first of duplicated labels wins, and binding a name again rebinds it. Otherwise a
+//! task spawned exactly once in the body names its spawn, and one spawned several times is
+//! ambiguous. Unknown *task* names in spawns are not errors (tasks may come from other files),
+//! only unknown *tags* are.
 //!
 //! Resolution reports nothing itself: `diagnose` words what it finds (duplicates, unknown or
 //! ambiguous tags, wrong index counts, forward references to groups, `[.]` outside its loop), and
@@ -22,12 +24,13 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use proc_macro2::{Ident, Span};
-use quote::format_ident;
+use proc_macro2::{Delimiter, Ident, Span, TokenStream, TokenTree};
+use quote::{ToTokens, format_ident};
 
 use crate::ast::{
-    Ast, Block, Constraint, ConstraintKind, ConstraintStmt, Else, Event, ExceptionDecl, Fail, If,
-    Item, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskKind, WithGroup,
+    Ast, Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Count, Else, Event,
+    ExceptionDecl, Fail, If, Item, OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex, TagKind, Task,
+    TaskKind, When, WithGroup,
 };
 
 /// A spawn of a body, numbered in source order.
@@ -36,6 +39,8 @@ pub(crate) type SpawnId = usize;
 pub(crate) type GroupId = usize;
 /// A `for`, `while` or `loop` of a body, numbered in source order.
 pub(crate) type LoopId = usize;
+/// A labelled `on terminate` task of a spawn, numbered in source order.
+pub(crate) type CleanupId = usize;
 
 /// The tasks and exceptions a source declares.
 pub(crate) struct FileScope<'a> {
@@ -162,6 +167,29 @@ pub(crate) struct SpawnDef<'a> {
     /// The local holding its node (a reservation, or a map by iteration in loops), when some tag
     /// names it.
     pub(crate) var: Option<Ident>,
+    /// It has a `parent` constraint: its node is not a child of this body, so it cannot fulfil a
+    /// reservation of the body; its local is bound when it is spawned (`Option<NodeId>`).
+    pub(crate) late: bool,
+}
+
+/// A labelled `on terminate` task of a spawn: its labels name the node inserted if the spawned
+/// node is terminated while running.
+pub(crate) struct CleanupDef<'a> {
+    /// The spawn it is attached to.
+    pub(crate) spawn: SpawnId,
+    /// The constraint.
+    pub(crate) on_terminate: &'a OnTerminate,
+    /// The local holding the reservation it fulfils (a map by iteration in loops), when some tag
+    /// names it.
+    pub(crate) var: Option<Ident>,
+}
+
+/// A tag bound with `bind name = …;`: where its first `bind` is.
+pub(crate) struct BoundDef {
+    /// Where it is.
+    pub(crate) site: Site,
+    /// The local holding the node (`Option<NodeId>`), when some tag names it.
+    pub(crate) var: Option<Ident>,
 }
 
 /// A `with` group.
@@ -182,12 +210,9 @@ pub(crate) enum Def<'a> {
     /// A labelled `with` group.
     Group(GroupId),
     /// A labelled `on terminate` task of a spawn.
-    OnTerminate {
-        /// The spawn it is attached to.
-        spawn: SpawnId,
-        /// The on-terminate task.
-        task: &'a Ident,
-    },
+    OnTerminate(CleanupId),
+    /// A tag bound with `bind`: the first `bind` of the name.
+    Bound(&'a Bind),
 }
 
 /// A name's definition and where it is written: the label, or the spawned task's name.
@@ -213,6 +238,16 @@ pub(crate) enum Resolution<'a> {
     Unknown,
     /// The task is spawned several times and no label has its name: those spawns.
     Ambiguous(Vec<SpawnId>),
+}
+
+/// A `node!(tag)` in the Rust code of a body.
+pub(crate) struct NodeUse {
+    /// The tag written, or why the inside is not one.
+    pub(crate) tag: Result<Tag, syn::Error>,
+    /// Span of `node`.
+    pub(crate) span: Span,
+    /// Where: the statement it is written in.
+    pub(crate) site: Site,
 }
 
 /// A named tag written in a constraint, at the position of its statement.
@@ -292,6 +327,12 @@ pub(crate) struct BodyScope<'a> {
     pub(crate) groups: Vec<GroupDef<'a>>,
     /// Every named tag written in a constraint, in source order.
     pub(crate) refs: Vec<Ref<'a>>,
+    /// Every `node!(tag)` in the body's Rust code, in source order.
+    pub(crate) node_uses: Vec<NodeUse>,
+    /// Its labelled on-terminate tasks, in source order.
+    pub(crate) cleanups: Vec<CleanupDef<'a>>,
+    /// Its bound tags, by name.
+    pub(crate) bound: BTreeMap<String, BoundDef>,
     /// Labels already used: (the later label, the first one's span).
     pub(crate) duplicate_labels: Vec<(&'a Ident, Span)>,
     /// Whether some constraint refers to `previous`.
@@ -302,6 +343,7 @@ pub(crate) struct BodyScope<'a> {
     by_task: BTreeMap<String, Vec<SpawnId>>,
     spawn_ids: BTreeMap<*const Spawn, SpawnId>,
     group_ids: BTreeMap<*const WithGroup, GroupId>,
+    cleanup_ids: BTreeMap<*const OnTerminate, CleanupId>,
     /// Loops by their body.
     loop_ids: BTreeMap<*const Block, LoopId>,
     /// Loops that count their iterations, for iteration-indexed tags.
@@ -317,12 +359,16 @@ impl<'a> BodyScope<'a> {
                 spawns: Vec::new(),
                 groups: Vec::new(),
                 refs: Vec::new(),
+                node_uses: Vec::new(),
+                cleanups: Vec::new(),
+                bound: BTreeMap::new(),
                 duplicate_labels: Vec::new(),
                 uses_previous: false,
                 labels: BTreeMap::new(),
                 by_task: BTreeMap::new(),
                 spawn_ids: BTreeMap::new(),
                 group_ids: BTreeMap::new(),
+                cleanup_ids: BTreeMap::new(),
                 loop_ids: BTreeMap::new(),
                 counted: BTreeSet::new(),
             },
@@ -369,21 +415,41 @@ impl<'a> BodyScope<'a> {
         }
     }
 
-    /// Where a definition is (an on-terminate task: where its spawn is).
+    /// Where a definition is (an on-terminate task: where its spawn is; a bound tag: its first
+    /// `bind`).
     pub(crate) fn site(&self, def: Def<'a>) -> &Site {
         match def {
-            Def::Spawn(id) | Def::OnTerminate { spawn: id, .. } => &self.spawns[id].site,
+            Def::Spawn(id) => &self.spawns[id].site,
+            Def::OnTerminate(id) => &self.spawns[self.cleanups[id].spawn].site,
             Def::Group(id) => &self.groups[id].site,
+            Def::Bound(bind) => &self.bound[&bind.name.to_string()].site,
         }
     }
 
-    /// The task a definition runs: a spawn's or an on-terminate task; none for a group.
+    /// The task a definition runs: a spawn's or an on-terminate task; none for a group or a
+    /// bound tag.
     pub(crate) fn task_of(&self, def: Def<'a>) -> Option<&'a Ident> {
         match def {
             Def::Spawn(id) => Some(&self.spawns[id].spawn.task),
-            Def::OnTerminate { task, .. } => Some(task),
-            Def::Group(_) => None,
+            Def::OnTerminate(id) => Some(&self.cleanups[id].on_terminate.task),
+            Def::Group(_) | Def::Bound(_) => None,
         }
+    }
+
+    /// Whether the node of a definition is only known once a statement ran: a bound tag, or a
+    /// spawn under another parent (its local is an `Option<NodeId>`, not a reservation).
+    pub(crate) fn is_late(&self, def: Def<'a>) -> bool {
+        match def {
+            Def::Spawn(id) => self.spawns[id].late,
+            Def::Bound(_) => true,
+            Def::Group(_) | Def::OnTerminate(_) => false,
+        }
+    }
+
+    /// The labelled on-terminate task `it`, if it has a label.
+    pub(crate) fn cleanup(&self, it: &OnTerminate) -> Option<&CleanupDef<'a>> {
+        let id = self.cleanup_ids.get(&std::ptr::from_ref(it))?;
+        self.cleanups.get(*id)
     }
 
     /// The spawn statement `spawn`.
@@ -443,32 +509,53 @@ impl<'a> BodyScope<'a> {
     fn add_label(&mut self, label: &'a Ident, def: Def<'a>) {
         let name = label.to_string();
         if let Some(first) = self.labels.get(&name) {
-            self.duplicate_labels.push((label, first.span));
+            // Binding a bound name again rebinds it.
+            if !matches!((first.def, def), (Def::Bound(_), Def::Bound(_))) {
+                self.duplicate_labels.push((label, first.span));
+            }
             return;
         }
         let span = label.span();
         self.labels.insert(name, Named { def, span });
     }
 
-    /// Marks what the tags name and gives each named spawn or group its local.
+    /// Marks what the tags name and gives each named spawn, group, labelled on-terminate task
+    /// and bound tag its local.
     fn assign_vars(&mut self) {
         let mut spawns = BTreeSet::new();
         let mut groups = BTreeSet::new();
-        for r in &self.refs {
-            match self.lookup(&r.name.to_string()) {
-                Resolution::Named(Named {
-                    def: Def::Spawn(id),
-                    ..
-                }) => {
+        let mut cleanups = BTreeSet::new();
+        let mut bound = BTreeSet::new();
+        let uses = self.node_uses.iter().filter_map(|it| match &it.tag {
+            Ok(Tag {
+                kind: TagKind::Named { name, .. },
+                ..
+            }) => Some(name.to_string()),
+            _ => None,
+        });
+        let names: Vec<String> = self
+            .refs
+            .iter()
+            .map(|r| r.name.to_string())
+            .chain(uses)
+            .collect();
+        for name in names {
+            let Resolution::Named(Named { def, .. }) = self.lookup(&name) else {
+                continue;
+            };
+            match def {
+                Def::Spawn(id) => {
                     spawns.insert(id);
                 }
-                Resolution::Named(Named {
-                    def: Def::Group(id),
-                    ..
-                }) => {
+                Def::Group(id) => {
                     groups.insert(id);
                 }
-                _ => {}
+                Def::OnTerminate(id) => {
+                    cleanups.insert(id);
+                }
+                Def::Bound(bind) => {
+                    bound.insert(bind.name.to_string());
+                }
             }
         }
         let mut used = BTreeSet::new();
@@ -495,6 +582,23 @@ impl<'a> BodyScope<'a> {
                 .map(ToString::to_string)
                 .unwrap_or_default();
             def.var = Some(local(&base));
+        }
+        for id in cleanups {
+            let def = &mut self.cleanups[id];
+            let base = def
+                .on_terminate
+                .labels
+                .first()
+                .unwrap_or(&def.on_terminate.task)
+                .to_string();
+            def.var = Some(local(&base));
+            let loops = &self.spawns[def.spawn].site.loops;
+            self.counted.extend(loops.iter().copied());
+        }
+        for name in bound {
+            if let Some(def) = self.bound.get_mut(&name) {
+                def.var = Some(local(&name));
+            }
         }
     }
 }
@@ -529,11 +633,19 @@ impl<'a> Walk<'a> {
                     .entry(spawn.task.to_string())
                     .or_default()
                     .push(id);
+                let late = spawn
+                    .constraints
+                    .iter()
+                    .any(|it| matches!(it.kind, ConstraintKind::Parent(_)));
+                for arg in &spawn.args {
+                    self.rust(arg.to_token_stream(), &site);
+                }
                 self.scope.spawns.push(SpawnDef {
                     spawn,
-                    site,
+                    site: site.clone(),
                     groups: self.groups.clone(),
                     var: None,
+                    late,
                 });
                 self.scope.stmts.push(Tdl::Spawn(id));
                 for label in &spawn.labels {
@@ -541,63 +653,105 @@ impl<'a> Walk<'a> {
                 }
                 for constraint in &spawn.constraints {
                     if let ConstraintKind::OnTerminate(it) = &constraint.kind {
-                        for label in &it.labels {
-                            let def = Def::OnTerminate {
+                        if !it.labels.is_empty() {
+                            let cleanup = self.scope.cleanups.len();
+                            self.scope.cleanups.push(CleanupDef {
                                 spawn: id,
-                                task: &it.task,
-                            };
-                            self.scope.add_label(label, def);
+                                on_terminate: it,
+                                var: None,
+                            });
+                            self.scope
+                                .cleanup_ids
+                                .insert(std::ptr::from_ref(it), cleanup);
+                            for label in &it.labels {
+                                self.scope.add_label(label, Def::OnTerminate(cleanup));
+                            }
                         }
                     }
                 }
-                self.constraints(&spawn.constraints);
+                self.constraints(&spawn.constraints, &site);
             }
             Stmt::With(group) => {
                 let id = self.scope.groups.len();
                 self.scope.group_ids.insert(std::ptr::from_ref(group), id);
                 self.scope.groups.push(GroupDef {
                     group,
-                    site,
+                    site: site.clone(),
                     var: None,
                 });
                 self.scope.stmts.push(Tdl::With(id));
                 for label in &group.labels {
                     self.scope.add_label(label, Def::Group(id));
                 }
-                self.constraints(&group.constraints);
+                self.constraints(&group.constraints, &site);
                 self.groups.push(id);
                 self.block(&group.body);
                 self.groups.pop();
             }
             Stmt::Constrain(it) => {
-                self.scope.stmts.push(Tdl::Constrain(it, site));
                 self.tag(&it.tag);
-                self.constraints(std::slice::from_ref(&it.constraint));
+                self.constraints(std::slice::from_ref(&it.constraint), &site);
+                self.scope.stmts.push(Tdl::Constrain(it, site));
             }
-            Stmt::Fail(it) => self.scope.stmts.push(Tdl::Fail(it)),
+            Stmt::Bind(it) => {
+                self.rust(it.expr.to_token_stream(), &site);
+                let name = it.name.to_string();
+                self.scope
+                    .bound
+                    .entry(name)
+                    .or_insert(BoundDef { site, var: None });
+                self.scope.add_label(&it.name, Def::Bound(it));
+            }
+            Stmt::Fail(it) => {
+                for field in &it.fields {
+                    self.rust(field.to_token_stream(), &site);
+                }
+                self.scope.stmts.push(Tdl::Fail(it));
+            }
             Stmt::Bypass(span) => self.scope.stmts.push(Tdl::Bypass(*span)),
             Stmt::Trigger(span) => self.scope.stmts.push(Tdl::Trigger(*span)),
             Stmt::Retry(span) => self.scope.stmts.push(Tdl::Retry(*span)),
-            Stmt::If(it) => self.if_stmt(it),
-            Stmt::For(it) => self.loop_body(&it.body),
-            Stmt::While(it) => self.loop_body(&it.body),
+            Stmt::If(it) => self.if_stmt(it, &site),
+            Stmt::For(it) => {
+                self.rust(it.expr.to_token_stream(), &site);
+                self.loop_body(&it.body);
+            }
+            Stmt::While(it) => {
+                self.rust(it.cond.to_token_stream(), &site);
+                self.loop_body(&it.body);
+            }
             Stmt::Loop(it) => self.loop_body(&it.body),
             Stmt::Match(it) => {
+                self.rust(it.expr.to_token_stream(), &site);
                 for arm in &it.arms {
+                    self.rust(arm.guard.to_token_stream(), &site);
                     self.block(&arm.body);
                 }
             }
             Stmt::Block(it) => self.block(it),
-            Stmt::Rust(_) | Stmt::Succeed(_) => {}
+            Stmt::Rust(it) => self.rust(it.tokens.clone(), &site),
+            Stmt::Succeed(_) => {}
         }
     }
 
-    fn if_stmt(&mut self, it: &'a If) {
+    fn if_stmt(&mut self, it: &'a If, site: &Site) {
+        self.rust(it.cond.to_token_stream(), site);
         self.block(&it.then_branch);
         match it.else_branch.as_deref() {
-            Some(Else::If(next)) => self.if_stmt(next),
+            Some(Else::If(next)) => self.if_stmt(next, site),
             Some(Else::Block(block)) => self.block(block),
             None => {}
+        }
+    }
+
+    /// Records the `node!(tag)` uses in Rust code at `site`.
+    fn rust(&mut self, tokens: TokenStream, site: &Site) {
+        for (tag, span) in node_uses(tokens) {
+            self.scope.node_uses.push(NodeUse {
+                tag,
+                span,
+                site: site.clone(),
+            });
         }
     }
 
@@ -609,8 +763,9 @@ impl<'a> Walk<'a> {
         self.loops.pop();
     }
 
-    fn constraints(&mut self, constraints: &'a [Constraint]) {
+    fn constraints(&mut self, constraints: &'a [Constraint], site: &Site) {
         for constraint in constraints {
+            self.rust(constraint_code(&constraint.kind), site);
             match refers(&constraint.kind) {
                 Some(Refers::Previous) => self.scope.uses_previous = true,
                 Some(Refers::WaitsOn(tag)) => self.tag(tag),
@@ -631,6 +786,90 @@ impl<'a> Walk<'a> {
             TagKind::Child | TagKind::Parent => {}
         }
     }
+}
+
+/// The `node!(tag)` uses in `tokens`, outermost first: the tag parsed from inside the
+/// parentheses (or why it is not one) and the span of `node`.
+pub(crate) fn node_uses(tokens: TokenStream) -> Vec<(Result<Tag, syn::Error>, Span)> {
+    let mut out = Vec::new();
+    let tts: Vec<TokenTree> = tokens.into_iter().collect();
+    let mut i = 0;
+    while i < tts.len() {
+        if let Some((inner, span)) = node_macro(&tts[i..]) {
+            out.push((crate::parser::parse_tag_tokens(inner), span));
+            i += 3;
+            continue;
+        }
+        if let TokenTree::Group(group) = &tts[i] {
+            out.extend(node_uses(group.stream()));
+        }
+        i += 1;
+    }
+    out
+}
+
+/// `node ! ( … )` at the start of `tts`: the tokens inside and the span of `node`.
+pub(crate) fn node_macro(tts: &[TokenTree]) -> Option<(TokenStream, Span)> {
+    match tts {
+        [
+            TokenTree::Ident(name),
+            TokenTree::Punct(bang),
+            TokenTree::Group(group),
+            ..,
+        ] if name == "node"
+            && bang.as_char() == '!'
+            && group.delimiter() == Delimiter::Parenthesis =>
+        {
+            Some((group.stream(), name.span()))
+        }
+        _ => None,
+    }
+}
+
+/// The Rust expressions of a constraint (a name, a parent, counts, times in seconds, handler and
+/// on-terminate arguments), as one token stream to search for `node!(tag)`.
+fn constraint_code(kind: &ConstraintKind) -> TokenStream {
+    let mut out = TokenStream::new();
+    let count = |it: &Count, out: &mut TokenStream| {
+        if let Count::Expr(expr) = it {
+            expr.to_tokens(out);
+        }
+    };
+    let seconds = |it: &RelTime, out: &mut TokenStream| {
+        if let RelTime::Seconds(expr) = it {
+            expr.to_tokens(out);
+        }
+    };
+    match kind {
+        ConstraintKind::Name(expr)
+        | ConstraintKind::Parent(expr)
+        | ConstraintKind::OnAgent(expr) => {
+            expr.to_tokens(&mut out);
+        }
+        ConstraintKind::MaximumActivate(n) | ConstraintKind::MaximumTrigger(n) => {
+            count(n, &mut out);
+        }
+        ConstraintKind::Period(t) => seconds(t, &mut out),
+        ConstraintKind::ExceptionHandler(it) => {
+            for arg in &it.args {
+                arg.to_tokens(&mut out);
+            }
+            if let Some(n) = &it.max_activate {
+                count(n, &mut out);
+            }
+        }
+        ConstraintKind::OnTerminate(it) => {
+            for arg in &it.args {
+                arg.to_tokens(&mut out);
+            }
+        }
+        ConstraintKind::Trigger {
+            when: When::In(t) | When::After(t, _),
+            ..
+        } => seconds(t, &mut out),
+        _ => {}
+    }
+    out
 }
 
 #[cfg(test)]

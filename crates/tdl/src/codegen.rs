@@ -10,9 +10,14 @@
 //! - [`Persistent`]: a monitor's or handler's `persistent` variable, shared by its activations.
 //! - [`caught`], [`failing_node`], [`attached_node`]: what a handler body reads.
 //! - [`count`]: a `maximum activate/trigger` count as a `u32`.
+//! - [`trigger_entity`], [`no_members`]: constraints naming an *entity* of several nodes (a `with`
+//!   group, `previous` after a group, an iteration set, a tag bound at run time), whose members are
+//!   only known at run time (docs/semantics.md, "Tags and forward references").
+//! - [`bound`]: the node of a tag bound at run time, for `node!(tag)` in Rust code.
 
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
-use tcm::{Ctx, Failure, NodeId};
+use std::time::Duration;
+use tcm::{Constraint, Ctx, Error, Event, Facet, Failure, NodeId, Point, Then, When};
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
@@ -127,4 +132,48 @@ pub fn attached_node(ctx: &Ctx) -> Result<NodeId, Failure> {
 /// A `maximum activate/trigger` count; values out of the `u32` range saturate.
 pub fn count<N: TryInto<u32>>(n: N) -> u32 {
     n.try_into().unwrap_or(u32::MAX)
+}
+
+/// A `terminate` or `activate` constraint on `target` whose event names an entity: it happens when
+/// every member reached `point` of `facet` (after `delay`, if any). `members` is `None` when there
+/// is no entity at all (`previous` before anything was spawned): the event part is then void and
+/// only a delay is kept (`terminate in D after previous` is `terminate in D`). An entity with no
+/// member (a group none of whose spawns ran) is a dead reference: it fires at once, or after the
+/// delay counted from now. One member is an ordinary constraint on that node.
+pub fn trigger_entity(
+    ctx: &Ctx,
+    target: NodeId,
+    members: Option<&[NodeId]>,
+    facet: Facet,
+    point: Point,
+    delay: Option<Duration>,
+    then: Then,
+) -> Result<(), Error> {
+    let when = match (members, delay) {
+        (None, None) => return Ok(()),
+        (None | Some([]), Some(d)) => When::In(d),
+        (Some([]), None) => When::Now,
+        (Some([one]), None) => When::Event(Event::on(*one, facet, point)),
+        (Some([one]), Some(d)) => When::After(d, Event::on(*one, facet, point)),
+        (Some(many), _) => return ctx.trigger_group(target, many, facet, point, delay, then),
+    };
+    ctx.constrain(target, Constraint::Trigger(when, then))
+}
+
+/// Whether an entity has no member, or there is none (`previous` before anything): an enablement
+/// constraint `… for D after` it is then `… for D` (the `after` part of a dead or missing event
+/// is dropped).
+pub fn no_members(members: Option<&[NodeId]>) -> bool {
+    members.is_none_or(<[NodeId]>::is_empty)
+}
+
+/// The node of a tag bound at run time (`bind name = …;`, or a spawn with `parent`), for
+/// `node!(tag)` in Rust code: a failure when the statement that binds it has not run.
+pub fn bound(node: Option<NodeId>, tag: &str) -> Result<NodeId, Failure> {
+    node.ok_or_else(|| {
+        Failure::new(
+            "Unbound",
+            format!("`node!({tag})`: `{tag}` is not bound yet (its `bind` or spawn has not run)"),
+        )
+    })
 }

@@ -2,10 +2,10 @@
 //! Language (1998). This is the crate users depend on.
 //!
 //! - [`tdl!`] compiles TDL task definitions (`goal`, `command`, `monitor`, `handler`,
-//!   `exception`, `spawn ... with ...`, `with (...) { ... }` groups, constraint statements, `fail`,
-//!   `trigger`, `bypass`, `retry`) into Rust items: per task a struct with its arguments and a
-//!   constructor function returning a [`Task`] (a [`Handler`] for handlers). Generated bodies hold
-//!   their children until they end or wait, as in TDL.
+//!   `exception`, `spawn ... with ...`, `with (...) { ... }` groups, constraint statements,
+//!   `bind`, `node!(tag)`, `fail`, `trigger`, `bypass`, `retry`) into Rust items: per task a
+//!   struct with its arguments and a constructor function returning a [`Task`] (a [`Handler`] for
+//!   handlers). Generated bodies hold their children until they end or wait, as in TDL.
 //! - Everything else is the `tcm` runtime, re-exported: [`Runtime`] runs a task tree, [`Ctx`] is
 //!   what a body sees, [`Constraint`] and friends are what the generated code builds.
 //! - `.tdl` files can also be compiled from `build.rs` with the `tdl-build` crate, and checked or

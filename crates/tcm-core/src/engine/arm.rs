@@ -41,6 +41,15 @@ pub(super) struct External {
     pub(super) activators: Vec<NodeId>,
 }
 
+/// A group trigger as given ([`Engine::trigger_group`]), kept on a reservation until its spawn.
+pub(crate) struct GroupTrigger {
+    members: Vec<NodeId>,
+    facet: Facet,
+    point: Point,
+    delay: Option<Duration>,
+    then: Then,
+}
+
 /// A trigger on a whole group: it fires once `remaining` members reached their event.
 pub(super) struct Join {
     target: NodeId,
@@ -158,9 +167,35 @@ impl<A, F: Clone> Engine<A, F> {
         if let Then::Enable(_) = then {
             return Err(EngineError::GroupEnable);
         }
-        if then == Then::Activate && n.monitor().is_none() {
-            self.void(target, || "`activate` applies to monitors only".into());
+        let g = GroupTrigger {
+            members: members.to_vec(),
+            facet,
+            point,
+            delay,
+            then,
+        };
+        if n.reserved {
+            // A forward reference: armed when the spawn fulfils it, as its other constraints.
+            self.node_mut(target).cold_mut().deferred_groups.push(g);
             return Ok(());
+        }
+        self.arm_group(target, g);
+        self.work.push_back(Work::Progress(target));
+        self.settle();
+        Ok(())
+    }
+
+    /// Arms a group trigger on a linked node (see [`Engine::trigger_group`]).
+    pub(super) fn arm_group(&mut self, target: NodeId, g: GroupTrigger) {
+        let GroupTrigger {
+            members,
+            facet,
+            point,
+            delay,
+            then,
+        } = g;
+        if then == Then::Activate && self.node(target).monitor().is_none() {
+            return self.void(target, || "`activate` applies to monitors only".into());
         }
         let events = members
             .iter()
@@ -187,7 +222,7 @@ impl<A, F: Clone> Engine<A, F> {
             never: false,
         });
         self.block(target, then);
-        for &m in members {
+        for &m in &members {
             let reached = match self.nodes.lookup(m) {
                 Lookup::Gone(Fate::Terminated) => Some(true),
                 Lookup::Gone(_) => Some(false),
@@ -206,9 +241,6 @@ impl<A, F: Clone> Engine<A, F> {
             }
         }
         self.join_reached(join, false);
-        self.work.push_back(Work::Progress(target));
-        self.settle();
-        Ok(())
     }
 
     /// One member of group trigger `join` reached its event: the last one fires the trigger.

@@ -16,7 +16,7 @@
 //! | commands: the tree | [`Engine::spawn`], [`Engine::reserve`], [`Engine::hold_children`] | `tree.rs` |
 //! | commands: constraints | [`Engine::constrain`], [`Engine::trigger_group`], [`Engine::watch`], [`Engine::external`] | `arm.rs` |
 //! | commands: termination | [`Engine::terminate`], [`Engine::terminate_children`], [`Engine::terminate_siblings`], [`Engine::suspend`], [`Engine::unsuspend`] | `terminate.rs` |
-//! | commands: monitors | [`Engine::activate`], [`Engine::trigger`] | `monitor.rs` |
+//! | commands: monitors | [`Engine::activate`], [`Engine::trigger`], [`Engine::set_max_activations`], [`Engine::set_max_triggers`], [`Engine::set_period`] | `monitor.rs` |
 //! | commands: exceptions | [`Engine::request_bypass`], [`Engine::retry`] | `exception.rs` |
 //! | commands: wiretaps | [`Engine::wiretap`] | `wiretap.rs` |
 //! | commands: timer callbacks | [`Engine::invoke_when`], [`Engine::invoke_at`], [`Engine::notify_at`], [`Engine::callback_ran`] | `callback.rs` |

@@ -16,6 +16,10 @@
 //!    `max_triggers` completes it too. A completed monitor makes no more activations; its execution
 //!    completes when its running activations' subtrees do.
 //! 4. Terminating a monitor terminates its running activations with it, like any subtree.
+//! 5. Its maxima and period can change after its spawn ([`Engine::set_max_activations`],
+//!    [`Engine::set_max_triggers`], [`Engine::set_period`]: TDL's constraint statements), traced as
+//!    a new `monitor_params` record. A maximum already reached completes the monitor's handling at
+//!    once; a new period counts from the poll already due.
 
 use super::node::{Payload, Purpose};
 use super::timers::TimerKind;
@@ -62,6 +66,24 @@ pub struct MonitorSpec<F> {
 }
 
 impl<F> MonitorSpec<F> {
+    /// The `monitor_params` record of a monitor with this spec, node `display`.
+    pub(crate) fn traced(&self, display: u64) -> TraceKind {
+        TraceKind::MonitorParams {
+            node: display,
+            max_activations: self.max_activations,
+            max_triggers: self.max_triggers,
+            period_ns: self
+                .period
+                .map(|p| u64::try_from(p.as_nanos()).unwrap_or(u64::MAX)),
+            initial_wait: self.initial_wait,
+        }
+    }
+
+    /// Sets the period; returns the previous one.
+    fn replace_period(&mut self, period: Duration) -> Option<Duration> {
+        self.period.replace(period)
+    }
+
     /// A monitor with no limits and no period: it runs until terminated, activated by constraints,
     /// events or explicit calls.
     pub fn new(body: F) -> MonitorSpec<F> {
@@ -82,7 +104,11 @@ pub(crate) struct Monitor<F> {
     pub(crate) activations: u32,
     pub(crate) triggers: u32,
     pub(crate) last: Option<NodeId>,
-    pub(crate) started_at: Time,
+    /// Polling schedule: poll `k` is due at `anchor.0 + (k - anchor.1) × period`. The anchor is the
+    /// start (poll 0) until the period changes, then the poll that was due next.
+    pub(crate) anchor: (Time, u64),
+    /// The poll whose timer is armed.
+    pub(crate) next_poll: u64,
 }
 
 impl<F> Monitor<F> {
@@ -92,8 +118,15 @@ impl<F> Monitor<F> {
             activations: 0,
             triggers: 0,
             last: None,
-            started_at: Time::ZERO,
+            anchor: (Time::ZERO, 0),
+            next_poll: 0,
         }
+    }
+
+    /// When poll `k` is due with period `p`.
+    fn poll_due(&self, p: Duration, k: u64) -> Time {
+        let (at, k0) = self.anchor;
+        at.saturating_add(p.saturating_mul(u32::try_from(k - k0).unwrap_or(u32::MAX)))
     }
 }
 
@@ -193,16 +226,23 @@ impl<A, F: Clone> Engine<A, F> {
         let Some(mon) = self.node_mut(monitor).monitor_mut() else {
             return;
         };
-        mon.started_at = now;
+        mon.anchor = (now, 0);
         let (period, initial_wait) = (mon.spec.period, mon.spec.initial_wait);
         if let Some(p) = period {
             if !initial_wait {
                 self.make_activation(monitor);
             }
             if self.node(monitor).state(Facet::Handling) == State::Active {
-                self.timers.push(now + p, TimerKind::Poll { monitor, k: 1 });
+                self.arm_poll(monitor, now + p, 1);
             }
         }
+    }
+
+    fn arm_poll(&mut self, monitor: NodeId, at: Time, k: u64) {
+        if let Some(mon) = self.node_mut(monitor).monitor_mut() {
+            mon.next_poll = k;
+        }
+        self.timers.push(at, TimerKind::Poll { monitor, k });
     }
 
     /// Polling timer `k` fired (step 2).
@@ -214,11 +254,8 @@ impl<A, F: Clone> Engine<A, F> {
         let Some(mon) = n.monitor() else { return };
         if n.alive() && n.state(Facet::Handling) == State::Active {
             if let Some(p) = mon.spec.period {
-                let next = mon
-                    .started_at
-                    .saturating_add(p.saturating_mul(u32::try_from(k + 1).unwrap_or(u32::MAX)));
-                self.timers
-                    .push(next, TimerKind::Poll { monitor, k: k + 1 });
+                let next = mon.poll_due(p, k + 1);
+                self.arm_poll(monitor, next, k + 1);
             }
         }
     }
@@ -311,5 +348,108 @@ impl<A, F: Clone> Engine<A, F> {
         self.transition(monitor, Facet::Handling, State::Completed);
         self.bury_reservations(monitor);
         self.work.push_back(Work::Progress(monitor));
+    }
+
+    // ---- Limits changed after the spawn (protocol step 5).
+
+    /// Sets a monitor's maximum activations (TDL's `maximum activate N` in a constraint statement),
+    /// replacing the one it was spawned with. If the monitor's handling is active and it already
+    /// made `n` activations, its handling completes now, as at a maximum reached normally
+    /// (docs/semantics.md, "Monitors"). A monitor that completed, was terminated or was reclaimed
+    /// is left alone.
+    pub fn set_max_activations(
+        &mut self,
+        now: Time,
+        monitor: NodeId,
+        n: u32,
+    ) -> Result<(), EngineError> {
+        self.set_monitor_param(now, monitor, |mon, _| {
+            mon.spec.max_activations = Some(n);
+            None
+        })
+    }
+
+    /// Sets a monitor's maximum triggers (TDL's `maximum trigger N` in a constraint statement),
+    /// as [`Engine::set_max_activations`] does the maximum activations.
+    pub fn set_max_triggers(
+        &mut self,
+        now: Time,
+        monitor: NodeId,
+        n: u32,
+    ) -> Result<(), EngineError> {
+        self.set_monitor_param(now, monitor, |mon, _| {
+            mon.spec.max_triggers = Some(n);
+            None
+        })
+    }
+
+    /// Sets a monitor's polling period (TDL's `period T` in a constraint statement). Before the
+    /// monitor starts, it simply replaces the one it was spawned with. Once it polls, the poll
+    /// already due keeps its time and the following ones come every `period` after it; a running
+    /// monitor that did not poll polls first one `period` from now. A monitor that completed, was
+    /// terminated or was reclaimed is left alone.
+    pub fn set_period(
+        &mut self,
+        now: Time,
+        monitor: NodeId,
+        period: Duration,
+    ) -> Result<(), EngineError> {
+        self.set_monitor_param(now, monitor, |mon, active| {
+            let old = mon.spec.replace_period(period);
+            match (active, old) {
+                (false, _) => None,
+                (true, Some(old)) => {
+                    mon.anchor = (mon.poll_due(old, mon.next_poll), mon.next_poll);
+                    None
+                }
+                (true, None) => {
+                    mon.anchor = (now, 0);
+                    Some(now + period)
+                }
+            }
+        })
+    }
+
+    /// Changes the spec of the monitor `monitor` with `change` (given whether its handling is
+    /// active; it returns when to arm poll 1, for a monitor that starts polling now), traces the
+    /// new parameters, and completes the monitor's handling if a maximum is now reached.
+    fn set_monitor_param(
+        &mut self,
+        now: Time,
+        monitor: NodeId,
+        change: impl FnOnce(&mut Monitor<F>, bool) -> Option<Time>,
+    ) -> Result<(), EngineError> {
+        self.advance(now);
+        self.check_run(monitor)?;
+        // A reclaimed monitor's limits no longer matter.
+        let Some(n) = self.nodes.get(monitor) else {
+            return Ok(());
+        };
+        let display = n.display;
+        if n.monitor().is_none() {
+            return Err(EngineError::NotAMonitor(display));
+        }
+        let handling = n.state(Facet::Handling);
+        if !n.alive() || handling == State::Completed {
+            return Ok(());
+        }
+        let active = handling == State::Active;
+        let Some(mon) = self.node_mut(monitor).monitor_mut() else {
+            return Ok(());
+        };
+        let poll = change(mon, active);
+        let spec = &mon.spec;
+        let reached = spec.max_activations.is_some_and(|m| mon.activations >= m)
+            || spec.max_triggers.is_some_and(|m| mon.triggers >= m);
+        let record = spec.traced(display);
+        emit!(self, record);
+        if let Some(at) = poll {
+            self.arm_poll(monitor, at, 1);
+        }
+        if active && reached {
+            self.monitor_done(monitor);
+        }
+        self.settle();
+        Ok(())
     }
 }

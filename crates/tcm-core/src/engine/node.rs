@@ -190,6 +190,10 @@ pub struct OnTerminate<A> {
     pub name: Name,
     /// Its action.
     pub action: A,
+    /// A reservation its node fulfils when it is inserted (a TDL label on the on-terminate task);
+    /// the node that carries this task takes the reservation over at its spawn, so it dies when that
+    /// node's handling completes without termination.
+    pub fulfils: Option<NodeId>,
 }
 
 pub(crate) struct Node<A, F> {
@@ -263,6 +267,8 @@ pub(crate) struct Cold<A, F> {
     // Constraints applied to a reservation before its spawn, with the `previous` of that moment;
     // applied when the spawn fulfils it.
     pub(crate) deferred: Vec<(crate::constraint::Constraint, Option<NodeId>)>,
+    // Group triggers applied to a reservation before its spawn.
+    pub(crate) deferred_groups: Vec<super::arm::GroupTrigger>,
 }
 
 impl<A, F> Default for Cold<A, F> {
@@ -281,6 +287,7 @@ impl<A, F> Default for Cold<A, F> {
             tapped_before: false,
             tap_failure: None,
             deferred: Vec::new(),
+            deferred_groups: Vec::new(),
         }
     }
 }
@@ -344,6 +351,13 @@ impl<A, F> Node<A, F> {
     /// The rarely used part, allocated on first write.
     pub(crate) fn cold_mut(&mut self) -> &mut Cold<A, F> {
         self.cold.get_or_insert_with(Box::default)
+    }
+
+    /// The reservations its on-terminate tasks fulfil (TDL labels on them).
+    pub(crate) fn on_terminate_labels(&self) -> Vec<NodeId> {
+        self.cold.as_ref().map_or_else(Vec::new, |c| {
+            c.on_terminate.iter().filter_map(|ot| ot.fulfils).collect()
+        })
     }
 
     pub(crate) fn monitor(&self) -> Option<&Monitor<F>> {

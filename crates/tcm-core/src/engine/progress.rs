@@ -231,6 +231,7 @@ impl<A, F: Clone> Engine<A, F> {
                 && !n.stopping
             {
                 self.transition(id, Facet::Execution, State::Completed);
+                self.bury_labels(id);
                 if let Some(p) = self.node(id).parent {
                     if let Some(p) = self.nodes.get_mut(p) {
                         p.open_executions -= 1;
@@ -396,9 +397,28 @@ impl<A, F: Clone> Engine<A, F> {
         self.work.push_back(Work::Progress(id));
     }
 
-    /// The body of `id` ended: reservations it never spawned are dead (docs/semantics.md, "Tags and forward references").
+    /// The body of `id` ended: reservations it never spawned are dead (docs/semantics.md, "Tags and
+    /// forward references"). The labels of its own on-terminate tasks stay until its execution
+    /// completes: a termination before then still inserts those tasks.
     pub(super) fn bury_reservations(&mut self, id: NodeId) {
+        let n = self.node_mut(id);
+        let labels = n.on_terminate_labels();
+        let mut reservations = n.take_cold(|c| &mut c.reservations);
+        if !labels.is_empty() {
+            let (kept, dead) = reservations.into_iter().partition(|r| labels.contains(r));
+            n.cold_mut().reservations = kept;
+            reservations = dead;
+        }
+        self.bury(reservations);
+    }
+
+    /// The execution of `id` completed: every reservation it still holds is dead.
+    fn bury_labels(&mut self, id: NodeId) {
         let reservations = self.node_mut(id).take_cold(|c| &mut c.reservations);
+        self.bury(reservations);
+    }
+
+    fn bury(&mut self, reservations: Vec<NodeId>) {
         for r in reservations {
             let Some(node) = self.nodes.remove(r, Fate::Dead) else {
                 continue;

@@ -232,7 +232,12 @@ impl<A, F: Clone> Engine<A, F> {
     }
 
     fn spawn_cleanup(&mut self, parent: NodeId, ot: OnTerminate<A>) {
-        let id = self.insert(parent, ot.kind, ot.name, Payload::Action(ot.action));
+        let payload = Payload::Action(ot.action);
+        // A labelled on-terminate task fulfils the reservation its node took over at its spawn.
+        let id = match ot.fulfils.filter(|r| self.is_reservation_of(*r, parent)) {
+            Some(r) => self.insert_reserved(parent, r, ot.kind, ot.name, payload),
+            None => self.insert(parent, ot.kind, ot.name, payload),
+        };
         // Delayed termination: the terminating parent does not take it down (see `do_terminate`).
         self.node_mut(id).immune = true;
         self.node_mut(parent).last_spawned = Some(id);

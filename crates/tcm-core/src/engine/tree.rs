@@ -80,22 +80,10 @@ impl<A, F: Clone> Engine<A, F> {
         }
         let id = match fulfils {
             Some(r) => {
-                let ok =
-                    matches!(self.nodes.get(r), Some(n) if n.reserved && n.parent == Some(parent));
-                if !ok {
+                if !self.is_reservation_of(r, parent) {
                     return Err(EngineError::NotReserved(r));
                 }
-                self.node_mut(parent)
-                    .cold_mut()
-                    .reservations
-                    .retain(|x| *x != r);
-                let node = self.node_mut(r);
-                node.reserved = false;
-                node.kind = kind;
-                node.name = name;
-                if !kind.expands() {
-                    node.states[Facet::Expansion.index()] = State::Completed;
-                }
+                self.claim_reservation(parent, r, kind, name);
                 r
             }
             None => {
@@ -104,6 +92,9 @@ impl<A, F: Clone> Engine<A, F> {
                     .insert(Node::new(display, kind, name, Some(parent)))
             }
         };
+        for r in on_terminate.iter().filter_map(|ot| ot.fulfils) {
+            self.adopt_reservation(parent, id, r);
+        }
         {
             let parent_suspended = self.node(parent).suspended;
             let node = self.node_mut(id);
@@ -129,30 +120,13 @@ impl<A, F: Clone> Engine<A, F> {
         self.link(parent, id);
         let display = self.emit_spawned(id, parent);
         if let Some(m) = self.node(id).monitor() {
-            let record = TraceKind::MonitorParams {
-                node: display,
-                max_activations: m.spec.max_activations,
-                max_triggers: m.spec.max_triggers,
-                period_ns: m
-                    .spec
-                    .period
-                    .map(|p| u64::try_from(p.as_nanos()).unwrap_or(u64::MAX)),
-                initial_wait: m.spec.initial_wait,
-            };
+            let record = m.spec.traced(display);
             emit!(self, record);
         }
         if self.node(id).suspended {
             emit!(self, TraceKind::Suspended { node: display });
         }
-        let deferred = self.node_mut(id).take_cold(|c| &mut c.deferred);
-        let mut later = Vec::new();
-        for (c, prev) in deferred {
-            if c.applies_after_link() {
-                later.push((c, prev));
-            } else {
-                self.apply(id, parent, prev, c);
-            }
-        }
+        let mut later = self.apply_deferred(id, parent);
         for c in constraints {
             if c.applies_after_link() {
                 later.push((c, previous));
@@ -163,6 +137,9 @@ impl<A, F: Clone> Engine<A, F> {
         self.node_mut(parent).last_spawned = Some(id);
         for (c, prev) in later {
             self.apply(id, parent, prev, c);
+        }
+        for g in self.node_mut(id).take_cold(|c| &mut c.deferred_groups) {
+            self.arm_group(id, g);
         }
         if !self.node(parent).alive() && !self.node(id).immune {
             self.work.push_back(Work::Terminate {
@@ -200,6 +177,58 @@ impl<A, F: Clone> Engine<A, F> {
             }
         );
         Ok(())
+    }
+
+    /// Whether `r` is an open reservation of `parent`.
+    pub(crate) fn is_reservation_of(&self, r: NodeId, parent: NodeId) -> bool {
+        matches!(self.nodes.get(r), Some(n) if n.reserved && n.parent == Some(parent))
+    }
+
+    /// Turns the open reservation `r` of `parent` into a node of `kind` named `name`, not linked
+    /// yet.
+    fn claim_reservation(&mut self, parent: NodeId, r: NodeId, kind: NodeKind, name: Name) {
+        self.node_mut(parent)
+            .cold_mut()
+            .reservations
+            .retain(|x| *x != r);
+        let node = self.node_mut(r);
+        node.reserved = false;
+        node.kind = kind;
+        node.name = name;
+        if !kind.expands() {
+            node.states[Facet::Expansion.index()] = State::Completed;
+        }
+    }
+
+    /// Hands the reservation `r` of `parent` over to its new child `node`, whose on-terminate task
+    /// fulfils it: the reservation then dies when `node`'s execution completes, unless `node` is
+    /// terminated after it started and the on-terminate task is inserted (docs/semantics.md, "Tags
+    /// and forward references"). A handle that is no open reservation of `parent` is left alone.
+    fn adopt_reservation(&mut self, parent: NodeId, node: NodeId, r: NodeId) {
+        if !self.is_reservation_of(r, parent) {
+            return;
+        }
+        self.node_mut(parent)
+            .cold_mut()
+            .reservations
+            .retain(|x| *x != r);
+        self.node_mut(r).parent = Some(node);
+        self.node_mut(node).cold_mut().reservations.push(r);
+    }
+
+    /// Applies the constraints kept on a reservation that `id` fulfilled, except those applied once
+    /// the node is linked and `previous` moved on, which it returns.
+    fn apply_deferred(&mut self, id: NodeId, parent: NodeId) -> Vec<(Constraint, Option<NodeId>)> {
+        let deferred = self.node_mut(id).take_cold(|c| &mut c.deferred);
+        let mut later = Vec::new();
+        for (c, prev) in deferred {
+            if c.applies_after_link() {
+                later.push((c, prev));
+            } else {
+                self.apply(id, parent, prev, c);
+            }
+        }
+        later
     }
 
     /// Holds (or releases) the start of the children a running action spawns: while held, they are
@@ -306,6 +335,44 @@ impl<A, F: Clone> Engine<A, F> {
             });
         }
         id
+    }
+
+    /// Like [`Engine::insert`], but the node fulfils the open reservation `r` of `parent`, whose
+    /// kept constraints apply now (an on-terminate task with a label). The caller queues its
+    /// progress.
+    pub(crate) fn insert_reserved(
+        &mut self,
+        parent: NodeId,
+        r: NodeId,
+        kind: NodeKind,
+        name: Name,
+        payload: Payload<A, F>,
+    ) -> NodeId {
+        self.claim_reservation(parent, r, kind, name);
+        let suspended = self.node(parent).suspended;
+        let node = self.node_mut(r);
+        node.action = Some(payload);
+        node.suspended = suspended;
+        self.link(parent, r);
+        let display = self.emit_spawned(r, parent);
+        if suspended {
+            emit!(self, TraceKind::Suspended { node: display });
+        }
+        let later = self.apply_deferred(r, parent);
+        self.node_mut(parent).last_spawned = Some(r);
+        for (c, prev) in later {
+            self.apply(r, parent, prev, c);
+        }
+        for g in self.node_mut(r).take_cold(|c| &mut c.deferred_groups) {
+            self.arm_group(r, g);
+        }
+        if !self.node(parent).alive() {
+            self.work.push_back(Work::Terminate {
+                node: r,
+                explicit: false,
+            });
+        }
+        r
     }
 
     /// Traces a node's insertion under `parent`; returns its display number.

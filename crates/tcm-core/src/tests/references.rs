@@ -1,10 +1,13 @@
 //! References: reservations (forward references), dead references, `previous` with nothing
-//! before, constraints applied to a reservation, and children held until the body ends.
+//! before, constraints applied to a reservation, reservations fulfilled by on-terminate tasks,
+//! and children held until the body ends.
 
-use super::{AFTER_PREVIOUS, check, cmd, goal, never, s, spawn_with, spawns, stop_in};
+use super::stop_in;
+use super::{AFTER_PREVIOUS, assert_story, check, cmd, goal, never, run, s, spawn_with, spawns};
 use crate::sim::{Body, SimEngine, noop, takes};
 use crate::*;
 use tcm_trace::TraceKind;
+use tcm_trace::story::only;
 
 /// Spawns the command `name` under `up`, fulfilling the reservation `reserved`.
 fn fulfil(e: &mut SimEngine, up: NodeId, reserved: NodeId, name: &'static str, b: Body) {
@@ -208,5 +211,91 @@ fn held_children_start_when_the_body_ends() {
         2.5 b execution completed
         2.5 body execution completed
         ",
+    );
+}
+
+/// An on-terminate task of kind command, fulfilling `label`.
+fn cleanup(name: &'static str, b: Body, label: NodeId) -> OnTerminate<Body> {
+    OnTerminate {
+        kind: NodeKind::Command,
+        name: name.into(),
+        action: b,
+        fulfils: Some(label),
+    }
+}
+
+#[test]
+fn a_labelled_on_terminate_task_fulfils_its_reservation_or_it_dies_with_its_node() {
+    // TDL: `grasp` with `on terminate one: spawn release(), on terminate two: spawn stow()`,
+    // `two serial one`, and `report` after `one`; `hold` completes normally, so its label `drop`
+    // is dead when its execution completes and `after_drop` goes on then. The body ends at 0, yet
+    // the labels live on with the nodes that took them over.
+    let r = run(|e, root| {
+        let plan = spawns(0.0, |e, me, now| {
+            let one = e.reserve(now, me, "release").expect("reserve");
+            let two = e.reserve(now, me, "stow").expect("reserve");
+            let drop = e.reserve(now, me, "drop").expect("reserve");
+            e.constrain(now, two, Constraint::Serial(one.into()))
+                .expect("constrain a label");
+            cmd(e, me, "report", noop(), &[after(one)]);
+            let mut grasp = Spawn::new(me, NodeKind::Command, "grasp", never());
+            grasp.on_terminate = vec![
+                cleanup("release", takes(s(1.0)), one),
+                cleanup("stow", takes(s(1.0)), two),
+            ];
+            spawn_with(e, grasp, &[stop_in(2.0)]);
+            let mut hold = Spawn::new(me, NodeKind::Command, "hold", takes(s(1.0)));
+            hold.on_terminate = vec![cleanup("drop", noop(), drop)];
+            spawn_with(e, hold, &[]);
+            cmd(e, me, "after_drop", noop(), &[after(drop)]);
+        });
+        goal(e, root, "plan", plan, &[]);
+    });
+    assert_story(
+        &only(
+            &r.story,
+            &[
+                "handling active",
+                "grasp terminat",
+                "hold handling completed",
+                "execution completed",
+                " dead",
+            ],
+        ),
+        "
+        0 plan handling active
+        0 grasp handling active
+        0 hold handling active
+        1 hold handling completed
+        1 hold execution completed
+        1 drop dead
+        1 after_drop handling active
+        1 after_drop execution completed
+        2 grasp terminating
+        2 release handling active
+        3 release execution completed
+        3 report handling active
+        3 stow handling active
+        3 report execution completed
+        4 stow execution completed
+        4 grasp execution completed
+        4 grasp terminated
+        4 plan execution completed
+        ",
+    );
+    // Each label names the node inserted for it: spawned under `grasp` with the number reserved.
+    let spawned: Vec<(u64, u64, String)> = r
+        .trace()
+        .iter()
+        .filter_map(|ev| match &ev.kind {
+            TraceKind::Spawned {
+                node, parent, name, ..
+            } if name == "release" || name == "stow" => Some((*node, *parent, name.clone())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        spawned,
+        [(2, 6, "release".to_owned()), (3, 6, "stow".to_owned())]
     );
 }

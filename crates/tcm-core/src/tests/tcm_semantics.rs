@@ -339,6 +339,7 @@ fn on_terminate_tasks_run_when_the_body_ended_but_the_subtree_still_runs() {
         kind: NodeKind::Command,
         name: Name::Borrowed(name),
         action: takes(s(1.0)),
+        fulfils: None,
     };
     check(
         |e, root| {
@@ -562,5 +563,30 @@ fn a_delay_after_a_missing_previous_keeps_its_delay() {
         3 first execution completed
         3 first terminated
         ",
+    );
+}
+
+#[test]
+fn a_group_trigger_on_a_reservation_is_armed_at_its_spawn() {
+    // `x terminate at g completed;` before `x` is spawned: kept on the reservation, armed when the
+    // spawn fulfils it, then fired when both members completed (at 2 s).
+    let r = run(|e, root| {
+        let body = spawns(0.0, |e, me, now| {
+            let a = cmd(e, me, "a", takes(s(1.0)), &[]);
+            let b = cmd(e, me, "b", takes(s(2.0)), &[]);
+            let x = e.reserve(now, me, "x").expect("reserve");
+            let (ex, done) = (Facet::Execution, Point::Completed);
+            e.trigger_group(now, x, &[a, b], ex, done, None, Then::Terminate)
+                .expect("group trigger on a reservation");
+            let mut spec = Spawn::new(me, NodeKind::Command, "x", never());
+            spec.fulfils = Some(x);
+            e.spawn(now, spec).expect("spawn");
+        });
+        goal(e, root, "g", body, &[]);
+    });
+    assert!(
+        r.story.contains(&"2 x terminating".to_string()),
+        "{:#?}",
+        r.story
     );
 }

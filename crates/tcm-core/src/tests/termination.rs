@@ -243,6 +243,7 @@ fn on_terminate_task_runs_to_completion() {
                 kind: NodeKind::Command,
                 name: name.into(),
                 action,
+                fulfils: None,
             };
             let mut grasp = Spawn::new(root, NodeKind::Command, "grasp", never());
             grasp

@@ -534,6 +534,37 @@ fn monitor_and_handler_kinds() {
 }
 
 #[test]
+fn monitor_params_changed_after_the_spawn_keep_the_counts() {
+    // A monitor without maximum makes two activations; a second `monitor_params` record sets its
+    // maximum to 2, which its handling then completes at. Without that record, completing is a
+    // violation.
+    let params = |max_activations| TraceKind::MonitorParams {
+        node: 1,
+        max_activations,
+        max_triggers: None,
+        period_ns: None,
+        initial_wait: false,
+    };
+    let mut b = Tb::new();
+    b.spawn(1, 0, NodeKind::Monitor, "mon")
+        .push(params(None))
+        .start_command(1);
+    for (node, number) in [(2, 1), (3, 2)] {
+        b.command(node, 1, "ACT-mon").push(TraceKind::Activated {
+            monitor: 1,
+            node,
+            number,
+        });
+        b.start_command(node).finish_command(node);
+    }
+    let mut unchanged = b.clone_for_test();
+    b.push(params(Some(2))).tr(1, H, A, C).tr(1, X, A, C);
+    passes(&b.build());
+    unchanged.tr(1, H, A, C).tr(1, X, A, C);
+    caught(&unchanged.build(), Rule::MonitorComplete);
+}
+
+#[test]
 fn long_chain_checks_quickly() {
     // 20,000 commands, each `disable execution until previous execution completed`, then a 2,000-deep
     // recursion of goals: checks in linear time (a quadratic checker would take minutes in debug).

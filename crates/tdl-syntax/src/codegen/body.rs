@@ -16,13 +16,17 @@
 //!    name every entry with that prefix so far.
 //! 3. `previous` is the *entity* executed just before: one node, or every node of a `with` group,
 //!    which counts as one entity for the statements around it (TDL paper, "with/do"). It lives in
-//!    `tdl_prev: Vec<NodeId>`. A group's own constraints resolve `previous` relative to the group's
-//!    direct child: for a spawn inside a nested group, the outer group's `previous` is the entity
-//!    before the nested group (a snapshot `tdl_prev_N` taken when the nested group starts).
-//! 4. A constraint naming an entity of several nodes is applied once per node: for enablement all
-//!    must be done, for `terminate at` the first wins.
-
-use std::collections::BTreeSet;
+//!    `tdl_prev: Option<Vec<NodeId>>`, `None` before anything ran. A group's own constraints
+//!    resolve `previous` relative to the group's direct child: for a spawn inside a nested group,
+//!    the outer group's `previous` is the entity before the nested group (a snapshot `tdl_prev_N`
+//!    taken when the nested group starts).
+//! 4. A constraint naming an entity of several nodes (`codegen/lower.rs`) is applied once per
+//!    node for enablement, so all must be done; `terminate` and `activate` on its event happen
+//!    once every member reached it, at once for an entity with no member.
+//! 5. A tag whose node is only known when a statement runs (`bind name = …;`, a spawn with
+//!    `parent`) is a local `Option<NodeId>`, an entity of at most one node.
+//! 6. `node!(tag)` in Rust code becomes the tag's node expression (its reservation, its entry in
+//!    a loop's map, or `tdl::codegen::bound(..)?` for a tag bound at run time).
 
 use proc_macro2::{Ident, Literal, Span, TokenStream, TokenTree};
 use quote::{format_ident, quote};
@@ -30,14 +34,15 @@ use quote::{format_ident, quote};
 use super::spawn::Frame;
 use crate::ast::{Block, Else, Fail, Stmt, Task, TaskConstraintKind, TaskKind};
 use crate::diagnostic::Diagnostic;
-use crate::resolve::{BodyScope, Def, FileScope, LoopId, Named};
+use crate::resolve::{BodyScope, FileScope, LoopId, node_macro};
 
 /// A generated action body.
 pub(super) struct Action {
     /// The statements of the `async move` block, ending with its `Ok(..)`.
     pub(super) code: TokenStream,
-    /// Whether `previous` is tracked in `tdl_prev`.
-    pub(super) tracks_previous: bool,
+    /// Whether locals are assigned that the code may not read again: `previous` tracked in
+    /// `tdl_prev`, or tags bound at run time.
+    pub(super) reassigns: bool,
 }
 
 /// Generates the body of `task`.
@@ -50,7 +55,6 @@ pub(super) fn task_body(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagn
         frames: Vec::new(),
         loops: Vec::new(),
     };
-    g.on_terminate_refs();
     let mut code = g.prelude();
     let stmts = &task.body.stmts;
     let tail_is_exit = matches!(
@@ -97,7 +101,10 @@ pub(super) fn task_body(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagn
             ::core::result::Result::Ok(())
         }),
     }
-    let tracks_previous = g.scope.uses_previous;
+    let code = g.rewrite_node_uses(code);
+    let reassigns = g.scope.uses_previous
+        || g.scope.bound.values().any(|it| it.var.is_some())
+        || g.scope.spawns.iter().any(|it| it.late && it.var.is_some());
     // Handler bodies: the exception's data and the nodes involved, when the body names them.
     let mut head = quote!(ctx.hold_children(true)?;);
     if task.kind == TaskKind::Handler {
@@ -142,10 +149,7 @@ pub(super) fn task_body(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagn
             tdl_outcome
         }
     };
-    Action {
-        code,
-        tracks_previous,
-    }
+    Action { code, reassigns }
 }
 
 /// The `persistent` variables of a monitor or handler, shared by its runs: (variable, cell,
@@ -244,14 +248,35 @@ impl<'a> Gen<'_, 'a> {
             }
         }
         let mut maps = false;
-        for spawn in &self.scope.spawns {
-            let Some(var) = &spawn.var else { continue };
-            let name = spawn.spawn.task.to_string();
-            if spawn.site.loops.is_empty() {
+        let late = self
+            .scope
+            .spawns
+            .iter()
+            .filter(|it| it.late)
+            .filter_map(|it| it.var.as_ref())
+            .chain(self.scope.bound.values().filter_map(|it| it.var.as_ref()));
+        for var in late {
+            out.extend(quote! {
+                let mut #var: ::core::option::Option<::tdl::NodeId> = ::core::option::Option::None;
+            });
+        }
+        let reserved = self
+            .scope
+            .spawns
+            .iter()
+            .filter(|it| !it.late)
+            .filter_map(|it| Some((it.var.as_ref()?, &it.spawn.task, &it.site.loops)));
+        let cleanups = self.scope.cleanups.iter().filter_map(|it| {
+            let loops = &self.scope.spawns[it.spawn].site.loops;
+            Some((it.var.as_ref()?, &it.on_terminate.task, loops))
+        });
+        for (var, task, loops) in reserved.chain(cleanups) {
+            let name = task.to_string();
+            if loops.is_empty() {
                 out.extend(quote!(let #var = ctx.reserve(#name)?;));
             } else {
                 maps = true;
-                let n = Literal::usize_unsuffixed(spawn.site.loops.len());
+                let n = Literal::usize_unsuffixed(loops.len());
                 out.extend(quote! {
                     let mut #var: ::std::collections::BTreeMap<[i64; #n], ::tdl::NodeId> =
                         ::std::collections::BTreeMap::new();
@@ -267,9 +292,10 @@ impl<'a> Gen<'_, 'a> {
         }
         if self.scope.uses_previous {
             let prev = Self::prev_ident();
-            out.extend(
-                quote!(let mut #prev: ::std::vec::Vec<::tdl::NodeId> = ::std::vec::Vec::new();),
-            );
+            out.extend(quote! {
+                let mut #prev: ::core::option::Option<::std::vec::Vec<::tdl::NodeId>> =
+                    ::core::option::Option::None;
+            });
         }
         if maps {
             out.extend(quote! {
@@ -306,6 +332,7 @@ impl<'a> Gen<'_, 'a> {
             Stmt::Spawn(spawn) => self.spawn(spawn),
             Stmt::With(group) => self.with(group),
             Stmt::Constrain(it) => self.constrain(it),
+            Stmt::Bind(it) => self.bind(it),
             Stmt::Succeed(span) => {
                 if self.task.result.is_some() {
                     self.diags.push(succeed_with_result(*span));
@@ -404,27 +431,34 @@ impl<'a> Gen<'_, 'a> {
         }
     }
 
-    /// Reports tags naming an `on terminate` task, which the generator cannot refer to yet (once
-    /// per name).
-    fn on_terminate_refs(&mut self) {
-        let mut reported = BTreeSet::new();
-        for r in &self.scope.refs {
-            let Some(Named {
-                def: Def::OnTerminate { .. },
-                ..
-            }) = self.scope.named(r.tag)
-            else {
+    /// Replaces each `node!(tag)` in the generated body by the tag's node (docs/language.md,
+    /// "Tags, `previous` and groups"); one the diagnosis refused stays as written.
+    fn rewrite_node_uses(&self, tokens: TokenStream) -> TokenStream {
+        let tts: Vec<TokenTree> = tokens.into_iter().collect();
+        let mut out = TokenStream::new();
+        let mut i = 0;
+        while i < tts.len() {
+            let node = node_macro(&tts[i..])
+                .and_then(|(inner, _)| crate::parser::parse_tag_tokens(inner).ok())
+                .and_then(|tag| self.node_expr(&tag));
+            if let Some(expr) = node {
+                out.extend(quote!((#expr)));
+                i += 3;
                 continue;
-            };
-            if reported.insert(r.name.to_string()) {
-                self.diags.push(
-                    Diagnostic::error(
-                        r.tag.span,
-                        format!("`{}` names an `on terminate` task, which the code generator cannot refer to yet", r.name),
-                    )
-                    .with_hint("constrain the on-terminate task inside its own definition instead"),
-                );
             }
+            match &tts[i] {
+                TokenTree::Group(group) => {
+                    let mut inner = proc_macro2::Group::new(
+                        group.delimiter(),
+                        self.rewrite_node_uses(group.stream()),
+                    );
+                    inner.set_span(group.span());
+                    out.extend([TokenTree::Group(inner)]);
+                }
+                other => out.extend([other.clone()]),
+            }
+            i += 1;
         }
+        out
     }
 }

@@ -5,6 +5,13 @@
 //! is one AST trigger (`ConstraintKind::Trigger { when, then }`) and goes through one function,
 //! [`trigger`], to `::tdl::Constraint::Trigger(when, then)`. External events (`When::External`)
 //! have no TDL syntax yet, so they are never generated.
+//!
+//! A tag may denote an *entity* whose members are only known at run time (`previous`, a `with`
+//! group, an iteration set, a tag bound by a statement): [`Nodes::Entity`]. A constraint on it is
+//! applied per member, except a `terminate` or `activate` trigger, which happens once every member
+//! reached the event ([`Lowered::Entity`], through `tdl::codegen::trigger_entity`); with no member
+//! or no entity at all, the `after` part of a delay is dropped (docs/semantics.md, "Tags and
+//! forward references").
 
 use proc_macro2::{Ident, Literal, TokenStream};
 use quote::{format_ident, quote};
@@ -14,20 +21,21 @@ use crate::ast::{
     Constraint, ConstraintKind, Event, Facet, Point, RelTime, Tag, TagIndex, TagKind,
 };
 use crate::ast::{Then, TimeOfDay, When};
-use crate::resolve::{Def, Index, Named, Resolution, SpawnId};
+use crate::resolve::{Def, Index, LoopId, Named, Resolution, SpawnId};
 
 /// The nodes a tag denotes at run time.
 pub(super) enum Nodes {
     /// One node reference expression (a `NodeId` or a `NodeRef`).
     One(TokenStream),
-    /// Several: a `for` loop over `iter`, by reference or by value.
-    Many { by_ref: bool, iter: TokenStream },
+    /// An entity: an `Option<&[NodeId]>` expression of its members, `None` when there is no
+    /// entity at all (`previous` before anything was spawned).
+    Entity(TokenStream),
     /// Nothing to refer to (the diagnosis reported why).
     None,
 }
 
 impl Nodes {
-    /// `f(node)` for each node: inline for one node, a `for` loop for several.
+    /// `f(node)` for each node: inline for one node, a `for` loop over an entity's members.
     pub(super) fn each(
         &self,
         var: &Ident,
@@ -35,16 +43,17 @@ impl Nodes {
     ) -> TokenStream {
         match self {
             Nodes::One(expr) => f(expr),
-            Nodes::Many { by_ref, iter } => {
+            Nodes::Entity(members) => {
                 let body = f(&quote!(#var));
-                if *by_ref {
-                    quote!(for &#var in &#iter { #body })
-                } else {
-                    quote!(for #var in #iter { #body })
-                }
+                quote!(for &#var in ::core::option::Option::unwrap_or_default(#members) { #body })
             }
             Nodes::None => TokenStream::new(),
         }
+    }
+
+    /// `Some(nodes)` of an expression holding a `Vec<NodeId>` or an `Option<NodeId>`.
+    fn slice(holder: impl quote::ToTokens) -> Nodes {
+        Nodes::Entity(quote!(::core::option::Option::Some(#holder.as_slice())))
     }
 }
 
@@ -84,9 +93,20 @@ impl Low {
     }
 }
 
-/// A lowered constraint waiting for its node: the nodes the constraint names (`Nodes::One` of
-/// nothing when it names none) and the constraint for one of them.
-pub(super) type Lowered = (Nodes, Box<dyn FnOnce(&TokenStream) -> Low>);
+/// A lowered constraint waiting for its nodes.
+pub(super) enum Lowered {
+    /// The constraint for each node of `nodes` (`Nodes::One` of nothing when it names none),
+    /// built by `low` from one node; when `nodes` is an entity with no member (or none at all),
+    /// `empty` instead, if anything.
+    Each {
+        nodes: Nodes,
+        low: Box<dyn FnOnce(&TokenStream) -> Low>,
+        empty: Option<Low>,
+    },
+    /// A `terminate` or `activate` trigger on an entity's event: the statement arming it on a
+    /// target node expression, once that node exists.
+    Entity(Box<dyn FnOnce(&TokenStream) -> TokenStream>),
+}
 
 /// `disable [facet] until|for …`, `terminate …`, `activate …`: the one lowering of a trigger,
 /// `::tdl::Constraint::Trigger(when, then)`. `node` is the node of the when's event, if it has one.
@@ -111,15 +131,20 @@ pub(super) fn trigger(when: &When, then: Then, node: &TokenStream) -> TokenStrea
             quote!(::tdl::When::After(#delay, #ev))
         }
     };
-    let then = match then {
+    let then = then_expr(then);
+    quote!(::tdl::Constraint::Trigger(#when, #then))
+}
+
+/// A `tdl::Then` expression.
+fn then_expr(then: Then) -> TokenStream {
+    match then {
         Then::Enable(f) => {
             let f = facet(f.unwrap_or(Facet::Handling));
             quote!(::tdl::Then::Enable(#f))
         }
         Then::Terminate => quote!(::tdl::Then::Terminate),
         Then::Activate => quote!(::tdl::Then::Activate),
-    };
-    quote!(::tdl::Constraint::Trigger(#when, #then))
+    }
 }
 
 pub(super) fn facet(f: Facet) -> TokenStream {
@@ -128,6 +153,31 @@ pub(super) fn facet(f: Facet) -> TokenStream {
         Facet::Expansion => quote!(::tdl::Facet::Expansion),
         Facet::Execution => quote!(::tdl::Facet::Execution),
     }
+}
+
+/// `terminate|activate at|in … after E` where `E` names an entity: armed on `target` by
+/// `tdl::codegen::trigger_entity` (every member must reach the event; none: at once).
+fn entity_trigger(
+    target: &TokenStream,
+    members: &TokenStream,
+    delay: Option<&RelTime>,
+    ev: &Event,
+    then: Then,
+) -> TokenStream {
+    let f = facet(ev.facet.unwrap_or(match ev.point {
+        Point::Completed => Facet::Execution,
+        Point::Enabled | Point::Active => Facet::Handling,
+    }));
+    let p = point(ev.point);
+    let delay = match delay {
+        Some(d) => {
+            let d = duration(d);
+            quote!(::core::option::Option::Some(#d))
+        }
+        None => quote!(::core::option::Option::None),
+    };
+    let then = then_expr(then);
+    quote!(::tdl::codegen::trigger_entity(&ctx, #target, #members, #f, #p, #delay, #then)?;)
 }
 
 fn point(s: Point) -> TokenStream {
@@ -183,52 +233,65 @@ fn time_of_day(t: &TimeOfDay) -> TokenStream {
 impl Gen<'_, '_> {
     /// The nodes `tag` denotes; `prev` is the local holding `previous` at this site.
     pub(super) fn nodes(&self, tag: &Tag, prev: &Ident) -> Nodes {
+        let indexes = match &tag.kind {
+            TagKind::Named { indexes, .. } => indexes.as_slice(),
+            _ => &[],
+        };
         match self.scope.resolve(tag) {
-            Resolution::Previous => Nodes::Many {
-                by_ref: true,
-                iter: quote!(#prev),
-            },
+            Resolution::Previous => Nodes::Entity(quote!(#prev.as_deref())),
             Resolution::This => Nodes::One(quote!(::tdl::NodeRef::This)),
             Resolution::Parent => Nodes::One(quote!(::tdl::NodeRef::Parent)),
-            Resolution::Named(Named {
-                def: Def::Spawn(id),
-                ..
-            }) => match &tag.kind {
-                TagKind::Named { indexes, .. } => self.spawn_nodes(id, indexes),
-                _ => Nodes::None,
-            },
-            Resolution::Named(Named {
-                def: Def::Group(id),
-                ..
-            }) => match &self.scope.groups[id].var {
-                Some(var) => Nodes::Many {
-                    by_ref: true,
-                    iter: quote!(#var),
-                },
-                None => Nodes::None,
-            },
-            // On-terminate tasks are refused by `codegen::body`; unknown and ambiguous tags by
-            // the diagnosis.
-            Resolution::Named(Named {
-                def: Def::OnTerminate { .. },
-                ..
-            })
-            | Resolution::Unknown
-            | Resolution::Ambiguous(_) => Nodes::None,
+            Resolution::Named(Named { def, .. }) => self.def_nodes(def, indexes, &self.loops),
+            // Unknown and ambiguous tags are reported by the diagnosis.
+            Resolution::Unknown | Resolution::Ambiguous(_) => Nodes::None,
         }
     }
 
-    /// The nodes of spawn `id` with iteration indexes `indexes`, at the current loops.
-    fn spawn_nodes(&self, id: SpawnId, indexes: &[TagIndex]) -> Nodes {
+    /// The nodes of a definition named with `indexes` inside the loops `site`.
+    fn def_nodes(&self, def: Def<'_>, indexes: &[TagIndex], site: &[LoopId]) -> Nodes {
+        match def {
+            // A spawn under another parent, or a bound tag: known once its statement ran.
+            Def::Spawn(id) if self.scope.spawns[id].late => match &self.scope.spawns[id].var {
+                Some(var) if self.scope.spawns[id].site.loops.is_empty() => Nodes::slice(var),
+                _ => Nodes::None,
+            },
+            Def::Bound(bind) => match &self.scope.bound[&bind.name.to_string()].var {
+                Some(var) => Nodes::slice(var),
+                None => Nodes::None,
+            },
+            Def::Spawn(id) => {
+                let var = self.scope.spawns[id].var.as_ref();
+                self.spawn_nodes(id, var, indexes, site)
+            }
+            Def::OnTerminate(id) => {
+                let cleanup = &self.scope.cleanups[id];
+                self.spawn_nodes(cleanup.spawn, cleanup.var.as_ref(), indexes, site)
+            }
+            Def::Group(id) => match &self.scope.groups[id].var {
+                Some(var) => Nodes::slice(var),
+                None => Nodes::None,
+            },
+        }
+    }
+
+    /// The nodes held in `var` (reservations of spawn `id`, or of an on-terminate task of it)
+    /// with iteration indexes `indexes`, inside the loops `site`.
+    fn spawn_nodes(
+        &self,
+        id: SpawnId,
+        var: Option<&Ident>,
+        indexes: &[TagIndex],
+        site: &[LoopId],
+    ) -> Nodes {
         let info = &self.scope.spawns[id];
-        let Some(var) = &info.var else {
+        let Some(var) = var else {
             return Nodes::None;
         };
         let depth = info.site.loops.len();
         if depth == 0 {
             return Nodes::One(quote!(#var));
         }
-        let Ok(indexes) = self.scope.indexes(id, indexes, &self.loops) else {
+        let Ok(indexes) = self.scope.indexes(id, indexes, site) else {
             return Nodes::None;
         };
         let keys: Vec<TokenStream> = indexes
@@ -256,53 +319,42 @@ impl Gen<'_, '_> {
                     .collect::<::std::vec::Vec<_>>()
             }
         };
-        Nodes::Many {
-            by_ref: false,
-            iter,
-        }
+        Nodes::slice(quote!((#iter)))
     }
 
     /// The nodes of a `sequential`/`serial` tag, `previous` when none is written.
     fn nodes_or_previous(&self, tag: Option<&Tag>, prev: &Ident) -> Nodes {
         match tag {
             Some(tag) => self.nodes(tag, prev),
-            None => Nodes::Many {
-                by_ref: true,
-                iter: quote!(#prev),
-            },
+            None => Nodes::Entity(quote!(#prev.as_deref())),
         }
     }
 
     /// The lowered form of `c` with the nodes it names; `None` when it is handled elsewhere.
     pub(super) fn lower(&self, c: &Constraint, prev: &Ident) -> Option<Lowered> {
-        let no_node = |low: Low| -> Option<Lowered> {
-            Some((Nodes::One(TokenStream::new()), Box::new(move |_| low)))
+        let each = |nodes: Nodes, low: Box<dyn FnOnce(&TokenStream) -> Low>| {
+            Some(Lowered::Each {
+                nodes,
+                low,
+                empty: None,
+            })
         };
+        let no_node = |low: Low| each(Nodes::One(TokenStream::new()), Box::new(move |_| low));
         match &c.kind {
             ConstraintKind::ExpandFirst => no_node(Low::ExpandFirst),
             ConstraintKind::DelayExpansion => no_node(Low::DelayExpansion),
             ConstraintKind::Sequential { facet: f, tag } => {
                 let nodes = self.nodes_or_previous(tag.as_ref(), prev);
                 let f = facet(*f);
-                Some((nodes, Box::new(move |n| Low::Sequential(f, n.clone()))))
+                each(nodes, Box::new(move |n| Low::Sequential(f, n.clone())))
             }
             ConstraintKind::Serial { tag } => {
                 let nodes = self.nodes_or_previous(tag.as_ref(), prev);
-                Some((nodes, Box::new(|n| Low::Serial(n.clone()))))
+                each(nodes, Box::new(|n| Low::Serial(n.clone())))
             }
-            ConstraintKind::Trigger { when, then } => {
-                let nodes = match when.event() {
-                    Some(ev) => self.nodes(&ev.tag, prev),
-                    None => Nodes::One(TokenStream::new()),
-                };
-                let (when, then) = (when.clone(), *then);
-                Some((
-                    nodes,
-                    Box::new(move |n| Low::Trigger(trigger(&when, then, n))),
-                ))
-            }
-            // Spawner settings, generated by `spawn` (and refused in constraint statements);
-            // `on AGENT` is refused by the diagnosis.
+            ConstraintKind::Trigger { when, then } => Some(self.lower_trigger(when, *then, prev)),
+            // Spawner settings and monitor limits, generated by `spawn` and `constrain`; `on
+            // AGENT` is refused by the diagnosis.
             ConstraintKind::MaximumActivate(_)
             | ConstraintKind::MaximumTrigger(_)
             | ConstraintKind::Period(_)
@@ -311,7 +363,84 @@ impl Gen<'_, '_> {
             | ConstraintKind::Parallel
             | ConstraintKind::Wait
             | ConstraintKind::Name(_)
+            | ConstraintKind::Parent(_)
             | ConstraintKind::OnTerminate(_) => None,
+        }
+    }
+
+    /// A trigger: per node, or, naming an entity, per member (enablement) or once for the
+    /// whole entity (`terminate`, `activate`).
+    fn lower_trigger(&self, when: &When, then: Then, prev: &Ident) -> Lowered {
+        let nodes = match when.event() {
+            Some(ev) => self.nodes(&ev.tag, prev),
+            None => Nodes::One(TokenStream::new()),
+        };
+        let (delay, event) = match when {
+            When::Event(ev) => (None, Some(ev)),
+            When::After(d, ev) => (Some(d), Some(ev)),
+            When::Now | When::At(_) | When::In(_) => (None, None),
+        };
+        if let (Nodes::Entity(members), Some(ev), Then::Terminate | Then::Activate) =
+            (&nodes, event, then)
+        {
+            let (members, delay, ev) = (members.clone(), delay.cloned(), ev.clone());
+            return Lowered::Entity(Box::new(move |target| {
+                entity_trigger(target, &members, delay.as_ref(), &ev, then)
+            }));
+        }
+        // `disable … for D after E` with no member of `E`: the `after` part is dropped.
+        let empty = match (&nodes, delay) {
+            (Nodes::Entity(_), Some(d)) => {
+                let none = TokenStream::new();
+                Some(Low::Trigger(trigger(&When::In(d.clone()), then, &none)))
+            }
+            _ => None,
+        };
+        let when = when.clone();
+        Lowered::Each {
+            nodes,
+            low: Box::new(move |n| Low::Trigger(trigger(&when, then, n))),
+            empty,
+        }
+    }
+
+    /// The node expression of `node!(tag)` in Rust code: `None` when the tag does not name one
+    /// node (the diagnosis reported why).
+    pub(super) fn node_expr(&self, tag: &Tag) -> Option<TokenStream> {
+        let TagKind::Named { name, indexes } = &tag.kind else {
+            return matches!(tag.kind, TagKind::Parent).then(|| quote!(ctx.node()));
+        };
+        let Resolution::Named(Named { def, .. }) = self.scope.resolve(tag) else {
+            return None;
+        };
+        let text = name.to_string();
+        let late = |var: &Ident| quote!(::tdl::codegen::bound(#var, #text)?);
+        match def {
+            Def::Spawn(id) if self.scope.spawns[id].late => {
+                let info = &self.scope.spawns[id];
+                info.var
+                    .as_ref()
+                    .filter(|_| info.site.loops.is_empty())
+                    .map(late)
+            }
+            Def::Bound(bind) => self.scope.bound[&bind.name.to_string()]
+                .var
+                .as_ref()
+                .map(late),
+            Def::Group(_) => None,
+            // `[.]` is the spawn's own loop wherever the use is (the diagnosis checked it is
+            // inside that loop).
+            Def::Spawn(id) | Def::OnTerminate(id) => {
+                let spawn = match def {
+                    Def::OnTerminate(_) => self.scope.cleanups[id].spawn,
+                    _ => id,
+                };
+                let site = &self.scope.spawns[spawn].site.loops;
+                match self.def_nodes(def, indexes, site) {
+                    Nodes::One(expr) => Some(expr),
+                    Nodes::Entity(_) | Nodes::None => None,
+                }
+            }
         }
     }
 }

@@ -1,24 +1,44 @@
 //! Generation of the TDL statements that make and constrain nodes: `spawn` (a `Spawner` chain
-//! with the constraints of the enclosing `with` groups and its own), `with` groups (their members
-//! and `previous` as one entity) and constraint statements (`ctx.constrain`, `ctx.wait`,
-//! `ctx.terminate`).
+//! with the constraints of the enclosing `with` groups and its own, then the triggers on whole
+//! entities once the node exists), `with` groups (their members and `previous` as one entity),
+//! `bind` and constraint statements (`ctx.constrain`, `ctx.wait`, `ctx.terminate`, the monitor
+//! limits).
 
 use proc_macro2::{Ident, TokenStream};
 use quote::{format_ident, quote};
 
 use super::body::Gen;
-use super::lower::{Nodes, duration};
+use super::lower::{Low, Lowered, Nodes, duration};
 use super::{count_expr, handler_expr};
 use crate::ast::{
-    Binding, Constraint, ConstraintKind, ConstraintStmt, Spawn, TagKind, Then, When, WithGroup,
+    Bind, Binding, Constraint, ConstraintKind, ConstraintStmt, OnTerminate, Spawn, TagKind, Then,
+    When, WithGroup,
 };
 use crate::diagnostic::Diagnostic;
-use crate::resolve::uses_previous;
+use crate::resolve::{LoopId, uses_previous};
 
-/// Where the spawn's builder chain stands: plain method calls, or a loop over an entity.
+/// Where the spawn's builder chain stands: plain method calls, a loop over an entity's members,
+/// or a method applied only when an entity has no member.
 enum Step {
     Method(TokenStream),
     Each(Nodes, Box<dyn FnOnce(&TokenStream) -> TokenStream>),
+    IfEmpty(TokenStream, TokenStream),
+}
+
+/// A statement arming a trigger on the spawned node once it exists (given its expression).
+type Armed = Box<dyn FnOnce(&TokenStream) -> TokenStream>;
+
+/// What a spawn's constraints (its groups' and its own) make of it.
+#[derive(Default)]
+struct Parts {
+    /// The builder chain.
+    steps: Vec<Step>,
+    /// Triggers armed once the node exists.
+    armed: Vec<Armed>,
+    /// `wait`.
+    wait: bool,
+    /// `name "…"`.
+    name: Option<syn::Expr>,
 }
 
 /// A `with` group being generated.
@@ -33,58 +53,18 @@ pub(super) struct Frame<'a> {
 impl<'a> Gen<'_, 'a> {
     pub(super) fn spawn(&mut self, spawn: &'a Spawn) -> TokenStream {
         let prev = Self::prev_ident();
-        // Constraints: the enclosing groups' (outermost first, each with its own `previous`),
-        // then the spawn's own.
-        let mut lists: Vec<(&'a [Constraint], Ident)> = self
-            .frames
-            .iter()
-            .map(|f| (f.constraints, f.prev.clone()))
-            .collect();
-        lists.push((&spawn.constraints, prev.clone()));
-        let mut steps = Vec::new();
-        let mut wait = false;
-        let mut name = None;
         let task_name = &spawn.task;
         let args = &spawn.args;
-        for (list, list_prev) in &lists {
-            for c in *list {
-                match &c.kind {
-                    ConstraintKind::Wait => wait = true,
-                    ConstraintKind::Name(expr) => name = Some(expr.clone()),
-                    ConstraintKind::OnTerminate(it) => {
-                        let (t, a) = (&it.task, &it.args);
-                        steps.push(Step::Method(quote!(.on_terminate(#t(#(#a),*)))));
-                    }
-                    ConstraintKind::ExceptionHandler(it) => {
-                        let h = handler_expr(it, c.span, self.diags);
-                        steps.push(Step::Method(quote!(.handler(#h))));
-                    }
-                    ConstraintKind::MaximumActivate(n) => {
-                        let n = count_expr(n, c.span, self.diags);
-                        steps.push(Step::Method(quote!(.max_activations(#n))));
-                    }
-                    ConstraintKind::MaximumTrigger(n) => {
-                        let n = count_expr(n, c.span, self.diags);
-                        steps.push(Step::Method(quote!(.max_triggers(#n))));
-                    }
-                    ConstraintKind::Period(t) => {
-                        let d = duration(t);
-                        steps.push(Step::Method(quote!(.period(#d))));
-                    }
-                    _ => {
-                        if let Some((nodes, f)) = self.lower(c, list_prev) {
-                            match nodes {
-                                Nodes::One(n) => steps.push(Step::Method(f(&n).method())),
-                                Nodes::None => {}
-                                many => {
-                                    steps.push(Step::Each(many, Box::new(move |n| f(n).method())))
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-        }
+        let (var, loops, late) = match self.scope.spawn_def(spawn) {
+            Some(info) => (info.var.clone(), info.site.loops.clone(), info.late),
+            None => (None, Vec::new(), false),
+        };
+        let Parts {
+            mut steps,
+            armed,
+            wait,
+            name,
+        } = self.spawn_parts(spawn, &loops);
         let mut task = quote!(#task_name(#(#args),*));
         if let Some(name) = name {
             task = quote!(#task.named(#name));
@@ -94,25 +74,18 @@ impl<'a> Gen<'_, 'a> {
             .iter()
             .filter_map(|f| f.members.clone())
             .collect();
-        let needs_id = self.scope.uses_previous || !members.is_empty();
+        let binds_late = late && var.is_some();
+        let needs_id =
+            self.scope.uses_previous || !members.is_empty() || !armed.is_empty() || binds_late;
         let mut pre = TokenStream::new();
         let mut id_expr: Option<TokenStream> = None;
-        if let Some(info) = self.scope.spawn_def(spawn) {
-            if let Some(var) = &info.var {
-                let loops = &info.site.loops;
-                if loops.is_empty() {
-                    id_expr = Some(quote!(#var));
-                } else {
-                    let keys = loops.iter().map(|l| format_ident!("tdl_i_{}", l));
-                    let name = spawn.task.to_string();
-                    let slot = quote!(tdl_slot(&ctx, &mut #var, [#(#keys),*], #name)?);
-                    if needs_id && spawn.binding.is_some() {
-                        pre.extend(quote!(let tdl_node = #slot;));
-                        id_expr = Some(quote!(tdl_node));
-                    } else {
-                        id_expr = Some(slot);
-                    }
-                }
+        if let (Some(var), false) = (&var, late) {
+            let slot = own_slot(var, &loops, &spawn.task.to_string());
+            if needs_id && spawn.binding.is_some() && !loops.is_empty() {
+                pre.extend(quote!(let tdl_node = #slot;));
+                id_expr = Some(quote!(tdl_node));
+            } else {
+                id_expr = Some(slot);
             }
         }
         if needs_id && spawn.binding.is_some() && id_expr.is_none() {
@@ -126,34 +99,129 @@ impl<'a> Gen<'_, 'a> {
         let (setup, chain) = render_chain(quote!(ctx.spawn(#task)), steps);
         pre.extend(setup);
         let mut out = pre;
-        let node = format_ident!("tdl_node");
-        match (&spawn.binding, wait) {
+        let node = quote!(tdl_node);
+        let id = match (&spawn.binding, &id_expr) {
+            (Some(_), Some(id)) => id.clone(),
+            _ => node.clone(),
+        };
+        match (&spawn.binding, needs_id) {
             (Some(binding), _) => {
+                // The node is a reservation until the spawn: the triggers are kept on it.
+                for arm in armed {
+                    out.extend(arm(&id));
+                }
                 let ty = self.value_type(spawn, binding);
                 let pat = &binding.pat;
                 out.extend(quote!(let #pat: #ty = #chain.wait_value::<#ty>().await?;));
             }
-            (None, true) if needs_id => out.extend(quote! {
-                let #node = #chain.start()?;
-                ctx.wait(#node).await?;
-            }),
-            (None, true) => out.extend(quote!(#chain.wait().await?;)),
-            (None, false) if needs_id => out.extend(quote!(let #node = #chain.start()?;)),
+            (None, true) => {
+                out.extend(quote!(let #node = #chain.start()?;));
+                for arm in armed {
+                    out.extend(arm(&node));
+                }
+                if let (Some(var), true) = (&var, binds_late) {
+                    out.extend(quote!(#var = ::core::option::Option::Some(#node);));
+                }
+                if wait {
+                    out.extend(quote!(ctx.wait(#node).await?;));
+                }
+            }
+            (None, false) if wait => out.extend(quote!(#chain.wait().await?;)),
             (None, false) => out.extend(quote!(#chain.start()?;)),
         }
         if needs_id {
-            let id = match (&spawn.binding, &id_expr) {
-                (Some(_), Some(id)) => id.clone(),
-                _ => quote!(#node),
-            };
             for m in &members {
                 out.extend(quote!(#m.push(#id);));
             }
             if self.scope.uses_previous {
-                out.extend(quote!(#prev = ::std::vec![#id];));
+                out.extend(quote!(#prev = ::core::option::Option::Some(::std::vec![#id]);));
             }
         }
         out
+    }
+
+    /// The builder steps and the rest of a spawn inside the loops `loops`, from the constraints of
+    /// the enclosing groups (outermost first, each with its own `previous`), then its own.
+    fn spawn_parts(&mut self, spawn: &'a Spawn, loops: &[LoopId]) -> Parts {
+        let mut lists: Vec<(&'a [Constraint], Ident)> = self
+            .frames
+            .iter()
+            .map(|f| (f.constraints, f.prev.clone()))
+            .collect();
+        lists.push((&spawn.constraints, Self::prev_ident()));
+        let mut parts = Parts::default();
+        for (list, list_prev) in &lists {
+            for c in *list {
+                let method = match &c.kind {
+                    ConstraintKind::Wait => {
+                        parts.wait = true;
+                        continue;
+                    }
+                    ConstraintKind::Name(expr) => {
+                        parts.name = Some(expr.clone());
+                        continue;
+                    }
+                    ConstraintKind::Parent(expr) => quote!(.under(#expr)),
+                    ConstraintKind::OnTerminate(it) => self.on_terminate(it, loops),
+                    ConstraintKind::ExceptionHandler(it) => {
+                        let h = handler_expr(it, c.span, self.diags);
+                        quote!(.handler(#h))
+                    }
+                    ConstraintKind::MaximumActivate(n) => {
+                        let n = count_expr(n, c.span, self.diags);
+                        quote!(.max_activations(#n))
+                    }
+                    ConstraintKind::MaximumTrigger(n) => {
+                        let n = count_expr(n, c.span, self.diags);
+                        quote!(.max_triggers(#n))
+                    }
+                    ConstraintKind::Period(t) => {
+                        let d = duration(t);
+                        quote!(.period(#d))
+                    }
+                    _ => {
+                        match self.lower(c, list_prev) {
+                            Some(Lowered::Each { nodes, low, empty }) => {
+                                each_step(&mut parts.steps, nodes, low, empty);
+                            }
+                            Some(Lowered::Entity(arm)) => parts.armed.push(arm),
+                            None => {}
+                        }
+                        continue;
+                    }
+                };
+                parts.steps.push(Step::Method(method));
+            }
+        }
+        parts
+    }
+
+    /// `on terminate [label:] spawn t(args)` on a spawn inside the loops `loops`: a labelled one
+    /// that some tag names fulfils the label's reservation, which the spawned node takes over.
+    fn on_terminate(&self, it: &OnTerminate, loops: &[LoopId]) -> TokenStream {
+        let (t, a) = (&it.task, &it.args);
+        let task = quote!(#t(#(#a),*));
+        match self.scope.cleanup(it).and_then(|c| c.var.as_ref()) {
+            Some(var) => {
+                let slot = own_slot(var, loops, &it.task.to_string());
+                quote!(.on_terminate_fulfils(#task, #slot))
+            }
+            None => quote!(.on_terminate(#task)),
+        }
+    }
+
+    /// `bind name = expr;`: the tag's local holds the node from now on.
+    pub(super) fn bind(&mut self, bind: &Bind) -> TokenStream {
+        let expr = &bind.expr;
+        match self
+            .scope
+            .bound
+            .get(&bind.name.to_string())
+            .and_then(|it| it.var.as_ref())
+        {
+            Some(var) => quote!(#var = ::core::option::Option::Some::<::tdl::NodeId>(#expr);),
+            None => quote!(let _: ::tdl::NodeId = #expr;),
+        }
     }
 
     /// The type of a waited spawn's value: the callee's declared result, else the annotation.
@@ -227,8 +295,12 @@ impl<'a> Gen<'_, 'a> {
         if self.scope.uses_previous {
             let prev = Self::prev_ident();
             match (&label_var, &members) {
-                (Some(var), _) => out.extend(quote!(#prev = #var.clone();)),
-                (None, Some(var)) => out.extend(quote!(#prev = #var;)),
+                (Some(var), _) => {
+                    out.extend(quote!(#prev = ::core::option::Option::Some(#var.clone());));
+                }
+                (None, Some(var)) => {
+                    out.extend(quote!(#prev = ::core::option::Option::Some(#var);))
+                }
                 (None, None) => {}
             }
         }
@@ -252,7 +324,8 @@ impl<'a> Gen<'_, 'a> {
         };
         let target_var = format_ident!("target");
         let node_var = format_ident!("node");
-        match &stmt.constraint.kind {
+        let c = &stmt.constraint;
+        match &c.kind {
             ConstraintKind::Wait => {
                 return target.each(&target_var, |t| quote!(ctx.wait(#t).await?;));
             }
@@ -263,34 +336,80 @@ impl<'a> Gen<'_, 'a> {
                 return target.each(&target_var, |t| quote!(ctx.terminate(#t)?;));
             }
             ConstraintKind::Parallel => return TokenStream::new(),
+            // Monitor limits set again after the spawn (docs/semantics.md, "Monitors").
+            ConstraintKind::MaximumActivate(n) => {
+                let n = count_expr(n, c.span, self.diags);
+                return target.each(&target_var, |t| quote!(ctx.set_max_activations(#t, #n)?;));
+            }
+            ConstraintKind::MaximumTrigger(n) => {
+                let n = count_expr(n, c.span, self.diags);
+                return target.each(&target_var, |t| quote!(ctx.set_max_triggers(#t, #n)?;));
+            }
+            ConstraintKind::Period(t) => {
+                let d = duration(t);
+                return target.each(&target_var, |t| quote!(ctx.set_period(#t, #d)?;));
+            }
+            // Refused by the diagnosis: they only go on a spawn.
             ConstraintKind::Name(_)
             | ConstraintKind::OnTerminate(_)
             | ConstraintKind::ExceptionHandler(_)
-            | ConstraintKind::MaximumActivate(_)
-            | ConstraintKind::MaximumTrigger(_)
-            | ConstraintKind::Period(_) => {
-                self.diags.push(
-                    Diagnostic::error(
-                        stmt.constraint.span,
-                        "this constraint can only be given on the spawn",
-                    )
-                    .with_hint("move it into the spawn's `with` list (monitor settings can also go on the monitor's definition)"),
-                );
-                return TokenStream::new();
-            }
+            | ConstraintKind::Parent(_) => return TokenStream::new(),
             _ => {}
         }
-        let Some((nodes, f)) = self.lower(&stmt.constraint, &prev) else {
-            return TokenStream::new();
-        };
-        target.each(&target_var, |t| {
-            let t = t.clone();
-            nodes.each(&node_var, move |n| {
-                let value = f(n).value();
-                quote!(ctx.constrain(#t, #value)?;)
-            })
-        })
+        match self.lower(c, &prev) {
+            Some(Lowered::Each { nodes, low, empty }) => target.each(&target_var, |t| {
+                let t = t.clone();
+                let mut out = nodes.each(&node_var, |n| {
+                    let value = low(n).value();
+                    quote!(ctx.constrain(#t, #value)?;)
+                });
+                if let (Nodes::Entity(members), Some(empty)) = (&nodes, empty) {
+                    let value = empty.value();
+                    out.extend(quote! {
+                        if ::tdl::codegen::no_members(#members) {
+                            ctx.constrain(#t, #value)?;
+                        }
+                    });
+                }
+                out
+            }),
+            Some(Lowered::Entity(arm)) => target.each(&target_var, arm),
+            None => TokenStream::new(),
+        }
     }
+}
+
+/// The steps of a constraint applied per node: one method, a loop over an entity's members (and,
+/// for an entity with no member, `empty`), or nothing.
+fn each_step(
+    steps: &mut Vec<Step>,
+    nodes: Nodes,
+    low: Box<dyn FnOnce(&TokenStream) -> Low>,
+    empty: Option<Low>,
+) {
+    match nodes {
+        Nodes::One(n) => steps.push(Step::Method(low(&n).method())),
+        Nodes::None => {}
+        Nodes::Entity(members) => {
+            steps.push(Step::Each(
+                Nodes::Entity(members.clone()),
+                Box::new(move |n| low(n).method()),
+            ));
+            if let Some(empty) = empty {
+                steps.push(Step::IfEmpty(members, empty.method()));
+            }
+        }
+    }
+}
+
+/// The node of a spawn (or of its labelled on-terminate task) held in `var`: the reservation, or,
+/// inside the loops `loops`, this iteration's entry of the map, reserved on first use.
+fn own_slot(var: &Ident, loops: &[LoopId], name: &str) -> TokenStream {
+    if loops.is_empty() {
+        return quote!(#var);
+    }
+    let keys = loops.iter().map(|l| format_ident!("tdl_i_{}", l));
+    quote!(tdl_slot(&ctx, &mut #var, [#(#keys),*], #name)?)
 }
 
 /// Renders the builder chain: one expression, or a `tdl_spawn` local when an entity is looped over.
@@ -298,7 +417,7 @@ fn render_chain(start: TokenStream, steps: Vec<Step>) -> (TokenStream, TokenStre
     if steps.iter().all(|s| matches!(s, Step::Method(_))) {
         let methods = steps.into_iter().map(|s| match s {
             Step::Method(m) => m,
-            Step::Each(..) => TokenStream::new(),
+            Step::Each(..) | Step::IfEmpty(..) => TokenStream::new(),
         });
         return (TokenStream::new(), quote!(#start #(#methods)*));
     }
@@ -319,6 +438,17 @@ fn render_chain(start: TokenStream, steps: Vec<Step>) -> (TokenStream, TokenStre
                     quote!(#spawner = #spawner #m;)
                 });
                 setup.extend(body);
+            }
+            Step::IfEmpty(members, m) => {
+                if !pending.is_empty() {
+                    setup.extend(quote!(#spawner = #spawner #pending;));
+                    pending = TokenStream::new();
+                }
+                setup.extend(quote! {
+                    if ::tdl::codegen::no_members(#members) {
+                        #spawner = #spawner #m;
+                    }
+                });
             }
         }
     }

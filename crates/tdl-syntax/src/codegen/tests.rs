@@ -68,7 +68,13 @@ fn nested_groups_snapshot_previous_for_the_outer_group() {
         "../../test_data/ok/with_groups_deliver_mail.tdl"
     ));
     assert!(has(&out, "let tdl_prev_1 = tdl_prev.clone();"), "{out}");
-    assert!(has(&out, "tdl_prev = tdl_group_1;"), "{out}");
+    assert!(
+        has(
+            &out,
+            "tdl_prev = ::core::option::Option::Some(tdl_group_1);"
+        ),
+        "{out}"
+    );
 }
 
 #[test]
@@ -123,11 +129,38 @@ fn handlers_bind_the_exception_and_persistent_state() {
 }
 
 #[test]
-fn monitor_settings_in_a_constraint_statement_are_refused() {
-    let errs = errors(
-        "monitor m() { trigger; } goal g() { w: spawn m(); w maximum trigger 3; w activate; }",
+fn monitor_limits_in_groups_and_constraint_statements() {
+    // Catalogue 1.4: a group's value, then the spawn's own (the last wins); a constraint statement
+    // sets it again at run time.
+    let out = expand(
+        "monitor m() { trigger; }
+         goal g() {
+             with (maximum activate 5, period 2s) { w: spawn m() with maximum activate 2; }
+             w maximum trigger 3;
+             w maximum activate (4 + 1);
+             w period 0.5;
+         }",
     );
-    assert_eq!(errs, ["this constraint can only be given on the spawn"]);
+    for line in [
+        ".max_activations(5).period(::std::time::Duration::from_secs(2)).max_activations(2)",
+        "ctx.set_max_triggers(tdl_w, 3)?;",
+        "ctx.set_max_activations(tdl_w, ::tdl::codegen::count((4 + 1)))?;",
+        "ctx.set_period(tdl_w, ::std::time::Duration::from_millis(500))?;",
+    ] {
+        assert!(has(&out, line), "missing {line:?} in:\n{out}");
+    }
+    // What only goes on a spawn is refused in a statement.
+    let errs = errors(
+        "monitor m() { trigger; }
+         goal g() { w: spawn m(); w maximum trigger 3; w name \"x\"; w parent p; }",
+    );
+    assert_eq!(
+        errs,
+        [
+            "this constraint can only be given on the spawn",
+            "this constraint can only be given on the spawn"
+        ]
+    );
 }
 
 #[test]
@@ -245,7 +278,9 @@ fn every_trigger_lowers_to_one_when_and_then() {
 }
 
 #[test]
-fn triggers_on_a_group_or_loop_tag_apply_once_per_node() {
+fn triggers_on_a_group_or_loop_tag_apply_to_the_whole_entity() {
+    // Enablement once per member; `terminate at` the group once every member got there, armed
+    // when the node exists.
     let out = expand(
         "goal g(n: u32) {
              grp: with (parallel) { spawn a(); spawn b(); }
@@ -254,9 +289,103 @@ fn triggers_on_a_group_or_loop_tag_apply_once_per_node() {
          }",
     );
     for line in [
-        "for &node in &tdl_grp { tdl_spawn = tdl_spawn.with(::tdl::Constraint::Trigger(::tdl::When::Event(::tdl::Event::new(node, ::tdl::Point::Completed)), ::tdl::Then::Terminate)); }",
-        "for node in tdl_mv.values().copied().collect::<::std::vec::Vec<_>>() {",
+        "for &node in ::core::option::Option::unwrap_or_default(::core::option::Option::Some((tdl_mv.values().copied().collect::<::std::vec::Vec<_>>()).as_slice())) {",
         "::tdl::When::Event(::tdl::Event::new(node, ::tdl::Point::Completed)), ::tdl::Then::Enable(::tdl::Facet::Handling)",
+        "let tdl_node = tdl_spawn.start()?;",
+        "::tdl::codegen::trigger_entity(&ctx, tdl_node, ::core::option::Option::Some(tdl_grp.as_slice()), ::tdl::Facet::Execution, ::tdl::Point::Completed, ::core::option::Option::None, ::tdl::Then::Terminate)?;",
+    ] {
+        assert!(has(&out, line), "missing {line:?} in:\n{out}");
+    }
+}
+
+#[test]
+fn previous_is_none_before_anything_and_a_missing_after_event_keeps_the_delay() {
+    let out = expand(
+        "monitor m() { trigger; }
+         goal g() {
+             spawn a() with disable for 2s after previous completed;
+             spawn b() with terminate in 3s after previous active;
+             w: spawn m() with activate in 1s after previous completed;
+         }",
+    );
+    for line in [
+        "let mut tdl_prev: ::core::option::Option<::std::vec::Vec<::tdl::NodeId>> = ::core::option::Option::None;",
+        "if ::tdl::codegen::no_members(tdl_prev.as_deref()) { tdl_spawn = tdl_spawn.with(::tdl::Constraint::Trigger(::tdl::When::In(::std::time::Duration::from_secs(2)), ::tdl::Then::Enable(::tdl::Facet::Handling))); }",
+        "::tdl::codegen::trigger_entity(&ctx, tdl_node, tdl_prev.as_deref(), ::tdl::Facet::Handling, ::tdl::Point::Active, ::core::option::Option::Some(::std::time::Duration::from_secs(3)), ::tdl::Then::Terminate)?;",
+        "::tdl::codegen::trigger_entity(&ctx, tdl_node, tdl_prev.as_deref(), ::tdl::Facet::Execution, ::tdl::Point::Completed, ::core::option::Option::Some(::std::time::Duration::from_secs(1)), ::tdl::Then::Activate)?;",
+        "tdl_prev = ::core::option::Option::Some(::std::vec![tdl_node]);",
+    ] {
+        assert!(has(&out, line), "missing {line:?} in:\n{out}");
+    }
+}
+
+#[test]
+fn several_task_level_on_terminate_tasks_each_get_a_local() {
+    let out = expand(
+        "command release() {} command stow() {}
+         goal grasp() with on terminate spawn release(), on terminate stow() { work(); }",
+    );
+    for line in [
+        "let tdl_on_terminate_0 = release();",
+        "let tdl_on_terminate_1 = stow();",
+        ".on_terminate(tdl_on_terminate_0).on_terminate(tdl_on_terminate_1)",
+    ] {
+        assert!(has(&out, line), "missing {line:?} in:\n{out}");
+    }
+}
+
+#[test]
+fn on_terminate_labels_are_reservations_the_spawn_fulfils() {
+    let out = expand(
+        "goal g() {
+             spawn report() with sequential execution one;
+             h: spawn hold() with on terminate one: spawn release(), on terminate two: spawn stow();
+             two serial one;
+             for i in 0..3 { spawn grip(i) with on terminate g1: spawn drop(i); g1[.] wait; }
+         }",
+    );
+    for line in [
+        "let tdl_one = ctx.reserve(\"release\")?;",
+        "let tdl_two = ctx.reserve(\"stow\")?;",
+        ".on_terminate_fulfils(release(), tdl_one).on_terminate_fulfils(stow(), tdl_two)",
+        "ctx.constrain(tdl_two, ::tdl::Constraint::Serial(::tdl::NodeRef::from(tdl_one)))?;",
+        ".on_terminate_fulfils(drop(i), tdl_slot(&ctx, &mut tdl_g1, [tdl_i_0], \"drop\")?)",
+    ] {
+        assert!(has(&out, line), "missing {line:?} in:\n{out}");
+    }
+    let errs = errors("goal g() with on terminate c: spawn cleanup() { work(); }");
+    assert_eq!(errs, ["a task-level `on terminate` takes no label"]);
+}
+
+#[test]
+fn node_bind_and_parent() {
+    let out = expand(
+        "goal g(up: tdl::NodeId) {
+             a: spawn work();
+             let me = node!(parent);
+             log(node!(a), me);
+             for i in 0..2 { s: spawn step(i); log(node!(s[.])); }
+             bind door = up;
+             door terminate;
+             spawn other() with serial door;
+             u: spawn under() with parent node!(door);
+             spawn after() with terminate at u completed;
+             log(node!(u));
+         }",
+    );
+    for line in [
+        "let mut tdl_door: ::core::option::Option<::tdl::NodeId> = ::core::option::Option::None;",
+        "let mut tdl_u: ::core::option::Option<::tdl::NodeId> = ::core::option::Option::None;",
+        "let me = (ctx.node());",
+        "log((tdl_a), me);",
+        "log((tdl_slot(&ctx, &mut tdl_s, [tdl_i_0], \"step\")?));",
+        "tdl_door = ::core::option::Option::Some::<::tdl::NodeId>(up);",
+        "for &target in ::core::option::Option::unwrap_or_default(::core::option::Option::Some(tdl_door.as_slice())) { ctx.terminate(target)?; }",
+        ".under((::tdl::codegen::bound(tdl_door, \"door\")?))",
+        "tdl_u = ::core::option::Option::Some(tdl_node);",
+        "::tdl::codegen::trigger_entity(&ctx, tdl_node, ::core::option::Option::Some(tdl_u.as_slice()),",
+        "log((::tdl::codegen::bound(tdl_u, \"u\")?));",
+        "#[allow(unused_assignments)]",
     ] {
         assert!(has(&out, line), "missing {line:?} in:\n{out}");
     }

@@ -150,6 +150,10 @@ fn parse_constraint_inner(input: ParseStream, cx: &mut Cx) -> syn::Result<Constr
             take_words(input, 1)?;
             ConstraintKind::Name(input.call(syn::Expr::parse_without_eager_brace)?)
         }
+        Some("parent") => {
+            take_words(input, 1)?;
+            ConstraintKind::Parent(input.call(syn::Expr::parse_without_eager_brace)?)
+        }
         _ => {
             let what = match input.cursor().token_tree() {
                 Some((tt, _)) => format!("`{tt}`"),

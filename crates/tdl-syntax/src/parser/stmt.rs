@@ -3,7 +3,7 @@
 //!
 //! A statement is recognised by its first tokens (docs/language.md): `[label:]* spawn T`,
 //! `[label:]* with (...)`, `let p = spawn T`, `succeed;`, `fail ...;`, `bypass;`, `trigger;`, and
-//! `TAG constraint;` (in Rust, `ident ident` never starts a statement). `if`, `for`, `while`,
+//! `bind name = expr;` and `TAG constraint;` (in Rust, `ident ident` never starts a statement). `if`, `for`, `while`,
 //! `loop`, `match` and blocks are walked only when they contain a TDL statement; otherwise they
 //! stay Rust tokens, so their value and typing are exactly Rust's.
 
@@ -20,8 +20,8 @@ use super::constraint::{
 };
 use super::{Cx, attempt, parse_block, parse_group, recover, take_group};
 use crate::ast::{
-    Arm, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match, RustStmt, Spawn, Stmt,
-    While, WithGroup,
+    Arm, Bind, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match, RustStmt, Spawn,
+    Stmt, While, WithGroup,
 };
 use crate::keyword::{peek_words, starts_constraint};
 
@@ -80,6 +80,9 @@ fn stmt_hint(input: ParseStream) -> Option<&'static str> {
         ),
         "with" => Some("a group reads `[label:] with (constraint, ...) { ... }`"),
         "fail" => Some("write `fail;`, `fail Exc;` or `fail Exc { field: value, ... };`"),
+        "bind" if is_bind(input.cursor()) => {
+            Some("a binding reads `bind name = node;`, with `node` a `tdl::NodeId` expression")
+        }
         _ if is_constraint_stmt(input.cursor()) => Some(CONSTRAINT_HINT),
         _ => None,
     }
@@ -123,6 +126,22 @@ fn is_constraint_stmt(cursor: Cursor<'_>) -> bool {
         .first()
         .and_then(|it| it.text)
         .is_some_and(starts_constraint)
+}
+
+/// True when the cursor is at `bind IDENT =` (not `==`).
+fn is_bind(cursor: Cursor<'_>) -> bool {
+    let Some((word, rest)) = first_ident(cursor) else {
+        return false;
+    };
+    let Some((_, after)) = rest.ident().filter(|_| word == "bind") else {
+        return false;
+    };
+    match after.punct() {
+        Some((p, next)) => {
+            p.as_char() == '=' && next.punct().is_none_or(|(q, _)| q.as_char() != '=')
+        }
+        None => false,
+    }
 }
 
 /// True when the cursor is at `word ;`.
@@ -179,6 +198,9 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
     }
     if is_bare(cursor, "fail") || is_keyword_then_ident(cursor, "fail") {
         return fail(input, cx).map(Stmt::Fail);
+    }
+    if is_bind(cursor) {
+        return bind(input).map(Stmt::Bind);
     }
     if is_constraint_stmt(cursor) {
         return constraint_stmt(input, cx).map(Stmt::Constrain);
@@ -299,6 +321,22 @@ fn fail(input: ParseStream, cx: &mut Cx) -> syn::Result<Fail> {
     Ok(Fail {
         exception,
         fields,
+        span: keyword.span(),
+    })
+}
+
+fn bind(input: ParseStream) -> syn::Result<Bind> {
+    let keyword = input.call(Ident::parse_any)?;
+    let name: Ident = input.parse()?;
+    input.parse::<Token![=]>()?;
+    let expr: syn::Expr = input.parse()?;
+    if !input.peek(Token![;]) {
+        return Err(input.error("expected `;` after `bind name = node`"));
+    }
+    input.parse::<Token![;]>()?;
+    Ok(Bind {
+        name,
+        expr,
         span: keyword.span(),
     })
 }

@@ -3,10 +3,14 @@
 //! each test asserts on the trace, which the trace checker also validates.
 
 mod build;
+mod entities;
 mod exceptions;
 mod groups;
 mod loops;
+mod monitor_limits;
 mod monitors;
+mod node_refs;
+mod on_terminate;
 mod paper;
 mod porting;
 mod refs;

@@ -5,6 +5,7 @@ tdl::tdl! {
     goal g() {
         w: spawn watch();
         w maximum trigger 3;
+        w name "watcher";
     }
 }
 
