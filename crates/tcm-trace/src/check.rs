@@ -487,8 +487,11 @@ impl Checker {
             );
         }
         self.settle_owed(None, last_seq);
-        // A reservation dies when its parent's body ends; a trace that ends while that body still runs
-        // (a stuck run) owes nothing yet.
+        // A reservation dies when its parent's body ends, or, for the label of an on-terminate task,
+        // which the trace records under the body that stated it, when the spawned node that took it
+        // over completes its execution (docs/semantics.md, "Tags and forward references"). So only
+        // a parent whose execution completed owes a resolution; a trace that ends while its subtree
+        // still runs (a stuck or fatal run) owes nothing yet.
         let pending: Vec<u64> = self
             .pending_reserved
             .iter()
@@ -497,7 +500,7 @@ impl Checker {
                 let parent = self.replay.node(*n).and_then(|it| it.parent());
                 parent
                     .and_then(|p| self.replay.node(p))
-                    .is_some_and(|p| p.state(Facet::Handling) == State::Completed)
+                    .is_some_and(|p| p.state(Facet::Execution) == State::Completed)
             })
             .collect();
         for node in pending {

@@ -24,8 +24,8 @@ pub enum Rule {
     DuplicateNode,
     /// A `dead` record for a node that is not a pending reservation, or a record about a dead node.
     DeadNode,
-    /// A reservation is neither spawned nor dead when the trace ends, although its parent's handling
-    /// completed (its body ended).
+    /// A reservation is neither spawned nor dead when the trace ends, although its parent's execution
+    /// completed.
     ReservedUnresolved,
     /// A node is reserved or spawned under a parent that is not a spawned, unreclaimed node.
     UnknownParent,

@@ -161,11 +161,14 @@ fn reservation_rules() {
     reserve(&mut b);
     b.push(TraceKind::Dead { node: 2 });
     passes(&b.build());
-    // Unresolved while the parent's body runs: nothing owed yet (a stuck run may end so).
+    // Unresolved while the parent's subtree runs: nothing owed yet (a stuck run may end so, and
+    // an on-terminate label lives until the node that took it over completes).
     let mut b = Tb::new();
     reserve(&mut b);
     passes(&b.build());
     b.start_goal(1).tr(1, H, A, C);
+    passes(&b.build());
+    b.tr(1, P, A, C).tr(1, X, E, C);
     caught(&b.build(), Rule::ReservedUnresolved);
     let mut b = Tb::new();
     reserve(&mut b);
