@@ -450,10 +450,10 @@ pub(crate) struct Host<'a> {
 }
 
 impl Shell<Action, Factory> for Host<'_> {
-    fn start(&mut self, engine: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
-        // A hand-written action holds its children until it returns or waits, as generated TDL
-        // does (docs/semantics.md, "Bodies and children"); `Ctx::hold_children(false)` opts out.
-        let _ = engine.hold_children(engine.now(), node, true);
+    fn start(&mut self, _: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
+        // The engine already holds the action's children (`Engine::hold_by_default`, set by
+        // `Runtime::new`): a hand-written action holds them until it returns or waits, as
+        // generated TDL does (docs/semantics.md, "Bodies and children").
         // Spawned under the lock: the task's own end takes the lock, so its abort handle is
         // recorded before it can finish.
         let ctx = Ctx {
@@ -471,15 +471,13 @@ impl Shell<Action, Factory> for Host<'_> {
 
     fn invoke(
         &mut self,
-        engine: &mut Engine<Action, Factory>,
+        _: &mut Engine<Action, Factory>,
         job: Job,
         body: Factory,
         p: Box<Purpose>,
     ) {
-        if job.cancellable() {
-            // A monitor activation, a handler or a retry is a body like any action's.
-            let _ = engine.hold_children(engine.now(), job.node(), true);
-        }
+        // A monitor activation, a handler or a retry holds its children like any action (see
+        // `start`); the engine set the hold when it handed the job out.
         let ctx = Ctx {
             shared: self.shared.clone(),
             node: job.node(),

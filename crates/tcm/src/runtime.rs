@@ -30,6 +30,14 @@ use tokio::sync::{Notify, watch};
 
 static RUNS: AtomicU32 = AtomicU32::new(1);
 
+/// The engine of run `run`: every action holds its children until it returns or waits, as
+/// generated TDL does (docs/semantics.md, "Bodies and children").
+fn engine(run: u32) -> Engine<crate::task::Action, crate::task::Factory> {
+    let mut engine = Engine::new(run);
+    engine.hold_by_default(true);
+    engine
+}
+
 /// How a run ended.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum RunOutcome {
@@ -169,7 +177,7 @@ impl Runtime {
         let (stopped, stopped_rx) = std::sync::mpsc::channel();
         Runtime {
             shared: Arc::new(Shared {
-                inner: Mutex::new(Inner::new(Engine::new(run), stopped_rx)),
+                inner: Mutex::new(Inner::new(engine(run), stopped_rx)),
                 stopped: Mutex::new(stopped),
                 wake: Notify::new(),
                 clock: Clock::new(),

@@ -124,6 +124,8 @@ pub struct Engine<A, F = ()> {
     // finished or cancelled.
     running: u32,
     policy: FailurePolicy,
+    // Whether an action or invocation holds its children from its start (`hold_by_default`).
+    hold_default: bool,
     fatal: Option<FatalFailure>,
     taps: Vec<Wiretap<F>>,
 }
@@ -153,6 +155,7 @@ impl<A, F: Clone> Engine<A, F> {
             external_ids: BTreeMap::new(),
             running: 0,
             policy: FailurePolicy::Warn,
+            hold_default: false,
             fatal: None,
             taps: Vec::new(),
         };
@@ -166,6 +169,14 @@ impl<A, F: Clone> Engine<A, F> {
     /// Turns trace recording on or off (on by default). Off, [`Engine::poll_trace`] yields nothing.
     pub fn set_tracing(&mut self, on: bool) {
         self.tracing = on;
+    }
+
+    /// Makes every action and invocation of a node (monitor activation, handler, retry) hold its
+    /// children from its start, as if it called [`Engine::hold_children`] first; it releases them
+    /// by returning or by `hold_children(.., false)` (docs/semantics.md, "Bodies and children").
+    /// Off by default: the simulator's scripted bodies start their children at once.
+    pub fn hold_by_default(&mut self, on: bool) {
+        self.hold_default = on;
     }
 
     /// Chooses what an unhandled failure does.

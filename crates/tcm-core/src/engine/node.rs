@@ -353,6 +353,13 @@ impl<A, F> Node<A, F> {
         self.cold.get_or_insert_with(Box::default)
     }
 
+    /// Whether it holds open reservations (most nodes have no cold part at all).
+    pub(crate) fn holds_reservations(&self) -> bool {
+        self.cold
+            .as_ref()
+            .is_some_and(|c| !c.reservations.is_empty())
+    }
+
     /// The reservations its on-terminate tasks fulfil (TDL labels on them).
     pub(crate) fn on_terminate_labels(&self) -> Vec<NodeId> {
         self.cold.as_ref().map_or_else(Vec::new, |c| {

@@ -354,6 +354,7 @@ impl<A, F: Clone> Engine<A, F> {
         let expands = n.kind.expands();
         if !is_monitor {
             self.running += 1;
+            n.holding = self.hold_default;
         }
         self.transition(id, Facet::Handling, State::Active);
         // Figure 3: the expansion (goals) or execution (commands) of the node and of every ancestor
@@ -402,6 +403,9 @@ impl<A, F: Clone> Engine<A, F> {
     /// completes: a termination before then still inserts those tasks.
     pub(super) fn bury_reservations(&mut self, id: NodeId) {
         let n = self.node_mut(id);
+        if !n.holds_reservations() {
+            return;
+        }
         let labels = n.on_terminate_labels();
         let mut reservations = n.take_cold(|c| &mut c.reservations);
         if !labels.is_empty() {
@@ -414,6 +418,9 @@ impl<A, F: Clone> Engine<A, F> {
 
     /// The execution of `id` completed: every reservation it still holds is dead.
     fn bury_labels(&mut self, id: NodeId) {
+        if !self.node(id).holds_reservations() {
+            return;
+        }
         let reservations = self.node_mut(id).take_cold(|c| &mut c.reservations);
         self.bury(reservations);
     }

@@ -126,7 +126,12 @@ impl<A, F: Clone> Engine<A, F> {
         if self.node(id).suspended {
             emit!(self, TraceKind::Suspended { node: display });
         }
-        let mut later = self.apply_deferred(id, parent);
+        // Only a reservation can carry constraints stated before its spawn.
+        let mut later = if fulfils.is_some() {
+            self.apply_deferred(id, parent)
+        } else {
+            Vec::new()
+        };
         for c in constraints {
             if c.applies_after_link() {
                 later.push((c, previous));
@@ -138,8 +143,10 @@ impl<A, F: Clone> Engine<A, F> {
         for (c, prev) in later {
             self.apply(id, parent, prev, c);
         }
-        for g in self.node_mut(id).take_cold(|c| &mut c.deferred_groups) {
-            self.arm_group(id, g);
+        if fulfils.is_some() {
+            for g in self.node_mut(id).take_cold(|c| &mut c.deferred_groups) {
+                self.arm_group(id, g);
+            }
         }
         if !self.node(parent).alive() && !self.node(id).immune {
             self.work.push_back(Work::Terminate {
