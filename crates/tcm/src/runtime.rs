@@ -85,7 +85,7 @@ impl RunOutcome {
 pub struct Report {
     /// How the run ended.
     pub outcome: RunOutcome,
-    /// Virtual (or real) time from the runtime's creation to the end of the run.
+    /// Virtual (or real) time from the start of the run to its end.
     pub elapsed: Duration,
     /// Engine counters at the end.
     pub stats: Stats,
@@ -171,7 +171,8 @@ impl Default for Runtime {
 }
 
 impl Runtime {
-    /// A new run. Time zero is now (on tokio's clock: paused in tests, for virtual time).
+    /// A new run. Its time zero is when it starts ([`Runtime::run`], [`Runtime::start`]), on the
+    /// clock of the tokio runtime that drives it (paused in tests, for virtual time).
     pub fn new() -> Runtime {
         let run = RUNS.fetch_add(1, Ordering::Relaxed);
         let (stopped, stopped_rx) = std::sync::mpsc::channel();
@@ -313,6 +314,8 @@ impl Runtime {
 
     /// Makes the run ready to drive: where actions are spawned, and whether to build the trace.
     fn prepare(&self, rt: tokio::runtime::Handle) -> Result<Arc<Shared>, Error> {
+        // Time zero, on the clock of the tokio runtime that drives the run.
+        self.shared.clock.start();
         let mut inner = lock(&self.shared)?;
         inner.spawner = Some(rt);
         // Nobody reads the trace: do not build it.
