@@ -1,0 +1,61 @@
+//! The Ambler walking rover of the TCA paper (Simmons, "Structured control for autonomous robots",
+//! 1994, Figure 1) in TDL, walking simulated terrain on virtual time.
+//!
+//! - `src/terrain.tdl`: the `TerrainContact` exception and the leg and terrain commands.
+//! - `src/walk.tdl`: the walking goals (arcs, steps planned one ahead of execution) and the three
+//!   recoveries from a terrain contact.
+//! - [`world`]: the terrain (from a seed) and the walker's shared state.
+//! - [`monitored`]: a runtime with the stability and footfall monitors wiretapped on the moves,
+//!   from outside the task code.
+//!
+//! ```
+//! use ambler::world::{Terrain, Walker};
+//!
+//! let walker = Walker::new(Terrain::flat(1, 3));
+//! let report = tdl::block_on_virtual(ambler::monitored(&walker).run(ambler::walk(walker.clone())))??;
+//! assert_eq!(report.outcome, tdl::RunOutcome::Completed);
+//! assert_eq!(walker.log().body_moves, 3);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+#![deny(warnings)]
+
+pub mod world;
+
+use tdl::{Runtime, TapWhen};
+use world::Walker;
+
+/// Generated from `src/terrain.tdl`.
+mod terrain {
+    use crate::world::*;
+    include!(concat!(env!("OUT_DIR"), "/terrain.rs"));
+}
+
+/// Generated from `src/walk.tdl`.
+mod walk {
+    use crate::terrain::*;
+    use crate::world::*;
+    include!(concat!(env!("OUT_DIR"), "/walk.rs"));
+}
+
+pub use terrain::*;
+pub use walk::*;
+
+/// A runtime with the Ambler's execution monitors wiretapped on the moves (TCA's wiretaps: added
+/// from outside, the task code does not know them): the stability monitor before every leg and
+/// body move, the footfall monitor after every leg move.
+pub fn monitored(walker: &Walker) -> Runtime {
+    let stability = |w: Walker| {
+        move |_| {
+            let w = w.clone();
+            async move { w.check_stability() }
+        }
+    };
+    let footfall = walker.clone();
+    Runtime::new()
+        .wiretap("move_leg", TapWhen::Before, stability(walker.clone()))
+        .wiretap("move_body", TapWhen::Before, stability(walker.clone()))
+        .wiretap("move_leg", TapWhen::After, move |_| {
+            let w = footfall.clone();
+            async move { w.check_footfall() }
+        })
+}
