@@ -121,13 +121,6 @@ fn a_seeded_walk_completes_and_runs_the_same_twice() {
     assert_eq!(log.footfall_checks, steps);
     assert!(!log.recoveries.is_empty(), "seed 7 has obstacles: {log:?}");
     assert_eq!(log, b.walker.log());
-    // The same records in the same order, at the same times to the millisecond (`t` carries a
-    // few microseconds of real time from before the run, different in each run).
-    let records = |t: &[tdl::TraceEvent]| -> Vec<String> {
-        t.iter()
-            .skip(1)
-            .map(|e| format!("{} {:?}", e.t / 1_000_000, e.kind))
-            .collect()
-    };
-    assert_eq!(records(&a.trace), records(&b.trace));
+    // The same trace, byte for byte (docs/semantics.md, "Determinism").
+    assert_eq!(tdl::testing::lines(&a.trace), tdl::testing::lines(&b.trace));
 }
