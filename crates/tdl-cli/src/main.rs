@@ -1,21 +1,25 @@
 //! `tdl`: check TDL files and print the Rust they compile to.
 //!
-//! - `tdl check FILE...` prints every diagnostic (errors and warnings) as
-//!   `file:line:col: severity: message`, the source line, a caret and a hint.
+//! - `tdl check FILE...` checks the files as one program (task and exception names resolve across
+//!   them) and prints every diagnostic (errors and warnings) as rustc does (`error: message`,
+//!   ` --> file:line:col`, the source with the span underlined, a hint), in colour on a terminal.
 //! - `tdl expand FILE` prints the generated Rust, formatted, or the diagnostics.
 //! - `tdl trace check|log|tree|story TRACE.jsonl` reads a trace written by a run (for example
 //!   `xavier --trace`): verifies it with the trace checker (exit 1 on violations), prints TCM's text
-//!   log, the final task tree, or one line per transition.
+//!   log, the task tree of the whole run (or the live tree at `--at`), or the story of the run, one
+//!   line per record with node numbers, filtered by kind, name, path, node and time (`view.rs`).
 //!
 //! Exit codes (after ripgrep): 0 ok (warnings only or nothing), 1 errors found, 2 usage or I/O
 //! error. All the work is done by `tdl-syntax`.
 
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
+
+mod view;
 
 #[derive(Parser)]
 #[command(
@@ -30,9 +34,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Print every diagnostic of the files; exit 1 if any is an error.
+    /// Print every diagnostic of the files, checked as one program (names resolve across them);
+    /// exit 1 if any is an error.
     Check {
-        /// The `.tdl` files.
+        /// The `.tdl` files of the program.
         #[arg(required = true)]
         files: Vec<PathBuf>,
     },
@@ -66,21 +71,47 @@ enum TraceCommand {
         #[arg(long)]
         all: bool,
     },
-    /// Print the task tree as it stands at the end of the trace, or at `--at` seconds.
+    /// Print the task tree of the whole run, every node spawned (reclaimed ones marked), or the
+    /// live tree at `--at` seconds.
     Tree {
         /// The trace file.
         file: PathBuf,
-        /// The moment to show, in seconds since the run started (default: the end).
+        /// Show the nodes alive at this moment, in seconds since the run started, instead of the
+        /// whole run.
         #[arg(long)]
         at: Option<f64>,
-        /// TCM's dump format (`name {id} [h|a|p|t]`) instead of ours.
+        /// Show the nodes alive at the end of the trace instead of the whole run.
+        #[arg(long, conflicts_with = "at")]
+        live: bool,
+        /// TCM's dump format (`name {id} [h|a|p|t]`) of the live tree (at `--at`, or at the end).
         #[arg(long)]
         tcm: bool,
     },
-    /// Print one line per transition: `<seconds> <name> <what>`.
+    /// Print one line per record: `<seconds> {id} <name> <what>`: transitions, spawns,
+    /// termination, failures, handlers chosen, bypasses, retries, wiretap checks, monitor
+    /// activations, events and warnings (constraints with `--kind constraint`).
     Story {
         /// The trace file.
         file: PathBuf,
+        /// Only these kinds of record (repeat, or separate with commas).
+        #[arg(long, value_enum, value_delimiter = ',')]
+        kind: Vec<view::Kind>,
+        /// Only records about nodes of this instance name.
+        #[arg(long)]
+        name: Option<String>,
+        /// Only records about the node at this path of instance names from the top-level task
+        /// (`deliver_all/deliver_mail`), and its subtree.
+        #[arg(long)]
+        path: Option<String>,
+        /// Only records about this node number and its subtree.
+        #[arg(long)]
+        node: Option<u64>,
+        /// Only records at or after this time, in seconds since the run started.
+        #[arg(long)]
+        from: Option<f64>,
+        /// Only records at or before this time, in seconds since the run started.
+        #[arg(long)]
+        to: Option<f64>,
     },
 }
 
@@ -115,11 +146,24 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     match cli.command {
         Command::Check { files } => {
             let mut clean = true;
-            for file in files {
-                let (name, src) = read(&file)?;
-                let (_, diagnostics) = tdl_syntax::compile_str(&name, &src);
+            // The files are one program: names resolve across all of them.
+            let sources = files.iter().map(read).collect::<anyhow::Result<Vec<_>>>()?;
+            let program: Vec<(&str, &str)> = sources
+                .iter()
+                .map(|(name, src)| (name.as_str(), src.as_str()))
+                .collect();
+            let results = tdl_syntax::compile_program(&program);
+            let mut first = true;
+            for ((name, src), (_, diagnostics)) in program.iter().zip(&results) {
                 clean &= !diagnostics.iter().any(tdl_syntax::Diagnostic::is_error);
-                out.write_all(tdl_syntax::render_all(&diagnostics, &name, Some(&src)).as_bytes())?;
+                if diagnostics.is_empty() {
+                    continue;
+                }
+                if !first {
+                    out.write_all(b"\n")?;
+                }
+                first = false;
+                out.write_all(render(diagnostics, name, src).as_bytes())?;
             }
             Ok(clean)
         }
@@ -127,7 +171,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         Command::Expand { file } => {
             let (name, src) = read(&file)?;
             let (code, diagnostics) = tdl_syntax::compile_str(&name, &src);
-            let rendered = tdl_syntax::render_all(&diagnostics, &name, Some(&src));
+            let rendered = render(&diagnostics, &name, &src);
             match code {
                 Some(code) => {
                     eprint!("{rendered}");
@@ -178,7 +222,12 @@ fn trace(what: TraceCommand, out: &mut impl Write) -> anyhow::Result<bool> {
             out.write_all(tcm_trace::TextLog::render(options, &load(&file)?).as_bytes())?;
             Ok(true)
         }
-        TraceCommand::Tree { file, tcm, at } => {
+        TraceCommand::Tree {
+            file,
+            tcm,
+            at,
+            live,
+        } => {
             let mut replay = tcm_trace::Replay::new();
             let until = at.map_or(u64::MAX, |s| (s.max(0.0) * 1e9) as u64);
             for ev in load(&file)?.into_iter().take_while(|ev| ev.t <= until) {
@@ -188,18 +237,47 @@ fn trace(what: TraceCommand, out: &mut impl Write) -> anyhow::Result<bool> {
             }
             let text = if tcm {
                 tcm_trace::dump_tcm(&replay)
-            } else {
+            } else if live || at.is_some() {
                 tcm_trace::dump_modern(&replay)
+            } else {
+                view::whole_tree(&replay)
             };
             out.write_all(text.as_bytes())?;
             Ok(true)
         }
-        TraceCommand::Story { file } => {
-            for line in tcm_trace::story::story(&load(&file)?) {
+        TraceCommand::Story {
+            file,
+            kind,
+            name,
+            path,
+            node,
+            from,
+            to,
+        } => {
+            let filter = view::Filter {
+                kinds: kind,
+                name,
+                path,
+                node,
+                from,
+                to,
+            };
+            for line in view::story(&load(&file)?, &filter) {
                 writeln!(out, "{line}")?;
             }
             Ok(true)
         }
+    }
+}
+
+/// The diagnostics as text, in colour when standard output is a terminal and `NO_COLOR` is not set
+/// (<https://no-color.org>).
+fn render(diagnostics: &[tdl_syntax::Diagnostic], name: &str, src: &str) -> String {
+    let colour = std::io::stdout().is_terminal() && std::env::var_os("NO_COLOR").is_none();
+    if colour {
+        tdl_syntax::render_all_styled(diagnostics, name, Some(src))
+    } else {
+        tdl_syntax::render_all(diagnostics, name, Some(src))
     }
 }
 

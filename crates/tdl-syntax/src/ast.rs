@@ -76,6 +76,9 @@ pub struct Task {
     pub result: Option<syn::Type>,
     /// For handlers: the exception handled (`handles Exc`).
     pub handles: Option<Ident>,
+    /// For handlers: the name bound to the caught exception (`handles Exc as name`), a
+    /// `tdl::Caught<Exc>` in the body. Without it the body sees no exception binding.
+    pub caught: Option<Ident>,
     /// Task-level constraints (docs/semantics.md, "Constraints").
     pub constraints: Vec<TaskConstraint>,
     /// The body.

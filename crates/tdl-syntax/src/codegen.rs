@@ -41,13 +41,17 @@ pub struct Generated {
 
 /// Generates the Rust items of `ast`.
 pub fn generate(ast: &Ast) -> Generated {
-    let file = FileScope::new(ast);
+    generate_in(&FileScope::new(ast), ast)
+}
+
+/// Generates the Rust items of `ast`, one file of a program whose names `file` resolves.
+fn generate_in(file: &FileScope<'_>, ast: &Ast) -> Generated {
     let mut diagnostics = Vec::new();
     let mut tokens = TokenStream::new();
     for item in &ast.items {
         match item {
-            Item::Task(task) => tokens.extend(task_items(&file, task, &mut diagnostics)),
-            Item::Exception(exc) => tokens.extend(exception_items(&file, exc)),
+            Item::Task(task) => tokens.extend(task_items(file, task, &mut diagnostics)),
+            Item::Exception(exc) => tokens.extend(exception_items(file, exc)),
             Item::Rust(item) => tokens.extend(quote!(#item)),
         }
     }
@@ -92,6 +96,41 @@ pub fn compile_str(file_name: &str, src: &str) -> (Option<TokenStream>, Vec<Diag
         return (None, diagnostics);
     }
     (Some(generated.tokens), diagnostics)
+}
+
+/// Parses, checks and generates the `.tdl` files of one program, given as `(file name, text)`:
+/// task and exception names resolve across every file (a handler in one file handles an exception
+/// declared in another, an unknown name is an error wherever it is declared), and a name declared
+/// in two files is an error. Returns, per file and in the order given, what [`compile_str`]
+/// returns for one file: the code, or `None` when that file has an error, and its diagnostics.
+pub fn compile_program(files: &[(&str, &str)]) -> Vec<(Option<TokenStream>, Vec<Diagnostic>)> {
+    let parses: Vec<Parse> = files
+        .iter()
+        .map(|(name, src)| crate::parse_str_syntax(name, src))
+        .collect();
+    let mut out = Vec::with_capacity(files.len());
+    for (i, parse) in parses.iter().enumerate() {
+        let others: Vec<(&str, &Ast)> = files
+            .iter()
+            .zip(&parses)
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .map(|(_, ((name, _), parse))| (*name, &parse.file))
+            .collect();
+        let scope = FileScope::in_program(&parse.file, &others);
+        let mut diagnostics = parse.diagnostics.clone();
+        crate::diagnose::diagnose_in(&scope, &parse.file, &mut diagnostics);
+        let generated = generate_in(&scope, &parse.file);
+        diagnostics.extend(generated.diagnostics);
+        diagnostics.sort_by_key(|it| (it.start(), it.severity()));
+        let tokens = if diagnostics.iter().any(Diagnostic::is_error) {
+            None
+        } else {
+            Some(generated.tokens)
+        };
+        out.push((tokens, diagnostics));
+    }
+    out
 }
 
 /// The expansion of the `tdl!` macro: the generated items, or, when the source has errors, one
@@ -334,11 +373,15 @@ fn task_items(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) ->
             ) #modifiers
         },
         TaskKind::Handler => {
-            let exception = task
-                .handles
-                .as_ref()
-                .map(ToString::to_string)
-                .unwrap_or_default();
+            // The handled exception by its Rust type, so an unknown name is a compile error
+            // (rustc: "cannot find type"), not a handler that never fires.
+            let exception = match &task.handles {
+                Some(exc) => {
+                    let text = exc.to_string();
+                    quote!(::tdl::codegen::handles::<#exc>(#text))
+                }
+                None => quote!(""),
+            };
             quote! {
                 #prelude
                 #cells

@@ -28,7 +28,18 @@ const TAG_HINT: &str = "a tag is a task spawned in this body, a label (`t1: spaw
 
 /// Diagnoses `ast` and appends the findings to `diags`.
 pub(crate) fn diagnose(ast: &Ast, diags: &mut Vec<Diagnostic>) {
-    let file = FileScope::new(ast);
+    diagnose_in(&FileScope::new(ast), ast, diags);
+}
+
+/// Diagnoses `ast`, one file of a program whose names `file` resolves, and appends the findings
+/// to `diags`.
+pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagnostic>) {
+    for (name, other) in &file.elsewhere {
+        diags.push(
+            Diagnostic::error(name.span(), format!("`{name}` is also declared in {other}"))
+                .with_hint("the files of a program share one name space: rename one of them"),
+        );
+    }
     for duplicate in &file.duplicates {
         diags.push(match duplicate {
             Duplicate::Task(task, first) => {
@@ -46,9 +57,9 @@ pub(crate) fn diagnose(ast: &Ast, diags: &mut Vec<Diagnostic>) {
     for item in &ast.items {
         match item {
             Item::Task(task) => {
-                task_header(&file, task, diags);
+                task_header(file, task, diags);
                 let body = Body {
-                    file: &file,
+                    file,
                     task,
                     scope: BodyScope::new(task),
                 };
@@ -56,7 +67,7 @@ pub(crate) fn diagnose(ast: &Ast, diags: &mut Vec<Diagnostic>) {
             }
             Item::Exception(exc) => {
                 if let Some(parent) = &exc.parent {
-                    exception(&file, parent, diags);
+                    exception(file, parent, diags);
                 }
             }
             Item::Rust(_) => {}
@@ -64,7 +75,7 @@ pub(crate) fn diagnose(ast: &Ast, diags: &mut Vec<Diagnostic>) {
     }
 }
 
-/// Reports `name` when the file declares exceptions and `name` is not one of them.
+/// Reports `name` when the program declares exceptions and `name` is not one of them.
 fn exception(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
     let known: Vec<&str> = file.exception_names().collect();
     if known.is_empty() || file.declares_exception(&name.to_string()) {

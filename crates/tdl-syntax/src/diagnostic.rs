@@ -3,10 +3,9 @@
 //!
 //! A [`Diagnostic`] keeps the [`proc_macro2::Span`] it points at (so `tdl-macros` can turn it into a
 //! spanned `syn::Error`) and the 1-based line and column of that span (so `tdl-build` and the CLI can
-//! print `file:line:col` without the compiler). [`Diagnostic::render`] prints the rustc-like text form.
+//! print `file:line:col` without the compiler). [`Diagnostic::render`] prints rustc's text form with
+//! `annotate-snippets`, rustc's own renderer ([`Diagnostic::render_styled`] with its colours).
 //! The parser lives in `parser.rs`, the static diagnosis in `diagnose.rs`.
-
-use std::fmt::Write as _;
 
 use proc_macro2::Span;
 
@@ -174,58 +173,80 @@ impl Diagnostic {
         self.hint.as_deref()
     }
 
-    /// Renders the diagnostic as text: `file:line:col: error: message`, then the source line with a
-    /// caret under the span, the labels, and `  = help: hint`.
+    /// Renders the diagnostic as plain text, as rustc does (with `annotate-snippets`, rustc's own
+    /// renderer): `error: message`, ` --> file:line:col`, the source lines with the span
+    /// underlined and the labels, then `= help: hint`.
     ///
     /// `source` is the text the spans point into; pass `None` when there is none (the macro), and
-    /// only the header, labels and hint are printed.
+    /// only the header, the location, the labels' locations and the hint are printed.
     pub fn render(&self, file_name: &str, source: Option<&str>) -> String {
-        let mut out = String::new();
-        let _ = writeln!(
-            out,
-            "{file_name}:{}:{}: {}: {}",
-            self.start.line,
-            self.start.column,
-            self.severity.as_str(),
-            self.message
-        );
-        let gutter = [self.start.line]
-            .into_iter()
-            .chain(self.labels.iter().map(|it| it.start.line))
-            .max()
-            .unwrap_or(1)
-            .to_string()
-            .len();
-        if let Some(source) = source {
-            snippet(&mut out, source, gutter, self.start, self.end, '^', None);
-            for label in &self.labels {
-                snippet(
-                    &mut out,
-                    source,
-                    gutter,
-                    label.start,
-                    label.end,
-                    '-',
-                    Some(&label.message),
-                );
+        self.render_with(file_name, source, false)
+    }
+
+    /// As [`Diagnostic::render`], with the terminal colours rustc uses (ANSI escapes): for output
+    /// to a terminal.
+    pub fn render_styled(&self, file_name: &str, source: Option<&str>) -> String {
+        self.render_with(file_name, source, true)
+    }
+
+    fn render_with(&self, file_name: &str, source: Option<&str>, styled: bool) -> String {
+        use annotate_snippets::{AnnotationKind, Level, Origin, Renderer, Snippet};
+
+        let level = match self.severity {
+            Severity::Error => Level::ERROR,
+            Severity::Warning => Level::WARNING,
+        };
+        let notes: Vec<String> = match source {
+            Some(_) => Vec::new(),
+            None => self
+                .labels
+                .iter()
+                .map(|it| format!("{}:{}: {}", it.start.line, it.start.column, it.message))
+                .collect(),
+        };
+        let group = level.primary_title(self.message.as_str());
+        let mut group = match source {
+            Some(source) => {
+                let mut snippet = Snippet::source(source)
+                    .path(file_name)
+                    .fold(true)
+                    .annotation(
+                        AnnotationKind::Primary.span(byte_range(source, self.start, self.end)),
+                    );
+                for label in &self.labels {
+                    snippet = snippet.annotation(
+                        AnnotationKind::Context
+                            .span(byte_range(source, label.start, label.end))
+                            .label(label.message.as_str()),
+                    );
+                }
+                group.element(snippet)
             }
-        } else {
-            for label in &self.labels {
-                let _ = writeln!(
-                    out,
-                    "{:gutter$} = note: {}:{}: {}",
-                    "", label.start.line, label.start.column, label.message
-                );
-            }
+            None => group.element(
+                Origin::path(file_name)
+                    .line(self.start.line)
+                    .char_column(self.start.column),
+            ),
+        };
+        for note in &notes {
+            group = group.element(Level::NOTE.message(note.as_str()));
         }
         if let Some(hint) = &self.hint {
-            let _ = writeln!(out, "{:gutter$} = help: {hint}", "");
+            group = group.element(Level::HELP.message(hint.as_str()));
         }
+        let renderer = if styled {
+            Renderer::styled()
+        } else {
+            Renderer::plain()
+        };
+        let mut out = renderer.render(&[group]);
+        out.push('\n');
         out
     }
 }
 
-/// Renders every diagnostic of `diagnostics` with [`Diagnostic::render`], in order.
+/// Renders every diagnostic of `diagnostics` with [`Diagnostic::render`], in order, separated by
+/// blank lines.
 pub fn render_all(diagnostics: &[Diagnostic], file_name: &str, source: Option<&str>) -> String {
     diagnostics
         .iter()
@@ -234,37 +255,47 @@ pub fn render_all(diagnostics: &[Diagnostic], file_name: &str, source: Option<&s
         .join("\n")
 }
 
-fn snippet(
-    out: &mut String,
-    source: &str,
-    gutter: usize,
-    start: LineCol,
-    end: LineCol,
-    mark: char,
-    message: Option<&str>,
-) {
-    let Some(text) = source.lines().nth(start.line.saturating_sub(1)) else {
-        return;
-    };
-    let text = text.replace('\t', " ");
-    let n_chars = text.chars().count();
-    let col = start.column.saturating_sub(1).min(n_chars);
-    let width = if end.line == start.line && end.column > start.column {
-        end.column - start.column
-    } else {
-        1
-    };
-    let _ = writeln!(out, "{:gutter$} |", "");
-    let _ = writeln!(out, "{:>gutter$} | {}", start.line, text.trim_end());
-    let marks: String = std::iter::repeat_n(mark, width).collect();
-    match message {
-        Some(message) => {
-            let _ = writeln!(out, "{:gutter$} | {:col$}{marks} {message}", "", "");
-        }
-        None => {
-            let _ = writeln!(out, "{:gutter$} | {:col$}{marks}", "", "");
+/// As [`render_all`], with colours (see [`Diagnostic::render_styled`]).
+pub fn render_all_styled(
+    diagnostics: &[Diagnostic],
+    file_name: &str,
+    source: Option<&str>,
+) -> String {
+    diagnostics
+        .iter()
+        .map(|it| it.render_styled(file_name, source))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The byte offset in `source` of a 1-based line and 1-based character column, clamped to the
+/// line's end (and to the source's end for a line past it).
+fn byte_offset(source: &str, at: LineCol) -> usize {
+    let mut line_start = 0;
+    for _ in 1..at.line {
+        match source[line_start..].find('\n') {
+            Some(i) => line_start += i + 1,
+            None => return source.len(),
         }
     }
+    let line = &source[line_start..];
+    let line = &line[..line.find('\n').unwrap_or(line.len())];
+    let column = line
+        .char_indices()
+        .nth(at.column.saturating_sub(1))
+        .map_or(line.len(), |(i, _)| i);
+    line_start + column
+}
+
+/// The byte range of a span, at least one character wide so that the caret shows.
+fn byte_range(source: &str, start: LineCol, end: LineCol) -> std::ops::Range<usize> {
+    let from = byte_offset(source, start);
+    let to = byte_offset(source, end).max(from);
+    if to > from {
+        return from..to;
+    }
+    let next = source[from..].chars().next().map_or(0, char::len_utf8);
+    from..from + next
 }
 
 impl Diagnostic {

@@ -77,7 +77,10 @@ fn dump_task(out: &mut String, task: &Task) {
     let handles = task
         .handles
         .as_ref()
-        .map(|it| format!(" handles {it}"))
+        .map(|it| match &task.caught {
+            Some(name) => format!(" handles {it} as {name}"),
+            None => format!(" handles {it}"),
+        })
         .unwrap_or_default();
     let _ = writeln!(
         out,

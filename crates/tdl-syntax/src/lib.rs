@@ -20,8 +20,10 @@
 //!   (`diagnose.rs`).
 //! - [`generate`] turns the tree into Rust calling the `tcm` runtime through the `tdl` crate
 //!   (`codegen.rs`, `codegen/`).
-//! - [`Diagnostic::render`] prints `file:line:col: error: message`, the source line, a caret and a
-//!   `= help:` hint; [`dump`] prints the tree compactly (used by the snapshot tests).
+//! - [`Diagnostic::render`] prints a diagnostic as rustc does, with `annotate-snippets`:
+//!   `error: message`, ` --> file:line:col`, the source with the span underlined and a `= help:`
+//!   hint ([`Diagnostic::render_styled`] in colour); [`dump`] prints the tree compactly (used by
+//!   the snapshot tests).
 //!
 //! ```
 //! let src = "
@@ -41,7 +43,7 @@
 //!
 //! let bad = tdl_syntax::parse_str("bad.tdl", "goal g() { spawn a() with serial nowhere; }");
 //! let text = bad.render("bad.tdl", Some("goal g() { spawn a() with serial nowhere; }"));
-//! assert!(text.starts_with("bad.tdl:1:34: error: unknown tag `nowhere`"));
+//! assert!(text.starts_with("error: unknown tag `nowhere`\n --> bad.tdl:1:34\n"));
 //! ```
 //!
 //! Language choices (the full reference is `docs/language.md`):
@@ -73,8 +75,8 @@ use proc_macro2::{Span, TokenStream, TokenTree};
 use syn::parse::{ParseStream, Parser};
 
 pub use ast::*;
-pub use codegen::{Generated, compile_str, expand_macro, generate, pretty, stubs};
-pub use diagnostic::{Diagnostic, Label, LineCol, Severity, render_all};
+pub use codegen::{Generated, compile_program, compile_str, expand_macro, generate, pretty, stubs};
+pub use diagnostic::{Diagnostic, Label, LineCol, Severity, render_all, render_all_styled};
 pub use dump::dump;
 pub use time::format_nanos;
 
@@ -102,11 +104,22 @@ impl Parse {
 /// Parses the text of a `.tdl` file. `file_name` is only used to name the input in messages from
 /// the lexer; diagnostics carry line and column, and [`Parse::render`] takes the name again.
 pub fn parse_str(file_name: &str, src: &str) -> Parse {
+    let mut parse = parse_str_syntax(file_name, src);
+    diagnose::diagnose(&parse.file, &mut parse.diagnostics);
+    parse
+        .diagnostics
+        .sort_by_key(|it| (it.start(), it.severity()));
+    parse
+}
+
+/// Parses the text of a `.tdl` file without the static diagnosis, which [`compile_program`] runs
+/// with the names of every file of the program.
+pub(crate) fn parse_str_syntax(file_name: &str, src: &str) -> Parse {
     let _ = file_name;
     match TokenStream::from_str(src) {
         Ok(tokens) => {
             let eof = last_span(&tokens);
-            parse_with(tokens, eof)
+            parse_syntax(tokens, eof)
         }
         Err(err) => {
             let diag = Diagnostic::error(
@@ -124,10 +137,15 @@ pub fn parse_str(file_name: &str, src: &str) -> Parse {
 
 /// Parses tokens, e.g. the input of the `tdl!{}` macro.
 pub fn parse_tokens(tokens: TokenStream) -> Parse {
-    parse_with(tokens, None)
+    let mut parse = parse_syntax(tokens, None);
+    diagnose::diagnose(&parse.file, &mut parse.diagnostics);
+    parse
+        .diagnostics
+        .sort_by_key(|it| (it.start(), it.severity()));
+    parse
 }
 
-fn parse_with(tokens: TokenStream, eof: Option<Span>) -> Parse {
+fn parse_syntax(tokens: TokenStream, eof: Option<Span>) -> Parse {
     let mut cx = parser::Cx::new(eof);
     let res = (|input: ParseStream| Ok(parser::parse_file(input, &mut cx))).parse2(tokens);
     let file = match res {
@@ -138,7 +156,6 @@ fn parse_with(tokens: TokenStream, eof: Option<Span>) -> Parse {
         }
     };
     let mut diagnostics = cx.diags;
-    diagnose::diagnose(&file, &mut diagnostics);
     diagnostics.sort_by_key(|it| (it.start(), it.severity()));
     Parse { file, diagnostics }
 }

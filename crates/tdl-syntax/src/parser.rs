@@ -212,7 +212,7 @@ pub(crate) fn parse_file(input: ParseStream, cx: &mut Cx) -> Ast {
 }
 
 const TASK_HINT: &str = "a task reads `goal name(arg: Type, ...) [-> Type] [with constraint, ...] { ... }`; \
-     items are `goal`, `command`, `monitor`, `handler NAME(...) handles Exc`, `exception NAME;` or Rust items";
+     items are `goal`, `command`, `monitor`, `handler NAME(...) handles Exc [as name]`, `exception NAME;` or Rust items";
 
 /// The TDL item keyword at the input, after attributes, visibility and qualifiers.
 fn tdl_item_keyword(input: ParseStream) -> Option<String> {
@@ -365,6 +365,17 @@ fn task(
     } else {
         None
     };
+    let caught = if handles.is_some() && input.peek(Token![as]) {
+        input.parse::<Token![as]>()?;
+        if !input.peek(syn::Ident) {
+            return Err(input.error(
+                "expected a name after `as`: `handles Exception as name` binds the caught exception",
+            ));
+        }
+        Some(input.parse::<Ident>()?)
+    } else {
+        None
+    };
     let constraints = parse_task_constraints(input, cx)?;
     let body_group = take_group(input, Delimiter::Brace, "`{` and the task body")?;
     let body = parse_block(body_group, cx);
@@ -378,6 +389,7 @@ fn task(
         args,
         result,
         handles,
+        caught,
         constraints,
         body,
         span,

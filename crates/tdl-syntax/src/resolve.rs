@@ -43,11 +43,21 @@ pub(crate) type LoopId = usize;
 pub(crate) type CleanupId = usize;
 
 /// The tasks and exceptions a source declares.
+///
+/// Compiled as part of a program ([`crate::compile_program`]), it also knows the declarations of
+/// the program's other files: names resolve across every file, and a name declared in two files
+/// is reported in [`FileScope::elsewhere`].
 pub(crate) struct FileScope<'a> {
     tasks: BTreeMap<String, &'a Task>,
     exceptions: BTreeMap<String, &'a ExceptionDecl>,
     /// Declarations of a name already declared, in source order.
     pub(crate) duplicates: Vec<Duplicate<'a>>,
+    /// Tasks and exceptions of the program's other files (the first file declaring a name wins).
+    other_tasks: BTreeMap<String, &'a Task>,
+    other_exceptions: BTreeMap<String, &'a ExceptionDecl>,
+    /// This file's declarations of a name another file of the program declares too: (the
+    /// declaration's name, the other file's name).
+    pub(crate) elsewhere: Vec<(&'a Ident, &'a str)>,
 }
 
 /// A declaration of a name declared before: (this one, the first).
@@ -65,6 +75,9 @@ impl<'a> FileScope<'a> {
             tasks: BTreeMap::new(),
             exceptions: BTreeMap::new(),
             duplicates: Vec::new(),
+            other_tasks: BTreeMap::new(),
+            other_exceptions: BTreeMap::new(),
+            elsewhere: Vec::new(),
         };
         for item in &ast.items {
             match item {
@@ -86,9 +99,50 @@ impl<'a> FileScope<'a> {
         scope
     }
 
-    /// The task of this name defined in the source.
+    /// The declarations of `ast`, with those of the program's other files, `(file name, tree)`.
+    pub(crate) fn in_program(ast: &'a Ast, others: &[(&'a str, &'a Ast)]) -> FileScope<'a> {
+        let mut scope = FileScope::new(ast);
+        for (file, other) in others {
+            for item in &other.items {
+                match item {
+                    Item::Task(task) => {
+                        let name = task.name.to_string();
+                        if let Some(mine) = scope.tasks.get(&name) {
+                            scope.elsewhere.push((&mine.name, file));
+                        }
+                        scope.other_tasks.entry(name).or_insert(task);
+                    }
+                    Item::Exception(exc) => {
+                        let name = exc.name.to_string();
+                        if let Some(mine) = scope.exceptions.get(&name) {
+                            scope.elsewhere.push((&mine.name, file));
+                        }
+                        scope.other_exceptions.entry(name).or_insert(exc);
+                    }
+                    Item::Rust(_) => {}
+                }
+            }
+        }
+        scope.elsewhere.sort_by_key(|(name, _)| {
+            let at = name.span().start();
+            (at.line, at.column)
+        });
+        scope
+    }
+
+    /// The task of this name defined in the source or another file of the program.
     pub(crate) fn task(&self, name: &str) -> Option<&'a Task> {
-        self.tasks.get(name).copied()
+        self.tasks
+            .get(name)
+            .or_else(|| self.other_tasks.get(name))
+            .copied()
+    }
+
+    fn exception_decl(&self, name: &str) -> Option<&'a ExceptionDecl> {
+        self.exceptions
+            .get(name)
+            .or_else(|| self.other_exceptions.get(name))
+            .copied()
     }
 
     /// The kind of the task of this name defined in the source.
@@ -96,22 +150,23 @@ impl<'a> FileScope<'a> {
         self.task(name).map(|it| it.kind)
     }
 
-    /// The names of the exceptions declared, sorted.
+    /// The names of the exceptions declared in the program, sorted.
     pub(crate) fn exception_names(&self) -> impl Iterator<Item = &str> {
-        self.exceptions.keys().map(String::as_str)
+        let mut names: BTreeSet<&str> = self.exceptions.keys().map(String::as_str).collect();
+        names.extend(self.other_exceptions.keys().map(String::as_str));
+        names.into_iter()
     }
 
-    /// Whether `name` is an exception declared in the source.
+    /// Whether `name` is an exception declared in the source or another file of the program.
     pub(crate) fn declares_exception(&self, name: &str) -> bool {
-        self.exceptions.contains_key(name)
+        self.exception_decl(name).is_some()
     }
 
     /// The ancestors of exception `name`, nearest first: its parent, the parent's parent, ... (a
     /// parent declared elsewhere ends the chain; a cycle is cut).
     pub(crate) fn ancestry(&self, name: &str) -> Vec<String> {
         let parent_of = |name: &str| {
-            self.exceptions
-                .get(name)
+            self.exception_decl(name)
                 .and_then(|it| it.parent.as_ref())
                 .map(ToString::to_string)
         };

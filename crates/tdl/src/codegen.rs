@@ -8,7 +8,7 @@
 //!   choice is made at compile time by autoref specialisation: `(&args).tdl_args()` finds
 //!   [`CloneArgs`] when the arguments are `Clone`, else [`TakeArgs`].
 //! - [`Persistent`]: a monitor's or handler's `persistent` variable, shared by its activations.
-//! - [`caught`], [`failing_node`], [`attached_node`]: what a handler body reads.
+//! - [`caught`], [`handles`], [`failing_node`], [`attached_node`]: what a handler body reads.
 //! - [`count`]: a `maximum activate/trigger` count as a `u32`.
 //! - [`trigger_entity`], [`no_members`]: constraints naming an *entity* of several nodes (a `with`
 //!   group, `previous` after a group, an iteration set, a tag bound at run time), whose members are
@@ -94,27 +94,25 @@ impl<T: Clone> Persistent<T> {
     }
 }
 
-/// In a handler body: the exception value, if the failure carries an `E`. A failure of a
-/// descendant exception type carries that type's value, not an `E`: then the handler fails with
-/// `ExceptionData` (a handler for a parent type should not read `exception`).
-pub fn caught<E: Send + Sync + 'static>(ctx: &Ctx, handler: &str) -> Result<Arc<E>, Failure> {
-    ctx.caught::<E>().ok_or_else(|| {
-        let got = ctx
-            .failure()
-            .map_or_else(|| "nothing".to_owned(), |f| format!("`{}`", f.exception));
-        Failure::new(
-            "ExceptionData",
-            format!(
-                "handler `{handler}` reads `exception` as a `{}`, but caught {got}",
-                short_name::<E>()
-            ),
-        )
-    })
+/// In a handler body: the caught exception, for the binding of `handles E as name`. It reads
+/// every failure a handler of `E` catches, descendants of `E` included (see [`crate::Caught`]).
+pub fn caught<E: Send + Sync + 'static>(
+    ctx: &Ctx,
+    handler: &str,
+) -> Result<crate::Caught<E>, Failure> {
+    match ctx.failure() {
+        Some(failure) => Ok(crate::Caught::new(failure.clone())),
+        None => Err(Failure::new(
+            "NotAHandler",
+            format!("`{handler}` reads its caught exception outside an exception handler"),
+        )),
+    }
 }
 
-fn short_name<E>() -> &'static str {
-    let full = std::any::type_name::<E>();
-    full.rsplit("::").next().unwrap_or(full)
+/// Names the Rust type of a handled exception, so that `handles X` with no type `X` in scope is a
+/// compile error rather than a handler that never fires.
+pub fn handles<E: ?Sized + 'static>(name: &'static str) -> &'static str {
+    name
 }
 
 /// In a handler body: the node whose action failed.

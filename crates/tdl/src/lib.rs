@@ -35,8 +35,11 @@ extern crate self as tdl;
 pub use tcm::*;
 pub use tdl_macros::tdl;
 
+mod caught;
 #[doc(hidden)]
 pub mod codegen;
+
+pub use caught::Caught;
 
 /// The runtime crate, for paths the re-exports do not cover.
 pub use tcm;

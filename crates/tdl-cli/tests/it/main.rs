@@ -22,17 +22,23 @@ fn check_prints_every_mistake_with_position_and_hint_and_exits_1() {
     assert_eq!(code, 1, "{out}");
     let headers: Vec<&str> = out
         .lines()
-        .filter(|l| l.starts_with("tests/data/"))
+        .filter(|l| l.starts_with("error") || l.contains("--> "))
+        .map(str::trim)
         .collect();
     assert_eq!(
         headers,
         [
-            "tests/data/three_mistakes.tdl:4:55: error: unknown tag `nowhere`",
-            "tests/data/three_mistakes.tdl:5:5: error: `wait` on a task that is not spawned yet",
-            "tests/data/three_mistakes.tdl:15:7: error: this constraint can only be given on the spawn",
+            "error: unknown tag `nowhere`",
+            "--> tests/data/three_mistakes.tdl:4:55",
+            "error: `wait` on a task that is not spawned yet",
+            "--> tests/data/three_mistakes.tdl:5:5",
+            "error: this constraint can only be given on the spawn",
+            "--> tests/data/three_mistakes.tdl:15:7",
         ],
         "{out}"
     );
+    // Not a terminal: no colour.
+    assert!(!out.contains('\u{1b}'), "{out:?}");
     assert_eq!(out.matches("= help:").count(), 3, "{out}");
     assert!(out.contains("5 |     later wait;"), "{out}");
 }
@@ -41,6 +47,64 @@ fn check_prints_every_mistake_with_position_and_hint_and_exits_1() {
 fn check_is_silent_on_a_good_file() {
     let (code, out, err) = tdl(&["check", "tests/data/good.tdl"]);
     assert_eq!((code, out.as_str(), err.as_str()), (0, "", ""));
+}
+
+/// The `.tdl` files of `tdl-syntax`'s `test_data/<kind>`, as paths relative to this crate.
+fn syntax_data(kind: &str) -> Vec<String> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../tdl-syntax/test_data")
+        .join(kind);
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|err| panic!("cannot read {}: {err}", dir.display()))
+        .filter_map(Result::ok)
+        .map(|it| it.path())
+        .filter(|it| it.extension().is_some_and(|ext| ext == "tdl"))
+        .map(|it| it.display().to_string())
+        .collect();
+    files.sort();
+    files
+}
+
+/// Issue 12, point 5: what the parser data calls valid, `tdl check` (which also runs the code
+/// generator) accepts, one file at a time; and every file of the error data is refused.
+#[test]
+fn check_accepts_every_ok_file_and_refuses_every_err_file() {
+    let ok = syntax_data("ok");
+    assert!(ok.len() >= 10, "{ok:?}");
+    for file in &ok {
+        let (code, out, err) = tdl(&["check", file]);
+        assert_eq!(code, 0, "{file}:\n{out}{err}");
+        assert!(
+            !out.lines().any(|l| l.starts_with("error")),
+            "{file}:\n{out}"
+        );
+    }
+    let bad = syntax_data("err");
+    assert!(bad.len() >= 15, "{bad:?}");
+    for file in &bad {
+        let (code, out, err) = tdl(&["check", file]);
+        assert_eq!(code, 1, "{file}:\n{out}{err}");
+        assert!(
+            out.lines().any(|l| l.starts_with("error")),
+            "{file}:\n{out}"
+        );
+    }
+}
+
+/// Issue 12, point 3: `tdl check` takes the files of one program and resolves names across them.
+#[test]
+fn check_resolves_names_across_the_files_of_a_program() {
+    let (code, out, err) = tdl(&["check", "tests/data/faults.tdl", "tests/data/walk.tdl"]);
+    assert_eq!((code, out.as_str(), err.as_str()), (0, "", ""));
+    let (code, out, _) = tdl(&["check", "tests/data/faults.tdl", "tests/data/walk_typo.tdl"]);
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        out.starts_with(
+            "error: unknown exception `TerainFault`\n --> tests/data/walk_typo.tdl:2:29\n"
+        ),
+        "{out}"
+    );
+    assert!(out.contains("Fault, TerrainFault"), "{out}");
 }
 
 #[test]
@@ -103,7 +167,8 @@ fn trace_log_tree_and_story_read_a_trace() {
     let (code, out, _) = tdl(&["trace", "story", "tests/data/run.jsonl"]);
     assert_eq!(code, 0);
     assert!(
-        out.lines().any(|l| l == "0 deliver_all handling active"),
+        out.lines()
+            .any(|l| l == "0 {1} deliver_all handling active"),
         "{out}"
     );
     let (code, _, err) = tdl(&["trace", "story", "tests/data/missing.jsonl"]);
@@ -112,4 +177,87 @@ fn trace_log_tree_and_story_read_a_trace() {
         err.contains("cannot read tests/data/missing.jsonl"),
         "{err}"
     );
+}
+
+/// Issue 12, point 10: without `--at` the tree is the whole run, reclaimed nodes included (they
+/// all are at the end of `handled_run.jsonl`, a run of `crates/tdl/tests/it/warnings.rs`'s `walk(2)`
+/// with a wiretap on `log_step`); `--live` gives the old view, only the root.
+#[test]
+fn trace_tree_shows_the_whole_run() {
+    let (code, out, _) = tdl(&["trace", "tree", "tests/data/handled_run.jsonl"]);
+    assert_eq!(code, 0);
+    assert_eq!(out.lines().count(), 20, "{out}");
+    assert!(
+        out.contains(
+            "    step 1 {7}  handling=completed expansion=completed execution=completed failed reclaimed\n      count_up {16}"
+        ),
+        "{out}"
+    );
+    let (code, out, _) = tdl(&["trace", "tree", "tests/data/handled_run.jsonl", "--live"]);
+    assert_eq!(code, 0);
+    assert_eq!(
+        out,
+        "Root Node {0}  handling=active expansion=active execution=active\n"
+    );
+}
+
+/// Issue 12, point 10: the story has node numbers, shows wiretap, handler-chosen, bypass and retry
+/// records, and filters by kind, name, path, node and time.
+#[test]
+fn trace_story_shows_handlers_retries_wiretaps_and_filters() {
+    let file = "tests/data/handled_run.jsonl";
+    let (code, out, _) = tdl(&["trace", "story", file, "--kind", "handler,retry,wiretap"]);
+    assert_eq!(code, 0);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(
+        lines[..4],
+        [
+            "0.02 {5} log_step wiretap 0 checks before",
+            "0.03 {7} step 1 handler count_up {16} chosen for TerrainFault (attached to walk {1})",
+            "0.03 {16} count_up bypasses TerrainFault",
+            "0.03 {7} step 1 handler recover {17} chosen for TerrainFault (attached to walk {1})",
+        ],
+        "{out}"
+    );
+    assert!(
+        lines.contains(&"0.03 {18} step 1 retries step 1 {7}"),
+        "{out}"
+    );
+    // By name: only `recover`'s records.
+    let (_, out, _) = tdl(&[
+        "trace",
+        "story",
+        file,
+        "--name",
+        "recover",
+        "--kind",
+        "transition",
+    ]);
+    assert!(!out.is_empty());
+    assert!(out.lines().all(|l| l.contains("{17} recover ")), "{out}");
+    // By path: the subtree of `walk/step 1`, which holds the handlers and the retry.
+    let (_, out, _) = tdl(&[
+        "trace",
+        "story",
+        file,
+        "--path",
+        "walk/step 1",
+        "--kind",
+        "spawn",
+    ]);
+    let spawned: Vec<&str> = out.lines().filter(|l| l.contains(" spawned ")).collect();
+    assert_eq!(spawned.len(), 5, "{out}");
+    // By node and time.
+    let (_, out, _) = tdl(&[
+        "trace", "story", file, "--node", "18", "--from", "0.04", "--to", "0.04",
+    ]);
+    assert!(!out.is_empty());
+    assert!(
+        out.lines()
+            .all(|l| l.starts_with("0.04 {18} ") || l.starts_with("0.04 {19} ")),
+        "{out}"
+    );
+    // A bad kind is a usage error.
+    let (code, _, _) = tdl(&["trace", "story", file, "--kind", "nonsense"]);
+    assert_eq!(code, 2);
 }

@@ -109,12 +109,12 @@ pub(super) fn task_body(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagn
     let mut head = quote!(ctx.hold_children(true)?;);
     if task.kind == TaskKind::Handler {
         let name = task.name.to_string();
-        if let Some(exc) = &task.handles {
-            if mentions(&code, "exception") {
-                head.extend(quote! {
-                    let exception: ::std::sync::Arc<#exc> = ::tdl::codegen::caught::<#exc>(&ctx, #name)?;
-                });
-            }
+        // The caught exception only through the explicit binding `handles E as name`: a word
+        // `exception` in the body is plain Rust (docs/semantics.md, "Exceptions and handlers").
+        if let (Some(exc), Some(var)) = (&task.handles, &task.caught) {
+            head.extend(quote! {
+                let #var: ::tdl::Caught<#exc> = ::tdl::codegen::caught::<#exc>(&ctx, #name)?;
+            });
         }
         if mentions(&code, "failing") {
             head.extend(quote!(let failing: ::tdl::NodeId = ::tdl::codegen::failing_node(&ctx)?;));
@@ -183,17 +183,22 @@ fn ends_with_semicolon(tokens: &TokenStream) -> bool {
     matches!(tokens.clone().into_iter().last(), Some(TokenTree::Punct(p)) if p.as_char() == ';')
 }
 
-/// Whether `tokens` name `word`, as an identifier or as an inline format argument (`"{word}"`,
-/// `"{word:?}"`).
+/// Whether `tokens` name `word`, as an identifier that is not a field or method (`x.word`), or as
+/// an inline format argument (`"{word}"`, `"{word:?}"`).
 fn mentions(tokens: &TokenStream, word: &str) -> bool {
-    tokens.clone().into_iter().any(|it| match it {
-        TokenTree::Ident(id) => id == word,
-        TokenTree::Group(group) => mentions(&group.stream(), word),
-        TokenTree::Literal(lit) => {
-            let text = lit.to_string();
-            text.contains(&format!("{{{word}}}")) || text.contains(&format!("{{{word}:"))
-        }
-        TokenTree::Punct(_) => false,
+    let mut after_dot = false;
+    tokens.clone().into_iter().any(|it| {
+        let found = match &it {
+            TokenTree::Ident(id) => id == word && !after_dot,
+            TokenTree::Group(group) => mentions(&group.stream(), word),
+            TokenTree::Literal(lit) => {
+                let text = lit.to_string();
+                text.contains(&format!("{{{word}}}")) || text.contains(&format!("{{{word}:"))
+            }
+            TokenTree::Punct(_) => false,
+        };
+        after_dot = matches!(&it, TokenTree::Punct(p) if p.as_char() == '.');
+        found
     })
 }
 

@@ -67,6 +67,11 @@ impl<'a> Gen<'_, 'a> {
         } = self.spawn_parts(spawn, &loops);
         let mut task = quote!(#task_name(#(#args),*));
         if let Some(name) = name {
+            // `name (expr)`: the parentheses are TDL's; as a call argument they would warn.
+            let mut name = &name;
+            while let syn::Expr::Paren(inner) = name {
+                name = &*inner.expr;
+            }
             task = quote!(#task.named(#name));
         }
         let members: Vec<Ident> = self

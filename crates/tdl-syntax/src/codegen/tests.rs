@@ -105,16 +105,17 @@ fn fig6_monitor_becomes_a_tcm_monitor() {
 fn handlers_bind_the_exception_and_persistent_state() {
     let out = expand(
         "exception A; exception B : A { x: u32 } exception C : B;
-         handler h(limit: u32) handles B with maximum activate 2, persistent n: u32 = 0 {
+         handler h(limit: u32) handles B as b with maximum activate 2, persistent n: u32 = 0 {
              n += 1;
-             if exception.x > limit { bypass; }
+             if b.data().is_some_and(|it| it.x > limit) { bypass; }
              retry;
          }
          command c() with exception handler h(3) { fail C; }",
     );
     for line in [
         "::tdl::Handler::new(",
-        "let exception: ::std::sync::Arc<B> = ::tdl::codegen::caught::<B>(&ctx, \"h\")?;",
+        "let b: ::tdl::Caught<B> = ::tdl::codegen::caught::<B>(&ctx, \"h\")?;",
+        "::tdl::Handler::new(\"h\", ::tdl::codegen::handles::<B>(\"B\"),",
         "let mut n: u32 = tdl_persistent_n.load();",
         "tdl_persistent_n.store(n);",
         "return ctx.bypass();",
@@ -175,7 +176,17 @@ fn handler_locals_are_bound_when_named_even_in_format_strings() {
     }
     let plain = expand("exception E; handler h() handles E { log(1); }");
     assert!(!has(&plain, "let failing"), "{plain}");
-    assert!(!has(&plain, "let exception"), "{plain}");
+    assert!(!has(&plain, "codegen::caught"), "{plain}");
+    // Issue 12, point 1: without `as`, nothing is bound, and a word `exception` (here a struct
+    // field) is plain Rust.
+    let field = expand(
+        "exception E; handler h() handles E { let failure = ctx.failure(); log(failure.map(|f| f.exception.clone())); }",
+    );
+    assert!(!has(&field, "codegen::caught"), "{field}");
+    assert!(has(&field, "f.exception.clone()"), "{field}");
+    // Likewise a field named `failing` binds no `failing` local (it would be unused).
+    let field = expand("exception E; handler h() handles E { let r = (1, 2); log(r.failing); }");
+    assert!(!has(&field, "let failing"), "{field}");
 }
 
 #[test]

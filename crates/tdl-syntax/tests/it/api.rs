@@ -8,14 +8,23 @@ use tdl_syntax::{
 };
 
 #[test]
-fn renders_file_line_column_source_caret_and_hint() {
+fn renders_as_rustc_with_location_source_caret_and_hint() {
     let src = "goal g() {\n    spawn a() with on robot2;\n}\n";
     let parse = tdl_syntax::parse_str("robot.tdl", src);
     let text = parse.render("robot.tdl", Some(src));
     assert_eq!(
         text,
-        "robot.tdl:2:20: error: distributed agents are not supported yet\n  |\n2 |     spawn a() with on robot2;\n  |                    ^^\n  = help: remove `on ...`: every task runs in this process until distributed agents exist\n"
+        "error: distributed agents are not supported yet\n --> robot.tdl:2:20\n  |\n2 |     spawn a() with on robot2;\n  |                    ^^\n  |\n  = help: remove `on ...`: every task runs in this process until distributed agents exist\n"
     );
+    // Issue 12, point 14: the same through annotate-snippets' styled renderer carries the ANSI
+    // colours rustc uses; the plain one none.
+    let styled = parse.diagnostics[0].render_styled("robot.tdl", Some(src));
+    assert!(styled.contains("\u{1b}["), "{styled:?}");
+    assert!(!text.contains('\u{1b}'), "{text:?}");
+    // Without the source (the macro's case) the location and the hint remain.
+    let bare = parse.diagnostics[0].render("robot.tdl", None);
+    assert!(bare.contains("--> robot.tdl:2:20"), "{bare}");
+    assert!(bare.contains("= help: remove `on ...`"), "{bare}");
     let diag = &parse.diagnostics[0];
     assert_eq!(
         (diag.line(), diag.column(), diag.severity()),
@@ -180,4 +189,47 @@ fn disable_terminate_and_activate_share_one_when() {
     }
     assert!(matches!(triggers[6].0, When::Event(event) if event.point == Point::Active));
     assert!(matches!(triggers[7].0, When::Now) && matches!(triggers[8].0, When::Now));
+}
+
+/// Issue 12, point 3: the files of a program share their names. A typo in a handled exception
+/// declared in another file is an error in the file of the typo; without the typo the program is
+/// clean, and an exception's ancestry crosses files.
+#[test]
+fn names_resolve_across_the_files_of_a_program() {
+    let faults = "exception Fault; exception TerrainFault : Fault;";
+    let typo = "handler h() handles TerainFault { let _ = 1; }";
+    let results = tdl_syntax::compile_program(&[("faults.tdl", faults), ("walk.tdl", typo)]);
+    assert!(results[0].0.is_some(), "{:?}", results[0].1);
+    let errors: Vec<String> = results[1]
+        .1
+        .iter()
+        .map(|it| it.message().to_owned())
+        .collect();
+    assert_eq!(errors, ["unknown exception `TerainFault`"]);
+    assert!(results[1].0.is_none());
+    // Alone, the file of the typo declares no exception to check against: only rustc can see it.
+    assert!(tdl_syntax::compile_str("walk.tdl", typo).0.is_some());
+
+    let walk = "exception Slip : TerrainFault; handler h() handles Fault { let _ = 1; }";
+    let results = tdl_syntax::compile_program(&[("faults.tdl", faults), ("walk.tdl", walk)]);
+    let code = results[1]
+        .0
+        .as_ref()
+        .map(ToString::to_string)
+        .unwrap_or_default();
+    let squashed: String = code.split_whitespace().collect();
+    assert!(squashed.contains("&[\"TerrainFault\",\"Fault\"]"), "{code}");
+
+    // A name declared in two files is an error in both.
+    let twice = "exception Fault;";
+    let results = tdl_syntax::compile_program(&[("a.tdl", faults), ("b.tdl", twice)]);
+    for (code, diags) in &results {
+        assert!(code.is_none());
+        assert!(
+            diags[0]
+                .message()
+                .starts_with("`Fault` is also declared in"),
+            "{diags:?}"
+        );
+    }
 }

@@ -25,6 +25,7 @@ mod patrol {
     }
 
     include!(concat!(env!("OUT_DIR"), "/patrol.rs"));
+    include!(concat!(env!("OUT_DIR"), "/patrol_faults.rs"));
 }
 
 #[tokio::test(start_paused = true)]

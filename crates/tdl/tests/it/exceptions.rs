@@ -127,6 +127,23 @@ mod handlers {
         tokio::time::sleep(std::time::Duration::from_secs(s)).await;
     }
 
+    /// A handler read its binding as a type the caught value is not.
+    #[derive(Debug)]
+    struct BadData;
+
+    impl std::fmt::Display for BadData {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("the caught exception is not of the type read")
+        }
+    }
+
+    impl std::error::Error for BadData {}
+
+    /// A plain Rust struct with a field named `exception`, as in the issue's report.
+    struct Report {
+        exception: String,
+    }
+
     use tdl::testing::handler_choices as chosen;
 
     tdl::tdl! {
@@ -150,14 +167,16 @@ mod handlers {
         command plan_path(room: u32) {
             fail NoPath { room };
         }
-        handler handle_overheating() handles Overheating {
+        handler handle_overheating() handles Overheating as exception {
+            let exception = exception.data().ok_or(BadData)?;
             log(format!("cool from {}", exception.temperature));
             spawn cool_down();
         }
-        handler handle_no_path() handles NoPath {
+        handler handle_no_path() handles NoPath as caught {
             // The failing node is the child; the handler is attached to the goal above it.
             let whose = if failing == attached { "own" } else { "child's" };
-            log(format!("give up on room {}, the {whose} failure", exception.room));
+            let room = caught.data().map_or(0, |it| it.room);
+            log(format!("give up on room {room}, the {whose} failure"));
         }
         command cool_down() { sleep_s(3).await; }
 
@@ -182,20 +201,20 @@ mod handlers {
             sleep_s(1).await;
             fail Blocked { by: if n == 1 { "cart" } else { "door" } };
         }
-        handler pass_on() handles Blocked {
-            log(format!("pass on {}", exception.by));
+        handler pass_on() handles Blocked as blocked {
+            log(format!("pass on {}", blocked.data().ok_or(BadData)?.by));
             bypass;
         }
-        handler absorb(level: &'static str) handles Blocked {
-            log(format!("{level} absorbs {}", exception.by));
+        handler absorb(level: &'static str) handles Blocked as blocked {
+            log(format!("{level} absorbs {}", blocked.data().ok_or(BadData)?.by));
         }
 
         // A handler that re-raises: its failure is searched for above the node it is attached to.
         goal escalating() with exception handler handle_no_path() {
             spawn move_leg(1) with exception handler escalate();
         }
-        handler escalate() handles Overheating {
-            log(format!("escalate {}", exception.temperature));
+        handler escalate() handles Overheating as hot {
+            log(format!("escalate {}", hot.data().ok_or(BadData)?.temperature));
             fail NoPath { room: 0 };
         }
 
@@ -218,6 +237,29 @@ mod handlers {
             log("retried".to_owned());
         }
         command say_done() { log("done".to_owned()); }
+
+        // Issue 12, point 1: a handler for `Fault` catches a `TerrainFault` and reads its data,
+        // as the handled type when it is one, by downcasting when it is a descendant; a field
+        // named `exception` in the body is plain Rust.
+        pub exception Fault { code: u32 }
+        pub exception TerrainFault : Fault { leg: u32 }
+        goal walk(terrain: bool) with exception handler recover() {
+            spawn step(terrain);
+        }
+        command step(terrain: bool) {
+            if terrain {
+                fail TerrainFault { leg: 3 };
+            }
+            fail Fault { code: 7 };
+        }
+        handler recover() handles Fault as fault {
+            let failure = Report { exception: fault.name().to_owned() };
+            match (fault.data(), fault.downcast::<TerrainFault>()) {
+                (Some(it), _) => log(format!("{}: code {}", failure.exception, it.code)),
+                (None, Some(it)) => log(format!("{}: leg {}", failure.exception, it.leg)),
+                (None, None) => return Err(BadData.into()),
+            }
+        }
 
         // A task whose argument is not `Clone` runs once; retrying it fails with `NotRetryable`.
         struct Token(u32);
@@ -254,6 +296,25 @@ mod handlers {
                 "4 navigate_to_locn execution completed",
             ],
         );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_handler_reads_a_descendant_through_its_binding() {
+        take_log();
+        for terrain in [true, false] {
+            let (report, trace) = run_checked(Runtime::new(), walk(terrain)).await;
+            assert_eq!(report.outcome, RunOutcome::Completed);
+            let chosen = chosen(&trace);
+            let caught = if terrain { "TerrainFault" } else { "Fault" };
+            assert_eq!(chosen, [format!("recover<-{caught}")]);
+            // The handler did not fail: no failure of its own in the trace.
+            let failed = trace
+                .iter()
+                .filter(|it| matches!(it.kind, TraceKind::Failed { .. }))
+                .count();
+            assert_eq!(failed, 1, "{trace:#?}");
+        }
+        assert_eq!(take_log(), ["TerrainFault: leg 3", "Fault: code 7"]);
     }
 
     #[tokio::test(start_paused = true)]

@@ -16,3 +16,4 @@ mod porting;
 mod refs;
 mod ui;
 mod util;
+mod warnings;
