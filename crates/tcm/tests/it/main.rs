@@ -9,6 +9,7 @@ mod callbacks;
 mod exceptions;
 mod held_children;
 mod introspection;
+mod loud;
 mod monitors;
 mod panics;
 mod paper;
