@@ -1,5 +1,5 @@
-//! The Ambler walking rover of the TCA paper (Simmons, "Structured control for autonomous robots",
-//! 1994, Figure 1) in TDL, walking simulated terrain on virtual time.
+//! The Ambler walking rover of the TCA paper (its Figure 1) in TDL, walking simulated terrain on
+//! virtual time.
 //!
 //! - `src/terrain.tdl`: the `TerrainContact` exception and the leg and terrain commands.
 //! - `src/walk.tdl`: the walking goals (arcs, steps planned one ahead of execution) and the three
@@ -12,7 +12,7 @@
 //! use ambler::world::{Terrain, Walker};
 //!
 //! let walker = Walker::new(Terrain::flat(1, 3));
-//! let report = tdl::block_on_virtual(ambler::monitored(&walker).run(ambler::walk(walker.clone())))??;
+//! let report = tdl::block_on_virtual(ambler::monitored(&walker).run(ambler::walk(walker.clone())))?;
 //! assert_eq!(report.outcome, tdl::RunOutcome::Completed);
 //! assert_eq!(walker.log().body_moves, 3);
 //! # Ok::<(), Box<dyn std::error::Error>>(())

@@ -25,13 +25,9 @@ fn main() -> ExitCode {
     let walker = Walker::new(terrain);
     let run = ambler::monitored(&walker).run(ambler::walk(walker.clone()));
     let report = match tdl::block_on_virtual(run) {
-        Ok(Ok(report)) => report,
-        Ok(Err(e)) => {
-            eprintln!("error: the run failed: {e}");
-            return ExitCode::FAILURE;
-        }
+        Ok(report) => report,
         Err(e) => {
-            eprintln!("error: cannot start the runtime: {e}");
+            eprintln!("error: the run failed: {e}");
             return ExitCode::FAILURE;
         }
     };

@@ -47,7 +47,7 @@ mod textlog;
 #[cfg(test)]
 mod test_util;
 
-pub use check::{CheckReport, Checker, MAX_VIOLATIONS, Rule, Violation, check};
+pub use check::{CheckReport, Checker, MAX_VIOLATIONS, Rule, Violation, check, check_prefix};
 pub use dump::{dump_modern, dump_tcm};
 pub use event::{
     OLDEST_READABLE_VERSION, TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent, TraceEventRef,

@@ -37,7 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 fig4::deliver_mail(7, world)
             })
             .await
-    })??;
+    })?;
     eprintln!(
         "outcome: {:?} after {:?} of virtual time",
         report.outcome, report.elapsed

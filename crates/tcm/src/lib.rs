@@ -35,7 +35,7 @@ pub use ctx::{Ctx, Spawner};
 pub use host::Panicked;
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use session::Session;
-pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink};
+pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink, TracingSink};
 pub use task::{Action, ActionFuture, Exception, Factory, Handler, Monitor, Task, Value, factory};
 pub use tcm_core::{
     Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,
@@ -73,14 +73,42 @@ pub enum Error {
     /// `Runtime::start` was called outside a tokio runtime, where the driver cannot run.
     #[error("`Runtime::start` must be called inside a tokio runtime")]
     NoRuntime,
+    /// [`block_on_virtual`] could not build its tokio runtime.
+    #[error("cannot start the tokio runtime: {0}")]
+    Runtime(#[from] std::io::Error),
 }
 
-/// Runs `fut` on a new single-threaded tokio runtime whose clock is paused: virtual time, which
-/// jumps to the next timer whenever every task waits. For simulations and demos.
-pub fn block_on_virtual<F: std::future::Future>(fut: F) -> std::io::Result<F::Output> {
+/// The tokio this crate runs on, for programs that depend on `tcm` (or `tdl`) alone:
+/// `tcm::tokio::time::sleep`. Its attribute macros need the path: `#[tcm::tokio::main(crate =
+/// "tcm::tokio")]`.
+#[doc(no_inline)]
+pub use tokio;
+
+/// Runs `fut`, a run or anything else returning a `Result`, on a new single-threaded tokio
+/// runtime whose clock is paused: virtual time, which jumps to the next timer whenever every task
+/// waits. For simulations and demos. One `Result`: the future's own error, or the error of
+/// building the runtime converted into it ([`Error::Runtime`] for the runtime's [`Error`]).
+///
+/// ```
+/// use tcm::{Runtime, RunOutcome, Task};
+/// let beep = Task::command("beep", |_| async {
+///     tcm::tokio::time::sleep(std::time::Duration::from_secs(60)).await;
+///     Ok(())
+/// });
+/// // Made inside, the runtime's time zero is on the paused clock.
+/// let report = tcm::block_on_virtual(async { Runtime::new().run(beep).await })?;
+/// assert_eq!(report.outcome, RunOutcome::Completed);
+/// assert_eq!(report.elapsed, std::time::Duration::from_secs(60));
+/// # Ok::<(), tcm::Error>(())
+/// ```
+pub fn block_on_virtual<F, T, E>(fut: F) -> Result<T, E>
+where
+    F: std::future::Future<Output = Result<T, E>>,
+    E: From<std::io::Error>,
+{
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_time()
         .start_paused(true)
         .build()?;
-    Ok(rt.block_on(fut))
+    rt.block_on(fut)
 }

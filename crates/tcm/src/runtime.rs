@@ -92,6 +92,57 @@ pub struct Report {
     /// The actions (and timer callbacks) that panicked, in order. Each panic failed its node and
     /// the run went on; `tcm::testing::run_checked` fails the test for them.
     pub panics: Vec<Panicked>,
+    /// Every failure no handler took, in order: the node's number and path of instance names,
+    /// the exception's type name and its data as text (the failure's message). Under the default
+    /// policy the run goes on after each (docs/semantics.md, "Failure without a handler"), so an
+    /// outcome `Completed` may come with unhandled failures: check this list, or
+    /// [`Report::is_clean`].
+    pub unhandled: Vec<FatalFailure>,
+    /// Nodes that failed during the run, handled or not.
+    pub failures: u64,
+    /// Warnings of the run (`warning` trace records, such as "No exception handler found"), each
+    /// also logged through `tracing` at `WARN` level with target `tcm`.
+    pub warnings: u64,
+}
+
+impl Report {
+    /// Whether the run completed with no unhandled failure, no warning and no panic.
+    pub fn is_clean(&self) -> bool {
+        self.outcome == RunOutcome::Completed
+            && self.unhandled.is_empty()
+            && self.warnings == 0
+            && self.panics.is_empty()
+    }
+}
+
+impl std::fmt::Display for Report {
+    /// The outcome, then one line per unhandled failure and panic, then the counts.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.outcome {
+            RunOutcome::Completed => write!(f, "completed")?,
+            RunOutcome::TaskFailed(fl) => {
+                write!(f, "task failed: {}: {}", fl.exception, fl.message)?;
+            }
+            RunOutcome::Terminated => write!(f, "terminated")?,
+            RunOutcome::Fatal(fl) => write!(f, "fatal: {fl}")?,
+            RunOutcome::Stuck(b) => write!(f, "stuck ({} waiting nodes)", b.len())?,
+        }
+        write!(f, " after {:?}", self.elapsed)?;
+        for u in &self.unhandled {
+            write!(f, "\n{u}")?;
+        }
+        for p in &self.panics {
+            write!(f, "\n{p}")?;
+        }
+        write!(
+            f,
+            "\n{} unhandled failure(s), {} failure(s), {} warning(s), {} panic(s)",
+            self.unhandled.len(),
+            self.failures,
+            self.warnings,
+            self.panics.len()
+        )
+    }
 }
 
 /// A handle to raise named external events from any thread or task. While any handle is open, a
@@ -212,10 +263,13 @@ impl Runtime {
         self
     }
 
-    /// Registers a wiretap (the TCA paper's wiretap monitors): `check` runs whenever a node whose
-    /// instance name is `task` is about to start its action (`Before`) or returned successfully
-    /// (`After`), without touching that task's code. A failing check fails the tapped node with the
-    /// check's failure (handlers then apply as to any failure).
+    /// Registers a wiretap (the TCA paper's wiretap monitors) on a class of tasks: `check` runs
+    /// whenever a node that is an instance of the task named `task` (its [`Task::task_name`],
+    /// whatever instance name [`Task::named`] gave it) is about to start its action (`Before`) or
+    /// returned successfully (`After`), without touching that task's code. A failing check fails
+    /// the tapped node with the check's failure (handlers then apply as to any failure). To tap
+    /// one instance name instead, use [`Runtime::wiretap_instance`] (docs/semantics.md,
+    /// "Wiretaps").
     pub fn wiretap<F, Fut, T>(
         self,
         task: impl Into<tcm_core::Name>,
@@ -231,6 +285,44 @@ impl Runtime {
             inner
                 .engine
                 .wiretap(task, when, crate::task::factory(check));
+        }
+        self
+    }
+
+    /// As [`Runtime::wiretap`], on the nodes whose instance name is `instance`, whatever task
+    /// they are instances of (an explicit choice: naming instances changes what this taps).
+    pub fn wiretap_instance<F, Fut, T>(
+        self,
+        instance: impl Into<tcm_core::Name>,
+        when: TapWhen,
+        check: F,
+    ) -> Runtime
+    where
+        F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner
+                .engine
+                .wiretap_instance(instance, when, crate::task::factory(check));
+        }
+        self
+    }
+
+    /// Attaches `handler` from outside to every node of the task named `task` (its
+    /// [`Task::task_name`], whatever instance name it was given), without touching the task's
+    /// code: TCA's recovery "without modifying existing components". The handler search finds it
+    /// at such a node after the node's own handlers (task-level, then spawn-level); handlers
+    /// attached to one task are tried in the order attached. Each node counts its own uses for
+    /// [`crate::Handler::max_activations`] (docs/semantics.md, "Handlers attached to a task").
+    pub fn handler_for(
+        self,
+        task: impl Into<tcm_core::Name>,
+        handler: crate::task::Handler,
+    ) -> Runtime {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner.engine.handler_for(task, handler.spec);
         }
         self
     }
@@ -318,8 +410,9 @@ impl Runtime {
         self.shared.clock.start();
         let mut inner = lock(&self.shared)?;
         inner.spawner = Some(rt);
-        // Nobody reads the trace: do not build it.
+        // Nobody reads the trace: do not build it, but for its warnings, which are logged.
         inner.engine.set_tracing(!self.sinks.is_empty());
+        inner.engine.trace_warnings(true);
         Ok(self.shared.clone())
     }
 
@@ -336,11 +429,15 @@ impl Runtime {
 /// The report of a run that ended with `outcome`.
 pub(crate) fn report(shared: &Shared, outcome: RunOutcome) -> Result<Report, Error> {
     let mut inner = lock(shared)?;
+    let stats = inner.engine.stats();
     Ok(Report {
         outcome,
         elapsed: shared.now().since_start(),
-        stats: inner.engine.stats(),
+        stats,
         panics: std::mem::take(&mut inner.panics),
+        unhandled: inner.engine.unhandled().to_vec(),
+        failures: stats.failures,
+        warnings: stats.warnings,
     })
 }
 
@@ -418,6 +515,8 @@ impl RunLoop {
     /// an await on the next thing that can change the engine.
     async fn drive(self, sinks: &mut [Box<dyn TraceSink>]) -> Result<RunOutcome, Error> {
         let mut trace = Vec::new();
+        // Warnings go through `tracing` once: here, unless a sink logs them already.
+        let logged = sinks.iter().any(|s| s.logs_warnings());
         let result = loop {
             let turn = match self.turn(&mut trace) {
                 Ok(turn) => turn,
@@ -427,6 +526,9 @@ impl RunLoop {
                 }
             };
             for ev in trace.drain(..) {
+                if !logged {
+                    crate::sink::log_warning(&ev);
+                }
                 for s in sinks.iter_mut() {
                     s.record(&ev);
                 }

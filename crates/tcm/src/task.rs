@@ -308,10 +308,12 @@ impl Task {
     /// The engine's spawn request for this task under `parent`.
     pub(crate) fn into_spawn(self, parent: NodeId) -> (Spawn<Action, Factory>, usize) {
         let n_task_handlers = self.handlers.len();
+        let task = self.renamed();
         let spec = Spawn {
             parent,
             kind: self.kind,
             name: self.name,
+            task,
             action: self.action,
             constraints: self.constraints,
             persistent: self.persistent,

@@ -7,21 +7,24 @@
 //!   struct with its arguments and a constructor function returning a [`Task`] (a [`Handler`] for
 //!   handlers). Generated bodies hold their children until they end or wait, as in TDL.
 //! - Everything else is the `tcm` runtime, re-exported: [`Runtime`] runs a task tree, [`Ctx`] is
-//!   what a body sees, [`Constraint`] and friends are what the generated code builds.
+//!   what a body sees, [`Constraint`] and friends are what the generated code builds,
+//!   [`block_on_virtual`] runs a simulation on virtual time, and [`tokio`] is the tokio it all
+//!   runs on. A program depends on `tdl` alone: bodies write `tdl::tokio::time::sleep(..)`, and
+//!   tests `#[tdl::tokio::test(crate = "tdl::tokio", start_paused = true)]`.
 //! - `.tdl` files can also be compiled from `build.rs` with the `tdl-build` crate, and checked or
 //!   expanded with the `tdl` command-line tool.
 //!
 //! ```
 //! tdl::tdl! {
 //!     command beep() {
-//!         tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+//!         tdl::tokio::time::sleep(std::time::Duration::from_millis(10)).await;
 //!     }
 //!     goal beep_twice() {
 //!         spawn beep();
 //!         spawn beep() with sequential execution previous;
 //!     }
 //! }
-//! # let report = tdl::block_on_virtual(tdl::Runtime::new().run(beep_twice())).unwrap().unwrap();
+//! # let report = tdl::block_on_virtual(tdl::Runtime::new().run(beep_twice())).unwrap();
 //! # assert_eq!(report.outcome, tdl::RunOutcome::Completed);
 //! ```
 //!

@@ -70,7 +70,7 @@
 //!     }
 //!     Ok(())
 //! });
-//! let report = tcm::block_on_virtual(Runtime::new().run(navigate))??;
+//! let report = tcm::block_on_virtual(Runtime::new().run(navigate))?;
 //! assert_eq!(report.outcome, RunOutcome::Completed);
 //! let door = world.inspect(|w| w.floor().door(7))?;
 //! assert!(world.snapshot().pose.position().distance(door) < 1e-6);

@@ -14,7 +14,7 @@
 //!
 //! let setup = Setup { seed: 1, scenario: Scenario::Nominal, rooms: vec![3] };
 //! let rec = tdl::Recorder::new();
-//! let done = tdl::block_on_virtual(run(&setup, vec![Box::new(rec.clone())]))??;
+//! let done = tdl::block_on_virtual(run(&setup, vec![Box::new(rec.clone())]))?;
 //! let summary = xavier::summary::Summary::new(&setup, &done, &rec.events());
 //! assert_eq!(summary.delivered, [3]);
 //! # Ok::<(), Box<dyn std::error::Error>>(())

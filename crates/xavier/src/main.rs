@@ -151,7 +151,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             .context("cannot start the tokio runtime")?
             .block_on(future)
     } else {
-        tdl::block_on_virtual(future).context("cannot start the tokio runtime")?
+        tdl::block_on_virtual(future)
     }
     .context("the runtime failed")?;
     let wall = wall.elapsed();

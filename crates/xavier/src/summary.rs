@@ -8,7 +8,7 @@ use crate::{Done, Setup, secs};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::time::Duration;
-use tdl::{RunOutcome, TraceEvent, TraceKind};
+use tdl::{FatalFailure, RunOutcome, TraceEvent, TraceKind};
 
 /// One exception raised during the run and what became of it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -75,6 +75,12 @@ pub struct Summary {
     pub suspensions: Vec<Suspension>,
     /// How the run ended.
     pub outcome: RunOutcome,
+    /// Every failure no handler took (the run went on after each, as in TCM).
+    pub unhandled: Vec<FatalFailure>,
+    /// Nodes that failed, handled or not.
+    pub failures: u64,
+    /// Warnings of the run.
+    pub warnings: u64,
     /// Simulated time of the run.
     pub simulated: Duration,
     /// How far the robot drove, in metres.
@@ -110,6 +116,9 @@ impl Summary {
             exceptions,
             suspensions,
             outcome: done.report.outcome.clone(),
+            unhandled: done.report.unhandled.clone(),
+            failures: done.report.failures,
+            warnings: done.report.warnings,
             simulated: done.report.elapsed,
             distance: world.distance_travelled,
             records: trace.len(),
@@ -303,6 +312,16 @@ impl fmt::Display for Summary {
         }
         writeln!(
             f,
+            "  failures:        {} ({} unhandled), {} warning(s)",
+            self.failures,
+            self.unhandled.len(),
+            self.warnings
+        )?;
+        for u in &self.unhandled {
+            writeln!(f, "    UNHANDLED {u}")?;
+        }
+        writeln!(
+            f,
             "  simulated time:  {} ({:.1} m driven, {} trace records)",
             secs(self.simulated),
             self.distance,
@@ -313,5 +332,51 @@ impl fmt::Display for Summary {
             other => format!("{other:?}"),
         };
         write!(f, "  run:             {outcome}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tdl::Failure;
+    use xavier_world::Scenario;
+
+    #[test]
+    fn the_summary_prints_each_unhandled_failure_and_the_counts() {
+        let summary = Summary {
+            setup: Setup {
+                seed: 1,
+                scenario: Scenario::Nominal,
+                rooms: vec![3],
+            },
+            delivered: vec![3],
+            notified: Vec::new(),
+            undeliverable: Vec::new(),
+            not_taken: Vec::new(),
+            exceptions: Vec::new(),
+            suspensions: Vec::new(),
+            outcome: RunOutcome::Completed,
+            unhandled: vec![FatalFailure {
+                failure: Failure::new("NoPath", "every route to room 3 is blocked"),
+                node: 4,
+                path: "deliver_mail/plan".to_string(),
+            }],
+            failures: 2,
+            warnings: 1,
+            simulated: Duration::from_secs(1),
+            distance: 0.0,
+            records: 0,
+        };
+        let text = summary.to_string();
+        assert!(
+            text.contains("failures:        2 (1 unhandled), 1 warning(s)"),
+            "{text}"
+        );
+        assert!(
+            text.contains(
+                "UNHANDLED unhandled exception NoPath in deliver_mail/plan {4}: every route to room 3 is blocked"
+            ),
+            "{text}"
+        );
     }
 }

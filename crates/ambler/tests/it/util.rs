@@ -15,7 +15,10 @@ pub(crate) struct Walked {
 /// Walks `terrain` with the monitors wiretapped, on virtual time, through `run_checked`.
 pub(crate) fn walk(terrain: Terrain) -> Walked {
     let walker = Walker::new(terrain);
-    let run = tdl::testing::run_checked(ambler::monitored(&walker), ambler::walk(walker.clone()));
+    let rt = ambler::monitored(&walker);
+    let run = async {
+        Ok::<_, tdl::Error>(tdl::testing::run_checked(rt, ambler::walk(walker.clone())).await)
+    };
     let (report, trace) = match tdl::block_on_virtual(run) {
         Ok(done) => done,
         Err(e) => panic!("cannot start a virtual-time runtime: {e}"),

@@ -70,6 +70,10 @@ pub struct Spawn<A, F = ()> {
     pub kind: NodeKind,
     /// Its instance name.
     pub name: Name,
+    /// The name of the task it is an instance of, when it differs from its instance name (`None`:
+    /// the same). Wiretaps and handlers attached to a task match it (docs/semantics.md,
+    /// "Wiretaps").
+    pub task: Option<Name>,
     /// Its action (`None` for a monitor, which runs its body per activation).
     pub action: Option<A>,
     /// Constraints applied before insertion (terminate forms right after it).
@@ -95,6 +99,7 @@ impl<A, F: Clone> Spawn<A, F> {
             parent,
             kind,
             name: name.into(),
+            task: None,
             action: Some(action),
             constraints: Vec::new(),
             persistent: false,
@@ -112,6 +117,7 @@ impl<A, F: Clone> Spawn<A, F> {
             parent,
             kind: NodeKind::Monitor,
             name: name.into(),
+            task: None,
             action: None,
             constraints: Vec::new(),
             persistent: false,
@@ -213,6 +219,10 @@ pub struct Stats {
     pub created: u64,
     /// Actions running now.
     pub running: u32,
+    /// Nodes that failed so far (each `failed` record), handled or not.
+    pub failures: u64,
+    /// Warnings so far (each `warning` record, traced or not).
+    pub warnings: u64,
 }
 
 /// A piece of work the shell runs for the engine: a node's action or invocation, or one wiretap

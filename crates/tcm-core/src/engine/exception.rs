@@ -118,7 +118,10 @@ impl<A, F: Clone> Engine<A, F> {
             name,
             Payload::Invoke(factory.clone(), Box::new(Purpose::Retry { of: failing })),
         );
-        self.node_mut(id).cold_mut().retry = Some(factory);
+        let task = self.node(failing).renamed_task().cloned();
+        let cold = self.node_mut(id).cold_mut();
+        cold.retry = Some(factory);
+        cold.task = task;
         let new_display = self.node(id).display;
         emit!(
             self,
@@ -211,7 +214,7 @@ impl<A, F: Clone> Engine<A, F> {
             if n.kind == NodeKind::Root {
                 break;
             }
-            let found = n.handlers().iter().enumerate().skip(index).find(|(_, h)| {
+            let found = n.all_handlers().enumerate().skip(index).find(|(_, h)| {
                 failure.is_a(&h.spec.exception) && h.spec.max_activations.is_none_or(|m| h.uses < m)
             });
             if let Some((i, _)) = found {
@@ -232,13 +235,15 @@ impl<A, F: Clone> Engine<A, F> {
                 ),
             }
         );
+        let unhandled = FatalFailure {
+            failure,
+            node: display,
+            path: self.path(failing),
+        };
         if self.policy == FailurePolicy::Fatal && self.fatal.is_none() {
-            self.fatal = Some(FatalFailure {
-                failure,
-                node: display,
-                path: self.path(failing),
-            });
+            self.fatal = Some(unhandled.clone());
         }
+        self.unhandled.push(unhandled);
     }
 
     fn use_handler(
@@ -249,7 +254,7 @@ impl<A, F: Clone> Engine<A, F> {
         index: usize,
         under: NodeId,
     ) {
-        let Some(entry) = self.node_mut(attached).cold_mut().handlers.get_mut(index) else {
+        let Some(entry) = self.node_mut(attached).handler_entry_mut(index) else {
             return;
         };
         entry.uses += 1;

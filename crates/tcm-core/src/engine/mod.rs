@@ -50,7 +50,23 @@
 
 /// Traces a record, building it only when someone reads the trace (records carry names and
 /// messages; building and dropping them would cost every transition when tracing is off).
+/// Warnings and failures are also counted (and warnings kept for the shell's log even when tracing
+/// is off, see [`Engine::trace_warnings`]), so a run's report can say how many there were.
 macro_rules! emit {
+    ($engine:expr, TraceKind::Warning $body:tt $(,)?) => {
+        if $engine.tracing || $engine.keep_warnings {
+            let kind = TraceKind::Warning $body;
+            $engine.push_trace(kind);
+        }
+        $engine.warnings += 1;
+    };
+    ($engine:expr, TraceKind::Failed $body:tt $(,)?) => {
+        if $engine.tracing {
+            let kind = TraceKind::Failed $body;
+            $engine.push_trace(kind);
+        }
+        $engine.failures += 1;
+    };
     ($engine:expr, $kind:expr $(,)?) => {
         if $engine.tracing {
             let kind = $kind;
@@ -111,6 +127,13 @@ pub struct Engine<A, F = ()> {
     next_display: u64,
     seq: u64,
     tracing: bool,
+    // Warning records are traced even with tracing off (`trace_warnings`).
+    keep_warnings: bool,
+    // Failed nodes and warnings so far (`emit!`).
+    failures: u64,
+    warnings: u64,
+    // Every failure no handler took, in order (`exception.rs`, `search`).
+    unhandled: Vec<FatalFailure>,
     trace: VecDeque<TraceEvent>,
     work: VecDeque<Work>,
     ready: VecDeque<NodeId>,
@@ -128,6 +151,8 @@ pub struct Engine<A, F = ()> {
     hold_default: bool,
     fatal: Option<FatalFailure>,
     taps: Vec<Wiretap<F>>,
+    // Handlers attached from outside to a task name (`Engine::handler_for`), in the order attached.
+    class_handlers: BTreeMap<Name, Vec<HandlerSpec<F>>>,
 }
 
 impl<A, F: Clone> Engine<A, F> {
@@ -145,6 +170,10 @@ impl<A, F: Clone> Engine<A, F> {
             next_display: 1,
             seq: 0,
             tracing: true,
+            keep_warnings: false,
+            failures: 0,
+            warnings: 0,
+            unhandled: Vec::new(),
             trace: VecDeque::new(),
             work: VecDeque::new(),
             ready: VecDeque::new(),
@@ -158,6 +187,7 @@ impl<A, F: Clone> Engine<A, F> {
             hold_default: false,
             fatal: None,
             taps: Vec::new(),
+            class_handlers: BTreeMap::new(),
         };
         engine.push_trace(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,
@@ -171,6 +201,12 @@ impl<A, F: Clone> Engine<A, F> {
         self.tracing = on;
     }
 
+    /// Keeps tracing `warning` records while tracing is off (off by default), so a shell can log
+    /// them without paying for the rest of the trace.
+    pub fn trace_warnings(&mut self, on: bool) {
+        self.keep_warnings = on;
+    }
+
     /// Makes every action and invocation of a node (monitor activation, handler, retry) hold its
     /// children from its start, as if it called [`Engine::hold_children`] first; it releases them
     /// by returning or by `hold_children(.., false)` (docs/semantics.md, "Bodies and children").
@@ -182,6 +218,19 @@ impl<A, F: Clone> Engine<A, F> {
     /// Chooses what an unhandled failure does.
     pub fn set_failure_policy(&mut self, policy: FailurePolicy) {
         self.policy = policy;
+    }
+
+    /// Attaches a handler from outside to every node of the task named `task` (its task name,
+    /// whatever its instance name) spawned from now on, without touching the task's code (TCA's
+    /// recovery added to existing components). At such a node the search tries it after the
+    /// node's own handlers; handlers attached to the same task are tried in the order attached.
+    /// Each node counts its own uses (`maximum activate`). A retried node has none of its own: its
+    /// failures meet those of the node it retries (docs/semantics.md, "Handlers attached to a task").
+    pub fn handler_for(&mut self, task: impl Into<Name>, spec: HandlerSpec<F>) {
+        self.class_handlers
+            .entry(task.into())
+            .or_default()
+            .push(spec);
     }
 
     /// The root node: top-level tasks are its children.
@@ -199,6 +248,12 @@ impl<A, F: Clone> Engine<A, F> {
         self.fatal.as_ref()
     }
 
+    /// Every failure no handler took so far, in order, whatever the failure policy
+    /// (docs/semantics.md, "Failure without a handler").
+    pub fn unhandled(&self) -> &[FatalFailure] {
+        &self.unhandled
+    }
+
     /// Counters.
     pub fn stats(&self) -> Stats {
         Stats {
@@ -206,6 +261,8 @@ impl<A, F: Clone> Engine<A, F> {
             high_water: self.nodes.high_water(),
             created: self.next_display - 1,
             running: self.running,
+            failures: self.failures,
+            warnings: self.warnings,
         }
     }
 

@@ -269,6 +269,11 @@ pub(crate) struct Cold<A, F> {
     pub(crate) deferred: Vec<(crate::constraint::Constraint, Option<NodeId>)>,
     // Group triggers applied to a reservation before its spawn.
     pub(crate) deferred_groups: Vec<super::arm::GroupTrigger>,
+    // The task this node is an instance of, when it differs from its instance name.
+    pub(crate) task: Option<Name>,
+    // Handlers attached from outside to this node's task (`Engine::handler_for`), tried after
+    // `handlers`, with their own use counts.
+    pub(crate) class_handlers: Vec<HandlerEntry<F>>,
 }
 
 impl<A, F> Default for Cold<A, F> {
@@ -288,6 +293,8 @@ impl<A, F> Default for Cold<A, F> {
             tap_failure: None,
             deferred: Vec::new(),
             deferred_groups: Vec::new(),
+            task: None,
+            class_handlers: Vec::new(),
         }
     }
 }
@@ -383,6 +390,26 @@ impl<A, F> Node<A, F> {
         self.cold.as_ref().map_or(&[], |c| c.handlers.as_slice())
     }
 
+    /// Every handler the search tries at this node, in order: its own (`handlers`), then those
+    /// attached to its task from outside (`class_handlers`). The search's handler index counts
+    /// along this sequence.
+    pub(crate) fn all_handlers(&self) -> impl Iterator<Item = &HandlerEntry<F>> {
+        let class = self
+            .cold
+            .as_ref()
+            .map_or(&[][..], |c| c.class_handlers.as_slice());
+        self.handlers().iter().chain(class)
+    }
+
+    /// The handler at `index` of [`Node::all_handlers`].
+    pub(crate) fn handler_entry_mut(&mut self, index: usize) -> Option<&mut HandlerEntry<F>> {
+        let c = self.cold.as_mut()?;
+        match index.checked_sub(c.handlers.len()) {
+            None => c.handlers.get_mut(index),
+            Some(i) => c.class_handlers.get_mut(i),
+        }
+    }
+
     /// What a handler node handles.
     pub(crate) fn handler_ctx(&self) -> Option<&HandlerCtx> {
         self.cold.as_ref().and_then(|c| c.handler.as_ref())
@@ -391,6 +418,17 @@ impl<A, F> Node<A, F> {
     /// A handler node whose body asked to pass its exception on.
     pub(crate) fn bypass_requested(&self) -> bool {
         self.handler_ctx().is_some_and(|h| h.bypass)
+    }
+
+    /// The name of the task this node is an instance of: its task name if it was renamed, else its
+    /// instance name.
+    pub(crate) fn task_name(&self) -> &Name {
+        self.renamed_task().unwrap_or(&self.name)
+    }
+
+    /// The task name, only if it differs from the instance name.
+    pub(crate) fn renamed_task(&self) -> Option<&Name> {
+        self.cold.as_ref().and_then(|c| c.task.as_ref())
     }
 
     pub(crate) fn retry(&self) -> Option<&F> {

@@ -53,6 +53,7 @@ impl<A, F: Clone> Engine<A, F> {
             parent,
             kind,
             name,
+            task,
             action,
             constraints,
             persistent,
@@ -63,6 +64,21 @@ impl<A, F: Clone> Engine<A, F> {
             retry,
         } = spec;
         self.live(parent)?;
+        // Handlers attached from outside to this node's task.
+        let class_handlers: Vec<HandlerEntry<F>> = if self.class_handlers.is_empty() {
+            Vec::new()
+        } else {
+            let key = task.as_ref().unwrap_or(&name);
+            self.class_handlers.get(key).map_or_else(Vec::new, |specs| {
+                specs
+                    .iter()
+                    .map(|spec| HandlerEntry {
+                        spec: spec.clone(),
+                        uses: 0,
+                    })
+                    .collect()
+            })
+        };
         if (kind == NodeKind::Monitor) != monitor.is_some() {
             return Err(EngineError::NotAMonitor(self.next_display));
         }
@@ -100,6 +116,9 @@ impl<A, F: Clone> Engine<A, F> {
             let node = self.node_mut(id);
             node.action = action.map(Payload::Action);
             node.persistent = persistent;
+            if task.is_some() {
+                node.cold_mut().task = task;
+            }
             if !on_terminate.is_empty() {
                 node.cold_mut().on_terminate = on_terminate;
             }
@@ -115,6 +134,9 @@ impl<A, F: Clone> Engine<A, F> {
             }
             if retry.is_some() {
                 node.cold_mut().retry = retry;
+            }
+            if !class_handlers.is_empty() {
+                node.cold_mut().class_handlers = class_handlers;
             }
         }
         self.link(parent, id);

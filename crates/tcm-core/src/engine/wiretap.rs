@@ -1,9 +1,11 @@
 //! Wiretaps (the TCA paper's wiretap monitors; docs/semantics.md, "Wiretaps"): checks attached
 //! from outside to a task name, without touching the task's code.
 //!
-//! 1. [`Engine::wiretap`] registers a check for a task name, before its action starts or after it
-//!    returned successfully.
-//! 2. When a node of that name is about to start (`start` in `progress.rs`) or has returned
+//! 1. [`Engine::wiretap`] registers a check on a class of tasks: the nodes that are instances of a
+//!    task (whatever their instance names, [`Spawn::task`](super::Spawn)), before the action
+//!    starts or after it returned successfully; [`Engine::wiretap_instance`] on the nodes of one
+//!    instance name instead.
+//! 2. When a matching node is about to start (`start` in `progress.rs`) or has returned
 //!    (`handle_action_finished`), each matching check becomes an [`Effect::Invoke`] whose [`Job`]
 //!    names the check; the node waits, enabled or active, until every check has reported.
 //! 3. When the last check reports: all passed, the node starts (before) or completes (after); one
@@ -19,18 +21,37 @@ use tcm_trace::TraceKind;
 /// A registered wiretap.
 pub(crate) struct Wiretap<F> {
     pub(crate) task: Name,
+    // Match the instance name instead of the task name.
+    pub(crate) instance: bool,
     pub(crate) when: TapWhen,
     pub(crate) body: F,
 }
 
 impl<A, F: Clone> Engine<A, F> {
-    /// Registers a wiretap: `body` runs whenever a node whose instance name is `task` is about to
-    /// start its action (`Before`) or has returned successfully (`After`), without touching that
-    /// task's code. A failing check fails the tapped node with the check's failure.
+    /// Registers a wiretap on a class of tasks: `body` runs whenever a node that is an instance of
+    /// the task `task` (whatever its instance name) is about to start its action (`Before`) or
+    /// has returned successfully (`After`), without touching that task's code. A failing check
+    /// fails the tapped node with the check's failure.
     pub fn wiretap(&mut self, task: impl Into<Name>, when: TapWhen, body: F) -> WiretapId {
+        self.add_tap(task.into(), false, when, body)
+    }
+
+    /// As [`Engine::wiretap`], on the nodes whose instance name is `instance` (whatever their
+    /// task).
+    pub fn wiretap_instance(
+        &mut self,
+        instance: impl Into<Name>,
+        when: TapWhen,
+        body: F,
+    ) -> WiretapId {
+        self.add_tap(instance.into(), true, when, body)
+    }
+
+    fn add_tap(&mut self, task: Name, instance: bool, when: TapWhen, body: F) -> WiretapId {
         let id = WiretapId(self.taps.len() as u32);
         self.taps.push(Wiretap {
-            task: task.into(),
+            task,
+            instance,
             when,
             body,
         });
@@ -92,12 +113,13 @@ impl<A, F: Clone> Engine<A, F> {
         if self.taps.is_empty() {
             return 0;
         }
-        let name = self.node(node).name.clone();
+        let n = self.node(node);
+        let (name, task) = (n.name.clone(), n.task_name().clone());
         let matching: Vec<(WiretapId, F)> = self
             .taps
             .iter()
             .enumerate()
-            .filter(|(_, t)| t.when == when && t.task == name)
+            .filter(|(_, t)| t.when == when && &t.task == if t.instance { &name } else { &task })
             .map(|(i, t)| (WiretapId(i as u32), t.body.clone()))
             .collect();
         let k = matching.len() as u32;

@@ -694,3 +694,45 @@ fn callbacks_run_once_after_they_are_set_and_not_before_their_event_or_time() {
     b.at(3 * S).finish_command(2).push(ran(2));
     passes(&b.build());
 }
+
+#[test]
+fn a_prefix_owes_nothing_at_its_cut_but_breaks_no_rule_before_it() {
+    use super::check_prefix;
+    // Cut right after `terminate now` was applied: the terminations it causes were cut off.
+    let mut b = Tb::new();
+    running(&mut b);
+    b.at(S).constrain(
+        1,
+        TraceConstraint::trigger(TraceWhen::Now, TraceThen::Terminate),
+    );
+    let cut = b.build();
+    caught(&cut, Rule::Terminate);
+    assert!(check_prefix(&cut).is_ok(), "{:?}", check_prefix(&cut).err());
+    // Cut after a body ended with a reservation unresolved.
+    let mut b = Tb::new();
+    b.goal(1, 0, "a");
+    b.push(TraceKind::Reserved {
+        node: 2,
+        parent: 1,
+        name: "b".into(),
+    });
+    b.start_goal(1).tr(1, X, D, E).tr(1, H, A, C).tr(1, P, A, C);
+    b.tr(1, X, E, C);
+    let cut = b.build();
+    caught(&cut, Rule::ReservedUnresolved);
+    assert!(check_prefix(&cut).is_ok(), "{:?}", check_prefix(&cut).err());
+    // A violation inside the prefix is still one: the termination came a second too late.
+    let mut b = Tb::new();
+    running(&mut b);
+    b.at(S).constrain(
+        1,
+        TraceConstraint::trigger(TraceWhen::Now, TraceThen::Terminate),
+    );
+    b.at(2 * S);
+    terminate_running(&mut b);
+    let rules: Vec<Rule> = match check_prefix(&b.build()) {
+        Ok(_) => Vec::new(),
+        Err(vs) => vs.iter().map(|v| v.rule).collect(),
+    };
+    assert!(rules.contains(&Rule::Terminate), "{rules:?}");
+}

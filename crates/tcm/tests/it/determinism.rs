@@ -26,7 +26,8 @@ fn two_virtual_runs_of_one_program_give_the_same_lines() {
         // does: its time zero must still be taken inside it.
         let rt = Runtime::new();
         std::thread::sleep(Duration::from_millis(2));
-        tcm::block_on_virtual(run_checked(rt, program())).expect("a tokio runtime")
+        let run = async { Ok::<_, tcm::Error>(run_checked(rt, program()).await) };
+        tcm::block_on_virtual(run).expect("a tokio runtime")
     };
     let (a, ta) = run();
     let (b, tb) = run();

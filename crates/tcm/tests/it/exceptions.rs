@@ -173,6 +173,44 @@ async fn retry_succeeds_on_the_second_attempt_and_bypass_passes_it_up() {
     );
 }
 
+/// A wiretap is on a class of tasks: naming the instances of `step` does not unhook it; tapping
+/// one instance name is the explicit `wiretap_instance`.
+#[tokio::test(start_paused = true)]
+async fn a_wiretap_taps_every_instance_of_its_task_whatever_its_name() {
+    let (by_task, by_instance) = (Arc::new(AtomicU32::new(0)), Arc::new(AtomicU32::new(0)));
+    let (t, i) = (by_task.clone(), by_instance.clone());
+    let rt = Runtime::new()
+        .wiretap("step", TapWhen::Before, move |_| {
+            t.fetch_add(1, Ordering::SeqCst);
+            async { Ok(()) }
+        })
+        .wiretap_instance("left_front", TapWhen::After, move |_| {
+            i.fetch_add(1, Ordering::SeqCst);
+            async { Ok(()) }
+        });
+    let task = Task::goal("walk", |ctx| async move {
+        for leg in ["left_front", "right_front", "left_rear"] {
+            ctx.spawn(Task::command("step", |_| async { Ok(()) }).named(leg))
+                .sequential(Facet::Execution, NodeRef::Previous)
+                .start()?;
+        }
+        // Not a `step`, though it has the tapped instance name of one.
+        ctx.spawn(Task::command("stand", |_| async { Ok(()) }).named("left_front"))
+            .sequential(Facet::Execution, NodeRef::Previous)
+            .start()?;
+        Ok(())
+    });
+    let (report, trace) = run_checked(rt, task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(
+        by_task.load(Ordering::SeqCst),
+        3,
+        "{}",
+        story(&trace).join("\n")
+    );
+    assert_eq!(by_instance.load(Ordering::SeqCst), 2);
+}
+
 #[tokio::test(start_paused = true)]
 async fn a_wiretap_vetoes_one_of_five_moves() {
     let checks = Arc::new(AtomicU32::new(0));
@@ -212,4 +250,87 @@ async fn a_wiretap_vetoes_one_of_five_moves() {
         "{}",
         st.join("\n")
     );
+}
+
+#[derive(Debug, thiserror::Error)]
+#[error("leg {leg} touched the terrain early")]
+struct TerrainContact {
+    leg: u32,
+}
+
+impl Exception for TerrainContact {}
+
+/// TCA's recovery added without touching the components: a handler attached on the runtime to
+/// every `step` (whatever the instance is named) is found by the same search, after the node's
+/// own handlers, with its own uses per node; a task with another name is not concerned.
+#[tokio::test(start_paused = true)]
+async fn a_handler_attached_to_a_task_from_outside_recovers_each_of_its_nodes() {
+    let step = |leg: u32| {
+        Task::command("step", move |_| async move {
+            tokio::time::sleep(secs(1.0)).await;
+            Err::<(), _>(TerrainContact { leg }.raise())
+        })
+        .named(format!("leg{leg}"))
+    };
+    let raised = Arc::new(Mutex::new(Vec::<(u32, f64)>::new()));
+    let r = raised.clone();
+    let rt = Runtime::new()
+        .handler_for(
+            "step",
+            Handler::on::<TerrainContact, _, _, _>("raise_leg", move |ctx| {
+                let r = r.clone();
+                async move {
+                    let leg = ctx.caught::<TerrainContact>().map_or(0, |c| c.leg);
+                    let now = ctx.now().as_secs_f64();
+                    r.lock().expect("log").push((leg, now));
+                    Ok(())
+                }
+            })
+            .max_activations(1),
+        )
+        .handler_for(
+            "step",
+            Handler::on::<TerrainContact, _, _, _>("never_reached", |_| async { Ok(()) }),
+        );
+    let task = Task::goal("walk", move |ctx| async move {
+        ctx.spawn(step(1)).start()?;
+        ctx.spawn(step(2))
+            .sequential(Facet::Execution, NodeRef::Previous)
+            .start()?;
+        // Its own handler comes first; bypassing it goes on to the one attached from outside.
+        ctx.spawn(step(3))
+            .sequential(Facet::Execution, NodeRef::Previous)
+            .handler(Handler::on::<TerrainContact, _, _, _>(
+                "own",
+                |ctx| async move {
+                    ctx.bypass()?;
+                    Ok(())
+                },
+            ))
+            .start()?;
+        // Another task with the same failure: no handler.
+        ctx.spawn(Task::command("stand", |_| async {
+            Err::<(), _>(TerrainContact { leg: 9 }.raise())
+        }))
+        .sequential(Facet::Execution, NodeRef::Previous)
+        .start()?;
+        Ok(())
+    });
+    let (report, trace) = run_checked(rt, task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(
+        chosen(&trace),
+        [
+            "raise_leg<-TerrainContact",
+            "raise_leg<-TerrainContact",
+            "own<-TerrainContact",
+            "bypass",
+            "raise_leg<-TerrainContact",
+        ],
+        "{}",
+        story(&trace).join("\n")
+    );
+    assert_eq!(*raised.lock().expect("log"), [(1, 1.0), (2, 2.0), (3, 3.0)]);
+    assert_eq!(report.unhandled.len(), 1, "{report}");
+    assert_eq!(report.unhandled[0].path, "walk/stand");
 }

@@ -10,6 +10,7 @@ mod determinism;
 mod exceptions;
 mod held_children;
 mod introspection;
+mod loud;
 mod monitors;
 mod panics;
 mod paper;

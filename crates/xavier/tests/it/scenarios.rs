@@ -143,6 +143,15 @@ fn the_summary_names_exceptions_and_handlers() {
     let text = summary.to_string();
     assert!(text.contains("delivered:       3"), "{text}");
     assert!(text.contains("room 12: NoPath"), "{text}");
+    // Failures and warnings are counted; every failure of this scenario has a handler.
+    let failures = summary.failures;
+    assert!(failures >= 1, "{text}");
+    assert!(
+        text.contains(&format!(
+            "failures:        {failures} (0 unhandled), 0 warning(s)"
+        )),
+        "{text}"
+    );
     assert!(
         text.contains("-> handler give_up_no_path"),
         "{text}\n{}",

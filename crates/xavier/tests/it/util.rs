@@ -21,9 +21,8 @@ pub(crate) fn setup(seed: u64, scenario: Scenario, rooms: &[u32]) -> Setup {
 pub(crate) fn run_checked(setup: &Setup) -> (Summary, Vec<TraceEvent>, Done) {
     let rec = Recorder::new();
     let done = match tdl::block_on_virtual(xavier::run(setup, vec![Box::new(rec.clone())])) {
-        Ok(Ok(done)) => done,
-        Ok(Err(e)) => panic!("run failed: {e}"),
-        Err(e) => panic!("no runtime: {e}"),
+        Ok(done) => done,
+        Err(e) => panic!("run failed: {e}"),
     };
     let trace = rec.events();
     match tcm_trace::check(&trace) {
