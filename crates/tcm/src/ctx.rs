@@ -47,11 +47,10 @@ impl Ctx {
     /// Starts building a spawn of `task` as a child of this node.
     pub fn spawn(&self, task: Task) -> Spawner<'_> {
         let task_name = task.renamed();
-        let (spec, n_task_handlers) = task.into_spawn(self.node);
+        let spec = task.into_spawn(self.node);
         Spawner {
             ctx: self,
             spec,
-            n_task_handlers,
             task_name,
         }
     }
@@ -292,7 +291,6 @@ impl Ctx {
 pub struct Spawner<'a> {
     ctx: &'a Ctx,
     spec: Spawn<Action, Factory>,
-    n_task_handlers: usize,
     // The task's name, when `Task::named` gave the instance another.
     task_name: Option<Name>,
 }
@@ -374,9 +372,9 @@ impl Spawner<'_> {
     }
 
     /// Attaches a spawn-level exception handler (tried after the task-level ones; among spawn-level
-    /// handlers, the last attached first).
+    /// handlers, in the order attached).
     pub fn handler(mut self, h: Handler) -> Self {
-        self.spec.handlers.insert(self.n_task_handlers, h.spec);
+        self.spec.handlers.push(h.spec);
         self
     }
 

@@ -347,7 +347,7 @@ impl Runtime {
             let now = shared.now();
             let root = inner.engine.root();
             let task_name = task.renamed();
-            inner.spawn_root(now, task.into_spawn(root).0, task_name)?;
+            inner.spawn_root(now, task.into_spawn(root), task_name)?;
         }
         let timer = self.timer()?;
         let outcome = RunLoop::new(shared.clone(), timer)

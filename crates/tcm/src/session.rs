@@ -62,7 +62,7 @@ impl Session {
         let now = self.shared().now();
         let root = inner.engine.root();
         let task_name = task.renamed();
-        Ok(inner.spawn_root(now, task.into_spawn(root).0, task_name)?)
+        Ok(inner.spawn_root(now, task.into_spawn(root), task_name)?)
     }
 
     /// Waits until the run is *quiescent*: nothing more can happen without input from outside the

@@ -285,7 +285,8 @@ impl Task {
     }
 
     /// Attaches a task-level exception handler. At a node, task-level handlers are tried before
-    /// spawn-level ones, and within each group the last attached first (TDL's order).
+    /// spawn-level ones, and within each group in the order attached (docs/semantics.md,
+    /// "Exceptions and handlers").
     pub fn handler(mut self, h: Handler) -> Task {
         self.handlers.push(h);
         self
@@ -306,10 +307,9 @@ impl Task {
     }
 
     /// The engine's spawn request for this task under `parent`.
-    pub(crate) fn into_spawn(self, parent: NodeId) -> (Spawn<Action, Factory>, usize) {
-        let n_task_handlers = self.handlers.len();
+    pub(crate) fn into_spawn(self, parent: NodeId) -> Spawn<Action, Factory> {
         let task = self.renamed();
-        let spec = Spawn {
+        Spawn {
             parent,
             kind: self.kind,
             name: self.name,
@@ -324,10 +324,9 @@ impl Task {
                 .collect(),
             fulfils: None,
             monitor: self.monitor,
-            handlers: self.handlers.into_iter().rev().map(|h| h.spec).collect(),
+            handlers: self.handlers.into_iter().map(|h| h.spec).collect(),
             retry: self.retry,
-        };
-        (spec, n_task_handlers)
+        }
     }
 
     /// As an on-terminate task; monitors cannot be one.

@@ -121,6 +121,33 @@ async fn a_handler_for_the_parent_type_catches_the_child() {
 }
 
 #[tokio::test(start_paused = true)]
+async fn a_nodes_handlers_are_tried_first_listed_first() {
+    // `left` lists task-level handlers `first`, `second`; `right` gets spawn-level `third`,
+    // `fourth`. Each node's failure goes to the handler listed first.
+    let fails = |name: &'static str| {
+        Task::command(name, |_| async {
+            Err::<(), _>(Overheating { temperature: 80.0 }.raise())
+        })
+    };
+    let handler = |name: &'static str| Handler::new(name, "HardwareFailure", |_| async { Ok(()) });
+    let task = Task::goal("drive", move |ctx| async move {
+        ctx.spawn(
+            fails("left")
+                .handler(handler("first"))
+                .handler(handler("second")),
+        )
+        .start()?;
+        ctx.spawn(fails("right"))
+            .handler(handler("third"))
+            .handler(handler("fourth"))
+            .start()?;
+        Ok(())
+    });
+    let (_, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(chosen(&trace), ["first<-Overheating", "third<-Overheating"]);
+}
+
+#[tokio::test(start_paused = true)]
 async fn retry_succeeds_on_the_second_attempt_and_bypass_passes_it_up() {
     let attempts = Arc::new(AtomicU32::new(0));
     let a = attempts.clone();
