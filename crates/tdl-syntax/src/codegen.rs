@@ -20,6 +20,8 @@ mod body;
 mod lower;
 mod spawn;
 
+use std::collections::BTreeSet;
+
 use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
 
@@ -41,16 +43,18 @@ pub struct Generated {
 
 /// Generates the Rust items of `ast`.
 pub fn generate(ast: &Ast) -> Generated {
-    generate_in(&FileScope::new(ast), ast)
+    generate_in(&FileScope::new(ast), ast, None)
 }
 
-/// Generates the Rust items of `ast`, one file of a program whose names `file` resolves.
-fn generate_in(file: &FileScope<'_>, ast: &Ast) -> Generated {
+/// Generates the Rust items of `ast`, one file of a program whose names `file` resolves. With
+/// the name of its `.tdl` file as `source`, every body statement is preceded by a source marker,
+/// which [`pretty`] turns into a comment naming the file and line.
+fn generate_in(file: &FileScope<'_>, ast: &Ast, source: Option<&str>) -> Generated {
     let mut diagnostics = Vec::new();
     let mut tokens = TokenStream::new();
     for item in &ast.items {
         match item {
-            Item::Task(task) => tokens.extend(task_items(file, task, &mut diagnostics)),
+            Item::Task(task) => tokens.extend(task_items(file, task, source, &mut diagnostics)),
             Item::Exception(exc) => tokens.extend(exception_items(file, exc)),
             Item::Rust(item) => tokens.extend(quote!(#item)),
         }
@@ -86,10 +90,12 @@ pub fn stubs(ast: &Ast) -> TokenStream {
 /// Parses and generates a `.tdl` source: the generated code, or `None` when any diagnostic
 /// (parser, diagnosis or generator) is an error. All diagnostics are returned, sorted by position;
 /// the generator also runs on a tree with errors, so `tdl check` reports everything at once.
+/// The code carries source markers naming `file_name` and the line of each body statement: print
+/// it with [`pretty`], which turns them into comments.
 pub fn compile_str(file_name: &str, src: &str) -> (Option<TokenStream>, Vec<Diagnostic>) {
     let parse: Parse = parse_str(file_name, src);
     let mut diagnostics = parse.diagnostics.clone();
-    let generated = generate(&parse.file);
+    let generated = generate_in(&FileScope::new(&parse.file), &parse.file, Some(file_name));
     diagnostics.extend(generated.diagnostics);
     diagnostics.sort_by_key(|it| (it.start(), it.severity()));
     if diagnostics.iter().any(Diagnostic::is_error) {
@@ -102,7 +108,8 @@ pub fn compile_str(file_name: &str, src: &str) -> (Option<TokenStream>, Vec<Diag
 /// task and exception names resolve across every file (a handler in one file handles an exception
 /// declared in another, an unknown name is an error wherever it is declared), and a name declared
 /// in two files is an error. Returns, per file and in the order given, what [`compile_str`]
-/// returns for one file: the code, or `None` when that file has an error, and its diagnostics.
+/// returns for one file: the code (with source markers, to print with [`pretty`]), or `None` when
+/// that file has an error, and its diagnostics.
 pub fn compile_program(files: &[(&str, &str)]) -> Vec<(Option<TokenStream>, Vec<Diagnostic>)> {
     let parses: Vec<Parse> = files
         .iter()
@@ -120,7 +127,7 @@ pub fn compile_program(files: &[(&str, &str)]) -> Vec<(Option<TokenStream>, Vec<
         let scope = FileScope::in_program(&parse.file, &others);
         let mut diagnostics = parse.diagnostics.clone();
         crate::diagnose::diagnose_in(&scope, &parse.file, &mut diagnostics);
-        let generated = generate_in(&scope, &parse.file);
+        let generated = generate_in(&scope, &parse.file, Some(files[i].0));
         diagnostics.extend(generated.diagnostics);
         diagnostics.sort_by_key(|it| (it.start(), it.severity()));
         let tokens = if diagnostics.iter().any(Diagnostic::is_error) {
@@ -160,12 +167,114 @@ pub fn expand_macro(input: TokenStream) -> TokenStream {
 }
 
 /// Formats generated items as readable Rust (`prettyplease`); falls back to the raw tokens if
-/// they do not parse as a file.
+/// they do not parse as a file. The source markers of [`compile_str`] and [`compile_program`]
+/// become comments: every line generated for a body statement ends with `// file.tdl:line`,
+/// the statement's line, so that the snippet rustc shows with an error in generated code names
+/// the `.tdl` line (a line inside a string literal spanning lines is left as it is).
 pub fn pretty(tokens: &TokenStream) -> String {
     match syn::parse2::<syn::File>(tokens.clone()) {
-        Ok(file) => prettyplease::unparse(&file),
-        Err(_) => tokens.to_string(),
+        Ok(file) => source_comments(&prettyplease::unparse(&file)),
+        Err(_) => strip_source_markers(tokens.clone()).to_string(),
     }
+}
+
+/// Replaces the source-marker lines of pretty-printed code by a comment at the end of each line
+/// they cover. A marker covers the lines after it, up to the next marker at the same or a lower
+/// indentation or the first line indented less (the end of its block); markers of nested
+/// statements cover their own lines. `__tdl_source!();` covers code of the generator's own.
+fn source_comments(text: &str) -> String {
+    let prefix = format!("{}!(", body::SOURCE_MARKER);
+    if !text.contains(&prefix) {
+        return text.to_owned();
+    }
+    let (ends_inside, starts_inside) = lines_inside_literals(text);
+    // The markers in force: (indentation, source).
+    let mut stack: Vec<(usize, Option<&str>)> = Vec::new();
+    let mut out = String::with_capacity(text.len() * 2);
+    for (i, line) in text.lines().enumerate() {
+        let n = i + 1;
+        let trimmed = line.trim_start();
+        let indent = line.len() - trimmed.len();
+        // A line that starts inside a literal says nothing of blocks.
+        let continues = starts_inside.contains(&n);
+        let marker = trimmed
+            .strip_prefix(&prefix)
+            .and_then(|rest| rest.strip_suffix(");"))
+            .filter(|_| !continues);
+        if let Some(arg) = marker {
+            stack.retain(|(at, _)| *at < indent);
+            let source = arg.strip_prefix('"').and_then(|it| it.strip_suffix('"'));
+            stack.push((indent, source));
+            continue;
+        }
+        if !trimmed.is_empty() && !continues {
+            stack.retain(|(at, _)| *at <= indent);
+        }
+        out.push_str(line);
+        if let Some((_, Some(source))) = stack.last() {
+            if !trimmed.is_empty() && !ends_inside.contains(&n) {
+                out.push_str(" // ");
+                out.push_str(source);
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// The (1-based) lines of `text` that end inside a literal (a comment appended to them would
+/// change the literal), and those that start inside one.
+fn lines_inside_literals(text: &str) -> (BTreeSet<usize>, BTreeSet<usize>) {
+    fn walk(tokens: TokenStream, out: &mut (BTreeSet<usize>, BTreeSet<usize>)) {
+        for token in tokens {
+            match token {
+                proc_macro2::TokenTree::Group(group) => walk(group.stream(), out),
+                proc_macro2::TokenTree::Literal(lit) => {
+                    let (start, end) = (lit.span().start().line, lit.span().end().line);
+                    out.0.extend(start..end);
+                    out.1.extend(start + 1..=end);
+                }
+                _ => {}
+            }
+        }
+    }
+    let mut out = (BTreeSet::new(), BTreeSet::new());
+    match text.parse::<TokenStream>() {
+        Ok(tokens) => walk(tokens, &mut out),
+        // Not expected for prettyplease's output; then no line is safe.
+        Err(_) => out.0.extend(1..=text.lines().count()),
+    }
+    out
+}
+
+/// `tokens` without source markers (for the raw fallback of [`pretty`]).
+fn strip_source_markers(tokens: TokenStream) -> TokenStream {
+    use proc_macro2::TokenTree;
+    let tokens: Vec<TokenTree> = tokens.into_iter().collect();
+    let mut out = TokenStream::new();
+    let mut i = 0;
+    while i < tokens.len() {
+        let is_marker = matches!(&tokens[i], TokenTree::Ident(id) if id == body::SOURCE_MARKER)
+            && matches!(tokens.get(i + 1), Some(TokenTree::Punct(p)) if p.as_char() == '!');
+        if is_marker {
+            // `__tdl_source ! ( .. ) ;`
+            i += 4;
+            continue;
+        }
+        match &tokens[i] {
+            TokenTree::Group(group) => {
+                let mut inner = proc_macro2::Group::new(
+                    group.delimiter(),
+                    strip_source_markers(group.stream()),
+                );
+                inner.set_span(group.span());
+                out.extend([TokenTree::Group(inner)]);
+            }
+            other => out.extend([other.clone()]),
+        }
+        i += 1;
+    }
+    out
 }
 
 /// `deliver_mail` -> `DeliverMail`.
@@ -232,7 +341,12 @@ pub(crate) fn handler_expr(
 
 /// The struct, its `into_task` (or `into_handler`) method and the constructor function of one
 /// task.
-fn task_items(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) -> TokenStream {
+fn task_items(
+    file: &FileScope<'_>,
+    task: &Task,
+    source: Option<&str>,
+    diags: &mut Vec<Diagnostic>,
+) -> TokenStream {
     let monitor = task.kind == TaskKind::Monitor;
     let mut modifiers = TokenStream::new();
     if task.persistent {
@@ -312,7 +426,7 @@ fn task_items(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) ->
             each: ::tdl::EachActivation { #each ..::core::default::Default::default() },
         });
     }
-    let action = body::task_body(file, task, diags);
+    let action = body::task_body(file, task, source, diags);
     let name_str = task.name.to_string();
     let code = action.code;
     let names: Vec<&Ident> = task.args.iter().map(|it| &it.name).collect();

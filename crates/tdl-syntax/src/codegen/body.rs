@@ -46,10 +46,16 @@ pub(super) struct Action {
 }
 
 /// Generates the body of `task`.
-pub(super) fn task_body(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) -> Action {
+pub(super) fn task_body(
+    file: &FileScope<'_>,
+    task: &Task,
+    source: Option<&str>,
+    diags: &mut Vec<Diagnostic>,
+) -> Action {
     let mut g = Gen {
         file,
         task,
+        source,
         scope: BodyScope::new(task),
         diags,
         frames: Vec::new(),
@@ -65,6 +71,7 @@ pub(super) fn task_body(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagn
     let mut inner = TokenStream::new();
     for (i, stmt) in stmts.iter().enumerate() {
         let last = i + 1 == n_stmts;
+        inner.extend(g.source_marker(Some(stmt)));
         match stmt {
             // The last statement of a unit task: a tail expression becomes a statement, and the
             // exits become the block's value (no unreachable `Ok(())` after them).
@@ -96,10 +103,15 @@ pub(super) fn task_body(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagn
             ::core::result::Result::Ok(tdl_result)
         }),
         None if tail_is_exit => code.extend(inner),
-        None => code.extend(quote! {
-            #inner
-            ::core::result::Result::Ok(())
-        }),
+        None => {
+            // The closing `Ok(())` is the generator's, not the last statement's.
+            let marker = g.source_marker(None);
+            code.extend(quote! {
+                #inner
+                #marker
+                ::core::result::Result::Ok(())
+            });
+        }
     }
     let code = g.rewrite_node_uses(code);
     let reassigns = g.scope.uses_previous
@@ -219,10 +231,36 @@ fn fail_error(file: &FileScope<'_>, fail: &Fail) -> TokenStream {
     }
 }
 
+/// The macro name of the source markers that the generator puts before each statement when it
+/// generates for a `.tdl` file; [`super::pretty`] turns them into comments.
+pub(crate) const SOURCE_MARKER: &str = "__tdl_source";
+
+/// The span of a statement's first token.
+fn stmt_span(stmt: &Stmt) -> Span {
+    match stmt {
+        Stmt::Rust(it) => it.span,
+        Stmt::Spawn(it) => it.span,
+        Stmt::With(it) => it.span,
+        Stmt::Constrain(it) => it.span,
+        Stmt::Bind(it) => it.span,
+        Stmt::Fail(it) => it.span,
+        Stmt::If(it) => it.span,
+        Stmt::For(it) => it.span,
+        Stmt::While(it) => it.span,
+        Stmt::Loop(it) => it.span,
+        Stmt::Match(it) => it.span,
+        Stmt::Block(it) => it.span,
+        Stmt::Succeed(span) | Stmt::Bypass(span) | Stmt::Trigger(span) | Stmt::Retry(span) => *span,
+    }
+}
+
 /// The generator of one body.
 pub(super) struct Gen<'s, 'a> {
     pub(super) file: &'s FileScope<'a>,
     pub(super) task: &'a Task,
+    /// The `.tdl` file's name when generating for a file: each statement is then preceded by a
+    /// source marker (see [`SOURCE_MARKER`]).
+    pub(super) source: Option<&'s str>,
     /// The body's names, resolved.
     pub(super) scope: BodyScope<'a>,
     pub(super) diags: &'s mut Vec<Diagnostic>,
@@ -323,9 +361,27 @@ impl<'a> Gen<'_, 'a> {
         out
     }
 
+    /// The source marker before `stmt` (`__tdl_source!("walk.tdl:42");`), or before code of
+    /// the generator's own (`__tdl_source!();`) when `stmt` is `None`; nothing when generating
+    /// for the macro, whose spans already point at the source.
+    fn source_marker(&self, stmt: Option<&Stmt>) -> TokenStream {
+        let Some(file) = self.source else {
+            return TokenStream::new();
+        };
+        let marker = Ident::new(SOURCE_MARKER, Span::call_site());
+        match stmt {
+            Some(stmt) => {
+                let text = format!("{file}:{}", stmt_span(stmt).start().line);
+                quote!(#marker!(#text);)
+            }
+            None => quote!(#marker!();),
+        }
+    }
+
     pub(super) fn block(&mut self, block: &'a Block) -> TokenStream {
         let mut out = TokenStream::new();
         for stmt in &block.stmts {
+            out.extend(self.source_marker(Some(stmt)));
             out.extend(self.stmt(stmt));
         }
         out
