@@ -21,7 +21,7 @@
 
 pub mod world;
 
-use tdl::{Runtime, TapWhen};
+use tdl::{Ctx, Failure, Runtime, TapWhen};
 use world::Walker;
 
 /// Generated from `src/terrain.tdl`.
@@ -43,19 +43,31 @@ pub use walk::*;
 /// A runtime with the Ambler's execution monitors wiretapped on the moves (TCA's wiretaps: added
 /// from outside, the task code does not know them): the stability monitor before every leg and
 /// body move, the footfall monitor after every leg move.
-pub fn monitored(walker: &Walker) -> Runtime {
-    let stability = |w: Walker| {
-        move |_| {
-            let w = w.clone();
-            async move { w.check_stability() }
+pub fn monitored(_walker: &Walker) -> Runtime {
+    // A check reads the tapped move's arguments, `(w, arc, step)` (TCA's monitors saw the
+    // message's data); the moves run in order, but the check need not guess which step is next.
+    let stability = |ctx: Ctx| async move {
+        match ctx.tapped_args::<(Walker, u32, u32)>() {
+            Some(args) => {
+                let (w, arc, step) = &*args;
+                w.check_stability(*arc, *step)
+            }
+            None => Err(Failure::new("Unstable", "a move without its arguments")),
         }
     };
-    let footfall = walker.clone();
     Runtime::new()
-        .wiretap("move_leg", TapWhen::Before, stability(walker.clone()))
-        .wiretap("move_body", TapWhen::Before, stability(walker.clone()))
-        .wiretap("move_leg", TapWhen::After, move |_| {
-            let w = footfall.clone();
-            async move { w.check_footfall() }
+        .wiretap("move_leg", TapWhen::Before, stability)
+        .wiretap("move_body", TapWhen::Before, stability)
+        .wiretap("move_leg", TapWhen::After, |ctx: Ctx| async move {
+            match ctx.tapped_args::<(Walker, u32, u32)>() {
+                Some(args) => {
+                    let (w, arc, step) = &*args;
+                    w.check_footfall(*arc, *step)
+                }
+                None => Err(Failure::new(
+                    "BadFoothold",
+                    "a leg move without its arguments",
+                )),
+            }
         })
 }

@@ -264,20 +264,12 @@ impl Walker {
         change(st.footfalls.entry((arc, step)).or_default());
     }
 
-    /// The step the next leg or body move belongs to: the first planned step whose body has not
-    /// moved (moves run in order; planning runs one step ahead).
-    fn next_move(st: &State) -> Option<(u32, u32)> {
-        st.planned.iter().copied().find(|s| !st.done.contains(s))
-    }
-
-    /// The stability monitor (a wiretap before every leg and body move): fails with `Unstable`
-    /// when the ground under the move is steeper than [`MAX_TILT`].
-    pub fn check_stability(&self) -> Result<(), Failure> {
+    /// The stability monitor (a wiretap before every leg and body move, reading the tapped move's
+    /// arc and step from its arguments): fails with `Unstable` when the ground under the move is
+    /// steeper than [`MAX_TILT`].
+    pub fn check_stability(&self, arc: u32, step: u32) -> Result<(), Failure> {
         let mut st = self.state();
         st.stability_checks += 1;
-        let Some((arc, step)) = Walker::next_move(&st) else {
-            return Err(Failure::new("Unstable", "a move with no step planned"));
-        };
         let tilt = st.terrain.tilts.get(&arc).copied().unwrap_or(0.0);
         if tilt > MAX_TILT {
             return Err(Failure::new(
@@ -288,14 +280,15 @@ impl Walker {
         Ok(())
     }
 
-    /// The footfall monitor (a wiretap after every leg move that landed): the foot's force
-    /// sensors must show it on a foothold the walker planned.
-    pub fn check_footfall(&self) -> Result<(), Failure> {
+    /// The footfall monitor (a wiretap after every leg move that landed, reading the move's arc and
+    /// step from its arguments): the foot's force sensors must show it on a foothold the walker
+    /// planned.
+    pub fn check_footfall(&self, arc: u32, step: u32) -> Result<(), Failure> {
         let mut st = self.state();
         st.footfall_checks += 1;
-        match Walker::next_move(&st) {
-            Some(s) if st.footfalls.contains_key(&s) => Ok(()),
-            _ => Err(Failure::new(
+        match st.footfalls.contains_key(&(arc, step)) {
+            true => Ok(()),
+            false => Err(Failure::new(
                 "BadFoothold",
                 "a foot landed off any planned foothold",
             )),

@@ -4,13 +4,13 @@
 
 use crate::Error;
 use crate::host::{Shared, lock};
-use crate::task::{Action, Factory, Handler, Task, Value};
+use crate::task::{Action, AnyArgs, Factory, Handler, Kept, Task, Value};
 use std::any::Any;
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::{
-    Constraint, Event, ExternalId, Facet, Failure, Job, Name, NodeId, NodeRef, Point, Purpose,
-    Spawn, WatchOutcome, WatchToken, When,
+    Constraint, Event, ExternalId, Facet, Failure, Job, NodeId, NodeRef, Point, Purpose, Spawn,
+    WatchOutcome, WatchToken, When,
 };
 use tokio::sync::oneshot;
 
@@ -24,6 +24,8 @@ pub struct Ctx {
     // for a timer callback or the program's session. Its awaits on the engine count as parked
     // (docs/semantics.md, "Run outcome").
     pub(crate) job: Option<Job>,
+    // The arguments the host keeps for `node` (`Task::with_args`), when the context was made.
+    pub(crate) args: Option<AnyArgs>,
 }
 
 impl Ctx {
@@ -46,12 +48,12 @@ impl Ctx {
 
     /// Starts building a spawn of `task` as a child of this node.
     pub fn spawn(&self, task: Task) -> Spawner<'_> {
-        let task_name = task.renamed();
+        let kept = task.kept();
         let spec = task.into_spawn(self.node);
         Spawner {
             ctx: self,
             spec,
-            task_name,
+            kept,
         }
     }
 
@@ -260,17 +262,82 @@ impl Ctx {
     }
 
     /// In a handler: runs the failed task again (a fresh node with the same arguments, under this
-    /// handler). The task must be [`Task::retryable`]. Wait for the returned node to see how it went.
+    /// handler). The task must be [`Task::retryable`] or [`Task::retryable_with`]. Wait for the
+    /// returned node to see how it went.
     pub fn retry(&self) -> Result<NodeId, Error> {
+        self.retry_args(None)
+    }
+
+    /// In a handler: runs the failed task again with other arguments `args` (TCA's error recovery
+    /// changed a message's data, then re-sent it): a fresh node under this handler, whose action
+    /// and wiretap checks see `args`. The task must be [`Task::retryable_with`] with arguments of
+    /// type `A` (generated TDL goals and commands are, with the tuple of their arguments);
+    /// otherwise [`Error::ArgsType`], and nothing is retried.
+    pub fn retry_with<A: Any + Send + Sync>(&self, args: A) -> Result<NodeId, Error> {
+        if let Some(old) = self.failing_node().and_then(|f| {
+            lock(&self.shared)
+                .ok()
+                .and_then(|i| i.args.get(&f).cloned())
+        }) {
+            if !old.is::<A>() {
+                return Err(Error::ArgsType(std::any::type_name::<A>()));
+            }
+        } else {
+            return Err(Error::ArgsType(std::any::type_name::<A>()));
+        }
+        self.retry_args(Some(Arc::new(args)))
+    }
+
+    fn retry_args(&self, args: Option<AnyArgs>) -> Result<NodeId, Error> {
         let mut inner = self.shared.enter()?;
         let now = self.shared.now();
         let id = inner.engine.retry(now, self.node)?;
-        // A fresh run of the same task: an instance of the same task, renamed or not.
-        if let Some(name) = self.failing_node().and_then(|f| inner.task_names.get(&f)) {
-            let name = name.clone();
-            inner.task_names.insert(id, name);
-        }
+        // A fresh run of the same task: an instance of the same task, renamed or not, with the
+        // failed run's arguments unless new ones are given. Kept before this access ends, which
+        // starts the new node.
+        let failing = self.failing_node();
+        let name = failing.and_then(|f| inner.task_names.get(&f).cloned());
+        let args = args.or_else(|| failing.and_then(|f| inner.args.get(&f).cloned()));
+        inner.keep(
+            id,
+            Kept {
+                task_name: name,
+                args,
+            },
+        );
         Ok(id)
+    }
+
+    // ---- Arguments (`Task::with_args`).
+
+    /// The arguments of this context's node, if its task keeps arguments of type `A`
+    /// ([`Task::with_args`]; generated TDL tasks keep the tuple of theirs). In a wiretap check,
+    /// the tapped node's (see [`Ctx::tapped_args`]).
+    pub fn args<A: Any + Send + Sync>(&self) -> Option<Arc<A>> {
+        self.args.clone().and_then(|a| a.downcast::<A>().ok())
+    }
+
+    /// As [`Ctx::args`], borrowed, for any `'static` type; for generated code.
+    #[doc(hidden)]
+    pub fn args_ref<A: Any>(&self) -> Option<&A> {
+        self.args.as_deref().and_then(|a| a.downcast_ref::<A>())
+    }
+
+    /// In a wiretap check: the tapped node's arguments, if its task keeps arguments of type `A`
+    /// (TCA's monitors saw the message's data). `None` outside a check.
+    pub fn tapped_args<A: Any + Send + Sync>(&self) -> Option<Arc<A>> {
+        match self.purpose.as_deref() {
+            Some(Purpose::Tap { .. }) => self.args::<A>(),
+            _ => None,
+        }
+    }
+
+    /// In a handler: the failed node's arguments, if its task keeps arguments of type `A`; to
+    /// change them and [`Ctx::retry_with`] the result.
+    pub fn failing_args<A: Any + Send + Sync>(&self) -> Option<Arc<A>> {
+        let failing = self.failing_node()?;
+        let args = lock(&self.shared).ok()?.args.get(&failing).cloned()?;
+        args.downcast::<A>().ok()
     }
 
     fn with_engine<T>(
@@ -291,8 +358,9 @@ impl Ctx {
 pub struct Spawner<'a> {
     ctx: &'a Ctx,
     spec: Spawn<Action, Factory>,
-    // The task's name, when `Task::named` gave the instance another.
-    task_name: Option<Name>,
+    // What the host keeps beside the node: the task's name, when `Task::named` gave the instance
+    // another, and the arguments.
+    kept: Kept,
 }
 
 impl Spawner<'_> {
@@ -409,7 +477,7 @@ impl Spawner<'_> {
     pub fn start(self) -> Result<NodeId, Error> {
         let mut inner = self.ctx.shared.enter()?;
         let now = self.ctx.shared.now();
-        Ok(inner.spawn(now, self.spec, self.task_name)?)
+        Ok(inner.spawn(now, self.spec, self.kept)?)
     }
 
     /// Inserts the node and waits until its execution completes (TDL's `with wait`).
@@ -425,7 +493,7 @@ impl Spawner<'_> {
         let id = {
             let mut inner = ctx.shared.enter()?;
             let now = ctx.shared.now();
-            let id = inner.spawn(now, self.spec, self.task_name)?;
+            let id = inner.spawn(now, self.spec, self.kept)?;
             inner.values.insert(id, None);
             id
         };

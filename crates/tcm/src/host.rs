@@ -13,7 +13,7 @@
 use crate::Error;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
-use crate::task::{Action, Factory, Value};
+use crate::task::{Action, AnyArgs, Factory, Kept, Value};
 use std::any::Any;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
@@ -170,6 +170,9 @@ pub(crate) struct Inner {
     pub(crate) activation_data: BTreeMap<NodeId, Arc<dyn Any + Send + Sync>>,
     // Task names of nodes whose instance name differs (`Task::named`).
     pub(crate) task_names: BTreeMap<NodeId, Name>,
+    // Arguments of nodes whose task keeps them (`Task::with_args`), for their actions, wiretap
+    // checks, handlers and retries; dropped by the sweep once the node is gone.
+    pub(crate) args: BTreeMap<NodeId, AnyArgs>,
     sweep_at: usize,
     pub(crate) panics: Vec<Panicked>,
     // The deadline the driver sleeps until; an earlier timer must wake it.
@@ -200,6 +203,7 @@ impl Inner {
             due: Vec::new(),
             activation_data: BTreeMap::new(),
             task_names: BTreeMap::new(),
+            args: BTreeMap::new(),
             sweep_at: SWEEP_MIN,
             panics: Vec::new(),
             armed: None,
@@ -241,6 +245,7 @@ impl Inner {
             callbacks: &mut self.callbacks,
             due: &mut self.due,
             activation_data: &mut self.activation_data,
+            args: &self.args,
             trace: &mut self.trace,
         };
         (&mut self.engine, host)
@@ -286,19 +291,33 @@ impl Inner {
     }
 
     /// Inserts a node for the program or an action, and keeps its task name if it differs from its
-    /// instance name (`Task::named`).
+    /// instance name (`Task::named`) and its arguments (`Task::with_args`).
     pub(crate) fn spawn(
         &mut self,
         now: Time,
         spec: Spawn<Action, Factory>,
-        task_name: Option<Name>,
+        kept: Kept,
     ) -> Result<NodeId, EngineError> {
         let id = self.engine.spawn(now, spec)?;
-        if let Some(name) = task_name {
-            self.task_names.insert(id, name);
+        self.keep(id, kept);
+        Ok(id)
+    }
+
+    /// Keeps what the host keeps beside `node` (before the node starts: the effects that start it
+    /// are carried out when the engine access ends).
+    pub(crate) fn keep(&mut self, node: NodeId, kept: Kept) {
+        let mut any = false;
+        if let Some(name) = kept.task_name {
+            self.task_names.insert(node, name);
+            any = true;
+        }
+        if let Some(args) = kept.args {
+            self.args.insert(node, args);
+            any = true;
+        }
+        if any {
             self.sweep();
         }
-        Ok(id)
     }
 
     /// Inserts a top-level task and watches its end.
@@ -306,9 +325,9 @@ impl Inner {
         &mut self,
         now: Time,
         spec: Spawn<Action, Factory>,
-        task_name: Option<Name>,
+        kept: Kept,
     ) -> Result<NodeId, EngineError> {
-        let id = self.spawn(now, spec, task_name)?;
+        let id = self.spawn(now, spec, kept)?;
         let token = self.next_token();
         self.roots.push(Root {
             node: id,
@@ -332,7 +351,8 @@ impl Inner {
     /// Drops what the maps keyed by node keep for nodes that are gone (an activation terminated
     /// before it ran never reports its end).
     fn sweep(&mut self) {
-        if self.task_names.len() + self.activation_data.len() <= self.sweep_at {
+        let len = |i: &Inner| i.task_names.len() + i.activation_data.len() + i.args.len();
+        if len(self) <= self.sweep_at {
             return;
         }
         let engine = &self.engine;
@@ -340,7 +360,8 @@ impl Inner {
         self.task_names.retain(|id, _| engine.parent(*id).is_some());
         self.activation_data
             .retain(|id, _| engine.parent(*id).is_some());
-        self.sweep_at = SWEEP_MIN.max(2 * (self.task_names.len() + self.activation_data.len()));
+        self.args.retain(|id, _| engine.parent(*id).is_some());
+        self.sweep_at = SWEEP_MIN.max(2 * len(self));
     }
 }
 
@@ -446,6 +467,7 @@ pub(crate) struct Host<'a> {
     callbacks: &'a mut BTreeMap<u64, PendingCallback>,
     due: &'a mut Vec<DueCallback>,
     activation_data: &'a mut BTreeMap<NodeId, Arc<dyn Any + Send + Sync>>,
+    args: &'a BTreeMap<NodeId, AnyArgs>,
     trace: &'a mut Vec<TraceEvent>,
 }
 
@@ -461,6 +483,7 @@ impl Shell<Action, Factory> for Host<'_> {
             node,
             purpose: None,
             job: Some(Job::from(node)),
+            args: self.args.get(&node).cloned(),
         };
         let h = (action.0)(Launch {
             ctx,
@@ -483,6 +506,8 @@ impl Shell<Action, Factory> for Host<'_> {
             node: job.node(),
             purpose: Some(Arc::from(p)),
             job: Some(job),
+            // A check's node is the tapped node: its arguments (`Ctx::tapped_args`).
+            args: self.args.get(&job.node()).cloned(),
         };
         let fut = body(ctx);
         let reporter = Reporter::new(self.shared.clone(), job);

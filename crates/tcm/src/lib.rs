@@ -70,6 +70,10 @@ pub enum Error {
     /// The awaited child returned no value of the expected type.
     #[error("the awaited child returned no value of type {0}")]
     NoValue(&'static str),
+    /// `Ctx::retry_with` was given arguments of another type than the failed task keeps (or the
+    /// task keeps none).
+    #[error("the failed task keeps no arguments of type {0}")]
+    ArgsType(&'static str),
     /// `Runtime::start` was called outside a tokio runtime, where the driver cannot run.
     #[error("`Runtime::start` must be called inside a tokio runtime")]
     NoRuntime,

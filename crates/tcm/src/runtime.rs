@@ -346,8 +346,8 @@ impl Runtime {
             inner.finishing = true;
             let now = shared.now();
             let root = inner.engine.root();
-            let task_name = task.renamed();
-            inner.spawn_root(now, task.into_spawn(root), task_name)?;
+            let kept = task.kept();
+            inner.spawn_root(now, task.into_spawn(root), kept)?;
         }
         let timer = self.timer()?;
         let outcome = RunLoop::new(shared.clone(), timer)
@@ -576,6 +576,9 @@ impl RunLoop {
             node,
             purpose: None,
             job: None,
+            args: lock(&self.shared)
+                .ok()
+                .and_then(|i| i.args.get(&node).cloned()),
         };
         let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(ctx, outcome)));
         if let Err(panic) = res {

@@ -43,6 +43,7 @@ impl Session {
                 node: root,
                 purpose: None,
                 job: None,
+                args: None,
             },
             driver: Some(driver),
         }
@@ -61,8 +62,8 @@ impl Session {
         }
         let now = self.shared().now();
         let root = inner.engine.root();
-        let task_name = task.renamed();
-        Ok(inner.spawn_root(now, task.into_spawn(root), task_name)?)
+        let kept = task.kept();
+        Ok(inner.spawn_root(now, task.into_spawn(root), kept)?)
     }
 
     /// Waits until the run is *quiescent*: nothing more can happen without input from outside the

@@ -12,6 +12,16 @@ use tcm_core::{
     OnTerminate, Spawn,
 };
 
+/// A task's arguments as the host keeps them ([`Task::with_args`]), type-erased.
+pub(crate) type AnyArgs = Arc<dyn Any + Send + Sync>;
+
+/// What the host keeps beside a node, taken from its task at spawn: the task name when the
+/// instance was renamed, and the arguments.
+pub(crate) struct Kept {
+    pub(crate) task_name: Option<Name>,
+    pub(crate) args: Option<AnyArgs>,
+}
+
 /// A value an action returns, handed to whoever waits for the node ([`crate::Spawner::wait_value`]).
 pub type Value = Box<dyn Any + Send>;
 
@@ -160,6 +170,7 @@ pub struct Task {
     pub(crate) monitor: Option<Box<MonitorSpec<Factory>>>,
     pub(crate) retry: Option<Factory>,
     pub(crate) persistent: bool,
+    pub(crate) args: Option<AnyArgs>,
 }
 
 impl Task {
@@ -175,6 +186,7 @@ impl Task {
             monitor: None,
             retry: None,
             persistent: false,
+            args: None,
         }
     }
 
@@ -206,6 +218,56 @@ impl Task {
         );
         task.retry = Some(fac);
         task
+    }
+
+    /// A task whose action takes its arguments `args`, and can run again with the same or other
+    /// arguments: a handler's [`Ctx::retry`] re-runs it with the failed run's arguments,
+    /// [`Ctx::retry_with`] with new ones. The arguments are kept beside each node
+    /// ([`Task::with_args`]), so wiretap checks read them too ([`Ctx::tapped_args`]).
+    pub fn retryable_with<A, F, Fut, T>(
+        kind: NodeKind,
+        name: impl Into<Name>,
+        args: A,
+        f: F,
+    ) -> Task
+    where
+        A: Any + Send + Sync + Clone,
+        F: Fn(Ctx, A) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        let name = name.into();
+        let f = Arc::new(f);
+        let first = f.clone();
+        let first_args = args.clone();
+        let task_name = name.clone();
+        let fac: Factory = Arc::new(move |ctx: Ctx| {
+            // A re-run reads the arguments the host keeps for its node (`Ctx::retry_with`).
+            let args = ctx.args::<A>().map(|a| A::clone(&a));
+            let fut = args.map(|a| f(ctx, a));
+            let task_name = task_name.clone();
+            Box::pin(async move {
+                match fut {
+                    Some(fut) => fut.await.map(|v| Box::new(v) as Value),
+                    None => Err(Failure::new(
+                        "NoArgs",
+                        format!(
+                            "`{task_name}` re-run without arguments of type `{}`",
+                            std::any::type_name::<A>()
+                        ),
+                    )),
+                }
+            })
+        });
+        let mut task = Task::bare(
+            kind,
+            name,
+            Some(Action(Box::new(move |launch: crate::host::Launch<'_>| {
+                launch.spawn(move |ctx| first(ctx, first_args))
+            }))),
+        );
+        task.retry = Some(fac);
+        task.with_args(args)
     }
 
     /// A goal: its action expands the tree by spawning children through its [`Ctx`].
@@ -247,6 +309,30 @@ impl Task {
             activation_name: params.activation_name,
         }));
         task
+    }
+
+    /// Keeps `args`, the task's arguments, beside each node of this task (as TCA kept a message's
+    /// data): a wiretap check on the node reads them with [`Ctx::tapped_args`], the node's own
+    /// action with [`Ctx::args`], a handler of its failure with [`Ctx::failing_args`]. Generated
+    /// TDL tasks keep the tuple of their arguments (docs/language.md, "Wiretaps").
+    pub fn with_args<A: Any + Send + Sync>(mut self, args: A) -> Task {
+        self.args = Some(Arc::new(args));
+        self
+    }
+
+    /// As [`Task::with_args`], already erased (`None` keeps nothing); for generated code.
+    #[doc(hidden)]
+    pub fn with_args_erased(mut self, args: Option<Arc<dyn Any + Send + Sync>>) -> Task {
+        self.args = args;
+        self
+    }
+
+    /// What the host keeps beside the node.
+    pub(crate) fn kept(&self) -> Kept {
+        Kept {
+            task_name: self.renamed(),
+            args: self.args.clone(),
+        }
     }
 
     /// The instance name.

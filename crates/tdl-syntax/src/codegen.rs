@@ -457,19 +457,28 @@ fn task_items(
                 quote! {
                     #prelude
                     let tdl_args = ::tdl::codegen::Args::new((#(#names,)*));
+                    // The tuple of the arguments, kept beside each node for wiretap checks and
+                    // `retry_with` (when they are `Clone`, `Send` and `Sync`).
+                    let tdl_kept = {
+                        #[allow(unused_imports)]
+                        use ::tdl::codegen::{KeepArgs as _, NoKeepArgs as _};
+                        #[allow(clippy::needless_borrow)]
+                        (&tdl_args).tdl_kept()
+                    };
                     ::tdl::Task::retryable(#kind, #name_str, move |ctx| {
                         #[allow(unused_imports)]
-                        use ::tdl::codegen::{CloneArgs as _, TakeArgs as _};
-                        // The borrow picks `TakeArgs` when the arguments are not `Clone`.
+                        use ::tdl::codegen::{CloneArgsIn as _, TakeArgsIn as _};
+                        // The borrow picks `TakeArgsIn` when the arguments are not `Clone`; a
+                        // re-run reads the arguments kept for its node first.
                         #[allow(clippy::needless_borrow)]
-                        let tdl_args = (&tdl_args).tdl_args();
+                        let tdl_args = (&tdl_args).tdl_args_in(&ctx);
                         async move {
                             let ::core::option::Option::Some((#(#pats,)*)) = tdl_args else {
                                 return ::core::result::Result::Err(::tdl::codegen::not_retryable(#name_str));
                             };
                             #code
                         }
-                    }) #modifiers
+                    }).with_args_erased(tdl_kept) #modifiers
                 }
             }
         }

@@ -6,7 +6,11 @@
 //!   which clones them when they are `Clone` (so a handler's `retry` re-runs the task with the same
 //!   arguments) and otherwise hands them out once (a retry then fails with `NotRetryable`). The
 //!   choice is made at compile time by autoref specialisation: `(&args).tdl_args()` finds
-//!   [`CloneArgs`] when the arguments are `Clone`, else [`TakeArgs`].
+//!   [`CloneArgs`] when the arguments are `Clone`, else [`TakeArgs`]; `(&args).tdl_args_in(&ctx)`
+//!   ([`CloneArgsIn`], [`TakeArgsIn`]) reads first the arguments the host keeps for the run's node,
+//!   so a handler's `Ctx::retry_with` re-runs the task with other arguments. `(&args).tdl_kept()`
+//!   ([`KeepArgs`] when they are `Clone`, `Send` and `Sync`, else [`NoKeepArgs`]) gives the tuple
+//!   of the arguments to keep beside each node (`Task::with_args`), for wiretap checks.
 //! - [`Persistent`]: a monitor's or handler's `persistent` variable, shared by its activations.
 //! - [`caught`], [`handles`], [`failing_node`], [`attached_node`]: what a handler body reads.
 //! - [`count`]: a `maximum activate/trigger` count as a `u32`.
@@ -15,6 +19,7 @@
 //!   only known at run time (docs/semantics.md, "Tags and forward references").
 //! - [`bound`]: the node of a tag bound at run time, for `node!(tag)` in Rust code.
 
+use std::any::Any;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 use tcm::{Constraint, Ctx, Error, Event, Facet, Failure, NodeId, Point, Then, When};
@@ -39,9 +44,52 @@ pub trait CloneArgs<T> {
     fn tdl_args(&self) -> Option<T>;
 }
 
-impl<T: Clone> CloneArgs<T> for Args<T> {
+impl<T: Clone + 'static> CloneArgs<T> for Args<T> {
     fn tdl_args(&self) -> Option<T> {
         lock(&self.0).clone()
+    }
+}
+
+/// The arguments of a run, when they are `Clone`: those the host keeps for the run's node (a
+/// retry with other arguments, `Ctx::retry_with`), else a copy of the spawn's.
+pub trait CloneArgsIn<T> {
+    /// The run's arguments.
+    fn tdl_args_in(&self, ctx: &Ctx) -> Option<T>;
+}
+
+impl<T: Clone + 'static> CloneArgsIn<T> for Args<T> {
+    fn tdl_args_in(&self, ctx: &Ctx) -> Option<T> {
+        match ctx.args_ref::<T>() {
+            Some(a) => Some(a.clone()),
+            None => self.tdl_args(),
+        }
+    }
+}
+
+/// The arguments to keep beside the node (`Task::with_args`), when they are `Clone`, `Send`
+/// and `Sync`: wiretap checks read them, handlers retry with changed ones.
+pub trait KeepArgs {
+    /// A copy of the arguments, erased.
+    fn tdl_kept(&self) -> Option<Arc<dyn Any + Send + Sync>>;
+}
+
+impl<T: Clone + Send + Sync + 'static> KeepArgs for Args<T> {
+    fn tdl_kept(&self) -> Option<Arc<dyn Any + Send + Sync>> {
+        lock(&self.0)
+            .clone()
+            .map(|a| Arc::new(a) as Arc<dyn Any + Send + Sync>)
+    }
+}
+
+/// Arguments that cannot be kept (not `Clone`, `Send` and `Sync`): nothing is kept.
+pub trait NoKeepArgs {
+    /// Nothing.
+    fn tdl_kept(&self) -> Option<Arc<dyn Any + Send + Sync>>;
+}
+
+impl<T> NoKeepArgs for &Args<T> {
+    fn tdl_kept(&self) -> Option<Arc<dyn Any + Send + Sync>> {
+        None
     }
 }
 
@@ -53,6 +101,19 @@ pub trait TakeArgs<T> {
 
 impl<T> TakeArgs<T> for &Args<T> {
     fn tdl_args(&self) -> Option<T> {
+        lock(&self.0).take()
+    }
+}
+
+/// As [`CloneArgs`] reading the run's own arguments first, when the arguments are not `Clone`:
+/// the first run takes them.
+pub trait TakeArgsIn<T> {
+    /// The arguments, the first time only.
+    fn tdl_args_in(&self, ctx: &Ctx) -> Option<T>;
+}
+
+impl<T> TakeArgsIn<T> for &Args<T> {
+    fn tdl_args_in(&self, _: &Ctx) -> Option<T> {
         lock(&self.0).take()
     }
 }

@@ -361,3 +361,183 @@ async fn a_handler_attached_to_a_task_from_outside_recovers_each_of_its_nodes() 
     assert_eq!(report.unhandled.len(), 1, "{report}");
     assert_eq!(report.unhandled[0].path, "walk/stand");
 }
+
+/// A leg move's arguments: which leg, and how high to lift it.
+#[derive(Clone, Debug, PartialEq)]
+struct LegMove {
+    leg: u32,
+    lift: f64,
+}
+
+/// TCA's monitors saw the message data: a wiretap check reads the tapped node's arguments
+/// (`Task::with_args`), and vetoes the move of one leg only.
+#[tokio::test(start_paused = true)]
+async fn a_wiretap_check_reads_the_tapped_tasks_arguments() {
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let s = seen.clone();
+    let rt = Runtime::new().wiretap("move", TapWhen::Before, move |ctx| {
+        let s = s.clone();
+        async move {
+            let Some(args) = ctx.tapped_args::<LegMove>() else {
+                return Err(Failure::new("NoArgs", "the move keeps no LegMove"));
+            };
+            // Another type reads nothing.
+            assert!(ctx.tapped_args::<u32>().is_none());
+            if let Ok(mut s) = s.lock() {
+                s.push(args.leg);
+            }
+            if args.leg == 2 {
+                return Err(Failure::new("Unstable", "leg 2 would tip the robot over"));
+            }
+            Ok(())
+        }
+    });
+    let task = Task::goal("walk", |ctx| async move {
+        for leg in 1..=3 {
+            let args = LegMove { leg, lift: 0.1 };
+            ctx.spawn(
+                Task::command("move", move |ctx| async move {
+                    // The action sees the same arguments.
+                    assert_eq!(ctx.args::<LegMove>().map(|a| a.leg), Some(leg));
+                    assert!(ctx.tapped_args::<LegMove>().is_none(), "not a check");
+                    tokio::time::sleep(secs(1.0)).await;
+                    Ok(())
+                })
+                .with_args(args),
+            )
+            .sequential(Facet::Execution, NodeRef::Previous)
+            .start()?;
+        }
+        Ok(())
+    });
+    let (report, trace) = run_checked(rt, task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(*seen.lock().unwrap_or_else(|e| e.into_inner()), [1, 2, 3]);
+    let st = story(&trace);
+    assert!(
+        st.iter().any(|l| l == "1 move failed Unstable"),
+        "{}",
+        st.join("\n")
+    );
+}
+
+/// The Ambler's recovery: the handler reads the failed move's arguments, raises the lift and
+/// retries with the changed arguments; the retried node's action and its wiretap check see them.
+#[tokio::test(start_paused = true)]
+async fn a_handler_retries_with_changed_arguments() {
+    let tapped = Arc::new(Mutex::new(Vec::new()));
+    let t = tapped.clone();
+    let rt = Runtime::new().wiretap("move_leg", TapWhen::Before, move |ctx| {
+        let t = t.clone();
+        async move {
+            if let (Ok(mut t), Some(a)) = (t.lock(), ctx.tapped_args::<LegMove>()) {
+                t.push(a.lift);
+            }
+            Ok(())
+        }
+    });
+    let ran = Arc::new(Mutex::new(Vec::new()));
+    let r = ran.clone();
+    let task = Task::goal("step", move |ctx| async move {
+        let r = r.clone();
+        ctx.spawn(
+            Task::retryable_with(
+                NodeKind::Command,
+                "move_leg",
+                LegMove { leg: 1, lift: 0.1 },
+                move |_, args: LegMove| {
+                    let r = r.clone();
+                    async move {
+                        if let Ok(mut r) = r.lock() {
+                            r.push(args.lift);
+                        }
+                        tokio::time::sleep(secs(1.0)).await;
+                        if args.lift < 0.3 {
+                            return Err(TerrainContact { leg: args.leg }.raise());
+                        }
+                        Ok(())
+                    }
+                },
+            )
+            .handler(
+                Handler::on::<TerrainContact, _, _, _>("raise_leg", |ctx| async move {
+                    let Some(old) = ctx.failing_args::<LegMove>() else {
+                        return Err(Failure::new("NoArgs", "no leg move to raise"));
+                    };
+                    // The wrong type is refused, and nothing is retried.
+                    assert!(ctx.retry_with(7u32).is_err());
+                    let raised = LegMove {
+                        lift: old.lift + 0.15,
+                        ..(*old).clone()
+                    };
+                    let again = ctx.retry_with(raised)?;
+                    ctx.wait(again).await?;
+                    Ok(())
+                })
+                .max_activations(3),
+            ),
+        )
+        .start()?;
+        Ok(())
+    });
+    let (report, trace) = run_checked(rt, task).await;
+    assert_eq!(
+        report.outcome,
+        RunOutcome::Completed,
+        "{}",
+        story(&trace).join("\n")
+    );
+    let lifts = |v: &Mutex<Vec<f64>>| -> Vec<String> {
+        v.lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .iter()
+            .map(|l| format!("{l:.2}"))
+            .collect()
+    };
+    // 0.10 fails, 0.25 fails (its failure searches from the handler node: the attempt's own
+    // handler raises it again), 0.40 succeeds.
+    assert_eq!(lifts(&ran), ["0.10", "0.25", "0.40"]);
+    assert_eq!(lifts(&tapped), ["0.10", "0.25", "0.40"]);
+}
+
+/// A plain `retry` of a task keeping arguments re-runs it with the failed run's arguments.
+#[tokio::test(start_paused = true)]
+async fn retry_keeps_the_failed_runs_arguments() {
+    let ran = Arc::new(Mutex::new(Vec::new()));
+    let r = ran.clone();
+    let task = Task::goal("step", move |ctx| async move {
+        let r = r.clone();
+        ctx.spawn(Task::retryable_with(
+            NodeKind::Command,
+            "move_leg",
+            LegMove { leg: 4, lift: 0.1 },
+            move |_, args: LegMove| {
+                let r = r.clone();
+                async move {
+                    let n = r.lock().map(|mut r| {
+                        r.push(args.clone());
+                        r.len()
+                    });
+                    if n.unwrap_or(0) == 1 {
+                        return Err(Failure::new("Blocked", "once"));
+                    }
+                    Ok(())
+                }
+            },
+        ))
+        .start()?;
+        Ok(())
+    })
+    .handler(Handler::new("again", "Blocked", |ctx| async move {
+        let again = ctx.retry()?;
+        ctx.wait(again).await?;
+        Ok(())
+    }));
+    let (report, _) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    let ran = ran.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    assert_eq!(
+        ran,
+        [LegMove { leg: 4, lift: 0.1 }, LegMove { leg: 4, lift: 0.1 }]
+    );
+}

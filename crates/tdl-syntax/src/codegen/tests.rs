@@ -201,7 +201,12 @@ fn every_body_holds_its_children_and_goals_are_retryable() {
         has(&out, "::tdl::Task::retryable(::tdl::NodeKind::Goal,"),
         "{out}"
     );
-    assert!(has(&out, "let tdl_args = (&tdl_args).tdl_args();"), "{out}");
+    assert!(
+        has(&out, "let tdl_args = (&tdl_args).tdl_args_in(&ctx);"),
+        "{out}"
+    );
+    // The tuple of the arguments is kept beside each node (wiretap checks, `retry_with`).
+    assert!(has(&out, ".with_args_erased(tdl_kept)"), "{out}");
 }
 
 #[test]
