@@ -44,24 +44,26 @@ pub use walk::*;
 /// from outside, the task code does not know them): the stability monitor before every leg and
 /// body move, the footfall monitor after every leg move.
 pub fn monitored(_walker: &Walker) -> Runtime {
-    // A check reads the tapped move's arguments, `(w, arc, step)` (TCA's monitors saw the
+    // A check reads the tapped move's arguments, `(w, arc, step[, lift])` (TCA's monitors saw the
     // message's data); the moves run in order, but the check need not guess which step is next.
-    let stability = |ctx: Ctx| async move {
-        match ctx.tapped_args::<(Walker, u32, u32)>() {
-            Some(args) => {
-                let (w, arc, step) = &*args;
-                w.check_stability(*arc, *step)
-            }
-            None => Err(Failure::new("Unstable", "a move without its arguments")),
-        }
-    };
+    let unknown = || Err(Failure::new("Unstable", "a move without its arguments"));
     Runtime::new()
-        .wiretap("move_leg", TapWhen::Before, stability)
-        .wiretap("move_body", TapWhen::Before, stability)
-        .wiretap("move_leg", TapWhen::After, |ctx: Ctx| async move {
+        .wiretap("move_leg", TapWhen::Before, move |ctx: Ctx| async move {
+            match ctx.tapped_args::<(Walker, u32, u32, f64)>() {
+                Some(args) => args.0.check_stability(args.1, args.2),
+                None => unknown(),
+            }
+        })
+        .wiretap("move_body", TapWhen::Before, move |ctx: Ctx| async move {
             match ctx.tapped_args::<(Walker, u32, u32)>() {
+                Some(args) => args.0.check_stability(args.1, args.2),
+                None => unknown(),
+            }
+        })
+        .wiretap("move_leg", TapWhen::After, |ctx: Ctx| async move {
+            match ctx.tapped_args::<(Walker, u32, u32, f64)>() {
                 Some(args) => {
-                    let (w, arc, step) = &*args;
+                    let (w, arc, step, _) = &*args;
                     w.check_footfall(*arc, *step)
                 }
                 None => Err(Failure::new(

@@ -149,7 +149,6 @@ pub enum Recovery {
 /// How one footfall is to be made now.
 #[derive(Clone, Copy, Debug, Default)]
 struct Footfall {
-    lift_raised: bool,
     alternate: bool,
     shuffled: bool,
 }
@@ -162,6 +161,7 @@ struct State {
     done: Vec<(u32, u32)>,
     planned: Vec<(u32, u32)>,
     leg_moves: u32,
+    lifts_mm: Vec<(u32, u32, u32)>,
     body_moves: u32,
     contacts: Vec<(u32, u32)>,
     recoveries: Vec<(u32, u32, Recovery)>,
@@ -209,11 +209,15 @@ impl Walker {
         st.footfalls.insert((arc, step), Footfall::default());
     }
 
-    /// Swings the leg of `step` of `arc` to its footfall: `Some(height)` of the obstacle it hit,
+    /// Swings the leg of `step` of `arc` to its footfall on a trajectory `lift` metres high (the
+    /// feet in the standard configuration lift it higher): `Some(height)` of the obstacle it hit,
     /// `None` when the foot landed.
-    pub fn swing_leg(&self, arc: u32, step: u32) -> Option<f64> {
+    pub fn swing_leg(&self, arc: u32, step: u32, lift: f64) -> Option<f64> {
         let mut st = self.state();
         st.leg_moves += 1;
+        // Whole millimetres: the log compares exactly.
+        st.lifts_mm
+            .push((arc, step, (lift * 1000.0).round() as u32));
         let f = st.footfalls.get(&(arc, step)).copied().unwrap_or_default();
         let obstacle = st.terrain.obstacles.get(&(arc, step)).copied()?;
         let height = if f.alternate {
@@ -222,11 +226,9 @@ impl Walker {
             obstacle.primary
         };
         let lift = if f.shuffled {
-            SHUFFLED_LIFT
-        } else if f.lift_raised {
-            RAISED_LIFT
+            SHUFFLED_LIFT.max(lift)
         } else {
-            NOMINAL_LIFT
+            lift
         };
         if height > lift {
             st.contacts.push((arc, step));
@@ -243,9 +245,10 @@ impl Walker {
         st.done.push((arc, step));
     }
 
-    /// Recovery 1: raises the leg's trajectory for `step` of `arc`.
+    /// Recovery 1: the leg's trajectory for `step` of `arc` is raised (the retried leg move gets
+    /// [`RAISED_LIFT`] as its argument); this records it.
     pub fn raise_leg(&self, arc: u32, step: u32) {
-        self.recover(arc, step, Recovery::RaiseLeg, |f| f.lift_raised = true);
+        self.recover(arc, step, Recovery::RaiseLeg, |_| {});
     }
 
     /// Recovery 2: replans the step's footfall onto the alternate foothold.
@@ -301,6 +304,7 @@ impl Walker {
         WalkLog {
             planned: st.planned.clone(),
             leg_moves: st.leg_moves,
+            lifts_mm: st.lifts_mm.clone(),
             body_moves: st.body_moves,
             contacts: st.contacts.clone(),
             recoveries: st.recoveries.clone(),
@@ -317,6 +321,8 @@ pub struct WalkLog {
     pub planned: Vec<(u32, u32)>,
     /// Leg moves attempted (retries included).
     pub leg_moves: u32,
+    /// Each leg move's (arc, step, trajectory height in millimetres), in order.
+    pub lifts_mm: Vec<(u32, u32, u32)>,
     /// Body moves made.
     pub body_moves: u32,
     /// The leg moves that hit an obstacle, (arc, step).

@@ -14,6 +14,11 @@ fn a_rock_is_cleared_by_raising_the_leg() {
     let log = w.walker.log();
     assert_eq!(log.recoveries, [(0, 1, Recovery::RaiseLeg)]);
     assert_eq!((log.contacts.len(), log.body_moves), (1, 3));
+    // The leg move is re-executed with the raised trajectory as its argument.
+    assert_eq!(
+        log.lifts_mm,
+        [(0, 0, 150), (0, 1, 150), (0, 1, 450), (0, 2, 150)]
+    );
 }
 
 #[test]
