@@ -340,6 +340,15 @@ impl Ctx {
         args.downcast::<A>().ok()
     }
 
+    /// In a handler: the arguments of the node it is attached to (the failed node or one of its
+    /// ancestors), if its task keeps arguments of type `A`: what a handler attached to a task
+    /// ([`crate::Runtime::attach`]) reads of the node it recovers.
+    pub fn attached_args<A: Any + Send + Sync>(&self) -> Option<Arc<A>> {
+        let attached = self.attached_node()?;
+        let args = lock(&self.shared).ok()?.args.get(&attached).cloned()?;
+        args.downcast::<A>().ok()
+    }
+
     fn with_engine<T>(
         &self,
         f: impl FnOnce(

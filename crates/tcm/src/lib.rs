@@ -36,7 +36,9 @@ pub use host::Panicked;
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use session::Session;
 pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink, TracingSink};
-pub use task::{Action, ActionFuture, Exception, Factory, Handler, Monitor, Task, Value, factory};
+pub use task::{
+    Action, ActionFuture, Attached, Exception, Factory, Handler, Monitor, Task, Value, factory,
+};
 pub use tcm_core::{
     Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,
     FatalFailure, MonitorInfo, NodeId, NodeInfo, NodeKind, NodeRef, Point, State, Stats,

@@ -327,6 +327,12 @@ impl Runtime {
         self
     }
 
+    /// Attaches a handler built for one task (TDL's `handler h() handles E for T`): the same as
+    /// [`Runtime::handler_for`] with the task it names.
+    pub fn attach(self, attached: crate::task::Attached) -> Runtime {
+        self.handler_for(attached.task, attached.handler)
+    }
+
     /// A handle to raise external events.
     pub fn events(&self) -> EventHandle {
         self.shared.handles.fetch_add(1, Ordering::SeqCst);

@@ -157,6 +157,30 @@ impl Handler {
     }
 }
 
+/// A handler attached from outside to every node of one task ([`crate::Runtime::attach`]): TCA's
+/// recovery added "without modifying existing components". TDL's `handler h() handles E for T`
+/// builds one.
+#[derive(Clone)]
+pub struct Attached {
+    pub(crate) task: Name,
+    pub(crate) handler: Handler,
+}
+
+impl Attached {
+    /// `handler`, attached to every node of the task named `task` (its [`Task::task_name`]).
+    pub fn new(task: impl Into<Name>, handler: Handler) -> Attached {
+        Attached {
+            task: task.into(),
+            handler,
+        }
+    }
+
+    /// The task's name.
+    pub fn task(&self) -> &Name {
+        &self.task
+    }
+}
+
 /// Something to spawn: a node kind, an instance name and an action.
 pub struct Task {
     pub(crate) kind: NodeKind,

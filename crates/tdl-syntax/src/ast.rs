@@ -79,6 +79,10 @@ pub struct Task {
     /// For handlers: the name bound to the caught exception (`handles Exc as name`), a
     /// `tdl::Caught<Exc>` in the body. Without it the body sees no exception binding.
     pub caught: Option<Ident>,
+    /// For handlers: `for T`, the task this handler is attached to from outside, on every node of
+    /// it (TCA's recovery added without modifying existing components). Its arguments, if any, are
+    /// that node's arguments.
+    pub for_task: Option<Ident>,
     /// Task-level constraints (docs/semantics.md, "Constraints").
     pub constraints: Vec<TaskConstraint>,
     /// The body.
@@ -122,6 +126,15 @@ pub struct Field {
     pub name: Ident,
     /// Field type.
     pub ty: syn::Type,
+}
+
+/// `retry;` or `retry with (a, b, ...);`.
+#[derive(Clone, Debug)]
+pub struct Retry {
+    /// The arguments of the new run, in the task's order; `None` for the failed run's own.
+    pub args: Option<Vec<syn::Expr>>,
+    /// Span of `retry`.
+    pub span: Span,
 }
 
 /// A task-level constraint with its span.
@@ -226,8 +239,9 @@ pub enum Stmt {
     Bypass(Span),
     /// `trigger;` (monitors only).
     Trigger(Span),
-    /// `retry;` (handlers only): run the failed task again and wait for it.
-    Retry(Span),
+    /// `retry;` or `retry with (args);` (handlers only): run the failed task again, with the
+    /// same or with other arguments, and wait for it.
+    Retry(Retry),
     /// `if cond { ... } [else ...]`.
     If(If),
     /// `['label:] for pat in expr { ... }`.

@@ -294,15 +294,21 @@ fn camel_case(name: &str) -> String {
 /// The name of a task's argument struct: its name in CamelCase, or `Task_<name>` when that is not
 /// an identifier (`__`, `self_`, ...).
 fn struct_ident(task: &Task) -> Ident {
-    let name = task.name.to_string();
+    struct_ident_of(&task.name)
+}
+
+/// The struct generated for the task named `name`.
+fn struct_ident_of(task_name: &Ident) -> Ident {
+    let span = task_name.span();
+    let name = task_name.to_string();
     let name = name.trim_start_matches("r#");
     for candidate in [camel_case(name), format!("Task_{name}")] {
         if let Ok(mut ident) = syn::parse_str::<Ident>(&candidate) {
-            ident.set_span(task.span);
+            ident.set_span(span);
             return ident;
         }
     }
-    format_ident!("TdlTask", span = task.span)
+    format_ident!("TdlTask", span = span)
 }
 
 /// A `maximum activate/trigger` count as a `u32` expression.
@@ -505,6 +511,18 @@ fn task_items(
                 }
                 None => quote!(""),
             };
+            if let Some(target) = &task.for_task {
+                let parts = AttachedParts {
+                    exception,
+                    code,
+                    reassigns: action.reassigns,
+                    prelude,
+                    cells,
+                    cell_clones,
+                    modifiers,
+                };
+                return attached_handler(task, target, parts);
+            }
             quote! {
                 #prelude
                 #cells
@@ -522,6 +540,76 @@ fn task_items(
         Allow::Nothing
     };
     task_shell(task, &build, allow)
+}
+
+/// What [`task_items`] built of a handler attached with `for`.
+struct AttachedParts {
+    exception: TokenStream,
+    code: TokenStream,
+    reassigns: bool,
+    prelude: TokenStream,
+    cells: TokenStream,
+    cell_clones: TokenStream,
+    modifiers: TokenStream,
+}
+
+/// `handler h(args) handles E for target`: a function building the `tdl::Attached` handler, which
+/// reads its arguments from the node it recovers, an instance of `target` (typed by the
+/// `TaskArgs` of `target`'s struct, so a mismatch is a compile error).
+fn attached_handler(task: &Task, target: &Ident, parts: AttachedParts) -> TokenStream {
+    let AttachedParts {
+        exception,
+        code,
+        reassigns,
+        prelude,
+        cells,
+        cell_clones,
+        modifiers,
+    } = parts;
+    let vis = &task.vis;
+    let attrs = &task.attrs;
+    let fn_name = &task.name;
+    let name_str = task.name.to_string();
+    let target_struct = struct_ident_of(target);
+    let target_str = target.to_string();
+    let read_args = if task.args.is_empty() {
+        TokenStream::new()
+    } else {
+        let pats: Vec<TokenStream> = task.args.iter().map(arg_pat).collect();
+        let types: Vec<&syn::Type> = task.args.iter().map(|it| &it.ty).collect();
+        quote! {
+            let (#(#pats,)*): (#(#types,)*) = ::tdl::codegen::attached_args::<
+                <#target_struct as ::tdl::codegen::TaskArgs>::Args,
+            >(&ctx, #name_str, #target_str)?;
+        }
+    };
+    let doc = format!(
+        " Builds the TDL handler `{name_str}`, attached to every `{target_str}`: give it to `Runtime::attach`."
+    );
+    let allow = if reassigns {
+        quote!(#[allow(unused_assignments)])
+    } else {
+        TokenStream::new()
+    };
+    quote! {
+        #(#attrs)*
+        #[doc = #doc]
+        #allow
+        #vis fn #fn_name() -> ::tdl::Attached {
+            #prelude
+            #cells
+            ::tdl::Attached::new(
+                <#target_struct as ::tdl::codegen::TaskArgs>::NAME,
+                ::tdl::Handler::new(#name_str, #exception, move |ctx| {
+                    #cell_clones
+                    async move {
+                        #read_args
+                        #code
+                    }
+                }) #modifiers,
+            )
+        }
+    }
 }
 
 fn arg_pat(arg: &crate::ast::Arg) -> TokenStream {
@@ -583,9 +671,23 @@ fn task_shell(task: &Task, body: &TokenStream, allow: Allow) -> TokenStream {
     } else {
         quote!({ #(#vis #names: #types,)* })
     };
+    // Goals and commands say what a handler attached to them with `for` receives.
+    let task_args = if matches!(task.kind, TaskKind::Goal | TaskKind::Command) {
+        let name_str = task.name.to_string();
+        quote! {
+            impl ::tdl::codegen::TaskArgs for #struct_name {
+                type Args = (#(#types,)*);
+                const NAME: &'static str = #name_str;
+            }
+        }
+    } else {
+        TokenStream::new()
+    };
     quote! {
         #[doc = #struct_doc]
         #vis struct #struct_name #fields
+
+        #task_args
 
         impl #struct_name {
             #[doc = #method_doc]

@@ -12,6 +12,7 @@
 use std::collections::BTreeSet;
 
 use proc_macro2::{Ident, Span};
+use quote::ToTokens;
 
 use crate::ast::{
     Ast, Constraint, ConstraintKind, ConstraintStmt, Fail, Item, Spawn, Tag, TagIndex, TagKind,
@@ -89,8 +90,24 @@ fn exception(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
     );
 }
 
-/// Reports a handler reference that names a known task which is not a handler.
+/// Reports a handler reference that names a known task which is not a handler, or a handler
+/// attached to a task with `for`.
 fn handler(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
+    if let Some(target) = file
+        .task(&name.to_string())
+        .and_then(|t| t.for_task.as_ref())
+    {
+        diags.push(
+            Diagnostic::error(
+                name.span(),
+                format!("`{name}` is attached to every `{target}` (`for {target}`); it cannot also be given here"),
+            )
+            .with_hint(format!(
+                "attach it on the runtime with `.attach({name}())`, or remove `for {target}` from its definition to give it at a spawn"
+            )),
+        );
+        return;
+    }
     if let Some(kind) = file.kind_of(&name.to_string()) {
         if kind != TaskKind::Handler {
             diags.push(
@@ -101,6 +118,52 @@ fn handler(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
                 .with_hint("define it with `handler NAME(args) handles Exception { ... }`"),
             );
         }
+    }
+}
+
+/// Checks `handler h(args) handles E for target`: `target` is a goal or command of the program,
+/// and `h` takes none or all of its arguments.
+fn attached_to(file: &FileScope<'_>, task: &Task, target: &Ident, diags: &mut Vec<Diagnostic>) {
+    let Some(found) = file.task(&target.to_string()) else {
+        diags.push(
+            Diagnostic::error(target.span(), format!("unknown task `{target}`"))
+                .with_hint(format!(
+                    "`for {target}` attaches the handler to a goal or command of the program; attach a handler to a task written in Rust with `Runtime::handler_for`"
+                )),
+        );
+        return;
+    };
+    if !matches!(found.kind, TaskKind::Goal | TaskKind::Command) {
+        diags.push(Diagnostic::error(
+            target.span(),
+            format!(
+                "`{target}` is a {}; a handler is attached to a goal or a command",
+                found.kind.as_str()
+            ),
+        ));
+        return;
+    }
+    if !task.args.is_empty() && task.args.len() != found.args.len() {
+        let theirs: Vec<String> = found
+            .args
+            .iter()
+            .map(|a| format!("{}: {}", a.name, a.ty.to_token_stream()))
+            .collect();
+        diags.push(
+            Diagnostic::error(
+                task.span,
+                format!(
+                    "`{}` takes {} argument(s) but `{target}` has {}",
+                    task.name,
+                    task.args.len(),
+                    found.args.len()
+                ),
+            )
+            .with_hint(format!(
+                "a handler attached with `for` receives the arguments of the node it recovers: declare none, or all of `{target}`'s: ({})",
+                theirs.join(", ")
+            )),
+        );
     }
 }
 
@@ -123,6 +186,9 @@ fn task_constraint_name(kind: &TaskConstraintKind) -> &'static str {
 fn task_header(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
     if let Some(handles) = &task.handles {
         exception(file, handles, diags);
+    }
+    if let Some(target) = &task.for_task {
+        attached_to(file, task, target, diags);
     }
     let mut expand_first = None;
     let mut delay_expansion = None;
@@ -250,8 +316,8 @@ impl<'a> Body<'_, 'a> {
                         "only a handler can pass its exception on; in other tasks use `fail`",
                     ),
                 ),
-                Tdl::Retry(span) if self.task.kind != TaskKind::Handler => diags.push(
-                    Diagnostic::error(*span, "`retry` outside an exception handler").with_hint(
+                Tdl::Retry(it) if self.task.kind != TaskKind::Handler => diags.push(
+                    Diagnostic::error(it.span, "`retry` outside an exception handler").with_hint(
                         "only a handler can run the failed task again; attach a `handler` that retries",
                     ),
                 ),

@@ -82,9 +82,14 @@ fn dump_task(out: &mut String, task: &Task) {
             None => format!(" handles {it}"),
         })
         .unwrap_or_default();
+    let for_task = task
+        .for_task
+        .as_ref()
+        .map(|it| format!(" for {it}"))
+        .unwrap_or_default();
     let _ = writeln!(
         out,
-        "{vis}{persistent}{} {}({}){result}{handles}",
+        "{vis}{persistent}{} {}({}){result}{handles}{for_task}",
         task.kind.as_str(),
         task.name,
         args.join(", ")
@@ -177,7 +182,16 @@ fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
         }
         Stmt::Bypass(_) => line(out, depth, "bypass"),
         Stmt::Trigger(_) => line(out, depth, "trigger"),
-        Stmt::Retry(_) => line(out, depth, "retry"),
+        Stmt::Retry(it) => match &it.args {
+            None => line(out, depth, "retry"),
+            Some(args) => {
+                let args: Vec<String> = args
+                    .iter()
+                    .map(|a| a.to_token_stream().to_string())
+                    .collect();
+                line(out, depth, &format!("retry with ({})", args.join(", ")))
+            }
+        },
         Stmt::If(it) => dump_if(out, it, depth, "if"),
         Stmt::For(it) => {
             let label = it

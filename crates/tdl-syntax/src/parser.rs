@@ -212,7 +212,7 @@ pub(crate) fn parse_file(input: ParseStream, cx: &mut Cx) -> Ast {
 }
 
 const TASK_HINT: &str = "a task reads `goal name(arg: Type, ...) [-> Type] [with constraint, ...] { ... }`; \
-     items are `goal`, `command`, `monitor`, `handler NAME(...) handles Exc [as name]`, `exception NAME;` or Rust items";
+     items are `goal`, `command`, `monitor`, `handler NAME(...) handles Exc [as name] [for task]`, `exception NAME;` or Rust items";
 
 /// The TDL item keyword at the input, after attributes, visibility and qualifiers.
 fn tdl_item_keyword(input: ParseStream) -> Option<String> {
@@ -376,6 +376,17 @@ fn task(
     } else {
         None
     };
+    let for_task = if handles.is_some() && input.peek(Token![for]) {
+        input.parse::<Token![for]>()?;
+        if !input.peek(syn::Ident) {
+            return Err(input.error(
+                "expected a task name after `for`: `handles Exception for task` attaches the handler to every node of that task",
+            ));
+        }
+        Some(input.parse::<Ident>()?)
+    } else {
+        None
+    };
     let constraints = parse_task_constraints(input, cx)?;
     let body_group = take_group(input, Delimiter::Brace, "`{` and the task body")?;
     let body = parse_block(body_group, cx);
@@ -390,6 +401,7 @@ fn task(
         result,
         handles,
         caught,
+        for_task,
         constraints,
         body,
         span,

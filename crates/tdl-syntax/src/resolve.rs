@@ -207,8 +207,8 @@ pub(crate) enum Tdl<'a> {
     Bypass(Span),
     /// `trigger;`.
     Trigger(Span),
-    /// `retry;`.
-    Retry(Span),
+    /// `retry;` or `retry with (args);`.
+    Retry(&'a crate::ast::Retry),
 }
 
 /// A spawn statement.
@@ -765,7 +765,12 @@ impl<'a> Walk<'a> {
             }
             Stmt::Bypass(span) => self.scope.stmts.push(Tdl::Bypass(*span)),
             Stmt::Trigger(span) => self.scope.stmts.push(Tdl::Trigger(*span)),
-            Stmt::Retry(span) => self.scope.stmts.push(Tdl::Retry(*span)),
+            Stmt::Retry(it) => {
+                for arg in it.args.iter().flatten() {
+                    self.rust(arg.to_token_stream(), &site);
+                }
+                self.scope.stmts.push(Tdl::Retry(it));
+            }
             Stmt::If(it) => self.if_stmt(it, &site),
             Stmt::For(it) => {
                 self.rust(it.expr.to_token_stream(), &site);

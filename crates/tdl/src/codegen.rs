@@ -188,6 +188,32 @@ pub fn attached_node(ctx: &Ctx) -> Result<NodeId, Failure> {
         .ok_or_else(|| Failure::new("NotAHandler", "`attached` outside an exception handler"))
 }
 
+/// What a generated goal or command declares of itself: its name and the tuple of its arguments'
+/// types (the arguments a handler attached to it with `for` receives).
+pub trait TaskArgs {
+    /// The tuple of the argument types, in order.
+    type Args;
+    /// The task's name.
+    const NAME: &'static str;
+}
+
+/// In a handler attached to a task with `for`: the arguments of the node it recovers.
+pub fn attached_args<A: Clone + Any + Send + Sync>(
+    ctx: &Ctx,
+    handler: &str,
+    task: &str,
+) -> Result<A, Failure> {
+    match ctx.attached_args::<A>() {
+        Some(args) => Ok((*args).clone()),
+        None => Err(Failure::new(
+            "NotAttached",
+            format!(
+                "`{handler}` ran outside a failure of `{task}`, so it has no arguments to read"
+            ),
+        )),
+    }
+}
+
 /// A `maximum activate/trigger` count; values out of the `u32` range saturate.
 pub fn count<N: TryInto<u32>>(n: N) -> u32 {
     n.try_into().unwrap_or(u32::MAX)

@@ -250,7 +250,8 @@ fn stmt_span(stmt: &Stmt) -> Span {
         Stmt::Loop(it) => it.span,
         Stmt::Match(it) => it.span,
         Stmt::Block(it) => it.span,
-        Stmt::Succeed(span) | Stmt::Bypass(span) | Stmt::Trigger(span) | Stmt::Retry(span) => *span,
+        Stmt::Succeed(span) | Stmt::Bypass(span) | Stmt::Trigger(span) => *span,
+        Stmt::Retry(it) => it.span,
     }
 }
 
@@ -407,10 +408,16 @@ impl<'a> Gen<'_, 'a> {
             // Handlers only, monitors only (the diagnosis reports them elsewhere).
             Stmt::Bypass(_) => quote!(return ctx.bypass();),
             Stmt::Trigger(_) => quote!(ctx.trigger()?;),
-            Stmt::Retry(_) => quote! {
-                let tdl_retry = ctx.retry()?;
-                ctx.wait(tdl_retry).await?;
-            },
+            Stmt::Retry(it) => {
+                let retry = match &it.args {
+                    None => quote!(ctx.retry()?),
+                    Some(args) => quote!(ctx.retry_with((#(#args,)*))?),
+                };
+                quote! {
+                    let tdl_retry = #retry;
+                    ctx.wait(tdl_retry).await?;
+                }
+            }
             Stmt::If(it) => self.if_stmt(it),
             Stmt::For(it) => {
                 let (label, pat, expr) = (&it.label, &it.pat, &it.expr);

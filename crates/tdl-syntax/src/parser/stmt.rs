@@ -20,8 +20,8 @@ use super::constraint::{
 };
 use super::{Cx, attempt, parse_block, parse_group, recover, take_group};
 use crate::ast::{
-    Arm, Bind, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match, RustStmt, Spawn,
-    Stmt, While, WithGroup,
+    Arm, Bind, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match, Retry, RustStmt,
+    Spawn, Stmt, While, WithGroup,
 };
 use crate::keyword::{peek_words, starts_constraint};
 
@@ -188,13 +188,15 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
         ("succeed", Stmt::Succeed as fn(Span) -> Stmt),
         ("bypass", Stmt::Bypass),
         ("trigger", Stmt::Trigger),
-        ("retry", Stmt::Retry),
     ] {
         if is_bare(cursor, keyword) {
             let ident = input.call(Ident::parse_any)?;
             input.parse::<Token![;]>()?;
             return Ok(make(ident.span()));
         }
+    }
+    if is_bare(cursor, "retry") || is_keyword_then_ident(cursor, "retry") {
+        return retry(input).map(Stmt::Retry);
     }
     if is_bare(cursor, "fail") || is_keyword_then_ident(cursor, "fail") {
         return fail(input, cx).map(Stmt::Fail);
@@ -209,6 +211,28 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
         return Ok(it);
     }
     rust_stmt(input, cx).map(Stmt::Rust)
+}
+
+/// `retry;` or `retry with (args);`.
+fn retry(input: ParseStream) -> syn::Result<Retry> {
+    let span = input.call(Ident::parse_any)?.span();
+    let args = if input.peek(Token![;]) {
+        None
+    } else {
+        let with = input.call(Ident::parse_any)?;
+        if with != "with" || !input.peek(syn::token::Paren) {
+            return Err(syn::Error::new(
+                with.span(),
+                "expected `retry;` or `retry with (arguments);`",
+            ));
+        }
+        let content;
+        syn::parenthesized!(content in input);
+        let args = content.parse_terminated(<syn::Expr as syn::parse::Parse>::parse, Token![,])?;
+        Some(args.into_iter().collect())
+    };
+    input.parse::<Token![;]>()?;
+    Ok(Retry { args, span })
 }
 
 /// Parses `let pat [: T] =` when a `spawn TASK` follows; otherwise consumes nothing.

@@ -429,3 +429,116 @@ mod handlers {
         );
     }
 }
+
+/// Issue 12, points 6 and 7: a handler attached from outside to every node of a task (`for T`),
+/// reading the arguments of the node it recovers; `retry with (..)` runs the task again with
+/// changed arguments.
+mod attached {
+    use crate::util::{assert_order, run_checked, story};
+    use std::cell::RefCell;
+    use tdl::{RunOutcome, Runtime};
+
+    thread_local! {
+        static LOG: RefCell<Vec<String>> = const { RefCell::new(Vec::new()) };
+    }
+
+    fn log(line: String) {
+        LOG.with(|l| l.borrow_mut().push(line));
+    }
+
+    fn take_log() -> Vec<String> {
+        LOG.with(|l| std::mem::take(&mut *l.borrow_mut()))
+    }
+
+    tdl::tdl! {
+        exception Contact { leg: u32 }
+
+        /// A leg move that touches the terrain unless lifted at least 300 mm.
+        command move_leg(leg: u32, lift: u32) {
+            tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+            log(format!("leg {leg} lift {lift}"));
+            if lift < 300 {
+                fail Contact { leg };
+            }
+        }
+
+        /// The walking code: it knows nothing of any recovery.
+        goal walk() {
+            spawn move_leg(1, 150) with name "first";
+            spawn move_leg(2, 500) with name "second", sequential execution previous;
+            spawn move_leg(3, 100) with sequential execution previous;
+        }
+
+        /// Attached from outside to every `move_leg`: it receives the failed move's arguments,
+        /// raises the leg and runs the move again with the new lift.
+        handler raise_leg(leg: u32, lift: u32) handles Contact as contact for move_leg
+            with maximum activate 1
+        {
+            let touched = contact.data().map_or(0, |c| c.leg);
+            log(format!("raise leg {leg} (touched {touched}) from {lift}"));
+            retry with (leg, lift + 300);
+        }
+
+        /// A goal whose step fails: the handler attached to the goal reads the goal's arguments,
+        /// not the failing child's.
+        goal arc(number: u32) {
+            spawn move_leg(number, 0);
+        }
+        handler replan_arc(number: u32) handles Contact for arc {
+            log(format!("replan arc {number}"));
+        }
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_handler_attached_for_a_task_recovers_each_node_with_its_arguments() {
+        take_log();
+        let rt = Runtime::new().attach(raise_leg());
+        let (report, trace) = run_checked(rt, walk()).await;
+        assert_eq!(report.outcome, RunOutcome::Completed);
+        assert!(report.unhandled.is_empty(), "{:?}", report.unhandled);
+        assert_eq!(
+            take_log(),
+            [
+                "leg 1 lift 150",
+                "raise leg 1 (touched 1) from 150",
+                "leg 1 lift 450",
+                "leg 2 lift 500",
+                "leg 3 lift 100",
+                "raise leg 3 (touched 3) from 100",
+                "leg 3 lift 400",
+            ]
+        );
+        assert_order(
+            &story(&trace),
+            &[
+                "1 first failed Contact",
+                "1 raise_leg handling active",
+                "2 first execution completed",
+                "2 second handling active",
+                "4 move_leg failed Contact",
+                "5 move_leg execution completed",
+                "5 walk execution completed",
+            ],
+        );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn without_attaching_it_the_failures_are_unhandled() {
+        take_log();
+        let (report, _) = run_checked(Runtime::new(), walk()).await;
+        assert_eq!(report.unhandled.len(), 2, "{:?}", report.unhandled);
+        assert_eq!(
+            take_log(),
+            ["leg 1 lift 150", "leg 2 lift 500", "leg 3 lift 100"]
+        );
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn a_handler_attached_to_a_goal_reads_the_goals_arguments() {
+        take_log();
+        let rt = Runtime::new().attach(replan_arc());
+        let (report, _) = run_checked(rt, arc(4)).await;
+        assert!(report.unhandled.is_empty(), "{:?}", report.unhandled);
+        assert_eq!(take_log(), ["leg 4 lift 0", "replan arc 4"]);
+    }
+}
