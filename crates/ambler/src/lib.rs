@@ -42,12 +42,14 @@ pub use walk::*;
 
 /// A runtime with the Ambler's execution monitors wiretapped on the moves (TCA's wiretaps: added
 /// from outside, the task code does not know them): the stability monitor before every leg and
-/// body move, the footfall monitor after every leg move.
+/// body move, the footfall monitor after every leg move; and the arc-level recovery
+/// ([`shuffle_and_retry`]) attached to every arc, likewise from outside.
 pub fn monitored(_walker: &Walker) -> Runtime {
     // A check reads the tapped move's arguments, `(w, arc, step[, lift])` (TCA's monitors saw the
     // message's data); the moves run in order, but the check need not guess which step is next.
     let unknown = || Err(Failure::new("Unstable", "a move without its arguments"));
     Runtime::new()
+        .attach(shuffle_and_retry())
         .wiretap("move_leg", TapWhen::Before, move |ctx: Ctx| async move {
             match ctx.tapped_args::<(Walker, u32, u32, f64)>() {
                 Some(args) => args.0.check_stability(args.1, args.2),
