@@ -145,7 +145,42 @@ pub fn parse_tokens(tokens: TokenStream) -> Parse {
     parse
 }
 
+/// The deepest nesting of brackets the parser accepts. The parser (and Rust's own) descends
+/// recursively, so deeper input would exhaust the stack; no program needs a tenth of it.
+pub const MAX_NESTING: usize = 256;
+
+/// The first group nested deeper than [`MAX_NESTING`], found without recursing.
+fn too_deep(tokens: &TokenStream) -> Option<Span> {
+    let mut stack: Vec<proc_macro2::token_stream::IntoIter> = vec![tokens.clone().into_iter()];
+    while let Some(top) = stack.last_mut() {
+        match top.next() {
+            Some(TokenTree::Group(group)) => {
+                if stack.len() > MAX_NESTING {
+                    return Some(group.span_open());
+                }
+                stack.push(group.stream().into_iter());
+            }
+            Some(_) => {}
+            None => {
+                stack.pop();
+            }
+        }
+    }
+    None
+}
+
 fn parse_syntax(tokens: TokenStream, eof: Option<Span>) -> Parse {
+    if let Some(span) = too_deep(&tokens) {
+        let diag = Diagnostic::error(
+            span,
+            format!("brackets nested more than {MAX_NESTING} deep"),
+        )
+        .with_hint("split the deeply nested code into functions or tasks");
+        return Parse {
+            file: Ast::default(),
+            diagnostics: vec![diag],
+        };
+    }
     let mut cx = parser::Cx::new(eof);
     let res = (|input: ParseStream| Ok(parser::parse_file(input, &mut cx))).parse2(tokens);
     let file = match res {

@@ -233,3 +233,40 @@ fn names_resolve_across_the_files_of_a_program() {
         );
     }
 }
+
+/// Found by fuzzing: brackets nested thousands deep exhausted the stack of the recursive parser
+/// (a crash, not a diagnostic). Now a clear error at the first bracket too deep, on a thread with
+/// a small stack, as the parser of a debug build would see it.
+#[test]
+fn brackets_nested_too_deep_are_an_error_not_a_crash() {
+    let run = || {
+        let n = 5000;
+        let src = format!(
+            "goal g() {{\n    let x = {}1{};\n}}\n",
+            "(".repeat(n),
+            ")".repeat(n)
+        );
+        let (_, diags) = tdl_syntax::compile_str("deep.tdl", &src);
+        diags
+            .iter()
+            .map(|d| (d.line(), d.column(), d.message().to_owned()))
+            .collect::<Vec<_>>()
+    };
+    let diags = std::thread::Builder::new()
+        .stack_size(512 * 1024)
+        .spawn(run)
+        .expect("thread")
+        .join()
+        .expect("no crash");
+    // The body's brace is level 1 and the first `(` (column 13) level 2, so the first bracket
+    // past the limit is the `(` at column 13 + limit - 1.
+    let limit = tdl_syntax::MAX_NESTING;
+    assert_eq!(
+        diags,
+        [(
+            2,
+            12 + limit,
+            format!("brackets nested more than {limit} deep")
+        )]
+    );
+}
