@@ -285,10 +285,19 @@ pub struct Spawn {
 /// `let pat [: T] =` in front of a waited spawn.
 #[derive(Clone, Debug)]
 pub struct Binding {
-    /// The pattern bound.
-    pub pat: syn::Pat,
-    /// Optional type annotation.
+    /// What takes the value.
+    pub target: BindTarget,
+    /// Optional type annotation (`let` only).
     pub ty: Option<syn::Type>,
+}
+
+/// What takes a waited spawn's value.
+#[derive(Clone, Debug)]
+pub enum BindTarget {
+    /// `let pat [: T] = spawn …`.
+    Let(syn::Pat),
+    /// `place = spawn …`: an existing variable (or any place expression) is assigned.
+    Assign(syn::Expr),
 }
 
 /// `[label:]* with (constraints) { body }`: constraints applied to every spawn inside; a nested

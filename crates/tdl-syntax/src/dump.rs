@@ -240,7 +240,10 @@ fn dump_spawn(out: &mut String, it: &Spawn, depth: usize) {
                 .as_ref()
                 .map(|it| format!(": {}", tokens(it)))
                 .unwrap_or_default();
-            format!("let {}{ty} = ", tokens(&binding.pat))
+            match &binding.target {
+                crate::ast::BindTarget::Let(pat) => format!("let {}{ty} = ", tokens(pat)),
+                crate::ast::BindTarget::Assign(place) => format!("{} = ", tokens(place)),
+            }
         }
         None => String::new(),
     };

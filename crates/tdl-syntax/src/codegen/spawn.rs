@@ -11,8 +11,8 @@ use super::body::Gen;
 use super::lower::{Low, Lowered, Nodes, duration};
 use super::{count_expr, handler_expr};
 use crate::ast::{
-    Bind, Binding, Constraint, ConstraintKind, ConstraintStmt, OnTerminate, Spawn, TagKind, Then,
-    When, WithGroup,
+    Bind, BindTarget, Binding, Constraint, ConstraintKind, ConstraintStmt, OnTerminate, Spawn,
+    TagKind, Then, When, WithGroup,
 };
 use crate::diagnostic::Diagnostic;
 use crate::resolve::{LoopId, uses_previous};
@@ -115,9 +115,23 @@ impl<'a> Gen<'_, 'a> {
                 for arm in armed {
                     out.extend(arm(&id));
                 }
-                let ty = self.value_type(spawn, binding);
-                let pat = &binding.pat;
-                out.extend(quote!(let #pat: #ty = #chain.wait_value::<#ty>().await?;));
+                match &binding.target {
+                    BindTarget::Let(pat) => {
+                        let ty = self.value_type(spawn, binding);
+                        out.extend(quote!(let #pat: #ty = #chain.wait_value::<#ty>().await?;));
+                    }
+                    // The place's type tells the value's when the callee is not in the program.
+                    BindTarget::Assign(place) => {
+                        let ty = match self.file.task(&spawn.task.to_string()) {
+                            Some(task) => match &task.result {
+                                Some(ty) => quote!(#ty),
+                                None => quote!(()),
+                            },
+                            None => quote!(_),
+                        };
+                        out.extend(quote!(#place = #chain.wait_value::<#ty>().await?;));
+                    }
+                }
             }
             (None, true) => {
                 out.extend(quote!(let #node = #chain.start()?;));

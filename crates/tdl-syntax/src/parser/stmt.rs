@@ -20,8 +20,8 @@ use super::constraint::{
 };
 use super::{Cx, attempt, parse_block, parse_group, recover, take_group};
 use crate::ast::{
-    Arm, Bind, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match, Retry, RustStmt,
-    Spawn, Stmt, While, WithGroup,
+    Arm, Bind, BindTarget, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match, Retry,
+    RustStmt, Spawn, Stmt, While, WithGroup,
 };
 use crate::keyword::{peek_words, starts_constraint};
 
@@ -195,6 +195,9 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
             return Ok(make(ident.span()));
         }
     }
+    if let Some(binding) = assign_spawn(input)? {
+        return spawn(input, cx, Vec::new(), Some(binding)).map(Stmt::Spawn);
+    }
     if is_bare(cursor, "retry") || is_keyword_then_ident(cursor, "retry") {
         return retry(input).map(Stmt::Retry);
     }
@@ -211,6 +214,52 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
         return Ok(it);
     }
     rust_stmt(input, cx).map(Stmt::Rust)
+}
+
+/// Parses `place =` when a `spawn TASK` follows (an assignment of a waited spawn's value to an
+/// existing variable); otherwise consumes nothing.
+fn assign_spawn(input: ParseStream) -> syn::Result<Option<Binding>> {
+    let mut cursor = input.cursor();
+    let mut place = TokenStream::new();
+    let mut after_joint = false;
+    let mut count = 0usize;
+    while let Some((tt, next)) = cursor.token_tree() {
+        count += 1;
+        if let TokenTree::Punct(p) = &tt {
+            match p.as_char() {
+                ';' => return Ok(None),
+                // A lone `=` (not `==`, `+=`, `=>`, `<=`) followed by `spawn task`.
+                '=' if !after_joint && p.spacing() == proc_macro2::Spacing::Alone => {
+                    if place.is_empty() || !is_keyword_then_ident(next, "spawn") {
+                        return Ok(None);
+                    }
+                    let Ok(expr) = syn::parse2::<syn::Expr>(place) else {
+                        return Ok(None);
+                    };
+                    // Past the place and the `=`.
+                    input.step(|c| {
+                        let mut c = *c;
+                        for _ in 0..count {
+                            if let Some((_, next)) = c.token_tree() {
+                                c = next;
+                            }
+                        }
+                        Ok(((), c))
+                    })?;
+                    return Ok(Some(Binding {
+                        target: BindTarget::Assign(expr),
+                        ty: None,
+                    }));
+                }
+                _ => {}
+            }
+        }
+        after_joint =
+            matches!(&tt, TokenTree::Punct(p) if p.spacing() == proc_macro2::Spacing::Joint);
+        place.extend([tt]);
+        cursor = next;
+    }
+    Ok(None)
 }
 
 /// `retry;` or `retry with (args);`.
@@ -248,7 +297,10 @@ fn let_spawn(input: ParseStream) -> syn::Result<Option<Binding>> {
             None
         };
         fork.parse::<Token![=]>()?;
-        Ok(Binding { pat, ty })
+        Ok(Binding {
+            target: BindTarget::Let(pat),
+            ty,
+        })
     })();
     match parsed {
         Ok(binding) if is_keyword_then_ident(fork.cursor(), "spawn") => {
