@@ -117,10 +117,32 @@ pub fn short_type_name<T: ?Sized>() -> &'static str {
     base.rsplit("::").next().unwrap_or(base)
 }
 
+/// A failure passed on as an error's source: an error whose source chain holds one becomes that
+/// failure again, type and data included, when `?` turns it into a [`Failure`] (a waiter failing
+/// because the child it waited for failed fails with the child's exception).
+#[derive(Clone, Debug)]
+pub struct PassedOn(pub Failure);
+
+impl fmt::Display for PassedOn {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Display::fmt(&self.0, f)
+    }
+}
+
+impl std::error::Error for PassedOn {}
+
 impl<E: std::error::Error + Send + Sync + 'static> From<E> for Failure {
     /// Any error fails the action with an exception named after the error's type and carrying the
-    /// error, so `?` works in action bodies.
+    /// error, so `?` works in action bodies; an error carrying a [`PassedOn`] failure in its
+    /// source chain is that failure.
     fn from(e: E) -> Failure {
+        let mut source: Option<&(dyn std::error::Error + 'static)> = Some(&e);
+        while let Some(s) = source {
+            if let Some(PassedOn(failure)) = s.downcast_ref::<PassedOn>() {
+                return failure.clone();
+            }
+            source = s.source();
+        }
         let mut f = Failure::new(short_type_name::<E>(), e.to_string());
         f.data = Some(Arc::new(e));
         f

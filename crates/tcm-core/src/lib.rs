@@ -49,7 +49,7 @@ pub use engine::{
     Blocked, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorInfo,
     MonitorSpec, NodeInfo, OnTerminate, Purpose, Spawn, Stats, WatchOutcome,
 };
-pub use failure::{Failure, FailurePolicy, FatalFailure, short_type_name};
+pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
 pub use ids::{ExternalId, NodeId, TapWhen, WatchToken, WiretapId};
 pub use tcm_trace::{Facet, NodeKind, Point, State, Termination};
 pub use time::Time;

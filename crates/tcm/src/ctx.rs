@@ -274,10 +274,9 @@ impl Ctx {
     /// type `A` (generated TDL goals and commands are, with the tuple of their arguments);
     /// otherwise [`Error::ArgsType`], and nothing is retried.
     pub fn retry_with<A: Any + Send + Sync>(&self, args: A) -> Result<NodeId, Error> {
-        if let Some(old) = self.failing_node().and_then(|f| {
-            lock(&self.shared)
-                .ok()
-                .and_then(|i| i.args.get(&f).cloned())
+        if let Some(old) = lock(&self.shared).ok().and_then(|i| {
+            let failed = i.engine.failed_task(self.node)?;
+            i.args.get(&failed).cloned()
         }) {
             if !old.is::<A>() {
                 return Err(Error::ArgsType(std::any::type_name::<A>()));
@@ -295,9 +294,13 @@ impl Ctx {
         // A fresh run of the same task: an instance of the same task, renamed or not, with the
         // failed run's arguments unless new ones are given. Kept before this access ends, which
         // starts the new node.
-        let failing = self.failing_node();
+        let failing = inner.engine.failed_task(self.node);
         let name = failing.and_then(|f| inner.task_names.get(&f).cloned());
         let args = args.or_else(|| failing.and_then(|f| inner.args.get(&f).cloned()));
+        // A waited task's value is the last successful run's: keep the retry's too.
+        if failing.is_some_and(|f| inner.values.contains_key(&f)) {
+            inner.values.insert(id, None);
+        }
         inner.keep(
             id,
             Kept {
@@ -335,8 +338,9 @@ impl Ctx {
     /// In a handler: the failed node's arguments, if its task keeps arguments of type `A`; to
     /// change them and [`Ctx::retry_with`] the result.
     pub fn failing_args<A: Any + Send + Sync>(&self) -> Option<Arc<A>> {
-        let failing = self.failing_node()?;
-        let args = lock(&self.shared).ok()?.args.get(&failing).cloned()?;
+        let inner = lock(&self.shared).ok()?;
+        let failed = inner.engine.failed_task(self.node)?;
+        let args = inner.args.get(&failed).cloned()?;
         args.downcast::<A>().ok()
     }
 
@@ -504,16 +508,30 @@ impl Spawner<'_> {
             let now = ctx.shared.now();
             let id = inner.spawn(now, self.spec, self.kept)?;
             inner.values.insert(id, None);
+            // Its failure is this body's: the body fails with it (`Error::ChildFailed`).
+            inner.engine.propagate(id)?;
             id
         };
         let outcome = ctx.wait(id).await?;
-        let value: Option<Value> = lock(&ctx.shared)?.values.remove(&id).flatten();
+        let value: Option<Value> = {
+            let mut inner = lock(&ctx.shared)?;
+            let first = inner.values.remove(&id).flatten();
+            match &outcome {
+                // A retry succeeded: its value is the task's.
+                WatchOutcome::Recovered { by, .. } => inner.values.remove(by).flatten(),
+                _ => first,
+            }
+        };
         match outcome {
-            WatchOutcome::Reached => match value.map(|v| v.downcast::<T>()) {
-                Some(Ok(v)) => Ok(*v),
-                _ => Err(Error::NoValue(std::any::type_name::<T>())),
-            },
-            WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => Err(Error::ChildFailed(f)),
+            WatchOutcome::Reached | WatchOutcome::Recovered { .. } => {
+                match value.map(|v| v.downcast::<T>()) {
+                    Some(Ok(v)) => Ok(*v),
+                    _ => Err(Error::NoValue(std::any::type_name::<T>())),
+                }
+            }
+            WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => {
+                Err(Error::ChildFailed(tcm_core::PassedOn(f)))
+            }
             WatchOutcome::Terminated | WatchOutcome::Dead => Err(Error::ChildTerminated),
         }
     }

@@ -44,7 +44,7 @@ pub use tcm_core::{
     FatalFailure, MonitorInfo, NodeId, NodeInfo, NodeKind, NodeRef, Point, State, Stats,
     Termination, Time, WatchOutcome,
 };
-pub use tcm_core::{EachActivation, TapWhen, Then, When, WiretapId};
+pub use tcm_core::{EachActivation, PassedOn, TapWhen, Then, When, WiretapId};
 pub use tcm_trace::{TraceEvent, TraceKind};
 
 /// Errors of the runtime API. Inside an action, `?` turns them into a failure of the node.
@@ -60,9 +60,11 @@ pub enum Error {
     /// A panic inside the engine poisoned the runtime; the run cannot go on.
     #[error("the runtime was poisoned by a panic inside the engine")]
     Poisoned,
-    /// The awaited child failed.
+    /// The awaited child failed, with this failure (finally: after its handlers and retries).
+    /// Turned into a [`Failure`] by `?` in a body, it is the child's failure itself, so handlers
+    /// of the child's exception type take the waiter's failure.
     #[error("the awaited child failed: {0}")]
-    ChildFailed(Failure),
+    ChildFailed(#[source] tcm_core::PassedOn),
     /// The awaited child was terminated (or never spawned).
     #[error("the awaited child was terminated before it completed")]
     ChildTerminated,

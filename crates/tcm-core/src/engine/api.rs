@@ -56,6 +56,14 @@ pub enum WatchOutcome {
     Failed(Failure),
     /// Its action failed with this failure and a handler took it; the handler's subtree is done.
     Handled(Failure),
+    /// Its action failed with this failure, and a retry of it, `by` (the last of a chain of
+    /// retries), succeeded: the node's outcome is `by`'s, its value `by`'s value.
+    Recovered {
+        /// The first run's failure.
+        failure: Failure,
+        /// The retry that succeeded.
+        by: NodeId,
+    },
     /// It was terminated (the point was passed without the work being done).
     Terminated,
     /// It was a reservation that was never spawned.

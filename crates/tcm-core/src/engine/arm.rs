@@ -685,7 +685,12 @@ impl<A, F: Clone> Engine<A, F> {
             let outcome = if terminating {
                 WatchOutcome::Terminated
             } else if let Some(f) = n.failure() {
-                if n.handled() {
+                if let Some(by) = n.recovered_by() {
+                    WatchOutcome::Recovered {
+                        failure: f.clone(),
+                        by,
+                    }
+                } else if n.handled() {
                     WatchOutcome::Handled(f.clone())
                 } else {
                     WatchOutcome::Failed(f.clone())

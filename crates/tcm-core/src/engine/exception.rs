@@ -99,6 +99,13 @@ impl<A, F: Clone> Engine<A, F> {
 
     /// The handler node `node` asks for a fresh run of the task that failed (step 6). Returns the
     /// new node. The failing task must have been spawned with a retry factory (`Spawn::retry`).
+    ///
+    /// The task that failed is the failing node, or, when that is a handler that re-raised, the
+    /// task that handler handled (and so on down a chain of re-raising handlers): a handler of a
+    /// re-raised exception that says `retry` runs the original task again. The new run is the same
+    /// task again: it shares the first run's handlers (their use counts included), keeps its own
+    /// constraints (`expand first`, `delay expansion`), persistence and task name, and takes over
+    /// its on-terminate tasks.
     pub fn retry(&mut self, now: Time, node: NodeId) -> Result<NodeId, EngineError> {
         self.advance(now);
         let n = self.live(node)?;
@@ -106,12 +113,15 @@ impl<A, F: Clone> Engine<A, F> {
         let Some(ctx) = n.handler_ctx() else {
             return Err(EngineError::NotAHandler(display));
         };
-        let failing = ctx.failing;
+        let failing = self.retried_task(ctx.failing);
         let f = self.live(failing)?;
         let Some(factory) = f.retry().cloned() else {
             return Err(EngineError::NotRetryable(f.display));
         };
-        let (kind, name, of_display) = (f.kind, f.name.clone(), f.display);
+        let (kind, name, of_display, persistent) =
+            (f.kind, f.name.clone(), f.display, f.persistent);
+        let propagate = f.propagates();
+        let origin = f.retry_of().unwrap_or(failing);
         let id = self.insert(
             node,
             kind,
@@ -119,9 +129,25 @@ impl<A, F: Clone> Engine<A, F> {
             Payload::Invoke(factory.clone(), Box::new(Purpose::Retry { of: failing })),
         );
         let task = self.node(failing).renamed_task().cloned();
-        let cold = self.node_mut(id).cold_mut();
+        // Labelled on-terminate tasks stay: their reservations belong to the first run.
+        let c = self.node_mut(failing).cold_mut();
+        let (labelled, on_terminate): (Vec<_>, Vec<_>) = std::mem::take(&mut c.on_terminate)
+            .into_iter()
+            .partition(|ot| ot.fulfils.is_some());
+        c.on_terminate = labelled;
+        let constraints = c.retry_constraints.clone();
+        let new = self.node_mut(id);
+        new.persistent = persistent;
+        let cold = new.cold_mut();
         cold.retry = Some(factory);
         cold.task = task;
+        cold.retry_of = Some(origin);
+        cold.propagate = propagate;
+        cold.on_terminate = on_terminate;
+        cold.retry_constraints = constraints.clone();
+        for c in constraints {
+            self.apply(id, node, None, c);
+        }
         let new_display = self.node(id).display;
         emit!(
             self,
@@ -133,6 +159,41 @@ impl<A, F: Clone> Engine<A, F> {
         self.work.push_back(Work::Progress(id));
         self.settle();
         Ok(id)
+    }
+
+    /// Makes `node`'s own failure, when no handler on it takes it, its parent's business: the
+    /// search ends at `node` (no handler above it is tried, nothing is reported unhandled). For
+    /// a child whose parent's action waits for its value (the shell's waited spawn), which then
+    /// fails with that failure. A retry of `node` inherits it.
+    pub fn propagate(&mut self, node: NodeId) -> Result<(), EngineError> {
+        self.live(node)?;
+        self.node_mut(node).cold_mut().propagate = true;
+        Ok(())
+    }
+
+    /// For a handler node: the task a `retry` from it runs again (the failed node, or the task a
+    /// re-raising handler handled). `None` for another node.
+    pub fn failed_task(&self, handler: NodeId) -> Option<NodeId> {
+        let failing = self.nodes.get(handler)?.handler_ctx()?.failing;
+        Some(self.retried_task(failing))
+    }
+
+    /// The task a retry asked for with `failing` as the failed node runs again: `failing`, or the
+    /// task a re-raising handler handled.
+    fn retried_task(&self, mut failing: NodeId) -> NodeId {
+        while let Some(h) = self.nodes.get(failing).and_then(|n| n.handler_ctx()) {
+            failing = h.failing;
+        }
+        failing
+    }
+
+    /// The node whose handler entries the search uses at `at`: the first run of a retried task.
+    fn handler_owner(&self, at: NodeId) -> NodeId {
+        self.nodes
+            .get(at)
+            .and_then(|n| n.retry_of())
+            .filter(|o| self.nodes.get(*o).is_some())
+            .unwrap_or(at)
     }
 
     /// Step 1: `node`'s action failed.
@@ -209,19 +270,44 @@ impl<A, F: Clone> Engine<A, F> {
         under: NodeId,
     ) {
         let mut cur = from;
+        // Handler lists already searched through a retry of their task (a retry shares the first
+        // run's handlers; the first run, further up, is not searched twice).
+        let mut searched: Vec<NodeId> = Vec::new();
         while let Some(at) = cur {
             let Some(n) = self.nodes.get(at) else { break };
             if n.kind == NodeKind::Root {
                 break;
             }
-            let found = n.all_handlers().enumerate().skip(index).find(|(_, h)| {
-                failure.is_a(&h.spec.exception) && h.spec.max_activations.is_none_or(|m| h.uses < m)
-            });
-            if let Some((i, _)) = found {
-                self.use_handler(failing, failure, at, i, under);
+            let parent = n.parent;
+            let owner = self.handler_owner(at);
+            if !searched.contains(&owner) {
+                if owner != at {
+                    searched.push(owner);
+                }
+                let found = self
+                    .node(owner)
+                    .all_handlers()
+                    .enumerate()
+                    .skip(index)
+                    .find(|(_, h)| {
+                        failure.is_a(&h.spec.exception)
+                            && h.spec.max_activations.is_none_or(|m| h.uses < m)
+                    });
+                if let Some((i, _)) = found {
+                    self.use_handler(failing, failure, at, i, under);
+                    return;
+                }
+            }
+            // A task whose failure its parent takes (a waited value: the waiting body fails with
+            // it, as a function call's exception reaches its caller): the search ends here, and
+            // the task's outcome is this failure (its retry's, when a retry failed).
+            if self.node(at).propagates() && (at == failing || self.handler_owner(failing) == at) {
+                if at != failing {
+                    self.node_mut(at).cold_mut().failure = Some(failure);
+                }
                 return;
             }
-            cur = n.parent;
+            cur = parent;
             index = 0;
         }
         let display = self.node(failing).display;
@@ -254,7 +340,8 @@ impl<A, F: Clone> Engine<A, F> {
         index: usize,
         under: NodeId,
     ) {
-        let Some(entry) = self.node_mut(attached).handler_entry_mut(index) else {
+        let owner = self.handler_owner(attached);
+        let Some(entry) = self.node_mut(owner).handler_entry_mut(index) else {
             return;
         };
         entry.uses += 1;

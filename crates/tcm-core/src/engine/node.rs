@@ -274,6 +274,17 @@ pub(crate) struct Cold<A, F> {
     // Handlers attached from outside to this node's task (`Engine::handler_for`), tried after
     // `handlers`, with their own use counts.
     pub(crate) class_handlers: Vec<HandlerEntry<F>>,
+    // For a retry: the first run of the task, whose handlers (own and attached, with their use
+    // counts) the retry shares (docs/semantics.md, "Exceptions and handlers", rule 7).
+    pub(crate) retry_of: Option<NodeId>,
+    // For a failed node: the retry of it (the last of a chain of retries) that succeeded; its
+    // outcome is then that retry's.
+    pub(crate) recovered_by: Option<NodeId>,
+    // Constraints on the node itself that a retry keeps (`expand first`, `delay expansion`).
+    pub(crate) retry_constraints: Vec<crate::constraint::Constraint>,
+    // Its own failure, when no handler on it takes it, is passed to its parent instead of being
+    // searched for further up (`Engine::propagate`).
+    pub(crate) propagate: bool,
 }
 
 impl<A, F> Default for Cold<A, F> {
@@ -295,6 +306,10 @@ impl<A, F> Default for Cold<A, F> {
             deferred_groups: Vec::new(),
             task: None,
             class_handlers: Vec::new(),
+            retry_of: None,
+            recovered_by: None,
+            retry_constraints: Vec::new(),
+            propagate: false,
         }
     }
 }
@@ -437,6 +452,21 @@ impl<A, F> Node<A, F> {
 
     pub(crate) fn failure(&self) -> Option<&Failure> {
         self.cold.as_ref().and_then(|c| c.failure.as_ref())
+    }
+
+    /// The first run of the task this node is a retry of, if it is one.
+    pub(crate) fn retry_of(&self) -> Option<NodeId> {
+        self.cold.as_ref().and_then(|c| c.retry_of)
+    }
+
+    /// The retry whose success recovered this failed node.
+    pub(crate) fn recovered_by(&self) -> Option<NodeId> {
+        self.cold.as_ref().and_then(|c| c.recovered_by)
+    }
+
+    /// Its own failure goes to its parent when no handler on it takes it.
+    pub(crate) fn propagates(&self) -> bool {
+        self.cold.as_ref().is_some_and(|c| c.propagate)
     }
 
     pub(crate) fn handled(&self) -> bool {

@@ -230,6 +230,7 @@ impl<A, F: Clone> Engine<A, F> {
                 && e >= State::Enabled
                 && !n.stopping
             {
+                self.note_recovery(id);
                 self.transition(id, Facet::Execution, State::Completed);
                 self.bury_labels(id);
                 if let Some(p) = self.node(id).parent {
@@ -386,6 +387,19 @@ impl<A, F: Clone> Engine<A, F> {
                 });
             }
             None => self.monitor_started(id),
+        }
+    }
+
+    /// A retry whose execution completes without failing recovers the first run of its task,
+    /// whose outcome becomes this run's (docs/semantics.md, "Outcomes").
+    fn note_recovery(&mut self, id: NodeId) {
+        let n = self.node(id);
+        let Some(origin) = n.retry_of() else { return };
+        if !n.alive() || n.failure().is_some() {
+            return;
+        }
+        if let Some(o) = self.nodes.get_mut(origin) {
+            o.cold_mut().recovered_by = Some(id);
         }
     }
 

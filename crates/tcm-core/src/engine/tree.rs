@@ -133,7 +133,14 @@ impl<A, F: Clone> Engine<A, F> {
                     .collect();
             }
             if retry.is_some() {
-                node.cold_mut().retry = retry;
+                let cold = node.cold_mut();
+                cold.retry = retry;
+                // A retry is the same task again: it keeps the constraints on the node itself.
+                cold.retry_constraints = constraints
+                    .iter()
+                    .filter(|c| matches!(c, Constraint::ExpandFirst | Constraint::DelayExpansion))
+                    .copied()
+                    .collect();
             }
             if !class_handlers.is_empty() {
                 node.cold_mut().class_handlers = class_handlers;

@@ -12,6 +12,7 @@ mod monitor_limits;
 mod monitors;
 mod node_refs;
 mod on_terminate;
+mod outcomes;
 mod paper;
 mod porting;
 mod refs;
