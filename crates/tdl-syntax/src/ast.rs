@@ -504,6 +504,11 @@ pub enum When {
     Event(Event),
     /// `in REL after EVENT` (`for REL after EVENT`): a delay from the event.
     After(RelTime, Event),
+    /// `at external NAME` (`until external NAME`): when the named external event is raised by
+    /// the program (`Runtime::events`, `Session::raise`, `Ctx::raise`). `disable` and `terminate`
+    /// are latched (a raise before the constraint counts); `activate` fires on every raise after
+    /// it (docs/semantics.md, "Events").
+    External(ExternalName),
 }
 
 impl When {
@@ -511,9 +516,20 @@ impl When {
     pub fn event(&self) -> Option<&Event> {
         match self {
             When::Event(event) | When::After(_, event) => Some(event),
-            When::Now | When::At(_) | When::In(_) => None,
+            When::Now | When::At(_) | When::In(_) | When::External(_) => None,
         }
     }
+}
+
+/// The name of an external event in `external NAME`, bound to the run's event id when the
+/// constraint is applied.
+#[derive(Clone, Debug)]
+pub enum ExternalName {
+    /// `external "name"`: a string literal.
+    Lit(syn::LitStr),
+    /// `external (expr)`: a Rust expression giving the name (anything that is `AsRef<str>`),
+    /// evaluated when the constraint is applied.
+    Expr(syn::Expr),
 }
 
 /// What a [`ConstraintKind::Trigger`] does when it fires.

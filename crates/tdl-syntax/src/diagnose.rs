@@ -15,8 +15,8 @@ use proc_macro2::{Ident, Span};
 use quote::ToTokens;
 
 use crate::ast::{
-    Ast, Constraint, ConstraintKind, ConstraintStmt, Fail, Item, Spawn, Tag, TagIndex, TagKind,
-    Task, TaskConstraintKind, TaskKind, Then, When,
+    Ast, Constraint, ConstraintKind, ConstraintStmt, ExternalName, Fail, Item, Spawn, Tag,
+    TagIndex, TagKind, Task, TaskConstraintKind, TaskKind, Then, When,
 };
 use crate::diagnostic::Diagnostic;
 use crate::resolve::{
@@ -537,6 +537,13 @@ impl<'a> Body<'_, 'a> {
 
     fn constraint(&self, constraint: &Constraint, site: Site<'a>, diags: &mut Vec<Diagnostic>) {
         let span = constraint.span;
+        if let ConstraintKind::Trigger {
+            when: When::External(ExternalName::Lit(name)),
+            ..
+        } = &constraint.kind
+        {
+            external_name(name, diags);
+        }
         match (&constraint.kind, refers(&constraint.kind)) {
             // The constrained node waits for the tag: `sequential`, `serial`, `disable until`.
             (_, Some(Refers::WaitsOn(tag)))
@@ -837,6 +844,17 @@ impl<'a> Body<'_, 'a> {
                 );
             }
         }
+    }
+}
+
+/// Reports an empty external event name: no program raises `""` on purpose, and it would be one
+/// event shared by every such constraint.
+fn external_name(name: &syn::LitStr, diags: &mut Vec<Diagnostic>) {
+    if name.value().is_empty() {
+        diags.push(
+            Diagnostic::error(name.span(), "the name of an external event is empty")
+                .with_hint("write the name the program raises, as in `terminate at external \"goal_updated\"` with `session.raise(\"goal_updated\")`"),
+        );
     }
 }
 

@@ -9,9 +9,9 @@ use std::fmt::Write as _;
 use quote::ToTokens;
 
 use crate::ast::{
-    Ast, Block, Constraint, ConstraintKind, Count, Else, Event, HandlerRef, If, Item, Match,
-    OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind, Then,
-    TimeOfDay, When,
+    Ast, Block, Constraint, ConstraintKind, Count, Else, Event, ExternalName, HandlerRef, If, Item,
+    Match, OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind,
+    Then, TimeOfDay, When,
 };
 use crate::time::format_nanos;
 
@@ -340,7 +340,7 @@ fn event(it: &Event) -> String {
 }
 
 /// A trigger in canonical spelling: `disable [facet] until|for …`, `terminate [at|in …]`,
-/// `activate [at|in …]`.
+/// `activate [at|in …]`, with `external "name"` after `until`/`at` for an external event.
 fn trigger(when: &When, then: Then) -> String {
     let (head, at, within) = match then {
         Then::Enable(facet) => {
@@ -358,6 +358,15 @@ fn trigger(when: &When, then: Then) -> String {
         When::Event(it) => format!("{head} {at} {}", event(it)),
         When::In(delay) => format!("{head} {within} {}", rel(delay)),
         When::After(delay, it) => format!("{head} {within} {} after {}", rel(delay), event(it)),
+        When::External(name) => format!("{head} {at} external {}", external(name)),
+    }
+}
+
+fn external(it: &ExternalName) -> String {
+    match it {
+        // The literal's value, escaped as Rust would write it.
+        ExternalName::Lit(lit) => format!("{:?}", lit.value()),
+        ExternalName::Expr(expr) => format!("({})", tokens(expr)),
     }
 }
 

@@ -28,6 +28,7 @@ const VOCABULARY: &[&str] = &[
     "exception",
     "execution",
     "expand",
+    "external",
     "expansion",
     "first",
     "for",

@@ -29,8 +29,8 @@ use quote::{ToTokens, format_ident};
 
 use crate::ast::{
     Ast, Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Count, Else, Event,
-    ExceptionDecl, Fail, If, Item, OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex, TagKind, Task,
-    TaskKind, When, WithGroup,
+    ExceptionDecl, ExternalName, Fail, If, Item, OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex,
+    TagKind, Task, TaskKind, When, WithGroup,
 };
 
 /// A spawn of a body, numbered in source order.
@@ -886,8 +886,8 @@ pub(crate) fn node_macro(tts: &[TokenTree]) -> Option<(TokenStream, Span)> {
     }
 }
 
-/// The Rust expressions of a constraint (a name, a parent, counts, times in seconds, handler and
-/// on-terminate arguments), as one token stream to search for `node!(tag)`.
+/// The Rust expressions of a constraint (a name, a parent, counts, times in seconds, an external
+/// event's name, handler and on-terminate arguments), as one token stream to search for `node!(tag)`.
 fn constraint_code(kind: &ConstraintKind) -> TokenStream {
     let mut out = TokenStream::new();
     let count = |it: &Count, out: &mut TokenStream| {
@@ -927,6 +927,10 @@ fn constraint_code(kind: &ConstraintKind) -> TokenStream {
             when: When::In(t) | When::After(t, _),
             ..
         } => seconds(t, &mut out),
+        ConstraintKind::Trigger {
+            when: When::External(ExternalName::Expr(expr)),
+            ..
+        } => expr.to_tokens(&mut out),
         _ => {}
     }
     out

@@ -3,8 +3,8 @@
 //!
 //! Every timed or event-driven constraint (`disable … until|for`, `terminate …`, `activate …`)
 //! is one AST trigger (`ConstraintKind::Trigger { when, then }`) and goes through one function,
-//! [`trigger`], to `::tdl::Constraint::Trigger(when, then)`. External events (`When::External`)
-//! have no TDL syntax yet, so they are never generated.
+//! [`trigger`], to `::tdl::Constraint::Trigger(when, then)`. An external event (`at external
+//! "name"`) is bound to the run's event id where the constraint is applied, by `ctx.external`.
 //!
 //! A tag may denote an *entity* whose members are only known at run time (`previous`, a `with`
 //! group, an iteration set, a tag bound by a statement): [`Nodes::Entity`]. A constraint on it is
@@ -18,7 +18,7 @@ use quote::{format_ident, quote};
 
 use super::body::Gen;
 use crate::ast::{
-    Constraint, ConstraintKind, Event, Facet, Point, RelTime, Tag, TagIndex, TagKind,
+    Constraint, ConstraintKind, Event, ExternalName, Facet, Point, RelTime, Tag, TagIndex, TagKind,
 };
 use crate::ast::{Then, TimeOfDay, When};
 use crate::resolve::{Def, Index, LoopId, Named, Resolution, SpawnId};
@@ -130,9 +130,26 @@ pub(super) fn trigger(when: &When, then: Then, node: &TokenStream) -> TokenStrea
             let ev = event(ev, node);
             quote!(::tdl::When::After(#delay, #ev))
         }
+        When::External(name) => {
+            let id = external_id(name);
+            quote!(::tdl::When::External(#id))
+        }
     };
     let then = then_expr(then);
     quote!(::tdl::Constraint::Trigger(#when, #then))
+}
+
+/// The run's `tdl::ExternalId` of an external event's name. The name is bound when the
+/// constraint is applied, so `external (expr)` may compute it from the task's arguments.
+fn external_id(name: &ExternalName) -> TokenStream {
+    match name {
+        ExternalName::Lit(lit) => quote!(ctx.external(#lit)?),
+        // Borrowed, so an argument naming the event is not moved; the parentheses keep `&` off
+        // a binary expression's first operand.
+        ExternalName::Expr(expr) => {
+            quote!(ctx.external(::core::convert::AsRef::<str>::as_ref(&(#expr)))?)
+        }
+    }
 }
 
 /// A `tdl::Then` expression.
@@ -378,7 +395,7 @@ impl Gen<'_, '_> {
         let (delay, event) = match when {
             When::Event(ev) => (None, Some(ev)),
             When::After(d, ev) => (Some(d), Some(ev)),
-            When::Now | When::At(_) | When::In(_) => (None, None),
+            When::Now | When::At(_) | When::In(_) | When::External(_) => (None, None),
         };
         if let (Nodes::Entity(members), Some(ev), Then::Terminate | Then::Activate) =
             (&nodes, event, then)

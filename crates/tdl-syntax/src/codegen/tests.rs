@@ -298,6 +298,43 @@ fn every_trigger_lowers_to_one_when_and_then() {
 }
 
 #[test]
+fn external_events_are_bound_by_name_where_the_constraint_is_applied() {
+    // The id comes from `ctx.external` at the spawn or the statement, not at compile time, so
+    // one program serves any run; a computed name is borrowed, not moved.
+    let out = expand(
+        "monitor m() { trigger; }
+         goal g(topic: String) {
+             a: spawn work() with terminate at external \"stop\";
+             spawn work() with disable execution until external (topic);
+             w: spawn m() with activate at external \"tick\";
+             a disable until external \"go\";
+         }",
+    );
+    let external = |name: &str, then: &str| {
+        format!(
+            "::tdl::Constraint::Trigger(::tdl::When::External(ctx.external({name})?), ::tdl::Then::{then})"
+        )
+    };
+    for line in [
+        format!(".with({})", external("\"stop\"", "Terminate")),
+        format!(
+            ".with({})",
+            external(
+                "::core::convert::AsRef::<str>::as_ref(&(topic))",
+                "Enable(::tdl::Facet::Execution)"
+            )
+        ),
+        format!(".with({})", external("\"tick\"", "Activate")),
+        format!(
+            "ctx.constrain(tdl_a, {})?;",
+            external("\"go\"", "Enable(::tdl::Facet::Handling)")
+        ),
+    ] {
+        assert!(has(&out, &line), "missing {line:?} in:\n{out}");
+    }
+}
+
+#[test]
 fn triggers_on_a_group_or_loop_tag_apply_to_the_whole_entity() {
     // Enablement once per member; `terminate at` the group once every member got there, armed
     // when the node exists.

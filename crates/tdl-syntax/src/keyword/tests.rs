@@ -23,6 +23,10 @@ fn splits_joined_keywords() {
         split("executioncompleted"),
         Some(vec!["execution", "completed"])
     );
+    assert_eq!(
+        split("terminateatexternal"),
+        Some(vec!["terminate", "at", "external"])
+    );
     assert_eq!(split("monitorpickup"), None);
     assert_eq!(split("waiter"), None);
 }

@@ -5,17 +5,17 @@
 //! everywhere. Which constraint is allowed where is mostly decided later, in `diagnose.rs`; only the
 //! task-level list is narrowed here because it has its own AST type.
 
-use proc_macro2::{Delimiter, Ident, TokenTree};
+use proc_macro2::{Delimiter, Ident, Span, TokenTree};
 use syn::ext::IdentExt;
 use syn::punctuated::Punctuated;
 use syn::{Token, Type};
 
 use super::{Cx, parse_group, parse_group_as, take_group};
 use crate::ast::{
-    Constraint, ConstraintKind, Count, Event, Facet, HandlerRef, OnTerminate, Persistent, Point,
-    Tag, TagIndex, TagKind, TaskConstraint, TaskConstraintKind, Then, When,
+    Constraint, ConstraintKind, Count, Event, ExternalName, Facet, HandlerRef, OnTerminate,
+    Persistent, Point, Tag, TagIndex, TagKind, TaskConstraint, TaskConstraintKind, Then, When,
 };
-use crate::keyword::{expect_phrase, peek_phrase, peek_words, take_words};
+use crate::keyword::{Word, expect_phrase, peek_phrase, peek_words, take_words};
 use crate::time::{TIME_HINT, parse_rel_time, parse_time_of_day, peek_time_of_day};
 use syn::parse::ParseStream;
 
@@ -23,6 +23,12 @@ use syn::parse::ParseStream;
 pub(crate) const CONSTRAINT_HINT: &str = "constraints are comma separated, e.g. \
      `sequential execution previous`, `serial t1`, `wait`, `terminate in 30s`, \
      `disable until t1 execution completed`, `terminate at monitor_pickup completed`";
+
+/// Hint attached to errors in an external event.
+pub(crate) const EXTERNAL_HINT: &str = "an external event is named by the string the program \
+     raises (`session.raise(\"go\")`): `disable until external \"go\"`, \
+     `terminate at external \"stop\"`, `activate at external \"tick\"` (monitors), or \
+     `external (expr)` with the name from Rust; no delay is counted from an external event";
 
 fn facet_of(word: Option<&str>) -> Option<Facet> {
     match word? {
@@ -62,7 +68,9 @@ pub(crate) fn parse_constraint_list(
 pub(crate) fn parse_constraint(input: ParseStream, cx: &mut Cx) -> syn::Result<Constraint> {
     parse_constraint_inner(input, cx).inspect_err(|err| {
         let text = err.to_string();
-        cx.hint = Some(if text.contains("time") || text.contains("H:M:S") {
+        cx.hint = Some(if text.contains("external") {
+            EXTERNAL_HINT
+        } else if text.contains("time") || text.contains("H:M:S") {
             TIME_HINT
         } else {
             CONSTRAINT_HINT
@@ -108,8 +116,8 @@ fn parse_constraint_inner(input: ParseStream, cx: &mut Cx) -> syn::Result<Constr
             take_words(input, 1)?;
             ConstraintKind::Wait
         }
-        Some("disable") => disable(input, cx, at(1), at(2))?,
-        Some(word @ ("terminate" | "activate")) => timed(input, cx, word == "activate", at(1))?,
+        Some("disable") => disable(input, cx)?,
+        Some(word @ ("terminate" | "activate")) => timed(input, cx, word == "activate")?,
         Some("maximum") => match at(1) {
             Some("activate") => {
                 take_words(input, 2)?;
@@ -168,20 +176,25 @@ fn parse_constraint_inner(input: ParseStream, cx: &mut Cx) -> syn::Result<Constr
     Ok(Constraint { kind, span })
 }
 
-/// `terminate`/`activate`, optionally followed by `at WHEN` or `in REL [after EVENT]`.
-fn timed(
-    input: ParseStream,
-    cx: &mut Cx,
-    activate: bool,
-    second: Option<&'static str>,
-) -> syn::Result<ConstraintKind> {
+/// `terminate`/`activate`, optionally followed by `at WHEN`, `at external NAME` or
+/// `in REL [after EVENT]`.
+fn timed(input: ParseStream, cx: &mut Cx, activate: bool) -> syn::Result<ConstraintKind> {
     let then = if activate {
         Then::Activate
     } else {
         Then::Terminate
     };
-    let when = match second {
-        Some(word @ ("at" | "in")) => {
+    // Enough identifiers for `terminate at external`, or a tag's facet and point after `at`.
+    let words = peek_words(input.cursor(), 5);
+    let second = words.get(1).and_then(|it| it.text);
+    let external = external_at(&words, 2).filter(|_| second == Some("at"));
+    let when = match (second, external) {
+        (_, Some(keyword)) => {
+            // The keywords may be joined (`terminate_at_external`): taken all at once.
+            take_words(input, 3)?;
+            When::External(parse_external_name(input, keyword)?)
+        }
+        (Some(word @ ("at" | "in")), None) => {
             take_words(input, 2)?;
             parse_when(input, cx, word == "in")?
         }
@@ -193,20 +206,14 @@ fn timed(
     Ok(ConstraintKind::Trigger { when, then })
 }
 
-/// `disable [facet]` followed by `until WHEN` or `for REL [after EVENT]`.
-fn disable(
-    input: ParseStream,
-    cx: &mut Cx,
-    second: Option<&'static str>,
-    third: Option<&'static str>,
-) -> syn::Result<ConstraintKind> {
+/// `disable [facet]` followed by `until WHEN`, `until external NAME` or `for REL [after EVENT]`.
+fn disable(input: ParseStream, cx: &mut Cx) -> syn::Result<ConstraintKind> {
     let span = input.span();
-    let (facet, next) = match facet_of(second) {
-        Some(facet) => (Some(facet), third),
-        None => (None, second),
-    };
+    let words = peek_words(input.cursor(), 6);
+    let at = |i: usize| words.get(i).and_then(|it| it.text);
+    let facet = facet_of(at(1));
     let n_words = if facet.is_some() { 3 } else { 2 };
-    let relative = match next {
+    let relative = match at(n_words - 1) {
         Some("until") => false,
         Some("for") => true,
         _ => {
@@ -216,20 +223,94 @@ fn disable(
             ));
         }
     };
-    take_words(input, n_words)?;
+    let external = external_at(&words, n_words).filter(|_| !relative);
+    let when = if let Some(keyword) = external {
+        take_words(input, n_words + 1)?;
+        When::External(parse_external_name(input, keyword)?)
+    } else {
+        take_words(input, n_words)?;
+        parse_when(input, cx, relative)?
+    };
     Ok(ConstraintKind::Trigger {
-        when: parse_when(input, cx, relative)?,
+        when,
         then: Then::Enable(facet),
     })
 }
 
+/// The span of word `i` when it is the keyword `external`, not the tag of a task named `external`
+/// (which a facet or a point follows: `external completed`).
+fn external_at(words: &[Word], i: usize) -> Option<Span> {
+    let word = words.get(i)?;
+    let next = words.get(i + 1).and_then(|it| it.text);
+    let tag = facet_of(next).is_some() || point_of(next).is_some();
+    (word.text == Some("external") && !tag).then_some(word.span)
+}
+
+/// Parses the name after `external` (whose span is `keyword`): `"name"` or `(expr)`.
+///
+/// A delay written around an external event is refused here with its own message, since the
+/// runtime counts delays only from node events.
+fn parse_external_name(input: ParseStream, keyword: Span) -> syn::Result<ExternalName> {
+    let name = if input.peek(syn::LitStr) {
+        ExternalName::Lit(input.parse()?)
+    } else if input.peek(syn::token::Paren) {
+        let group = take_group(input, Delimiter::Parenthesis, "`(`")?;
+        ExternalName::Expr(parse_group_as(group)?)
+    } else if let Some((ident, _)) = input.cursor().ident() {
+        return Err(syn::Error::new(
+            ident.span(),
+            format!("the name of an external event is a string: write `external \"{ident}\"`"),
+        ));
+    } else if let Some((lit, _)) = input.cursor().literal() {
+        return Err(syn::Error::new(
+            lit.span(),
+            format!("expected the external event's name as a string, found `{lit}`"),
+        ));
+    } else {
+        return Err(syn::Error::new(
+            keyword,
+            "`external` needs the event's name as a string, as in `external \"goal_updated\"`",
+        ));
+    };
+    let words = peek_words(input.cursor(), 1);
+    if let Some(
+        word @ Word {
+            text: Some("after" | "in" | "for"),
+            ..
+        },
+    ) = words.first()
+    {
+        return Err(syn::Error::new(
+            word.span,
+            "a delay cannot follow an external event: the constraint fires when the external \
+             event is raised",
+        ));
+    }
+    Ok(name)
+}
+
 /// The "when" of a trigger after its `at`/`until` (`relative` false: an event or a time of day)
-/// or its `in`/`for` (`relative` true: a delay, optionally `after EVENT`).
+/// or its `in`/`for` (`relative` true: a delay, optionally `after EVENT`). `at external` and
+/// `until external` are parsed by the caller, which takes the joined keywords with them.
 fn parse_when(input: ParseStream, cx: &mut Cx, relative: bool) -> syn::Result<When> {
     if relative {
+        if let Some(keyword) = external_at(&peek_words(input.cursor(), 2), 0) {
+            return Err(syn::Error::new(
+                keyword,
+                "expected a delay: an external event follows `at` (`until` after `disable`), \
+                 as in `terminate at external \"stop\"`",
+            ));
+        }
         let delay = parse_rel_time(input)?;
         return Ok(if peek_phrase(input, &["after"]) {
             take_words(input, 1)?;
+            if let Some(keyword) = external_at(&peek_words(input.cursor(), 2), 0) {
+                return Err(syn::Error::new(
+                    keyword,
+                    "a delay after an external event is not supported: `in`/`for … after` \
+                     counts from a task's event",
+                ));
+            }
             When::After(delay, parse_event(input)?)
         } else {
             When::In(delay)

@@ -5,6 +5,7 @@
 mod build;
 mod entities;
 mod exceptions;
+mod external;
 mod facade;
 mod groups;
 mod loops;
