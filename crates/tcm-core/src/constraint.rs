@@ -10,7 +10,7 @@
 
 use crate::ids::{ExternalId, NodeId};
 use std::time::Duration;
-use tcm_trace::{Facet, Point};
+use tcm_trace::{Facet, Outcome, Point};
 
 use crate::time::Time;
 
@@ -44,6 +44,10 @@ pub struct Event {
     pub facet: Facet,
     /// The state it must reach.
     pub point: Point,
+    /// For an outcome event (`X succeeded`, `X failed`, `X terminated`): the execution's
+    /// completion counts only with this outcome; with another the event never happens, and an
+    /// enablement waiting for it terminates its node (docs/semantics.md, "Outcomes").
+    pub outcome: Option<Outcome>,
 }
 
 impl Event {
@@ -58,6 +62,7 @@ impl Event {
             node: node.into(),
             facet,
             point,
+            outcome: None,
         }
     }
 
@@ -67,6 +72,17 @@ impl Event {
             node: node.into(),
             facet,
             point,
+            outcome: None,
+        }
+    }
+
+    /// An outcome event: the node's execution completed with `outcome` (`X failed`).
+    pub fn ended(node: impl Into<NodeRef>, outcome: Outcome) -> Event {
+        Event {
+            node: node.into(),
+            facet: Facet::Execution,
+            point: Point::Completed,
+            outcome: Some(outcome),
         }
     }
 }

@@ -51,7 +51,7 @@ pub use engine::{
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
 pub use ids::{ExternalId, NodeId, TapWhen, WatchToken, WiretapId};
-pub use tcm_trace::{Facet, NodeKind, Point, State, Termination};
+pub use tcm_trace::{Facet, NodeKind, Outcome, Point, State, Termination};
 pub use time::Time;
 
 /// Instance and type names: static strings cost no allocation.

@@ -73,7 +73,10 @@ pub struct Checker {
 }
 
 fn ref_text(r: &TraceEventRef) -> String {
-    format!("node {} {} {}", r.node, r.facet, r.point.as_str())
+    match r.outcome {
+        Some(o) => format!("node {} {}", r.node, o.as_str()),
+        None => format!("node {} {} {}", r.node, r.facet, r.point.as_str()),
+    }
 }
 
 fn secs(t: u64) -> String {

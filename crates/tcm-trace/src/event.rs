@@ -5,11 +5,11 @@
 //! dump, the trace checker and the tests all read these records. Nodes are named by their display
 //! number (`{id}` in TCM's log): creation order, 0 for the root, never reused within a run.
 
-use crate::state::{Facet, NodeKind, Point, State};
+use crate::state::{Facet, NodeKind, Outcome, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 3;
+pub const TRACE_FORMAT_VERSION: u32 = 4;
 
 /// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
 pub const OLDEST_READABLE_VERSION: u32 = 1;
@@ -35,6 +35,10 @@ pub struct TraceEventRef {
     pub facet: Facet,
     /// The state reached.
     pub point: Point,
+    /// For an outcome event (`X failed`): the execution's completion counts only with this
+    /// outcome. Absent otherwise (and in traces before version 4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub outcome: Option<Outcome>,
 }
 
 /// A constraint as applied, with every relative reference resolved and every relative time made

@@ -55,5 +55,5 @@ pub use event::{
 };
 pub use jsonl::{JsonlReader, ReadError, read_jsonl, to_line, write_line};
 pub use replay::{MonitorInfo, ROOT_NAME, Replay, ReplayError, ReplayNode};
-pub use state::{Facet, NodeKind, Point, State, Termination};
+pub use state::{Facet, NodeKind, Outcome, Point, State, Termination};
 pub use textlog::{TextLog, TextLogOptions, tcm_state_word, time_suffix};

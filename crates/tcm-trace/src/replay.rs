@@ -7,7 +7,7 @@
 //! them and a constraint can still name them.
 
 use crate::event::{TraceConstraint, TraceEvent, TraceKind};
-use crate::state::{Facet, NodeKind, Point, State, Termination};
+use crate::state::{Facet, NodeKind, Outcome, Point, State, Termination};
 use std::collections::BTreeMap;
 
 #[cfg(test)]
@@ -112,6 +112,11 @@ pub struct ReplayNode {
     monitor: Option<MonitorInfo>,
     activation_of: Option<u64>,
     handler_for: Option<u64>,
+    // For a retry: the first run of its task (a `retried` record's `of`, or that node's own first
+    // run).
+    retry_of: Option<u64>,
+    // A retry of this failed node completed its execution without failing or being terminated.
+    recovered: bool,
 }
 
 /// What the trace says of a monitor: its parameters and counts.
@@ -168,6 +173,8 @@ impl ReplayNode {
             monitor: None,
             activation_of: None,
             handler_for: None,
+            retry_of: None,
+            recovered: false,
         }
     }
 
@@ -206,6 +213,19 @@ impl ReplayNode {
     pub fn state(&self, facet: Facet) -> State {
         self.facets[facet.index()]
     }
+    /// How the node ended, as far as the records so far tell (meaningful once its execution
+    /// completed): terminated if it was asked to terminate, failed if its action failed and no
+    /// retry of it ended well, else succeeded.
+    pub fn outcome(&self) -> Outcome {
+        if self.termination != Termination::Alive {
+            Outcome::Terminated
+        } else if self.failed && !self.recovered {
+            Outcome::Failed
+        } else {
+            Outcome::Succeeded
+        }
+    }
+
     /// Termination state.
     pub fn termination(&self) -> Termination {
         self.termination
@@ -472,8 +492,12 @@ impl Replay {
             TraceKind::HandlerChosen { node, failing, .. } => {
                 self.node_mut(*node)?.handler_for = Some(*failing);
             }
-            TraceKind::Bypassed { node, .. } | TraceKind::Retried { node, .. } => {
+            TraceKind::Bypassed { node, .. } => {
                 self.node_mut(*node)?;
+            }
+            TraceKind::Retried { node, of } => {
+                let origin = self.nodes.get(of).and_then(|o| o.retry_of).unwrap_or(*of);
+                self.node_mut(*node)?.retry_of = Some(origin);
             }
             TraceKind::Reclaimed { node } => {
                 let it = self.node_mut(*node)?;
@@ -540,6 +564,19 @@ impl Replay {
         facet: Facet,
         to: State,
     ) -> Result<(), ReplayError> {
+        // A retry that ends well recovers the first run of its task (its outcome is then
+        // `succeeded`, docs/semantics.md, "Outcomes").
+        if facet == Facet::Execution && to == State::Completed {
+            if let Some(it) = self.nodes.get(&node) {
+                if let (Some(origin), Termination::Alive, false) =
+                    (it.retry_of, it.termination, it.failed)
+                {
+                    if let Some(o) = self.nodes.get_mut(&origin) {
+                        o.recovered = true;
+                    }
+                }
+            }
+        }
         let it = self.node_mut(node)?;
         let from = it.facets[facet.index()];
         if to <= from {

@@ -76,6 +76,30 @@ impl fmt::Display for State {
     }
 }
 
+/// How a node ended, decided when its execution completes: the outcome events `X succeeded`,
+/// `X failed` and `X terminated` (docs/semantics.md, "Outcomes").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Its action succeeded, or a retry of it did.
+    Succeeded,
+    /// Its action failed and no retry of it succeeded (whether a handler took the failure or not).
+    Failed,
+    /// It was terminated.
+    Terminated,
+}
+
+impl Outcome {
+    /// The word used in TDL and in the trace.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Outcome::Succeeded => "succeeded",
+            Outcome::Failed => "failed",
+            Outcome::Terminated => "terminated",
+        }
+    }
+}
+
 /// A state that an event waits for: the point at which a facet reaches it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

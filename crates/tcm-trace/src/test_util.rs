@@ -15,7 +15,12 @@ pub(crate) use Facet::{Execution as X, Expansion as P, Handling as H};
 pub(crate) use State::{Active as A, Completed as C, Disabled as D, Enabled as E};
 
 pub(crate) fn ev_ref(node: u64, facet: Facet, point: Point) -> TraceEventRef {
-    TraceEventRef { node, facet, point }
+    TraceEventRef {
+        node,
+        facet,
+        point,
+        outcome: None,
+    }
 }
 
 impl Tb {

@@ -44,7 +44,7 @@ pub use tcm_core::{
     FatalFailure, MonitorInfo, NodeId, NodeInfo, NodeKind, NodeRef, Point, State, Stats,
     Termination, Time, WatchOutcome,
 };
-pub use tcm_core::{EachActivation, PassedOn, TapWhen, Then, When, WiretapId};
+pub use tcm_core::{EachActivation, Outcome, PassedOn, TapWhen, Then, When, WiretapId};
 pub use tcm_trace::{TraceEvent, TraceKind};
 
 /// Errors of the runtime API. Inside an action, `?` turns them into a failure of the node.

@@ -619,8 +619,14 @@ pub enum Point {
     Enabled,
     /// `active`.
     Active,
-    /// `completed`.
+    /// `completed`: the end, however it came (TDL's meaning).
     Completed,
+    /// `succeeded`: the execution completed and the action (or a retry of it) succeeded.
+    Succeeded,
+    /// `failed`: the execution completed and the action failed, no retry of it succeeding.
+    Failed,
+    /// `terminated`: the execution completed because the node was terminated.
+    Terminated,
 }
 
 impl Point {
@@ -630,7 +636,16 @@ impl Point {
             Point::Enabled => "enabled",
             Point::Active => "active",
             Point::Completed => "completed",
+            Point::Succeeded => "succeeded",
+            Point::Failed => "failed",
+            Point::Terminated => "terminated",
         }
+    }
+
+    /// True for the outcome events (`succeeded`, `failed`, `terminated`): the execution's
+    /// completion with that outcome (docs/semantics.md, "Outcomes").
+    pub fn is_outcome(self) -> bool {
+        matches!(self, Point::Succeeded | Point::Failed | Point::Terminated)
     }
 }
 

@@ -28,7 +28,7 @@ use crate::ids::{ExternalId, NodeId, WatchToken};
 use crate::time::Time;
 use std::time::Duration;
 use tcm_trace::{
-    Facet, Point, State, TraceConstraint, TraceEventRef, TraceKind, TraceThen, TraceWhen,
+    Facet, Outcome, Point, State, TraceConstraint, TraceEventRef, TraceKind, TraceThen, TraceWhen,
 };
 
 /// A named external event (or manual signal gate).
@@ -199,7 +199,7 @@ impl<A, F: Clone> Engine<A, F> {
         }
         let events = members
             .iter()
-            .map(|m| self.event_ref(*m, facet, point))
+            .map(|m| self.event_ref(*m, facet, point, None))
             .collect();
         self.constrained(target, || {
             let delay_ns = delay.map(nanos);
@@ -237,6 +237,7 @@ impl<A, F: Clone> Engine<A, F> {
                     facet,
                     point,
                     kind: WaitKind::Join { join, then },
+                    outcome: None,
                 }),
             }
         }
@@ -326,10 +327,12 @@ impl<A, F: Clone> Engine<A, F> {
                 self.effects.push_back(Effect::Notify { token, outcome });
             }
             Lookup::Live => {
+                // The shell is told how the node ended (`WatchOutcome`): no outcome filter.
                 let waiter = Waiter {
                     facet: event.facet,
                     point: event.point,
                     kind: WaitKind::Watch { token },
+                    outcome: None,
                 };
                 if self.node(node).reached(event.facet, event.point) {
                     self.fire_now(node, waiter.kind);
@@ -510,7 +513,7 @@ impl<A, F: Clone> Engine<A, F> {
                         )
                     });
                 };
-                let event = self.event_ref(watched, ev.facet, ev.point);
+                let event = self.event_ref(watched, ev.facet, ev.point, ev.outcome);
                 let passed = match self.nodes.lookup(watched) {
                     Lookup::Live => None,
                     Lookup::Gone(fate) => Some(fate),
@@ -579,12 +582,22 @@ impl<A, F: Clone> Engine<A, F> {
             return;
         }
         if w.reached(ev.facet, ev.point) {
+            if ev.outcome.is_some_and(|o| o != self.outcome_of(watched)) {
+                // It ended otherwise: the event never happens.
+                self.block(node, then);
+                return self.impossible(WaitKind::Trigger {
+                    target: node,
+                    then,
+                    delay,
+                });
+            }
             return self.fire_passed(node, then, delay);
         }
         self.block(node, then);
         self.node_mut(watched).waiters.push(Waiter {
             facet: ev.facet,
             point: ev.point,
+            outcome: ev.outcome,
             kind: WaitKind::Trigger {
                 target: node,
                 then,
@@ -704,11 +717,52 @@ impl<A, F: Clone> Engine<A, F> {
         }
     }
 
-    fn event_ref(&self, node: NodeId, facet: Facet, point: Point) -> TraceEventRef {
+    /// How `node` ended (or would, were its execution completing now): terminated if it is
+    /// terminating, failed if its action failed and no retry recovered it, else succeeded.
+    pub(super) fn outcome_of(&self, node: NodeId) -> Outcome {
+        let Some(n) = self.nodes.get(node) else {
+            return Outcome::Terminated;
+        };
+        if !n.alive() {
+            Outcome::Terminated
+        } else if n.failure().is_some() && n.recovered_by().is_none() {
+            Outcome::Failed
+        } else {
+            Outcome::Succeeded
+        }
+    }
+
+    /// A waiter whose outcome event can no longer happen (its node ended otherwise). An
+    /// enablement would wait forever: its node is terminated instead (and the block it counted is
+    /// released, so the terminated node completes without starting). A termination or an
+    /// activation simply never fires.
+    pub(super) fn impossible(&mut self, kind: WaitKind) {
+        if let WaitKind::Trigger {
+            target,
+            then: Then::Enable(facet),
+            ..
+        } = kind
+        {
+            self.work.push_back(Work::Terminate {
+                node: target,
+                explicit: false,
+            });
+            self.satisfy(target, facet);
+        }
+    }
+
+    fn event_ref(
+        &self,
+        node: NodeId,
+        facet: Facet,
+        point: Point,
+        outcome: Option<Outcome>,
+    ) -> TraceEventRef {
         TraceEventRef {
             node: self.nodes.get(node).map_or(0, |n| n.display),
             facet,
             point,
+            outcome,
         }
     }
 }

@@ -39,6 +39,8 @@ impl<A, F: Clone> Engine<A, F> {
                 node: self.node(node).display,
                 facet: event.facet,
                 point: event.point,
+                // A watch tells the shell how the node ended; it does not filter on it.
+                outcome: None,
             }),
             // Its events are long past: the callback runs at once.
             Lookup::Gone(_) => TraceWhen::Now,

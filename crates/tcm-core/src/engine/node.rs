@@ -45,6 +45,8 @@ pub(crate) struct Waiter {
     pub(crate) facet: Facet,
     pub(crate) point: Point,
     pub(crate) kind: WaitKind,
+    // An outcome event: the point counts only with this outcome.
+    pub(crate) outcome: Option<tcm_trace::Outcome>,
 }
 
 /// A link between linked (hence live) nodes: the slot index alone, `NONE` for no node.

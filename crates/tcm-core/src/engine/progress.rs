@@ -320,7 +320,10 @@ impl<A, F: Clone> Engine<A, F> {
         );
         if !fired.is_empty() {
             for w in fired {
-                self.fire_now(id, w.kind);
+                match w.outcome {
+                    Some(o) if o != self.outcome_of(id) => self.impossible(w.kind),
+                    _ => self.fire_now(id, w.kind),
+                }
             }
         }
     }

@@ -365,6 +365,29 @@ fn disable_until_event() {
     passes(&b.build());
 }
 
+/// An outcome event (`one failed`): a command that succeeded does not satisfy it, so a node
+/// waiting for it must not start; one that failed does.
+#[test]
+fn disable_until_an_outcome_event() {
+    let mut failed = ev_ref(1, X, Point::Completed);
+    failed.outcome = Some(crate::state::Outcome::Failed);
+    let c = TraceConstraint::trigger(TraceWhen::Event(failed), TraceThen::Enable(X));
+    // `one` succeeded and `two` starts anyway.
+    caught(&two_commands(Some(c.clone()), S).build(), Rule::Disable);
+    // `one` failed: `two` may start.
+    let mut b = Tb::new();
+    b.command(1, 0, "one").command(2, 0, "two").constrain(2, c);
+    b.start_command(1).at(S);
+    b.push(TraceKind::Failed {
+        node: 1,
+        exception: "Blocked".into(),
+        message: "blocked".into(),
+    });
+    b.finish_command(1);
+    b.at(S).start_command(2);
+    passes(&b.build());
+}
+
 #[test]
 fn disable_until_time_and_for_after() {
     let c = TraceConstraint::trigger(TraceWhen::At(2 * S), TraceThen::Enable(X));

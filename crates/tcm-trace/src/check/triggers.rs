@@ -6,7 +6,7 @@
 use super::{Checker, Rule, ref_text, secs};
 use crate::event::{TraceConstraint, TraceEvent, TraceEventRef, TraceKind, TraceThen, TraceWhen};
 use crate::replay::ReplayNode;
-use crate::state::{Facet, State, Termination};
+use crate::state::{Facet, Outcome, State, Termination};
 use std::cmp::Reverse;
 
 /// A termination that a `terminate` trigger made due.
@@ -30,6 +30,8 @@ pub(super) struct Watch {
     delay: Option<u64>,
     // For a member of a group trigger: the index of its `GroupWatch`.
     group: Option<usize>,
+    // An outcome event: it happens only if the node ends with it.
+    outcome: Option<Outcome>,
 }
 
 /// A `terminate` trigger on a whole group: it is owed once every member reached its event, and
@@ -163,6 +165,8 @@ impl Checker {
             if let Some(g) = group {
                 self.group_reached(ev, g, true);
             }
+        } else if passed && event.outcome.is_some_and(|o| o != r.outcome()) {
+            // It ended otherwise: the outcome event never happens.
         } else if passed {
             match group {
                 Some(g) => self.group_reached(ev, g, false),
@@ -175,6 +179,7 @@ impl Checker {
                 state: event.point.state(),
                 delay,
                 group,
+                outcome: event.outcome,
             });
         }
     }
@@ -284,10 +289,23 @@ impl Checker {
             TraceWhen::External(name) => (!self.externals.contains(name))
                 .then(|| format!("it waits for the external event `{name}`, not raised yet")),
             TraceWhen::Event(event) => {
-                let ok = self.replay.node(event.node).is_some_and(|r| {
+                let r = self.replay.node(event.node);
+                let ok = r.is_some_and(|r| {
                     r.is_dead() || r.reached_at(event.facet, event.point).is_some()
                 });
-                (!ok).then(|| format!("it waits for {}, which has not happened", ref_text(event)))
+                let ended = r.map(|r| r.outcome());
+                match event.outcome {
+                    // It ended otherwise: the node can only be terminated, never started.
+                    Some(o) if ok && ended != Some(o) && !terminating => Some(format!(
+                        "it waits for {} to end {}, but it ended {}",
+                        ref_text(event),
+                        o.as_str(),
+                        ended.map_or("otherwise", |e| e.as_str())
+                    )),
+                    _ => (!ok).then(|| {
+                        format!("it waits for {}, which has not happened", ref_text(event))
+                    }),
+                }
             }
             TraceWhen::All { events, delay_ns } => {
                 let mut last = 0;
@@ -351,9 +369,14 @@ impl Checker {
                     .replay
                     .node(*node)
                     .is_some_and(|n| n.termination() != Termination::Alive);
+                let outcome = self.replay.node(*node).map(|n| n.outcome());
                 let mut keep = Vec::new();
                 for w in watches.drain(..) {
                     if w.facet == *facet && *from < w.state && w.state <= *to {
+                        if w.outcome.is_some() && w.outcome != outcome {
+                            // It ended otherwise: the outcome event never happens.
+                            continue;
+                        }
                         match w.group {
                             Some(g) => self.group_reached(ev, g, terminating),
                             None if !terminating => self.fire_watch(ev, &w),

@@ -14,7 +14,7 @@
 //! forward references").
 
 use proc_macro2::{Ident, Literal, TokenStream};
-use quote::{format_ident, quote};
+use quote::{format_ident, quote, quote_spanned};
 
 use super::body::Gen;
 use crate::ast::{
@@ -181,9 +181,16 @@ fn entity_trigger(
     ev: &Event,
     then: Then,
 ) -> TokenStream {
+    if ev.point.is_outcome() {
+        let msg = format!(
+            "`{}` on a group, `previous` or a tag bound at run time is not supported with `terminate` or `activate` yet: name one task",
+            ev.point.as_str()
+        );
+        return quote_spanned!(ev.tag.span=> ::core::compile_error!(#msg););
+    }
     let f = facet(ev.facet.unwrap_or(match ev.point {
-        Point::Completed => Facet::Execution,
         Point::Enabled | Point::Active => Facet::Handling,
+        _ => Facet::Execution,
     }));
     let p = point(ev.point);
     let delay = match delay {
@@ -201,12 +208,27 @@ fn point(s: Point) -> TokenStream {
     match s {
         Point::Enabled => quote!(::tdl::Point::Enabled),
         Point::Active => quote!(::tdl::Point::Active),
-        Point::Completed => quote!(::tdl::Point::Completed),
+        Point::Completed | Point::Succeeded | Point::Failed | Point::Terminated => {
+            quote!(::tdl::Point::Completed)
+        }
+    }
+}
+
+/// The run-time outcome of an outcome event's point.
+fn outcome(p: Point) -> Option<TokenStream> {
+    match p {
+        Point::Succeeded => Some(quote!(::tdl::Outcome::Succeeded)),
+        Point::Failed => Some(quote!(::tdl::Outcome::Failed)),
+        Point::Terminated => Some(quote!(::tdl::Outcome::Terminated)),
+        Point::Enabled | Point::Active | Point::Completed => None,
     }
 }
 
 /// `X [facet] state` on the node expression `node`.
 fn event(ev: &Event, node: &TokenStream) -> TokenStream {
+    if let Some(o) = outcome(ev.point) {
+        return quote!(::tdl::Event::ended(#node, #o));
+    }
     let p = point(ev.point);
     match ev.facet {
         None => quote!(::tdl::Event::new(#node, #p)),

@@ -44,6 +44,9 @@ fn point_of(word: Option<&str>) -> Option<Point> {
         "enabled" => Some(Point::Enabled),
         "active" => Some(Point::Active),
         "completed" => Some(Point::Completed),
+        "succeeded" => Some(Point::Succeeded),
+        "failed" => Some(Point::Failed),
+        "terminated" => Some(Point::Terminated),
         _ => None,
     }
 }
@@ -331,7 +334,8 @@ fn optional_tag(input: ParseStream) -> syn::Result<Option<Tag>> {
     }
 }
 
-/// Parses `TAG [handling|expansion|execution] (enabled|active|completed)`.
+/// Parses `TAG [handling|expansion|execution] (enabled|active|completed)` or
+/// `TAG (succeeded|failed|terminated)`.
 pub(crate) fn parse_event(input: ParseStream) -> syn::Result<Event> {
     let tag = parse_tag(input)?;
     let words = peek_words(input.cursor(), 2);
@@ -342,9 +346,19 @@ pub(crate) fn parse_event(input: ParseStream) -> syn::Result<Event> {
     };
     let Some(point) = point else {
         return Err(input.error(
-            "expected `enabled`, `active` or `completed` after the tag, as in `t1 execution completed`",
+            "expected `enabled`, `active`, `completed`, `succeeded`, `failed` or `terminated` after the tag, as in `t1 execution completed` or `t1 failed`",
         ));
     };
+    if let (Some(facet), true) = (facet, point.is_outcome()) {
+        return Err(input.error(format!(
+            "`{}` is an outcome of the whole task; it takes no facet: write `{} {}`, not `{} {}`",
+            point.as_str(),
+            "TAG",
+            point.as_str(),
+            facet.as_str(),
+            point.as_str()
+        )));
+    }
     take_words(input, n_words)?;
     Ok(Event { tag, facet, point })
 }

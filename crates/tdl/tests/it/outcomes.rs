@@ -10,6 +10,7 @@ use tdl::{RunOutcome, Runtime, TraceKind};
 thread_local! {
     static RUNS: Cell<u32> = const { Cell::new(0) };
     static SEEN: Cell<u32> = const { Cell::new(0) };
+    static RAN: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Counts the runs of a task that fails on its first run only.
@@ -72,6 +73,25 @@ tdl::tdl! {
     handler retry_escalated() handles Escalated with maximum activate 1 { retry; }
     goal escalating() with exception handler retry_escalated() {
         spawn flaky_move() with exception handler escalate();
+    }
+
+    // Outcome events: a fallback (try the first, else the second, else the third) and a watchdog
+    // stopped when the first attempt succeeds.
+    command attempt(n: u32, works: bool) {
+        tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+        RAN.with(|r| r.borrow_mut().push(n));
+        if !works {
+            fail Flaky;
+        }
+    }
+    command watchdog() {
+        tokio::time::sleep(std::time::Duration::from_secs(3600)).await;
+    }
+    goal fallback(first: bool, second: bool) {
+        a: spawn attempt(1, first);
+        b: spawn attempt(2, second) with disable execution until a failed;
+        spawn attempt(3, true) with disable execution until b failed;
+        spawn watchdog() with terminate at a succeeded, terminate at b succeeded;
     }
 
     // Bug 4: a waited spawn's value assigned to an existing variable.
@@ -164,4 +184,64 @@ async fn a_waited_value_is_assigned_to_an_existing_variable() {
     let (report, _) = run_checked(Runtime::new(), assigns()).await;
     assert_eq!(report.outcome, RunOutcome::Completed);
     assert_eq!(SEEN.get(), 12);
+}
+
+fn ran() -> Vec<u32> {
+    RAN.with(|r| std::mem::take(&mut *r.borrow_mut()))
+}
+
+/// `X failed`, `X succeeded`: a fallback runs the next attempt only when the previous one failed;
+/// an attempt whose predecessor ended otherwise can never be enabled, so it is terminated without
+/// running; `terminate at a succeeded` stops the watchdog at that instant.
+#[tokio::test(start_paused = true)]
+async fn outcome_events_make_a_fallback() {
+    reset();
+    ran();
+    let (report, trace) = run_checked(Runtime::new(), fallback(false, true)).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(ran(), [1, 2]);
+    let st = story(&trace);
+    assert_order(
+        &st,
+        &[
+            "1 attempt failed Flaky",
+            "2 attempt execution completed",
+            "2 watchdog execution completed",
+            "2 fallback execution completed",
+        ],
+    );
+    // The third attempt waited for `b failed`; b succeeded, so it was terminated unstarted.
+    let started = trace
+        .iter()
+        .filter(|e| {
+            matches!(
+                &e.kind,
+                TraceKind::Transition {
+                    facet: tdl::Facet::Handling,
+                    to: tdl::State::Active,
+                    ..
+                }
+            )
+        })
+        .count();
+    assert_eq!(
+        started,
+        4,
+        "fallback, two attempts and the watchdog started:\n{}",
+        st.join("\n")
+    );
+
+    let (_, trace) = run_checked(Runtime::new(), fallback(true, true)).await;
+    assert_eq!(ran(), [1]);
+    // The watchdog is terminated when the first attempt succeeds, at 1 s, not after an hour.
+    assert_order(
+        &story(&trace),
+        &[
+            "1 attempt execution completed",
+            "1 fallback execution completed",
+        ],
+    );
+
+    let (_, _) = run_checked(Runtime::new(), fallback(false, false)).await;
+    assert_eq!(ran(), [1, 2, 3]);
 }
