@@ -6,13 +6,14 @@ use crate::Error;
 use crate::host::{Shared, lock};
 use crate::task::{Action, AnyArgs, Factory, Handler, Kept, Task, Value};
 use std::any::Any;
-use std::sync::Arc;
+use std::future::Future;
+use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 use tcm_core::{
     Constraint, Event, ExternalId, Facet, Failure, Job, NodeId, NodeRef, Point, Purpose, Spawn,
-    WatchOutcome, WatchToken, When,
+    Termination, WatchOutcome, WatchToken, When,
 };
-use tokio::sync::oneshot;
+use tokio::sync::{oneshot, watch};
 
 /// What an action sees of the runtime. Cheap to clone; usable from any task or thread of the run.
 #[derive(Clone)]
@@ -26,6 +27,9 @@ pub struct Ctx {
     pub(crate) job: Option<Job>,
     // The arguments the host keeps for `node` (`Task::with_args`), when the context was made.
     pub(crate) args: Option<AnyArgs>,
+    // The job's cancellation signal, taken from the host on the first look (`cancel.rs`): a
+    // context that never looks costs no allocation, and later looks read it without the lock.
+    pub(crate) signal: OnceLock<watch::Receiver<bool>>,
 }
 
 impl Ctx {
@@ -44,6 +48,83 @@ impl Ctx {
     /// wall clock now; a time already past today is due at once).
     pub fn time_of_day(&self, secs: f64) -> tcm_core::Time {
         self.shared.clock.time_of_day(secs)
+    }
+
+    // ---- Cancellation (docs/semantics.md, "Termination").
+
+    /// Resolves once this action is cancelled: its node was terminated while it ran (or the run
+    /// ended under it). Then the action has its grace period ([`Task::grace`],
+    /// [`crate::Runtime::default_grace`]; one second by default) to cancel what it started outside
+    /// (a ROS 2 goal, a remote task, a motion) and return; it is dropped at the end of the period.
+    /// Its node stays terminating, and is terminated once the action returned; what it returns
+    /// is ignored.
+    ///
+    /// Calling this (or [`Ctx::is_cancelled`]) is what gives the action its grace period: an
+    /// action that never looked at the signal is dropped at once when its node is terminated, as
+    /// it cannot react. The look counts when this is called, not when the future is first polled,
+    /// so create the future before the work it guards:
+    ///
+    /// ```
+    /// # use tcm::{Ctx, Failure};
+    /// # async fn start_goal() {}
+    /// # async fn goal_done() {}
+    /// # async fn cancel_goal() {}
+    /// async fn navigate(ctx: Ctx) -> Result<(), Failure> {
+    ///     start_goal().await;
+    ///     tcm::tokio::select! {
+    ///         () = goal_done() => {}
+    ///         // Terminated: cancel the goal on the server, within the grace period.
+    ///         () = ctx.cancelled() => cancel_goal().await,
+    ///     }
+    ///     Ok(())
+    /// }
+    /// ```
+    ///
+    /// The future owns what it needs (it may move into another task). It never resolves in a
+    /// context of no cancellable job (the program's session, a timer callback, a wiretap check),
+    /// nor once the action ended by itself. A context that outlives its action and looks first
+    /// after the action ended resolves at once if the node is still there, terminating or
+    /// terminated, and never otherwise.
+    pub fn cancelled(&self) -> impl Future<Output = ()> + Send + 'static {
+        let rx = self.signal().cloned();
+        async move {
+            if let Some(mut rx) = rx {
+                let fired = rx.wait_for(|cancelled| *cancelled).await.is_ok();
+                if fired {
+                    return;
+                }
+            }
+            // Closed without firing: the action ended by itself, and never will be cancelled.
+            std::future::pending::<()>().await;
+        }
+    }
+
+    /// Whether this action was cancelled (see [`Ctx::cancelled`]): for an action that polls, as a
+    /// loop over the steps of a motion. The first call takes the engine's lock once; later calls
+    /// only read the signal's latched value. Like [`Ctx::cancelled`], calling it gives the action its grace period.
+    pub fn is_cancelled(&self) -> bool {
+        self.signal().is_some_and(|rx| *rx.borrow())
+    }
+
+    /// The job's cancellation signal, taken from the host on the first look; `None` for a context
+    /// of no cancellable job.
+    fn signal(&self) -> Option<&watch::Receiver<bool>> {
+        let job = self.job.filter(Job::cancellable)?;
+        Some(self.signal.get_or_init(|| {
+            let node = job.node();
+            let Ok(mut inner) = lock(&self.shared) else {
+                // The run is poisoned: nothing will cancel this action any more.
+                return watch::channel(false).1;
+            };
+            let inner = &mut *inner;
+            let running = inner.aborts.contains(node);
+            let engine = &inner.engine;
+            inner.cancels.signal(node, running, || {
+                engine
+                    .info(node)
+                    .is_some_and(|i| i.termination != Termination::Alive)
+            })
+        }))
     }
 
     /// Starts building a spawn of `task` as a child of this node.
@@ -301,11 +382,13 @@ impl Ctx {
         if failing.is_some_and(|f| inner.values.contains_key(&f)) {
             inner.values.insert(id, None);
         }
+        let grace = failing.and_then(|f| inner.cancels.grace_of(f));
         inner.keep(
             id,
             Kept {
                 task_name: name,
                 args,
+                grace,
             },
         );
         Ok(id)
@@ -456,6 +539,13 @@ impl Spawner<'_> {
     /// handlers, in the order attached).
     pub fn handler(mut self, h: Handler) -> Self {
         self.spec.handlers.push(h.spec);
+        self
+    }
+
+    /// Sets the grace period of this node's action, as [`Task::grace`] does for every node of a
+    /// task (docs/semantics.md, "Termination").
+    pub fn grace(mut self, grace: Duration) -> Self {
+        self.kept.grace = Some(grace);
         self
     }
 

@@ -11,6 +11,7 @@
 //! timer callbacks, activation data, task names and the panics of actions.
 
 use crate::Error;
+use crate::cancel::Cancels;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
 use crate::task::{Action, AnyArgs, Factory, Kept, Value};
@@ -151,6 +152,8 @@ pub(crate) struct Inner {
     pub(crate) values: BTreeMap<NodeId, Option<Value>>,
     // Running actions, to abort on cancellation.
     pub(crate) aborts: Aborts,
+    // Cancellation signals, grace periods and the actions running in theirs (`cancel.rs`).
+    pub(crate) cancels: Cancels,
     // Running wiretap checks (not cancellable, so not in `aborts`).
     checks: BTreeSet<Job>,
     pub(crate) parking: Parking,
@@ -191,6 +194,7 @@ impl Inner {
             watchers: BTreeMap::new(),
             values: BTreeMap::new(),
             aborts: Aborts::default(),
+            cancels: Cancels::default(),
             checks: BTreeSet::new(),
             parking: Parking::default(),
             next_token: 0,
@@ -236,6 +240,7 @@ impl Inner {
         let host = Host {
             shared,
             aborts: &mut self.aborts,
+            cancels: &mut self.cancels,
             checks: &mut self.checks,
             parking: &mut self.parking,
             spawner: self.spawner.as_ref(),
@@ -314,6 +319,12 @@ impl Inner {
         if let Some(args) = kept.args {
             self.args.insert(node, args);
             any = true;
+        }
+        if let Some(grace) = kept.grace {
+            let engine = &self.engine;
+            // Nodes in the map are never the root, whose parent is `None` too.
+            self.cancels
+                .keep_grace(node, grace, |id| engine.parent(id).is_some());
         }
         if any {
             self.sweep();
@@ -458,6 +469,7 @@ impl Drop for Unpark<'_> {
 pub(crate) struct Host<'a> {
     shared: &'a Arc<Shared>,
     aborts: &'a mut Aborts,
+    cancels: &'a mut Cancels,
     checks: &'a mut BTreeSet<Job>,
     parking: &'a mut Parking,
     spawner: Option<&'a tokio::runtime::Handle>,
@@ -484,6 +496,7 @@ impl Shell<Action, Factory> for Host<'_> {
             purpose: None,
             job: Some(Job::from(node)),
             args: self.args.get(&node).cloned(),
+            signal: Default::default(),
         };
         let h = (action.0)(Launch {
             ctx,
@@ -494,11 +507,19 @@ impl Shell<Action, Factory> for Host<'_> {
 
     fn invoke(
         &mut self,
-        _: &mut Engine<Action, Factory>,
+        engine: &mut Engine<Action, Factory>,
         job: Job,
         body: Factory,
         p: Box<Purpose>,
     ) {
+        // A monitor's activation has the grace period its monitor's task set.
+        if let Purpose::Activation { monitor, .. } = p.as_ref() {
+            if let Some(grace) = self.cancels.grace_of(*monitor) {
+                let engine = &*engine;
+                self.cancels
+                    .keep_grace(job.node(), grace, |id| engine.parent(id).is_some());
+            }
+        }
         // A monitor activation, a handler or a retry holds its children like any action (see
         // `start`); the engine set the hold when it handed the job out.
         let ctx = Ctx {
@@ -508,6 +529,7 @@ impl Shell<Action, Factory> for Host<'_> {
             job: Some(job),
             // A check's node is the tapped node: its arguments (`Ctx::tapped_args`).
             args: self.args.get(&job.node()).cloned(),
+            signal: Default::default(),
         };
         let fut = body(ctx);
         let reporter = Reporter::new(self.shared.clone(), job);
@@ -527,8 +549,10 @@ impl Shell<Action, Factory> for Host<'_> {
     }
 
     fn cancel(&mut self, node: NodeId) {
+        // Removed from the running actions either way: an action in its grace period is never
+        // parked again, so it keeps the run busy, not stuck, until it stops.
         if let Some(h) = self.aborts.remove(&node) {
-            h.abort();
+            self.cancels.cancel(self.shared, self.spawner, node, h);
         }
         self.parking.forget_job(Job::from(node));
         self.activation_data.remove(&node);
@@ -590,6 +614,7 @@ fn finish(
     if job.cancellable() {
         inner.aborts.remove(&node);
         inner.activation_data.remove(&node);
+        inner.cancels.finished(node);
     } else {
         inner.checks.remove(&job);
     }
@@ -657,7 +682,7 @@ impl Aborts {
         }
     }
 
-    fn contains(&self, node: NodeId) -> bool {
+    pub(crate) fn contains(&self, node: NodeId) -> bool {
         matches!(self.slots.get(node.slot() as usize), Some(Some((id, _))) if *id == node)
     }
 

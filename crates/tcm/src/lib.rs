@@ -9,6 +9,11 @@
 //! it (this replaces TDL's POSTPONE/Resume), and a panicking action fails its node while the run
 //! goes on.
 //!
+//! Terminating a node drops its running action at its next `.await`; an action that started
+//! something outside (a ROS 2 goal, a remote job) awaits [`Ctx::cancelled`] instead, and gets a
+//! bounded grace period ([`Task::grace`], [`Runtime::default_grace`]) to cancel it before its node
+//! is terminated.
+//!
 //! Actions run truly concurrently on tokio's workers. Under tokio's paused clock
 //! (`#[tokio::test(start_paused = true)]`, or [`block_on_virtual`]) time is virtual: a 30 s timeout
 //! passes instantly, and the same program yields the same trace on every run.
@@ -19,6 +24,7 @@
 //! The semantics live in `tcm-core` (the engine); see its documentation and `ARCHITECTURE.md`.
 #![warn(missing_docs)]
 
+mod cancel;
 mod clock;
 mod ctx;
 mod host;
@@ -31,6 +37,7 @@ mod task;
 pub mod testing;
 mod timer;
 
+pub use cancel::DEFAULT_GRACE;
 pub use ctx::{Ctx, Spawner};
 pub use host::Panicked;
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};

@@ -255,6 +255,20 @@ impl Runtime {
         self
     }
 
+    /// Sets the grace period of the actions whose task sets none ([`Task::grace`]); default
+    /// [`DEFAULT_GRACE`](crate::DEFAULT_GRACE), one second. When a node is terminated while its
+    /// action runs, an action that looked at its cancellation signal ([`Ctx::cancelled`],
+    /// [`Ctx::is_cancelled`]) is signalled and may run this long to cancel what it started
+    /// outside; it is dropped when it returns or when the period ends (then with a warning). An
+    /// action that never looked is dropped at once, whatever the period. `Duration::ZERO` drops
+    /// every action at once (docs/semantics.md, "Termination").
+    pub fn default_grace(self, grace: Duration) -> Runtime {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner.cancels.default = grace;
+        }
+        self
+    }
+
     /// Chooses what an unhandled failure does (default: warn and go on, as TCM).
     pub fn failure_policy(self, policy: FailurePolicy) -> Runtime {
         if let Ok(mut inner) = self.shared.inner.lock() {
@@ -585,6 +599,7 @@ impl RunLoop {
             args: lock(&self.shared)
                 .ok()
                 .and_then(|i| i.args.get(&node).cloned()),
+            signal: Default::default(),
         };
         let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(ctx, outcome)));
         if let Err(panic) = res {
@@ -611,6 +626,7 @@ pub(crate) fn end_run(shared: &Shared) {
         for h in inner.aborts.drain() {
             h.abort();
         }
+        inner.cancels.end();
         inner.callbacks.clear();
         inner.due.clear();
         inner.watchers.clear();

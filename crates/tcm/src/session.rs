@@ -44,6 +44,7 @@ impl Session {
                 purpose: None,
                 job: None,
                 args: None,
+                signal: Default::default(),
             },
             driver: Some(driver),
         }

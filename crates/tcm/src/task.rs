@@ -20,6 +20,8 @@ pub(crate) type AnyArgs = Arc<dyn Any + Send + Sync>;
 pub(crate) struct Kept {
     pub(crate) task_name: Option<Name>,
     pub(crate) args: Option<AnyArgs>,
+    // The grace period the task or the spawn set (`Task::grace`, `Spawner::grace`).
+    pub(crate) grace: Option<Duration>,
 }
 
 /// A value an action returns, handed to whoever waits for the node ([`crate::Spawner::wait_value`]).
@@ -195,6 +197,7 @@ pub struct Task {
     pub(crate) retry: Option<Factory>,
     pub(crate) persistent: bool,
     pub(crate) args: Option<AnyArgs>,
+    pub(crate) grace: Option<Duration>,
 }
 
 impl Task {
@@ -211,6 +214,7 @@ impl Task {
             retry: None,
             persistent: false,
             args: None,
+            grace: None,
         }
     }
 
@@ -356,6 +360,7 @@ impl Task {
         Kept {
             task_name: self.renamed(),
             args: self.args.clone(),
+            grace: self.grace,
         }
     }
 
@@ -406,6 +411,20 @@ impl Task {
     /// `persistent` qualifier): its state stays visible, at the cost of memory.
     pub fn persistent(mut self) -> Task {
         self.persistent = true;
+        self
+    }
+
+    /// Sets the grace period of this task's action (and of its retries; of a monitor, of each
+    /// activation), instead of the runtime's ([`crate::Runtime::default_grace`], one second by
+    /// default). When its node is terminated while the action runs, an action that looked at its
+    /// cancellation signal ([`Ctx::cancelled`], [`Ctx::is_cancelled`]) is signalled and may run
+    /// this long to cancel what it started outside (a ROS 2 goal, a remote task, a motion); the
+    /// node stays terminating meanwhile. The action is dropped when it returns or when the period
+    /// ends (then with a warning); what it returns is ignored (the node was terminated), a panic is
+    /// reported as usual. An action that never looked at the signal is dropped at once, and
+    /// `Duration::ZERO` drops this one at once (docs/semantics.md, "Termination").
+    pub fn grace(mut self, grace: Duration) -> Task {
+        self.grace = Some(grace);
         self
     }
 

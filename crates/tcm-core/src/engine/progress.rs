@@ -24,6 +24,7 @@ use crate::constraint::Then;
 use crate::failure::Failure;
 use crate::ids::{NodeId, TapWhen};
 use crate::time::Time;
+use std::time::Duration;
 use tcm_trace::{Facet, State, Termination, TraceKind};
 
 impl<A, F: Clone> Engine<A, F> {
@@ -102,6 +103,37 @@ impl<A, F: Clone> Engine<A, F> {
             self.work.push_back(Work::Progress(node));
             self.settle();
         }
+    }
+
+    /// Input: a job the shell was asked to cancel ([`Effect::Cancel`]) was given a grace period to
+    /// stop by itself, and is still running when it ends: the shell drops it now. Traces a warning
+    /// naming the node (an action that ignores its cancellation may leave something running on
+    /// the other side, which a person should know about); the stop itself is still reported with
+    /// [`Engine::handle_action_stopped`]. A job that is not being stopped changes nothing.
+    pub fn handle_action_overdue(&mut self, now: Time, job: impl Into<Job>, grace: Duration) {
+        let node = job.into().node();
+        self.advance(now);
+        if self.check_run(node).is_err() {
+            return;
+        }
+        let Some(n) = self.nodes.get(node).filter(|n| n.stopping) else {
+            return;
+        };
+        let (display, message) = (
+            n.display,
+            format!(
+                "Action of {} {{{}}} did not stop within its grace period ({grace:?}) after \
+                 termination: dropped",
+                n.name, n.display
+            ),
+        );
+        emit!(
+            self,
+            TraceKind::Warning {
+                node: Some(display),
+                message,
+            }
+        );
     }
 
     /// Input: the time is `now`; fires every timer due at or before it.

@@ -86,6 +86,46 @@ fn a_start_is_withdrawn_when_its_node_is_terminated_before_the_shell_saw_it() {
 }
 
 #[test]
+fn an_overdue_cancelled_action_is_a_warning_and_its_stop_terminates_the_node() {
+    let mut e: Bare = Engine::new(1);
+    let z = command(&mut e, "z", &[]);
+    started(&mut e, z);
+    // Not being stopped: nothing to warn about.
+    e.handle_action_overdue(Time::ZERO, z, s(1.0));
+    assert_eq!(e.stats().warnings, 0);
+    e.terminate(Time::ZERO, z).expect("terminate");
+    assert!(matches!(e.poll_effect(), Some(Effect::Cancel { node }) if node == z));
+    // The shell's grace period ended with the action still running: it drops it, then reports.
+    e.handle_action_overdue(Time::ZERO + s(1.0), z, s(1.0));
+    assert_eq!(
+        e.stats().running,
+        1,
+        "still running until the stop is reported"
+    );
+    e.handle_action_stopped(Time::ZERO + s(1.0), z);
+    assert!(e.is_idle());
+    let trace = checked_trace(&mut e);
+    let warnings: Vec<(u64, &str)> = trace
+        .iter()
+        .filter_map(|r| match &r.kind {
+            TraceKind::Warning { node, message } => Some((node.unwrap_or(0), message.as_str())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        warnings,
+        [(
+            1,
+            "Action of z {1} did not stop within its grace period (1s) after termination: dropped"
+        )]
+    );
+    let terminated = trace
+        .iter()
+        .find(|r| matches!(r.kind, TraceKind::Terminated { node: 1 }));
+    assert_eq!(terminated.map(|r| r.t), Some(1_000_000_000));
+}
+
+#[test]
 fn a_wiretap_check_is_a_job_reported_like_an_action() {
     let mut e: Bare = Engine::new(1);
     e.wiretap("move", TapWhen::Before, "stable?");

@@ -6,6 +6,7 @@ mod fig4;
 
 mod activation_data;
 mod callbacks;
+mod cancel;
 mod determinism;
 mod exceptions;
 mod held_children;

@@ -9,6 +9,15 @@ async fn sleep_s(s: u64) {
     tokio::time::sleep(std::time::Duration::from_secs(s)).await;
 }
 
+/// Drives to a goal; when its node is terminated, cancels the goal on the (simulated) server, which
+/// takes 300 ms: the cancellation signal reaches a TDL body through its `ctx`.
+async fn drive_until_cancelled(ctx: &tdl::Ctx) {
+    tokio::select! {
+        () = sleep_s(100) => {}
+        () = ctx.cancelled() => tokio::time::sleep(std::time::Duration::from_millis(300)).await,
+    }
+}
+
 tdl::tdl! {
     command release() { sleep_s(1).await; }
     command stow() { sleep_s(1).await; }
@@ -23,6 +32,12 @@ tdl::tdl! {
 
     goal hold_briefly() {
         spawn grip() with terminate in 2s;
+    }
+
+    command drive() { drive_until_cancelled(&ctx).await; }
+
+    goal drive_briefly() {
+        spawn drive() with terminate in 2s;
     }
 
     goal careful() {
@@ -50,6 +65,17 @@ async fn every_task_level_on_terminate_task_runs() {
             "3 grip terminated",
         ],
     );
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_body_awaiting_its_cancellation_cancels_before_its_node_is_terminated() {
+    let (report, trace) = run_checked(Runtime::new(), drive_briefly()).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_order(
+        &story(&trace),
+        &["2 drive terminating", "2.3 drive terminated"],
+    );
+    assert!(report.is_clean(), "{report}");
 }
 
 #[tokio::test(start_paused = true)]
