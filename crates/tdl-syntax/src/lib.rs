@@ -149,18 +149,44 @@ pub fn parse_tokens(tokens: TokenStream) -> Parse {
 /// recursively, so deeper input would exhaust the stack; no program needs a tenth of it.
 pub const MAX_NESTING: usize = 256;
 
-/// The first group nested deeper than [`MAX_NESTING`], found without recursing.
+/// The first construct nested deeper than [`MAX_NESTING`], found without recursing: a bracket
+/// group, and, within one statement, generic angle brackets (`Vec<Vec<…>>`) or a run of `&`
+/// (`&&&&x`), which the parser also descends into recursively without any group.
 fn too_deep(tokens: &TokenStream) -> Option<Span> {
-    let mut stack: Vec<proc_macro2::token_stream::IntoIter> = vec![tokens.clone().into_iter()];
-    while let Some(top) = stack.last_mut() {
+    // Per open stream: its tokens, the `<` not yet closed in this statement, the current `&` run.
+    let mut stack: Vec<(proc_macro2::token_stream::IntoIter, usize, usize)> =
+        vec![(tokens.clone().into_iter(), 0, 0)];
+    while let Some((top, angles, refs)) = stack.last_mut() {
         match top.next() {
             Some(TokenTree::Group(group)) => {
+                *refs = 0;
                 if stack.len() > MAX_NESTING {
                     return Some(group.span_open());
                 }
-                stack.push(group.stream().into_iter());
+                stack.push((group.stream().into_iter(), 0, 0));
             }
-            Some(_) => {}
+            Some(TokenTree::Punct(p)) => {
+                match p.as_char() {
+                    '&' => *refs += 1,
+                    '<' => {
+                        *angles += 1;
+                        *refs = 0;
+                    }
+                    '>' => {
+                        *angles = angles.saturating_sub(1);
+                        *refs = 0;
+                    }
+                    ';' => {
+                        *angles = 0;
+                        *refs = 0;
+                    }
+                    _ => *refs = 0,
+                }
+                if *angles > MAX_NESTING || *refs > MAX_NESTING {
+                    return Some(p.span());
+                }
+            }
+            Some(_) => *refs = 0,
             None => {
                 stack.pop();
             }
@@ -173,9 +199,11 @@ fn parse_syntax(tokens: TokenStream, eof: Option<Span>) -> Parse {
     if let Some(span) = too_deep(&tokens) {
         let diag = Diagnostic::error(
             span,
-            format!("brackets nested more than {MAX_NESTING} deep"),
+            format!(
+                "code nested more than {MAX_NESTING} deep (brackets, generic arguments or `&`)"
+            ),
         )
-        .with_hint("split the deeply nested code into functions or tasks");
+        .with_hint("split the deeply nested code into functions, type aliases or tasks");
         return Parse {
             file: Ast::default(),
             diagnostics: vec![diag],

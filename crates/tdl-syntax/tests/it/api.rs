@@ -266,7 +266,40 @@ fn brackets_nested_too_deep_are_an_error_not_a_crash() {
         [(
             2,
             12 + limit,
-            format!("brackets nested more than {limit} deep")
+            format!("code nested more than {limit} deep (brackets, generic arguments or `&`)")
         )]
     );
+}
+
+/// Also found by fuzzing: nesting without brackets, which the parser descends into as deeply:
+/// generic arguments and a run of `&`.
+#[test]
+fn generics_and_references_nested_too_deep_are_an_error_not_a_crash() {
+    let run = || {
+        let n = 3000;
+        let generics = format!("type T = {}u8{};\n", "Vec<".repeat(n), ">".repeat(n));
+        let refs = format!("type R = {}u8;\n", "&".repeat(n));
+        [generics, refs].map(|src| {
+            let (_, diags) = tdl_syntax::compile_str("deep.tdl", &src);
+            diags
+                .iter()
+                .map(|d| d.message().to_owned())
+                .collect::<Vec<_>>()
+        })
+    };
+    let diags = std::thread::Builder::new()
+        .stack_size(512 * 1024)
+        .spawn(run)
+        .expect("thread")
+        .join()
+        .expect("no crash");
+    let limit = tdl_syntax::MAX_NESTING;
+    for d in diags {
+        assert_eq!(
+            d,
+            [format!(
+                "code nested more than {limit} deep (brackets, generic arguments or `&`)"
+            )]
+        );
+    }
 }
