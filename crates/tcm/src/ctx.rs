@@ -389,6 +389,7 @@ impl Ctx {
                 task_name: name,
                 args,
                 grace,
+                fail_parent: false,
             },
         );
         Ok(id)
@@ -590,15 +591,29 @@ impl Spawner<'_> {
         ctx.wait(id).await
     }
 
-    /// Inserts the node, waits for it, and returns the value its action returned.
+    /// Inserts the node, waits for it, and returns the value its action returned. The child's
+    /// failure that no handler on the child takes is this body's: it fails with it
+    /// ([`Error::ChildFailed`], whose `?` keeps the exception's type); a retry's success is the
+    /// child's, and its value the value.
     pub async fn wait_value<T: 'static>(self) -> Result<T, Error> {
+        match self.wait_outcome::<T>().await? {
+            Ended::Succeeded(v) => Ok(v),
+            Ended::Failed(f) => Err(Error::ChildFailed(tcm_core::PassedOn(f))),
+            Ended::Terminated => Err(Error::ChildTerminated),
+        }
+    }
+
+    /// Inserts the node, waits for it, and returns how it ended: succeeded with its value, failed
+    /// with its (typed) failure, or terminated. The failure is the caller's to look at, so no
+    /// handler above the child is searched for it and it is not reported unhandled (handlers on
+    /// the child, and their retries, come first: a recovered child succeeded).
+    pub async fn wait_outcome<T: 'static>(self) -> Result<Ended<T>, Error> {
         let ctx = self.ctx;
         let id = {
             let mut inner = ctx.shared.enter()?;
             let now = ctx.shared.now();
             let id = inner.spawn(now, self.spec, self.kept)?;
             inner.values.insert(id, None);
-            // Its failure is this body's: the body fails with it (`Error::ChildFailed`).
             inner.engine.propagate(id)?;
             id
         };
@@ -615,14 +630,80 @@ impl Spawner<'_> {
         match outcome {
             WatchOutcome::Reached | WatchOutcome::Recovered { .. } => {
                 match value.map(|v| v.downcast::<T>()) {
-                    Some(Ok(v)) => Ok(*v),
+                    Some(Ok(v)) => Ok(Ended::Succeeded(*v)),
                     _ => Err(Error::NoValue(std::any::type_name::<T>())),
                 }
             }
-            WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => {
-                Err(Error::ChildFailed(tcm_core::PassedOn(f)))
-            }
-            WatchOutcome::Terminated | WatchOutcome::Dead => Err(Error::ChildTerminated),
+            WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => Ok(Ended::Failed(f)),
+            WatchOutcome::Terminated | WatchOutcome::Dead => Ok(Ended::Terminated),
+        }
+    }
+
+    /// The child's failure that no handler on it takes fails this node, the parent, as if its
+    /// action had raised it (what a behaviour-tree sequence does): the parent's action stops if
+    /// it still runs, its other children are terminated, and its handlers are searched, so one of
+    /// them may `retry` the whole subtree (TDL's `with propagate`; docs/semantics.md, "Failing
+    /// the parent"). Under the root it changes nothing.
+    pub fn propagate(mut self) -> Self {
+        self.kept.fail_parent = true;
+        self
+    }
+}
+
+/// How a waited child ended ([`Spawner::wait_outcome`], TDL's `let o = spawn t() with outcome;`).
+#[derive(Debug)]
+pub enum Ended<T> {
+    /// Its execution completed and it did not fail (or a retry of it succeeded): its value.
+    Succeeded(T),
+    /// It failed, and no handler on it recovered it: the failure, its exception's type kept.
+    Failed(Failure),
+    /// It was terminated before it ended by itself.
+    Terminated,
+}
+
+impl<T> Ended<T> {
+    /// It succeeded.
+    pub fn succeeded(&self) -> bool {
+        matches!(self, Ended::Succeeded(_))
+    }
+
+    /// It failed.
+    pub fn failed(&self) -> bool {
+        matches!(self, Ended::Failed(_))
+    }
+
+    /// It was terminated.
+    pub fn terminated(&self) -> bool {
+        matches!(self, Ended::Terminated)
+    }
+
+    /// Its value, if it succeeded.
+    pub fn value(self) -> Option<T> {
+        match self {
+            Ended::Succeeded(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// Its failure, if it failed.
+    pub fn failure(&self) -> Option<&Failure> {
+        match self {
+            Ended::Failed(f) => Some(f),
+            _ => None,
+        }
+    }
+
+    /// It failed with an exception of type `E` or of a descendant of `E`.
+    pub fn failed_with<E: crate::Exception>(&self) -> bool {
+        self.failure().is_some_and(|f| f.is_a(E::name()))
+    }
+
+    /// The outcome's point (`X succeeded`, `X failed`, `X terminated`).
+    pub fn outcome(&self) -> tcm_core::Outcome {
+        match self {
+            Ended::Succeeded(_) => tcm_core::Outcome::Succeeded,
+            Ended::Failed(_) => tcm_core::Outcome::Failed,
+            Ended::Terminated => tcm_core::Outcome::Terminated,
         }
     }
 }

@@ -304,6 +304,9 @@ impl Inner {
         kept: Kept,
     ) -> Result<NodeId, EngineError> {
         let id = self.engine.spawn(now, spec)?;
+        if kept.fail_parent {
+            self.engine.propagate_to_parent(id)?;
+        }
         self.keep(id, kept);
         Ok(id)
     }

@@ -38,7 +38,7 @@ pub mod testing;
 mod timer;
 
 pub use cancel::DEFAULT_GRACE;
-pub use ctx::{Ctx, Spawner};
+pub use ctx::{Ctx, Ended, Spawner};
 pub use host::Panicked;
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use session::Session;

@@ -22,6 +22,8 @@ pub(crate) struct Kept {
     pub(crate) args: Option<AnyArgs>,
     // The grace period the task or the spawn set (`Task::grace`, `Spawner::grace`).
     pub(crate) grace: Option<Duration>,
+    // The spawn's failure fails its parent (`Spawner::propagate`).
+    pub(crate) fail_parent: bool,
 }
 
 /// A value an action returns, handed to whoever waits for the node ([`crate::Spawner::wait_value`]).
@@ -361,6 +363,7 @@ impl Task {
             task_name: self.renamed(),
             args: self.args.clone(),
             grace: self.grace,
+            fail_parent: false,
         }
     }
 

@@ -463,6 +463,12 @@ pub enum ConstraintKind {
     Parallel,
     /// `wait`: the spawn blocks until the child's execution completes.
     Wait,
+    /// `outcome` (a bound spawn only): wait, and bind how the child ended (`tdl::Ended<T>`)
+    /// instead of its value.
+    Outcome,
+    /// `propagate` (spawn only): the child's failure that no handler on it takes fails the
+    /// parent (docs/semantics.md, "Failing the parent").
+    Propagate,
     /// `disable [facet] until|for …`, `terminate […]`, `activate […]`: when something happens,
     /// do something (TDL paper Fig. 5). The three differ only in what they do then.
     Trigger {

@@ -341,14 +341,24 @@ impl<'a> Body<'_, 'a> {
         let waits = spawn
             .constraints
             .iter()
-            .any(|it| matches!(it.kind, ConstraintKind::Wait));
+            .any(|it| matches!(it.kind, ConstraintKind::Wait | ConstraintKind::Outcome));
+        let outcome = spawn
+            .constraints
+            .iter()
+            .find(|it| matches!(it.kind, ConstraintKind::Outcome));
+        if let (Some(outcome), None) = (outcome, &spawn.binding) {
+            diags.push(
+                Diagnostic::error(outcome.span, "`outcome` needs a binding to take it")
+                    .with_hint("bind it: `let o = spawn task(args) with outcome;`, then `o.succeeded()`, `o.failure()`, …"),
+            );
+        }
         if spawn.binding.is_some() && !waits {
             diags.push(
                 Diagnostic::error(
                     spawn.span,
                     "a spawn bound with `let` must wait for its result",
                 )
-                .with_hint("add `with wait`: `let v = spawn task(args) with wait;`"),
+                .with_hint("add `with wait`: `let v = spawn task(args) with wait;` (or `with outcome` for how it ended)"),
             );
         }
         self.parent(spawn, diags);
@@ -570,6 +580,10 @@ impl<'a> Body<'_, 'a> {
                 Diagnostic::error(span, "`on terminate` is not allowed in `with (...)`")
                     .with_hint("put `on terminate` on a spawn or on the task definition"),
             ),
+            (ConstraintKind::Outcome, _) if matches!(site, Site::With) => diags.push(
+                Diagnostic::error(span, "`outcome` is not allowed in `with (...)`")
+                    .with_hint("bind each spawn's outcome: `let o = spawn task(args) with outcome;`"),
+            ),
             (ConstraintKind::Parent(_), _) if matches!(site, Site::With) => diags.push(
                 Diagnostic::error(span, "`parent` is not allowed in `with (...)`")
                     .with_hint("put `parent` on each spawn that goes under another node"),
@@ -609,6 +623,8 @@ impl<'a> Body<'_, 'a> {
                 | ConstraintKind::OnTerminate(_)
                 | ConstraintKind::ExceptionHandler(_)
                 | ConstraintKind::Parent(_)
+                | ConstraintKind::Outcome
+                | ConstraintKind::Propagate
         );
         if spawn_only && matches!(site, Site::Stmt(..)) {
             diags.push(

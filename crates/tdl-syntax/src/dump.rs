@@ -400,6 +400,8 @@ fn constraint(it: &Constraint) -> String {
         ConstraintKind::Serial { tag } => format!("serial{}", opt_tag(tag.as_ref())),
         ConstraintKind::Parallel => "parallel".to_owned(),
         ConstraintKind::Wait => "wait".to_owned(),
+        ConstraintKind::Outcome => "outcome".to_owned(),
+        ConstraintKind::Propagate => "propagate".to_owned(),
         ConstraintKind::Trigger { when, then } => trigger(when, *then),
         ConstraintKind::MaximumActivate(n) => format!("maximum activate {}", count(n)),
         ConstraintKind::MaximumTrigger(n) => format!("maximum trigger {}", count(n)),

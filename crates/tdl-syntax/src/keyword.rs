@@ -42,8 +42,10 @@ const VOCABULARY: &[&str] = &[
     "name",
     "on",
     "parallel",
+    "outcome",
     "parent",
     "period",
+    "propagate",
     "persistent",
     "planning",
     "sequential",
@@ -200,6 +202,8 @@ pub(crate) fn starts_constraint(word: &str) -> bool {
             | "serial"
             | "parallel"
             | "wait"
+            | "outcome"
+            | "propagate"
             | "disable"
             | "terminate"
             | "activate"

@@ -22,7 +22,7 @@
 //!    from the factory given at spawn) is inserted under the handler node; its failures search from
 //!    there upward, so the handler's maximum activations bound the attempts.
 
-use super::node::{Payload, Purpose};
+use super::node::{Payload, Propagate, Purpose};
 use super::{Engine, EngineError, Work};
 use crate::failure::{Failure, FailurePolicy, FatalFailure};
 use crate::ids::NodeId;
@@ -167,7 +167,20 @@ impl<A, F: Clone> Engine<A, F> {
     /// fails with that failure. A retry of `node` inherits it.
     pub fn propagate(&mut self, node: NodeId) -> Result<(), EngineError> {
         self.live(node)?;
-        self.node_mut(node).cold_mut().propagate = true;
+        self.node_mut(node).cold_mut().propagate = Propagate::Waiter;
+        Ok(())
+    }
+
+    /// Makes `node`'s own failure, when no handler on it takes it, its parent's failure (what a
+    /// behaviour-tree sequence does with a failing child): the search ends at `node`, and the
+    /// parent fails with the same failure, as if its action had raised it. Its action is stopped
+    /// if it still runs, its other children are terminated, and the search goes on from the
+    /// parent, so a handler there may `retry` the whole subtree (docs/semantics.md, "Failing
+    /// the parent"). A parent already failed or terminating is left alone; under the root the
+    /// failure is searched for as usual. A retry of `node` inherits it.
+    pub fn propagate_to_parent(&mut self, node: NodeId) -> Result<(), EngineError> {
+        self.live(node)?;
+        self.node_mut(node).cold_mut().propagate = Propagate::Parent;
         Ok(())
     }
 
@@ -218,6 +231,36 @@ impl<A, F: Clone> Engine<A, F> {
         };
         self.node_mut(node).cold_mut().failure = Some(failure.clone());
         self.search(node, failure, from, 0, node);
+    }
+
+    /// `child`'s failure fails `parent` (`Engine::propagate_to_parent`): the parent's other
+    /// children are terminated, its action, if it runs, is stopped and its handling completes,
+    /// and the failure is the parent's own (step 1 from the parent).
+    fn fail_parent(&mut self, child: NodeId, parent: NodeId, failure: Failure) {
+        let p = self.node(parent);
+        if !p.alive() || p.failure().is_some() {
+            return;
+        }
+        let running = p.state(Facet::Handling) == State::Active
+            && p.monitor().is_none()
+            && p.taps_pending() == 0;
+        let mut c = self.first_child(parent);
+        while let Some(ch) = c {
+            if ch != child {
+                self.work.push_back(Work::Terminate {
+                    node: ch,
+                    explicit: false,
+                });
+            }
+            c = self.next_sibling(ch);
+        }
+        if running && !self.cancel_action(parent) {
+            self.node_mut(parent).stopping = true;
+        }
+        self.fail(parent, failure);
+        if running {
+            self.complete_handling(parent);
+        }
     }
 
     /// A failing handler's search skips the nodes from itself up to its attachment, where TCM
@@ -299,11 +342,19 @@ impl<A, F: Clone> Engine<A, F> {
                 }
             }
             // A task whose failure its parent takes (a waited value: the waiting body fails with
-            // it, as a function call's exception reaches its caller): the search ends here, and
-            // the task's outcome is this failure (its retry's, when a retry failed).
-            if self.node(at).propagates() && (at == failing || self.handler_owner(failing) == at) {
+            // it, as a function call's exception reaches its caller; or a child that fails its
+            // parent): the search ends here, and the task's outcome is this failure (its
+            // retry's, when a retry failed).
+            let to = self.node(at).propagates();
+            let own = at == failing || self.handler_owner(failing) == at;
+            let parent_takes = to == Propagate::Parent
+                && parent.is_some_and(|p| self.node(p).kind != NodeKind::Root);
+            if own && (to == Propagate::Waiter || parent_takes) {
                 if at != failing {
-                    self.node_mut(at).cold_mut().failure = Some(failure);
+                    self.node_mut(at).cold_mut().failure = Some(failure.clone());
+                }
+                if let (true, Some(p)) = (parent_takes, parent) {
+                    self.fail_parent(at, p, failure);
                 }
                 return;
             }

@@ -284,9 +284,21 @@ pub(crate) struct Cold<A, F> {
     pub(crate) recovered_by: Option<NodeId>,
     // Constraints on the node itself that a retry keeps (`expand first`, `delay expansion`).
     pub(crate) retry_constraints: Vec<crate::constraint::Constraint>,
-    // Its own failure, when no handler on it takes it, is passed to its parent instead of being
-    // searched for further up (`Engine::propagate`).
-    pub(crate) propagate: bool,
+    // Where its own failure goes when no handler on it takes it, instead of being searched for
+    // further up (`Engine::propagate`, `Engine::propagate_to_parent`).
+    pub(crate) propagate: Propagate,
+}
+
+/// Where a node's failure goes when no handler on the node takes it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) enum Propagate {
+    /// Up the tree: the handlers of its ancestors are searched (TDL's rule).
+    #[default]
+    Up,
+    /// To the action waiting for its value, which fails with it.
+    Waiter,
+    /// To its parent, which fails with it.
+    Parent,
 }
 
 impl<A, F> Default for Cold<A, F> {
@@ -311,7 +323,7 @@ impl<A, F> Default for Cold<A, F> {
             retry_of: None,
             recovered_by: None,
             retry_constraints: Vec::new(),
-            propagate: false,
+            propagate: Propagate::Up,
         }
     }
 }
@@ -467,8 +479,8 @@ impl<A, F> Node<A, F> {
     }
 
     /// Its own failure goes to its parent when no handler on it takes it.
-    pub(crate) fn propagates(&self) -> bool {
-        self.cold.as_ref().is_some_and(|c| c.propagate)
+    pub(crate) fn propagates(&self) -> Propagate {
+        self.cold.as_ref().map_or(Propagate::Up, |c| c.propagate)
     }
 
     pub(crate) fn handled(&self) -> bool {

@@ -212,7 +212,7 @@ impl<A, F: Clone> Engine<A, F> {
     /// it yet), the start is withdrawn, so the shell never runs it; otherwise the shell is asked to
     /// cancel it. The queue is short: every shell drains it after each input.
     /// Returns whether the start was withdrawn (then the action no longer counts as running).
-    fn cancel_action(&mut self, node: NodeId) -> bool {
+    pub(super) fn cancel_action(&mut self, node: NodeId) -> bool {
         let queued = self.effects.iter().rposition(|e| match e {
             Effect::Start { node: n, .. } => *n == node,
             Effect::Invoke { job, .. } => job.node() == node && job.cancellable(),

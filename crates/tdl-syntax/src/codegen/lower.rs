@@ -401,6 +401,8 @@ impl Gen<'_, '_> {
             | ConstraintKind::OnAgent(_)
             | ConstraintKind::Parallel
             | ConstraintKind::Wait
+            | ConstraintKind::Outcome
+            | ConstraintKind::Propagate
             | ConstraintKind::Name(_)
             | ConstraintKind::Parent(_)
             | ConstraintKind::OnTerminate(_) => None,

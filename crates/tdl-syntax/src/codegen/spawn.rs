@@ -37,6 +37,8 @@ struct Parts {
     armed: Vec<Armed>,
     /// `wait`.
     wait: bool,
+    /// `outcome`: the binding takes how the child ended.
+    outcome: bool,
     /// `name "…"`.
     name: Option<syn::Expr>,
 }
@@ -63,6 +65,7 @@ impl<'a> Gen<'_, 'a> {
             mut steps,
             armed,
             wait,
+            outcome,
             name,
         } = self.spawn_parts(spawn, &loops);
         let mut task = quote!(#task_name(#(#args),*));
@@ -116,9 +119,23 @@ impl<'a> Gen<'_, 'a> {
                     out.extend(arm(&id));
                 }
                 match &binding.target {
+                    BindTarget::Let(pat) if outcome => {
+                        // The annotation, if any, is of the whole outcome (`tdl::Ended<T>`).
+                        let ty = match &binding.ty {
+                            Some(ty) => quote!(#ty),
+                            None => {
+                                let value = self.value_type(spawn, binding);
+                                quote!(::tdl::Ended<#value>)
+                            }
+                        };
+                        out.extend(quote!(let #pat: #ty = #chain.wait_outcome().await?;));
+                    }
                     BindTarget::Let(pat) => {
                         let ty = self.value_type(spawn, binding);
                         out.extend(quote!(let #pat: #ty = #chain.wait_value::<#ty>().await?;));
+                    }
+                    BindTarget::Assign(place) if outcome => {
+                        out.extend(quote!(#place = #chain.wait_outcome().await?;));
                     }
                     // The place's type tells the value's when the callee is not in the program.
                     BindTarget::Assign(place) => {
@@ -176,6 +193,12 @@ impl<'a> Gen<'_, 'a> {
                         parts.wait = true;
                         continue;
                     }
+                    ConstraintKind::Outcome => {
+                        parts.wait = true;
+                        parts.outcome = true;
+                        continue;
+                    }
+                    ConstraintKind::Propagate => quote!(.propagate()),
                     ConstraintKind::Name(expr) => {
                         parts.name = Some(expr.clone());
                         continue;
@@ -372,7 +395,9 @@ impl<'a> Gen<'_, 'a> {
             ConstraintKind::Name(_)
             | ConstraintKind::OnTerminate(_)
             | ConstraintKind::ExceptionHandler(_)
-            | ConstraintKind::Parent(_) => return TokenStream::new(),
+            | ConstraintKind::Parent(_)
+            | ConstraintKind::Outcome
+            | ConstraintKind::Propagate => return TokenStream::new(),
             _ => {}
         }
         match self.lower(c, &prev) {

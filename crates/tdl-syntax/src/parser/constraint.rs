@@ -119,6 +119,14 @@ fn parse_constraint_inner(input: ParseStream, cx: &mut Cx) -> syn::Result<Constr
             take_words(input, 1)?;
             ConstraintKind::Wait
         }
+        Some("outcome") => {
+            take_words(input, 1)?;
+            ConstraintKind::Outcome
+        }
+        Some("propagate") => {
+            take_words(input, 1)?;
+            ConstraintKind::Propagate
+        }
         Some("disable") => disable(input, cx)?,
         Some(word @ ("terminate" | "activate")) => timed(input, cx, word == "activate")?,
         Some("maximum") => match at(1) {

@@ -16,6 +16,7 @@ mod on_terminate;
 mod outcomes;
 mod paper;
 mod porting;
+mod propagation;
 mod refs;
 mod ui;
 mod util;
