@@ -29,6 +29,7 @@ mod clock;
 mod ctx;
 mod host;
 mod invoke;
+pub mod patterns;
 mod query;
 mod runtime;
 mod session;

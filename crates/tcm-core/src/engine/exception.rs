@@ -177,7 +177,8 @@ impl<A, F: Clone> Engine<A, F> {
     /// if it still runs, its other children are terminated, and the search goes on from the
     /// parent, so a handler there may `retry` the whole subtree (docs/semantics.md, "Failing
     /// the parent"). A parent already failed or terminating is left alone; under the root the
-    /// failure is searched for as usual. A retry of `node` inherits it.
+    /// failure is searched for as usual. A retry of `node` inherits it; for a monitor, so does
+    /// each activation (its failure is the monitor's, which then activates no more).
     pub fn propagate_to_parent(&mut self, node: NodeId) -> Result<(), EngineError> {
         self.live(node)?;
         self.node_mut(node).cold_mut().propagate = Propagate::Parent;
@@ -241,9 +242,9 @@ impl<A, F: Clone> Engine<A, F> {
         if !p.alive() || p.failure().is_some() {
             return;
         }
-        let running = p.state(Facet::Handling) == State::Active
-            && p.monitor().is_none()
-            && p.taps_pending() == 0;
+        let monitor = p.monitor().is_some();
+        let running =
+            p.state(Facet::Handling) == State::Active && !monitor && p.taps_pending() == 0;
         let mut c = self.first_child(parent);
         while let Some(ch) = c {
             if ch != child {
@@ -260,6 +261,9 @@ impl<A, F: Clone> Engine<A, F> {
         self.fail(parent, failure);
         if running {
             self.complete_handling(parent);
+        } else if monitor {
+            // A failed monitor activates no more.
+            self.monitor_done(parent);
         }
     }
 
@@ -345,16 +349,18 @@ impl<A, F: Clone> Engine<A, F> {
             // it, as a function call's exception reaches its caller; or a child that fails its
             // parent): the search ends here, and the task's outcome is this failure (its
             // retry's, when a retry failed).
-            let to = self.node(at).propagates();
+            // For a retry, the task is its first run: that run's parent takes the failure.
+            let to = self.node(owner).propagates();
             let own = at == failing || self.handler_owner(failing) == at;
+            let taker = self.node(owner).parent;
             let parent_takes = to == Propagate::Parent
-                && parent.is_some_and(|p| self.node(p).kind != NodeKind::Root);
+                && taker.is_some_and(|p| self.node(p).kind != NodeKind::Root);
             if own && (to == Propagate::Waiter || parent_takes) {
-                if at != failing {
-                    self.node_mut(at).cold_mut().failure = Some(failure.clone());
+                if owner != failing {
+                    self.node_mut(owner).cold_mut().failure = Some(failure.clone());
                 }
-                if let (true, Some(p)) = (parent_takes, parent) {
-                    self.fail_parent(at, p, failure);
+                if let (true, Some(p)) = (parent_takes, taker) {
+                    self.fail_parent(owner, p, failure);
                 }
                 return;
             }

@@ -294,7 +294,13 @@ impl<A, F: Clone> Engine<A, F> {
             }),
         );
         let id = self.insert(monitor, NodeKind::Command, name, payload);
-        self.node_mut(id).cold_mut().activation_of = Some(monitor);
+        let propagate = self.node(monitor).propagates();
+        let cold = self.node_mut(id).cold_mut();
+        cold.activation_of = Some(monitor);
+        // A monitor whose failure fails its parent: an activation's failure is the monitor's.
+        if propagate == super::node::Propagate::Parent {
+            cold.propagate = propagate;
+        }
         if let Some(prev) = prev {
             let r = NodeRef::Node(prev);
             let mut cs = Vec::new();

@@ -5,7 +5,7 @@
 use super::{Checker, Rule};
 use crate::event::TraceEvent;
 use crate::replay::ReplayNode;
-use crate::state::{Facet, State, Termination};
+use crate::state::{Facet, Outcome, State, Termination};
 
 impl Checker {
     pub(super) fn check_transition(
@@ -54,8 +54,11 @@ impl Checker {
         if to == State::Completed {
             self.completion(n, facet, &mut found);
             if let (Facet::Handling, Some(info), true) = (facet, n.monitor(), alive) {
+                // A monitor that failed (an activation's failure failing it, `with propagate`)
+                // activates no more.
                 let reached = info.max_activations.is_some_and(|m| info.activations >= m)
-                    || info.max_triggers.is_some_and(|m| info.triggers >= m);
+                    || info.max_triggers.is_some_and(|m| info.triggers >= m)
+                    || n.outcome() == Outcome::Failed;
                 if !reached {
                     found.push((
                         Rule::MonitorComplete,

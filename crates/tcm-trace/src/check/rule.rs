@@ -92,7 +92,7 @@ pub enum Rule {
     /// sequence, past its maximum, or not under its monitor.
     Activation,
     /// A monitor's handling completed before reaching its maximum activations or triggers, while it was
-    /// not terminating.
+    /// not terminating and had not failed.
     MonitorComplete,
     /// A handler was chosen for a node that did not fail, or its node is not under the failing node
     /// (or under a bypassing handler node).

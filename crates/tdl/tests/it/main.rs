@@ -15,6 +15,7 @@ mod node_refs;
 mod on_terminate;
 mod outcomes;
 mod paper;
+mod patterns;
 mod porting;
 mod propagation;
 mod refs;

@@ -96,6 +96,18 @@ tdl::tdl! {
         saw(describe(&o));
     }
 
+    // A child with its own retry: when the retry fails too, the failure is the parent's, not
+    // that of the handler the retry runs under.
+    handler once_more() handles Blocked with maximum activate 1 { retry; }
+    goal with_inner_retry() {
+        spawn step(1, true) with propagate, exception handler once_more();
+        spawn step(2, false) with propagate, sequential execution previous;
+    }
+    goal observe_inner() {
+        let o = spawn with_inner_retry() with outcome;
+        saw(describe(&o));
+    }
+
     // Each outcome, as a value.
     goal outcomes() {
         let a = spawn double(4) with outcome;
@@ -192,5 +204,21 @@ async fn a_waited_spawn_yields_each_outcome() {
             "failed with Blocked: true",
             "terminated",
         ]
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_failed_retry_of_a_child_fails_the_childs_parent() {
+    take();
+    let (report, trace) = run_checked(Runtime::new(), observe_inner()).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert!(report.unhandled.is_empty(), "{:?}", report.unhandled);
+    assert_eq!(take(), (vec![1, 1], vec!["failed Blocked at 1".to_owned()]));
+    let st = story(&trace);
+    assert_order(&st, &["2 with_inner_retry failed Blocked"]);
+    assert!(
+        !st.iter().any(|l| l.contains("once_more failed")),
+        "{}",
+        st.join("\n")
     );
 }
