@@ -9,6 +9,8 @@
 //!   log, the task tree of the whole run (or the live tree at `--at`), or the story of the run, one
 //!   line per record with node numbers, filtered by kind, name, path, node and time (`view.rs`).
 //!
+//! - `tdl view TRACE.jsonl...` serves the task-tree viewer on the files (`serve.rs`).
+//!
 //! Exit codes (after ripgrep): 0 ok (warnings only or nothing), 1 errors found, 2 usage or I/O
 //! error. All the work is done by `tdl-syntax`.
 
@@ -19,6 +21,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 
+mod serve;
 mod view;
 
 #[derive(Parser)]
@@ -45,6 +48,16 @@ enum Command {
     Expand {
         /// The `.tdl` file.
         file: PathBuf,
+    },
+    /// Serve the viewer on trace files (one run per file) at http://127.0.0.1:7878/ (or a free
+    /// port if that one is taken) until interrupted.
+    View {
+        /// The trace files (JSON lines).
+        #[arg(required = true)]
+        files: Vec<std::path::PathBuf>,
+        /// Listen on this address instead (a warning is printed when it is not loopback).
+        #[arg(long, value_name = "ADDR")]
+        listen: Option<std::net::SocketAddr>,
     },
     /// Read a trace file (JSON lines, as written by `--trace` or `tcm::JsonLines`).
     Trace {
@@ -168,6 +181,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             Ok(clean)
         }
         Command::Trace { what } => trace(what, &mut out),
+        Command::View { files, listen } => serve::view(&files, listen),
         Command::Expand { file } => {
             let (name, src) = read(&file)?;
             let (code, diagnostics) = tdl_syntax::compile_str(&name, &src);

@@ -240,14 +240,12 @@ impl<W: Write + Send> TraceSink for LiveTree<W> {
         // trace checker reports it.
         let _ = self.replay.apply(ev);
         self.dirty = true;
-        if let Some(pace) = self.pace {
-            // Hold the driver until the wall clock catches up with the simulated time.
-            let due = Duration::from_secs_f64(Duration::from_nanos(ev.t).as_secs_f64() / pace);
-            let elapsed = self.started.elapsed();
-            if due > elapsed {
-                self.draw_if_due();
-                std::thread::sleep(due - elapsed);
-            }
+        if let Some(wait) = self
+            .pace
+            .and_then(|pace| pace_delay(self.started, pace, ev.t))
+        {
+            self.draw_if_due();
+            std::thread::sleep(wait);
         }
         self.draw_if_due();
     }
@@ -255,6 +253,38 @@ impl<W: Write + Send> TraceSink for LiveTree<W> {
     fn flush(&mut self) {
         if self.dirty || self.drawn_lines == 0 {
             self.draw();
+        }
+    }
+}
+
+/// How long to hold the driver so that the wall clock, run at `pace` simulated seconds per wall
+/// second since `started`, catches up with the simulated time `t` (ns); `None` if it already did.
+fn pace_delay(started: Instant, pace: f64, t: u64) -> Option<Duration> {
+    let due = Duration::from_secs_f64(Duration::from_nanos(t).as_secs_f64() / pace);
+    due.checked_sub(started.elapsed()).filter(|d| !d.is_zero())
+}
+
+/// Paces a run on virtual time at some simulated seconds per wall second, so it can be watched
+/// (in the viewer) while it runs: the sink sleeps, the virtual clock does not move meanwhile.
+pub struct Pace {
+    pace: f64,
+    started: Instant,
+}
+
+impl Pace {
+    /// `pace` simulated seconds per wall second, from now.
+    pub fn new(pace: f64) -> Pace {
+        Pace {
+            pace,
+            started: Instant::now(),
+        }
+    }
+}
+
+impl TraceSink for Pace {
+    fn record(&mut self, ev: &TraceEvent) {
+        if let Some(wait) = pace_delay(self.started, self.pace, ev.t) {
+            std::thread::sleep(wait);
         }
     }
 }

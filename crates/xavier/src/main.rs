@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 use tdl::{JsonLines, Recorder, TextLogSink, TraceSink};
-use xavier::display::{EventLog, LiveTree};
+use xavier::display::{EventLog, LiveTree, Pace};
 use xavier::mission::Mission;
 use xavier::summary::Summary;
 use xavier::{Setup, run_in};
@@ -58,6 +58,16 @@ struct Cli {
     /// Write the trace as JSON lines to FILE (docs/trace-format.md).
     #[arg(long, value_name = "FILE")]
     trace: Option<PathBuf>,
+
+    /// Serve the task-tree viewer while the mission runs (and after it, until Ctrl-C): prints the
+    /// page's address (http://127.0.0.1:7878/, or a free port if that one is taken). On virtual
+    /// time the run is paced at --speed so it can be watched.
+    #[arg(long)]
+    view: bool,
+
+    /// With --view: listen on this address instead (a warning is printed when it is not loopback).
+    #[arg(long, value_name = "ADDR", requires = "view")]
+    listen: Option<std::net::SocketAddr>,
 
     /// Write TCM's text log of the run to FILE.
     #[arg(long, value_name = "FILE")]
@@ -127,7 +137,22 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         "Xavier delivers mail: seed {}, scenario {}, rooms {:?}, {clock}",
         setup.seed, setup.scenario, setup.rooms
     );
+    let viewer = if cli.view {
+        if let Some(warning) = cli.listen.as_ref().and_then(tcm_view::exposure_warning) {
+            eprintln!("xavier: {warning}");
+        }
+        let viewer = tcm_view::Viewer::start(cli.listen)?;
+        println!("viewer: {}", viewer.url());
+        sinks.push(Box::new(viewer.live(title.clone())));
+        Some(viewer)
+    } else {
+        None
+    };
     let stdout = std::io::stdout();
+    let paced = !cli.real_time && cli.speed > 0.0;
+    if viewer.is_some() && paced && !stdout.is_terminal() {
+        sinks.push(Box::new(Pace::new(cli.speed)));
+    }
     if stdout.is_terminal() {
         let pace = (!cli.real_time && cli.speed > 0.0).then_some(cli.speed);
         sinks.push(Box::new(LiveTree::new(
@@ -164,6 +189,14 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     out.flush()?;
     if !summary.ok() {
         eprintln!("xavier: the run did not complete: {:?}", summary.outcome);
+    }
+    if let Some(viewer) = viewer {
+        println!(
+            "viewer: the run is over; its page stays at {} until Ctrl-C",
+            viewer.url()
+        );
+        std::io::stdout().flush()?;
+        viewer.wait();
     }
     Ok(summary.ok())
 }

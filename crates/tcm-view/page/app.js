@@ -1,0 +1,555 @@
+// The viewer's page. It holds one row per node (the snapshot of docs/viewer.md, then each trace
+// record applied as it comes), draws only the rows in sight, and asks the server for the rest
+// (a node's details and waits, exceptions, counts, the event list). Plain JavaScript, no build.
+'use strict';
+
+const ROW = 20;
+const FACETS = ['handling', 'expansion', 'execution'];
+const POINTS = ['enabled', 'active', 'completed'];
+const M_SPAWNED = 0, M_TERMINATING = 10, M_TERMINATED = 11, M_RECLAIMED = 12, M_DEAD = 13, M_RESERVED = 14, M_FAILED = 15, MARKS = 16;
+const mPoint = (f, p) => 1 + 3 * f + p;
+const KIND_LETTER = { goal: 'G', command: 'C', monitor: 'M', handler: 'H', reserved: 'R', root: '·' };
+const COLOURS = {};
+for (const s of ['disabled', 'enabled', 'active', 'completed', 'failed']) {
+  COLOURS[s] = getComputedStyle(document.documentElement).getPropertyValue('--' + s).trim();
+}
+
+const $ = (id) => document.getElementById(id);
+const el = (tag, attrs, ...kids) => {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) {
+    if (k === 'class') e.className = v; else if (k.startsWith('on')) e[k] = v; else e.setAttribute(k, v);
+  }
+  for (const k of kids) if (k != null) e.append(k);
+  return e;
+};
+const secs = (ns) => (ns / 1e9).toFixed(3) + ' s';
+
+// --- The run's state -------------------------------------------------------------------------
+const S = {
+  runId: null, ws: null, retry: 0,
+  nodes: [],          // by number: {n, p, k, name, m: marks, kids: []}
+  times: [],          // flat [seq, t, seq, t, …] at each change of time
+  records: 0, finished: false, problem: null,
+  cursor: 0, follow: true,
+  view: [0, 1],       // time range shown, ns
+  collapsed: new Set(), selected: null,
+  query: '', matches: [], matchIdx: -1,
+  rows: [],           // node numbers in display order
+  dirty: true,
+};
+
+function reset() {
+  S.nodes = []; S.times = []; S.records = 0; S.finished = false; S.problem = null;
+  S.cursor = 0; S.follow = true; S.collapsed = new Set(); S.dirty = true;
+}
+
+function loadSnapshot(s) {
+  S.nodes = [];
+  for (const r of s.nodes) {
+    const m = r.slice(4, 4 + MARKS);
+    S.nodes[r[0]] = { n: r[0], p: r[1], k: r[2], name: r[3], m, kids: [] };
+  }
+  for (const node of S.nodes) if (node && node.p >= 0 && S.nodes[node.p]) S.nodes[node.p].kids.push(node.n);
+  S.times = s.times; S.records = s.records; S.finished = s.finished; S.problem = s.problem;
+  const last = lastT();
+  if (S.follow) S.cursor = Math.max(0, S.records - 1);
+  if (S.view[1] <= 1 || S.follow) S.view = [0, Math.max(last, 1)];
+  S.dirty = true;
+}
+
+function ensure(n) {
+  if (!S.nodes[n]) S.nodes[n] = { n, p: -1, k: 'reserved', name: '', m: new Array(MARKS).fill(-1), kids: [] };
+  return S.nodes[n];
+}
+function link(n, p) {
+  const node = ensure(n);
+  if (node.p === p) return;
+  node.p = p;
+  ensure(p).kids.push(n);
+}
+function mark(node, i, seq) { if (node.m[i] < 0) node.m[i] = seq; }
+
+// One trace record (docs/trace-format.md), as the server's model applies it.
+function apply(r) {
+  if (r.seq !== S.records) { resync(); return; }
+  const n = r.node;
+  switch (r.ev) {
+    case 'reserved': link(n, r.parent); S.nodes[n].name = r.name; mark(S.nodes[n], M_RESERVED, r.seq); break;
+    case 'spawned': {
+      link(n, r.parent);
+      const node = S.nodes[n];
+      node.name = r.name; node.k = r.kind; mark(node, M_SPAWNED, r.seq);
+      if (r.kind === 'command' || r.kind === 'monitor') mark(node, mPoint(1, 2), r.seq);
+      break;
+    }
+    case 'transition': {
+      const p = POINTS.indexOf(r.to);
+      if (p >= 0) mark(ensure(n), mPoint(FACETS.indexOf(r.facet), p), r.seq);
+      break;
+    }
+    case 'terminating': mark(ensure(n), M_TERMINATING, r.seq); break;
+    case 'terminated': mark(ensure(n), M_TERMINATED, r.seq); break;
+    case 'reclaimed': mark(ensure(n), M_RECLAIMED, r.seq); break;
+    case 'dead': mark(ensure(n), M_DEAD, r.seq); break;
+    case 'failed': mark(ensure(n), M_FAILED, r.seq); break;
+  }
+  const tl = S.times.length;
+  if (tl === 0 || S.times[tl - 1] !== r.t) S.times.push(r.seq, r.t);
+  S.records = r.seq + 1;
+  if (S.follow) { S.cursor = S.records - 1; if (r.t > S.view[1]) S.view[1] = r.t; }
+  S.dirty = true;
+}
+
+function lastT() { return S.times.length ? S.times[S.times.length - 1] : 0; }
+// Time of record `seq`.
+function tOf(seq) {
+  let lo = 0, hi = S.times.length / 2;
+  while (lo < hi) { const mid = (lo + hi) >> 1; if (S.times[2 * mid] <= seq) lo = mid + 1; else hi = mid; }
+  return lo === 0 ? 0 : S.times[2 * (lo - 1) + 1];
+}
+// The last record at or before time t.
+function seqAt(t) {
+  let lo = 0, hi = S.times.length / 2;
+  while (lo < hi) { const mid = (lo + hi) >> 1; if (S.times[2 * mid + 1] <= t) lo = mid + 1; else hi = mid; }
+  if (lo === 0) return 0;
+  if (lo === S.times.length / 2) return Math.max(0, S.records - 1);
+  return Math.max(0, S.times[2 * lo] - 1);
+}
+const reached = (node, i, seq) => node.m[i] >= 0 && node.m[i] <= seq;
+function stateAt(node, f, seq) {
+  for (let p = 2; p >= 0; p--) if (reached(node, mPoint(f, p), seq)) return POINTS[p];
+  return 'disabled';
+}
+
+// --- Rows in display order ------------------------------------------------------------------
+function pathOf(n) {
+  const names = [];
+  let node = S.nodes[n], guard = 0;
+  while (node && node.n !== 0 && guard++ < 10000) { names.push(node.name); node = S.nodes[node.p]; }
+  return names.reverse().join('/');
+}
+
+function computeRows() {
+  const onlyAlive = $('alive').checked;
+  const seq = S.cursor;
+  const q = S.query.toLowerCase();
+  let keep = null;
+  S.matches = [];
+  if (q) {
+    keep = new Set();
+    for (const node of S.nodes) {
+      if (!node || node.n === 0) continue;
+      if (node.name.toLowerCase().includes(q) || pathOf(node.n).toLowerCase().includes(q)) {
+        S.matches.push(node.n);
+        let a = node, guard = 0;
+        while (a && !keep.has(a.n) && guard++ < 10000) { keep.add(a.n); a = S.nodes[a.p]; }
+      }
+    }
+    $('matches').textContent = S.matches.length + ' match' + (S.matches.length === 1 ? '' : 'es');
+  } else {
+    $('matches').textContent = '';
+  }
+  const rows = [];
+  const stack = [];
+  const root = S.nodes[0];
+  if (root) for (let i = root.kids.length - 1; i >= 0; i--) stack.push([root.kids[i], 0]);
+  while (stack.length) {
+    const [n, depth] = stack.pop();
+    const node = S.nodes[n];
+    if (!node) continue;
+    const spawned = reached(node, M_SPAWNED, seq);
+    if (node.m[M_SPAWNED] < 0 && node.m[M_DEAD] < 0 && !reached(node, M_RESERVED, seq)) continue;
+    if (onlyAlive && (!spawned || reached(node, M_RECLAIMED, seq))) continue;
+    if (keep && !keep.has(n)) continue;
+    rows.push(n, depth);
+    if (!S.collapsed.has(n)) for (let i = node.kids.length - 1; i >= 0; i--) stack.push([node.kids[i], depth + 1]);
+  }
+  S.rows = rows;
+  $('spacer').style.height = (rows.length / 2) * ROW + 'px';
+}
+
+// --- Drawing --------------------------------------------------------------------------------
+const pool = [];
+function render() {
+  if (!S.dirty) return;
+  S.dirty = false;
+  computeRows();
+  const box = $('rows');
+  const first = Math.floor(box.scrollTop / ROW);
+  const count = Math.ceil(box.clientHeight / ROW) + 1;
+  const shift = -(box.scrollTop % ROW);
+  const tree = $('tree');
+  while (pool.length < count) { const d = el('div', { class: 'row' }); tree.append(d); pool.push(d); }
+  const seq = S.cursor;
+  const matchSet = S.query ? new Set(S.matches) : null;
+  for (let i = 0; i < pool.length; i++) {
+    const d = pool[i];
+    const idx = first + i;
+    if (i >= count || idx * 2 >= S.rows.length) { d.hidden = true; continue; }
+    d.hidden = false;
+    const n = S.rows[idx * 2], depth = S.rows[idx * 2 + 1];
+    const node = S.nodes[n];
+    d.style.top = (shift + i * ROW) + 'px';
+    d.dataset.n = n;
+    const states = [0, 1, 2].map((f) => stateAt(node, f, seq));
+    d.dataset.h = states[0]; d.dataset.x = states[1]; d.dataset.e = states[2];
+    const spawned = reached(node, M_SPAWNED, seq);
+    const failed = reached(node, M_FAILED, seq);
+    d.className = 'row' + (n === S.selected ? ' sel' : '') + (spawned ? '' : ' future')
+      + (reached(node, M_RECLAIMED, seq) ? ' gone' : '')
+      + (reached(node, M_TERMINATING, seq) ? ' terminated' : '')
+      + (failed ? ' failed' : '') + (matchSet && matchSet.has(n) ? ' match' : '');
+    const tog = node.kids.length ? (S.collapsed.has(n) ? '▸' : '▾') : '';
+    d.replaceChildren(
+      el('span', { style: 'display:inline-block;width:' + (depth * 14) + 'px' }),
+      el('span', { class: 'tog' }, tog),
+      el('span', { class: 'kind k-' + node.k, title: node.k }, KIND_LETTER[node.k] || '?'),
+      ...states.map((s, f) => el('span', { class: 'sq s-' + (failed && f === 0 && s === 'completed' ? 'failed' : s), title: FACETS[f] + ': ' + s })),
+      el('span', { class: 'name' }, node.name),
+      el('span', { class: 'num' }, '{' + n + '}'),
+    );
+  }
+  drawBars(first, count, shift);
+  drawAxis();
+  const t = tOf(seq);
+  $('cursor').max = Math.max(0, S.records - 1);
+  $('cursor').value = seq;
+  $('cursorlabel').textContent = 'record ' + seq + ' of ' + S.records + ' · t = ' + secs(t);
+  const pb = $('problem');
+  pb.hidden = !S.problem;
+  pb.textContent = S.problem ? 'This trace could not be read to its end; everything before is shown.\n' + S.problem : '';
+}
+
+function fitCanvas(c) {
+  const r = c.getBoundingClientRect();
+  const dpr = window.devicePixelRatio || 1;
+  if (c.width !== Math.round(r.width * dpr) || c.height !== Math.round(r.height * dpr)) {
+    c.width = Math.round(r.width * dpr); c.height = Math.round(r.height * dpr);
+  }
+  const g = c.getContext('2d');
+  g.setTransform(dpr, 0, 0, dpr, 0, 0);
+  return [g, r.width, r.height];
+}
+const xOf = (t, w) => ((t - S.view[0]) / Math.max(1, S.view[1] - S.view[0])) * w;
+const tAtX = (x, w) => S.view[0] + (x / w) * (S.view[1] - S.view[0]);
+
+function drawBars(first, count, shift) {
+  const [g, w, h] = fitCanvas($('bars'));
+  g.clearRect(0, 0, w, h);
+  const seq = S.cursor, end = tOf(seq);
+  for (let i = 0; i < count; i++) {
+    const idx = first + i;
+    if (idx * 2 >= S.rows.length) break;
+    const node = S.nodes[S.rows[idx * 2]];
+    const y = shift + i * ROW;
+    if (i % 2) { g.fillStyle = '#fafafa'; g.fillRect(0, y, w, ROW); }
+    for (let f = 0; f < 3; f++) {
+      const e = node.m[mPoint(f, 0)], a = node.m[mPoint(f, 1)], c = node.m[mPoint(f, 2)];
+      const yy = y + 3 + f * 5;
+      const te = e >= 0 && e <= seq ? tOf(e) : null;
+      const ta = a >= 0 && a <= seq ? tOf(a) : null;
+      const tc = c >= 0 && c <= seq ? tOf(c) : null;
+      if (te !== null) {
+        g.fillStyle = COLOURS.enabled;
+        const stop = ta !== null ? ta : tc !== null ? tc : end;
+        g.fillRect(xOf(te, w), yy, Math.max(1, xOf(stop, w) - xOf(te, w)), 4);
+      }
+      if (ta !== null) {
+        g.fillStyle = f === 0 && reached(node, M_FAILED, seq) ? COLOURS.failed : COLOURS.active;
+        const stop = tc !== null ? tc : end;
+        g.fillRect(xOf(ta, w), yy, Math.max(2, xOf(stop, w) - xOf(ta, w)), 4);
+      }
+      if (tc !== null) { g.fillStyle = COLOURS.completed; g.fillRect(xOf(tc, w) - 1, yy, 2, 4); }
+    }
+    if (reached(node, M_TERMINATING, seq)) {
+      g.fillStyle = '#333';
+      g.fillRect(xOf(tOf(node.m[M_TERMINATING]), w) - 1, y + 2, 2, ROW - 4);
+    }
+  }
+  g.fillStyle = '#d33b3b';
+  g.fillRect(xOf(end, w) - 0.5, 0, 1, h);
+}
+
+function drawAxis() {
+  const [g, w, h] = fitCanvas($('axis'));
+  g.clearRect(0, 0, w, h);
+  const span = Math.max(1, S.view[1] - S.view[0]);
+  const raw = span / 8;
+  const pow = Math.pow(10, Math.floor(Math.log10(raw)));
+  const step = [1, 2, 5, 10].map((k) => k * pow).find((s) => s >= raw) || raw;
+  g.fillStyle = '#777'; g.font = '11px system-ui';
+  for (let t = Math.ceil(S.view[0] / step) * step; t <= S.view[1]; t += step) {
+    const x = xOf(t, w);
+    g.fillRect(x, h - 6, 1, 6);
+    g.fillText(secs(t).replace('.000', ''), x + 2, 12);
+  }
+  g.fillStyle = '#d33b3b';
+  g.fillRect(xOf(tOf(S.cursor), w) - 0.5, 0, 1, h);
+}
+
+let frame = 0;
+function schedule() { S.dirty = true; if (!frame) frame = requestAnimationFrame(() => { frame = 0; render(); }); }
+
+// --- Talking to the server -------------------------------------------------------------------
+async function getJSON(path) {
+  const r = await fetch(path);
+  if (!r.ok) throw new Error(path + ': ' + r.status + ' ' + (await r.text()));
+  return r.json();
+}
+
+async function loadRuns() {
+  try {
+    const runs = await getJSON('/api/runs');
+    const sel = $('run');
+    const had = sel.options.length;
+    if (had !== runs.length) {
+      sel.replaceChildren(...runs.map((r) => el('option', { value: r.id }, r.id + ': ' + r.name)));
+      const fromHash = Number(new URLSearchParams(location.hash.slice(1)).get('run'));
+      const want = S.runId !== null ? S.runId : (runs.some((r) => r.id === fromHash) ? fromHash : (runs.length ? runs[runs.length - 1].id : null));
+      if (want !== null) { sel.value = want; if (S.runId === null) open(want); }
+    }
+    if (!runs.length) $('status').textContent = 'no run yet';
+  } catch (e) {
+    $('status').textContent = 'server unreachable';
+  }
+}
+
+function open(id) {
+  if (S.ws) { S.ws.onclose = null; S.ws.close(); }
+  S.runId = id; reset(); S.selected = null;
+  history.replaceState(null, '', '#run=' + id);
+  connect();
+}
+
+function connect() {
+  const proto = location.protocol === 'https:' ? 'wss:' : 'ws:';
+  const ws = new WebSocket(proto + '//' + location.host + '/api/runs/' + S.runId + '/live');
+  S.ws = ws;
+  $('status').textContent = 'loading…';
+  ws.onmessage = (msg) => {
+    const m = JSON.parse(msg.data);
+    if (m.type === 'snapshot') { loadSnapshot(m); S.retry = 0; status(); refreshPanels(); }
+    else if (m.type === 'finished') { S.finished = true; status(); refreshPanels(); }
+    else if (m.type === 'resync') resync();
+    else if (m.ev) { apply(m); status(); }
+    schedule();
+  };
+  ws.onclose = () => {
+    if (S.ws !== ws) return;
+    $('status').textContent = 'disconnected; reconnecting…';
+    $('status').className = '';
+    S.retry = Math.min(S.retry + 1, 5);
+    setTimeout(() => { if (S.ws === ws) connect(); }, 400 * S.retry);
+  };
+}
+
+// Out of step with the server: start again from a snapshot.
+function resync() { if (S.ws) S.ws.close(); }
+
+function status() {
+  const st = $('status');
+  st.textContent = (S.finished ? 'finished' : 'live') + ' · ' + S.records + ' records · ' + (S.nodes.length - 1) + ' nodes · ' + secs(lastT());
+  st.className = S.finished ? '' : 'live';
+}
+
+// --- Panels --------------------------------------------------------------------------------
+let panelTimer = 0;
+function refreshPanels() {
+  clearTimeout(panelTimer);
+  panelTimer = setTimeout(() => {
+    const tab = document.querySelector('#tabs .on').dataset.tab;
+    if (tab === 'node') showNode();
+    else if (tab === 'exceptions') showExceptions();
+    else if (tab === 'stats') showStats();
+  }, 120);
+}
+
+function nodeLink(n, text) {
+  return el('a', { class: 'node', 'data-n': n, onclick: () => select(n, true) }, text || (S.nodes[n] ? S.nodes[n].name + ' {' + n + '}' : '{' + n + '}'));
+}
+
+function select(n, scroll) {
+  S.selected = n;
+  let a = S.nodes[n] && S.nodes[S.nodes[n].p], guard = 0;
+  while (a && guard++ < 10000) { S.collapsed.delete(a.n); a = S.nodes[a.p]; }
+  S.dirty = true; render();
+  if (scroll) reveal(n);
+  document.querySelector('#tabs [data-tab=node]').click();
+}
+
+// Scrolls the tree so that node n's row is in sight (if it is listed).
+function reveal(n) {
+  computeRows();
+  for (let i = 0; i < S.rows.length; i += 2) if (S.rows[i] === n) {
+    const box = $('rows'), y = (i / 2) * ROW;
+    if (y < box.scrollTop || y > box.scrollTop + box.clientHeight - 2 * ROW) box.scrollTop = Math.max(0, y - box.clientHeight / 3);
+    break;
+  }
+  S.dirty = true; render();
+}
+
+async function showNode() {
+  const tab = $('tab-node');
+  if (S.selected === null) { tab.replaceChildren(el('p', { class: 'hint' }, 'Select a node in the tree.')); return; }
+  let v;
+  try { v = await getJSON('/api/runs/' + S.runId + '/node/' + S.selected + '?at=' + S.cursor); }
+  catch (e) { tab.replaceChildren(el('p', { class: 'hint' }, String(e))); return; }
+  const kv = el('dl', { class: 'kv' });
+  const add = (k, val) => { if (val !== null && val !== undefined && val !== '') kv.append(el('dt', {}, k), el('dd', {}, val)); };
+  add('path', v.path);
+  add('kind', v.kind);
+  add('at the cursor', v.life + ' · ' + FACETS.map((f, i) => f + ' ' + v.states[i]).join(', '));
+  if (v.parent !== null) add('parent', nodeLink(v.parent));
+  if (v.handles) add('handles', el('span', {}, v.handles[1] + ' for ', nodeLink(v.handles[0])));
+  if (v.retry_of !== null) add('retry of', nodeLink(v.retry_of));
+  if (v.queued_ns !== null) add('enabled → active', secs(v.queued_ns));
+  if (v.ran_ns !== null) add('action ran', secs(v.ran_ns));
+  if (v.kind === 'monitor') add('activations · triggers', v.activations + ' · ' + v.triggers_count);
+  add('children', String(v.children.length));
+  const parts = [el('h3', {}, v.name + ' {' + v.node + '}'), kv];
+  parts.push(el('h3', {}, 'Waiting on'));
+  if (v.waits.length) {
+    parts.push(el('ul', { class: 'waits', id: 'waits' }, ...v.waits.map((w) => el('li', {},
+      el('span', { class: 'facet' }, w.facet), ': ',
+      w.event ? el('span', {}, w.what, ' · ', nodeLink(w.event.node, 'go to {' + w.event.node + '}')) : w.what,
+      el('span', { class: 'hint' }, ' — since ' + secs(w.since))))));
+  } else {
+    parts.push(el('p', { class: 'hint', id: 'waits' }, v.life === 'not yet spawned' ? 'Not spawned yet at the cursor.' : 'Nothing holds it back at the cursor.'));
+  }
+  if (v.triggers.length) parts.push(el('h3', {}, 'Triggers'), el('ul', {}, ...v.triggers.map((t) => el('li', {}, t))));
+  if (v.failures.length) parts.push(el('h3', {}, 'Failures'), el('ul', {}, ...v.failures.map(([f, t]) => el('li', {}, secs(t) + ' ' + f))));
+  parts.push(el('h3', {}, 'History'), el('table', {}, ...v.history.map(([what, t]) => el('tr', {}, el('td', {}, secs(t)), el('td', {}, what)))));
+  tab.replaceChildren(...parts);
+}
+
+async function showExceptions() {
+  const tab = $('tab-exceptions');
+  const list = await getJSON('/api/runs/' + S.runId + '/exceptions');
+  if (!list.length) { tab.replaceChildren(el('p', { class: 'hint' }, 'No exception was raised.')); return; }
+  tab.replaceChildren(...list.map((x) => el('div', { class: 'exc' },
+    el('div', {}, secs(x.at.t) + ' ', el('b', {}, x.exception), ' raised by ', nodeLink(x.node, x.path + ' {' + x.node + '}'), ': ' + x.message),
+    el('ol', { class: 'steps' }, ...(x.steps.length ? x.steps : [{ what: 'pending', detail: 'no handler chosen yet', node: null, at: x.at }]).map((s) => el('li', {},
+      secs(s.at.t) + ' ' + s.what + ' ', s.node !== null ? nodeLink(s.node) : '', s.detail ? ' ' + s.detail : ''))))));
+}
+
+async function showStats() {
+  const tab = $('tab-stats');
+  const list = await getJSON('/api/runs/' + S.runId + '/stats');
+  const head = el('tr', {}, ...['task', 'kind', 'nodes', 'ok', 'failed', 'terminated', 'open', 'mean', 'max', 'total'].map((h) => el('th', {}, h)));
+  tab.replaceChildren(el('table', {}, head, ...list.map((s) => el('tr', {},
+    el('td', {}, el('a', { class: 'node', onclick: () => { $('search').value = s.name; search(); } }, s.name)),
+    el('td', {}, s.kind), el('td', {}, s.count), el('td', {}, s.succeeded), el('td', {}, s.failed),
+    el('td', {}, s.terminated), el('td', {}, s.unfinished),
+    el('td', {}, s.ran ? secs(s.mean_ns) : ''), el('td', {}, s.ran ? secs(s.max_ns) : ''), el('td', {}, s.ran ? secs(s.total_ns) : '')))));
+}
+
+let evOffset = 0;
+async function showEvents() {
+  const p = new URLSearchParams();
+  if ($('evname').value) p.set('name', $('evname').value);
+  const toNs = (v) => String(Math.round(parseFloat(v) * 1e9));
+  if ($('evfrom').value && !isNaN(parseFloat($('evfrom').value))) p.set('from', toNs($('evfrom').value));
+  if ($('evto').value && !isNaN(parseFloat($('evto').value))) p.set('to', toNs($('evto').value));
+  if ($('evnode').checked && S.selected !== null) p.set('node', S.selected);
+  p.set('offset', evOffset); p.set('limit', 200);
+  const r = await getJSON('/api/runs/' + S.runId + '/events?' + p);
+  $('evcount').textContent = r.total ? (r.offset + 1) + '–' + (r.offset + r.records.length) + ' of ' + r.total : 'no record matches';
+  $('evlist').replaceChildren(...r.records.map((rec) => {
+    const rest = Object.assign({}, rec);
+    delete rest.seq; delete rest.t; delete rest.ev;
+    const nm = typeof rec.node === 'number' && S.nodes[rec.node] ? ' ' + S.nodes[rec.node].name : '';
+    return el('li', {
+      'data-seq': rec.seq, title: 'record ' + rec.seq + ': move the cursor here',
+      onclick: () => { setCursor(rec.seq); if (typeof rec.node === 'number') select(rec.node, true); },
+    }, '#' + rec.seq + ' ' + secs(rec.t) + ' ' + rec.ev + nm + ' ' + JSON.stringify(rest));
+  }));
+}
+
+function setCursor(seq) {
+  S.cursor = Math.max(0, Math.min(seq, S.records - 1));
+  S.follow = S.cursor === S.records - 1 && !S.finished;
+  schedule(); refreshPanels();
+}
+
+function search() {
+  S.query = $('search').value.trim();
+  S.matchIdx = -1;
+  schedule();
+}
+
+// --- Wiring --------------------------------------------------------------------------------
+$('run').onchange = () => open(Number($('run').value));
+let searchTimer = 0;
+$('search').oninput = () => { clearTimeout(searchTimer); searchTimer = setTimeout(search, 150); };
+$('search').onkeydown = (e) => {
+  if (e.key === 'Enter' && S.matches.length) {
+    S.matchIdx = (S.matchIdx + 1) % S.matches.length;
+    select(S.matches[S.matchIdx], true);
+  }
+};
+$('cursor').oninput = () => setCursor(Number($('cursor').value));
+$('alive').onchange = schedule;
+$('rows').onscroll = () => { S.dirty = true; render(); };
+window.onresize = schedule;
+$('tree').onclick = (e) => {
+  const row = e.target.closest('.row');
+  if (!row) return;
+  const n = Number(row.dataset.n);
+  if (e.target.classList.contains('tog')) {
+    if (S.collapsed.has(n)) S.collapsed.delete(n); else S.collapsed.add(n);
+    schedule(); return;
+  }
+  select(n, false);
+};
+const zoom = (k, tCentre) => {
+  const [a, b] = S.view;
+  const c = tCentre === undefined ? (a + b) / 2 : tCentre;
+  const span = Math.max(1000, (b - a) * k);
+  S.view = [Math.max(0, c - (c - a) * k), 0]; S.view[1] = S.view[0] + span;
+  schedule();
+};
+$('zoomin').onclick = () => zoom(0.5, tOf(S.cursor));
+$('zoomout').onclick = () => zoom(2, tOf(S.cursor));
+$('fit').onclick = () => { S.view = [0, Math.max(1, lastT())]; schedule(); };
+let drag = null;
+const bars = $('bars');
+bars.onwheel = (e) => {
+  e.preventDefault();
+  const r = bars.getBoundingClientRect();
+  zoom(e.deltaY > 0 ? 1.25 : 0.8, tAtX(e.clientX - r.left, r.width));
+};
+bars.onmousedown = (e) => { drag = { x: e.clientX, view: S.view.slice(), moved: false }; };
+window.onmousemove = (e) => {
+  if (!drag) return;
+  const dx = e.clientX - drag.x;
+  if (Math.abs(dx) > 3) drag.moved = true;
+  if (drag.moved) {
+    const w = bars.getBoundingClientRect().width;
+    const dt = (dx / w) * (drag.view[1] - drag.view[0]);
+    S.view = [drag.view[0] - dt, drag.view[1] - dt];
+    schedule();
+  }
+};
+window.onmouseup = (e) => {
+  if (drag && !drag.moved && e.target === bars) {
+    const r = bars.getBoundingClientRect();
+    setCursor(seqAt(tAtX(e.clientX - r.left, r.width)));
+    const i = Math.floor((e.clientY - r.top + $('rows').scrollTop % ROW) / ROW) + Math.floor($('rows').scrollTop / ROW);
+    if (i * 2 < S.rows.length) select(S.rows[i * 2], false);
+  }
+  drag = null;
+};
+for (const b of document.querySelectorAll('#tabs button')) {
+  b.onclick = () => {
+    for (const o of document.querySelectorAll('#tabs button')) o.classList.toggle('on', o === b);
+    for (const t of document.querySelectorAll('.tab')) t.hidden = t.id !== 'tab-' + b.dataset.tab;
+    if (b.dataset.tab === 'events') showEvents(); else refreshPanels();
+  };
+}
+$('evfilter').onsubmit = (e) => { e.preventDefault(); evOffset = 0; showEvents(); };
+$('evprev').onclick = () => { evOffset = Math.max(0, evOffset - 200); showEvents(); };
+$('evnext').onclick = () => { evOffset += 200; showEvents(); };
+
+loadRuns();
+setInterval(loadRuns, 2000);

@@ -1,0 +1,306 @@
+//! The viewer's model and server on real runs (tcm on tokio's paused clock, every trace through
+//! the checker): why a node waits and when it stops waiting, an exception's story, counts and
+//! durations, the event filter, bad files named by line with what came before kept; and the
+//! server: the snapshot, live deltas over a WebSocket, and a page that falls behind being sent a
+//! fresh snapshot instead of slowing the run.
+
+use std::time::Duration;
+
+use futures_util::StreamExt;
+use tcm::testing::run_checked;
+use tcm::{Facet, Failure, Handler, NodeKind, NodeRef, Runtime, Task, TraceSink};
+use tcm_trace::TraceEvent;
+use tcm_view::{EventFilter, RunModel, Viewer, m_point};
+use tokio_tungstenite::tungstenite::Message;
+
+fn secs(s: u64) -> Duration {
+    Duration::from_secs(s)
+}
+
+/// `mission` runs `drive` (5 s), then `park` (1 s, serial on `drive`), beside `honk` (2 s) which
+/// fails with `Jammed`, handled by `shrug`.
+async fn mission() -> Vec<TraceEvent> {
+    let task = Task::goal("mission", |ctx| async move {
+        ctx.spawn(Task::command("drive", |_| async {
+            tokio::time::sleep(secs(5)).await;
+            Ok(())
+        }))
+        .start()?;
+        ctx.spawn(Task::command("park", |_| async {
+            tokio::time::sleep(secs(1)).await;
+            Ok(())
+        }))
+        .sequential(Facet::Execution, NodeRef::Previous)
+        .start()?;
+        ctx.spawn(
+            Task::retryable(NodeKind::Command, "honk", |_| async {
+                tokio::time::sleep(secs(2)).await;
+                Err::<(), _>(Failure::new("Jammed", "the horn is stuck"))
+            })
+            .handler(Handler::new("shrug", "Jammed", |_| async { Ok(()) })),
+        )
+        .start()?;
+        Ok(())
+    });
+    run_checked(Runtime::new(), task).await.1
+}
+
+fn model_of(trace: &[TraceEvent]) -> RunModel {
+    let mut m = RunModel::new("mission");
+    for ev in trace {
+        m.apply(ev).expect("a checked trace applies");
+    }
+    m
+}
+
+fn number(m: &RunModel, name: &str) -> u64 {
+    m.rows()
+        .iter()
+        .find(|r| r.name == name)
+        .map(|r| r.number)
+        .unwrap_or_else(|| panic!("no node {name}"))
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_serial_node_waits_on_the_previous_execution_until_it_completes() {
+    let trace = mission().await;
+    let m = model_of(&trace);
+    let (drive, park) = (number(&m, "drive"), number(&m, "park"));
+    let drive_done = m.rows()[drive as usize].marks
+        [m_point(Facet::Execution, tcm::Point::Completed)]
+    .expect("drive completed");
+    assert_eq!(drive_done.t, 5_000_000_000);
+
+    // At 3 s, park waits for drive's execution to complete, since it was spawned at 0.
+    let v = m.node_view(park, m.seq_at(3_000_000_000)).expect("park");
+    assert_eq!(v.states, ["disabled", "completed", "disabled"]);
+    let execution: Vec<_> = v.waits.iter().filter(|w| w.facet == "execution").collect();
+    assert_eq!(execution.len(), 1, "{:?}", v.waits);
+    let event = execution[0].event.as_ref().expect("an event");
+    assert_eq!(
+        (event.node, event.facet, event.point),
+        (drive, "execution", "completed")
+    );
+    assert_eq!(event.path, "mission/drive");
+    assert!(
+        execution[0].what.contains("drive {"),
+        "{}",
+        execution[0].what
+    );
+    assert_eq!(execution[0].since, 0);
+    // Its handling waits for its own execution (the structural coupling of a command).
+    assert!(
+        v.waits
+            .iter()
+            .any(|w| w.facet == "handling" && w.what.contains("its own execution"))
+    );
+
+    // Once drive completed, nothing holds park's execution.
+    let v = m.node_view(park, drive_done.seq).expect("park");
+    assert!(
+        !v.waits.iter().any(|w| w.facet == "execution"),
+        "{:?}",
+        v.waits
+    );
+    // At the end it ran for 1 s, and waits for nothing.
+    let v = m.node_view(park, u64::MAX).expect("park");
+    assert_eq!(v.ran_ns, Some(1_000_000_000));
+    assert!(v.waits.is_empty(), "{:?}", v.waits);
+    assert_eq!(v.life, "reclaimed");
+}
+
+#[tokio::test(start_paused = true)]
+async fn exceptions_counts_and_the_event_filter() {
+    let trace = mission().await;
+    let m = model_of(&trace);
+    let honk = number(&m, "honk");
+    let x = m.exceptions();
+    assert_eq!(x.len(), 1);
+    assert_eq!((x[0].node, x[0].exception.as_str()), (honk, "Jammed"));
+    assert_eq!(x[0].path, "mission/honk");
+    assert_eq!(x[0].at.t, 2_000_000_000);
+    let steps: Vec<_> = x[0]
+        .steps
+        .iter()
+        .map(|s| (s.what, s.detail.as_str()))
+        .collect();
+    assert_eq!(steps, [("chosen", "shrug")]);
+
+    let stats = m.stats();
+    let drive = stats.iter().find(|s| s.name == "drive").expect("drive");
+    assert_eq!(
+        (drive.count, drive.succeeded, drive.total_ns),
+        (1, 1, 5_000_000_000)
+    );
+    let honk_stats = stats.iter().find(|s| s.name == "honk").expect("honk");
+    assert_eq!((honk_stats.count, honk_stats.failed), (1, 1));
+    // Longest total first.
+    assert_eq!(stats[0].name, "drive");
+
+    let only_park = EventFilter {
+        name: Some("PARK".to_string()),
+        ..EventFilter::default()
+    };
+    let (total, lines) = m.events(&only_park, 0, 1000);
+    assert!(total > 3 && total == lines.len());
+    assert!(
+        lines
+            .iter()
+            .all(|l| l.contains(&format!("\"node\":{}", number(&m, "park")))
+                || l.to_lowercase().contains("park"))
+    );
+    let window = EventFilter {
+        from: Some(2_000_000_000),
+        to: Some(2_000_000_000),
+        ..EventFilter::default()
+    };
+    let (total, lines) = m.events(&window, 0, 2);
+    assert_eq!(lines.len(), 2);
+    assert!(
+        total >= 3,
+        "honk fails, is handled, and completes at 2 s: {total}"
+    );
+    assert!(lines.iter().all(|l| l.contains("\"t\":2000000000")));
+}
+
+#[test]
+fn a_bad_line_is_named_with_its_file_and_line_and_what_came_before_is_kept() {
+    let good = [
+        r#"{"seq":0,"t":0,"ev":"run_started","version":4,"run":0}"#,
+        r#"{"seq":1,"t":0,"ev":"spawned","node":1,"parent":0,"kind":"command","name":"beep"}"#,
+    ];
+    let text = format!(
+        "{}\n{}\n{{\"seq\":2,\"t\":0,\"ev\":\"spaw",
+        good[0], good[1]
+    );
+    let m = RunModel::read("cut.jsonl", "cut.jsonl", text.as_bytes());
+    let p = m.problem.as_ref().expect("a problem");
+    assert_eq!((p.source.as_str(), p.line), ("cut.jsonl", 3));
+    assert!(p.to_string().starts_with("cut.jsonl:3: "), "{p}");
+    assert_eq!(m.len(), 2);
+    assert_eq!(m.rows()[1].name, "beep");
+
+    let newer = r#"{"seq":0,"t":0,"ev":"run_started","version":99,"run":0}"#;
+    let m = RunModel::read("new.jsonl", "new.jsonl", newer.as_bytes());
+    let p = m.problem.as_ref().expect("a problem");
+    assert_eq!(p.line, 1);
+    assert!(p.message.contains("99"), "{p}");
+
+    let m = RunModel::read("empty.jsonl", "empty.jsonl", &b"\n\n"[..]);
+    assert!(
+        m.problem
+            .as_ref()
+            .expect("a problem")
+            .message
+            .contains("no trace record")
+    );
+
+    let foreign = "{\"hello\": 1}\n";
+    let m = RunModel::read("x.json", "x.json", foreign.as_bytes());
+    assert_eq!(m.problem.as_ref().expect("a problem").line, 1);
+
+    let skipped = format!(
+        "{}\n{}",
+        good[0], r#"{"seq":5,"t":0,"ev":"external","name":"go"}"#
+    );
+    let m = RunModel::read("gap.jsonl", "gap.jsonl", skipped.as_bytes());
+    let p = m.problem.as_ref().expect("a problem");
+    assert_eq!(p.line, 2);
+    assert!(p.message.contains("record number 5"), "{p}");
+}
+
+async fn next_json(
+    ws: &mut tokio_tungstenite::WebSocketStream<
+        tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>,
+    >,
+) -> serde_json::Value {
+    loop {
+        let msg = tokio::time::timeout(Duration::from_secs(10), ws.next())
+            .await
+            .expect("a message within 10 s")
+            .expect("the socket is open")
+            .expect("a message");
+        if let Message::Text(t) = msg {
+            return serde_json::from_str(&t).expect("JSON");
+        }
+    }
+}
+
+#[test]
+fn a_live_page_gets_a_snapshot_then_records_and_a_fresh_snapshot_when_it_falls_behind() {
+    let trace = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .start_paused(true)
+        .build()
+        .expect("runtime")
+        .block_on(mission());
+    let viewer = Viewer::serve(([127, 0, 0, 1], 0).into()).expect("serve on loopback");
+    assert!(viewer.url().starts_with("http://127.0.0.1:"));
+    let mut sink = viewer.live("mission");
+    let half = trace.len() / 2;
+    for ev in &trace[..half] {
+        sink.record(ev);
+    }
+    let url = format!("ws://{}/api/runs/{}/live", viewer.addr(), sink.id());
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime");
+    rt.block_on(async {
+        let (mut ws, _) = tokio_tungstenite::connect_async(url.as_str())
+            .await
+            .expect("connect");
+        // Opened mid-run: a snapshot of what is there…
+        let snap = next_json(&mut ws).await;
+        assert_eq!(snap["type"], "snapshot");
+        assert_eq!(snap["records"], half as u64);
+        assert_eq!(snap["finished"], false);
+        // …then each record, as the trace schema writes it.
+        for ev in &trace[half..half + 3] {
+            sink.record(ev);
+        }
+        for ev in &trace[half..half + 3] {
+            let got = next_json(&mut ws).await;
+            assert_eq!(
+                got,
+                serde_json::from_str::<serde_json::Value>(&tcm_trace::to_line(ev)).expect("JSON")
+            );
+        }
+        // A page that does not read while the run goes on never holds the run up: it falls
+        // behind and is sent a fresh snapshot with everything, then the records after it.
+        let start = trace.len();
+        let mut seq = start as u64;
+        let t = trace.last().map_or(0, |e| e.t);
+        for ev in &trace[half + 3..] {
+            sink.record(ev);
+        }
+        // 20 MB: more than the socket buffers on both sides hold.
+        let name = "tick".repeat(250);
+        for _ in 0..20_000 {
+            sink.record(&TraceEvent {
+                seq,
+                t,
+                kind: tcm_trace::TraceKind::External { name: name.clone() },
+            });
+            seq += 1;
+        }
+        sink.flush();
+        // Read on: a fresh snapshot comes, and from it on, every record in order to the end.
+        let (mut last, mut finished, mut snapshots) = (0u64, false, 0);
+        while !(snapshots > 0 && last == seq && finished) {
+            let m = next_json(&mut ws).await;
+            if m["type"] == "snapshot" {
+                snapshots += 1;
+                last = m["records"].as_u64().expect("records");
+                finished = m["finished"] == true;
+            } else if m["type"] == "finished" {
+                finished = true;
+            } else if snapshots > 0 {
+                assert_eq!(m["seq"], last, "records after the snapshot come in order");
+                last += 1;
+            }
+        }
+        assert!(seq > start as u64);
+    });
+    viewer.stop();
+}
