@@ -191,6 +191,36 @@ impl std::fmt::Display for Problem {
 /// allocated (each `reserved` or `spawned` record allocates one number).
 const NUMBER_SLACK: u64 = 1 << 16;
 
+/// Lines read (and parsed on every core) before they are applied.
+const READ_BATCH: usize = 1 << 16;
+
+/// Parses each line of `batch`, split among the machine's cores.
+fn parse_all(batch: &[(usize, String)]) -> Vec<Result<TraceEvent, tcm_trace::ReadError>> {
+    let parse = |part: &[(usize, String)]| -> Vec<_> {
+        part.iter()
+            .map(|(no, line)| tcm_trace::jsonl::parse_line(line, *no))
+            .collect()
+    };
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    if cores < 2 || batch.len() < 1024 {
+        return parse(batch);
+    }
+    let chunk = batch.len().div_ceil(cores);
+    std::thread::scope(|scope| {
+        let parts: Vec<_> = batch
+            .chunks(chunk)
+            .map(|part| scope.spawn(move || parse(part)))
+            .collect();
+        parts
+            .into_iter()
+            .flat_map(|p| match p.join() {
+                Ok(v) => v,
+                Err(panic) => std::panic::resume_unwind(panic),
+            })
+            .collect()
+    })
+}
+
 /// The model of one run.
 #[derive(Debug)]
 pub struct RunModel {
@@ -242,51 +272,84 @@ impl RunModel {
     /// Reads a JSON-lines trace: every record up to the first line that is not one; that line
     /// becomes the model's [`Problem`] (with `source` and its line number), and the model keeps
     /// everything before it.
-    pub fn read(name: impl Into<String>, source: &str, text: impl std::io::BufRead) -> RunModel {
+    pub fn read(
+        name: impl Into<String>,
+        source: &str,
+        mut text: impl std::io::BufRead,
+    ) -> RunModel {
         let mut model = RunModel::new(name);
-        for (i, line) in text.lines().enumerate() {
-            let line_no = i + 1;
-            let line = match line {
-                Ok(line) => line,
-                Err(e) => {
-                    model.fail(source, line_no, format!("cannot read the file: {e}"));
-                    break;
+        let mut line_no = 0;
+        let mut batch: Vec<(usize, String)> = Vec::with_capacity(READ_BATCH);
+        let mut end: Option<Result<(), std::io::Error>> = None;
+        while end.is_none() {
+            // A batch of lines, parsed on every core, then applied in order.
+            batch.clear();
+            while batch.len() < READ_BATCH {
+                let mut line = String::new();
+                match text.read_line(&mut line) {
+                    Ok(0) => {
+                        end = Some(Ok(()));
+                        break;
+                    }
+                    Ok(_) => {
+                        line_no += 1;
+                        if !line.trim().is_empty() {
+                            let kept = line.trim_end_matches(['\n', '\r']).len();
+                            line.truncate(kept);
+                            batch.push((line_no, line));
+                        }
+                    }
+                    Err(e) => {
+                        end = Some(Err(e));
+                        break;
+                    }
                 }
-            };
-            if line.trim().is_empty() {
-                continue;
             }
-            let ev = match tcm_trace::jsonl::parse_line(&line, line_no) {
-                Ok(ev) => ev,
-                Err(e) => {
-                    let message = e.to_string();
-                    let message = message
-                        .strip_prefix(&format!("line {line_no}: "))
-                        .unwrap_or(&message)
-                        .to_string();
-                    model.fail(
-                        source,
-                        line_no,
-                        format!("{message} (the records before this line are shown)"),
-                    );
-                    break;
+            let parsed = parse_all(&batch);
+            for ((no, line), ev) in batch.drain(..).zip(parsed) {
+                let ev = match ev {
+                    Ok(ev) => ev,
+                    Err(e) => {
+                        let message = e.to_string();
+                        let message = message
+                            .strip_prefix(&format!("line {no}: "))
+                            .unwrap_or(&message)
+                            .to_string();
+                        model.fail(
+                            source,
+                            no,
+                            format!("{message} (the records before this line are shown)"),
+                        );
+                        return model.finish(source);
+                    }
+                };
+                if let Err(message) = model.apply_line(&ev, line.into_boxed_str()) {
+                    model.fail(source, no, message);
+                    return model.finish(source);
                 }
-            };
-            if let Err(message) = model.apply_line(&ev, line.into_boxed_str()) {
-                model.fail(source, line_no, message);
-                break;
             }
         }
-        if model.problem.is_none() && model.lines.is_empty() {
+        if let Some(Err(e)) = end {
             model.fail(
+                source,
+                line_no + 1,
+                format!("cannot read the file: {e} (the records before this line are shown)"),
+            );
+        }
+        model.finish(source)
+    }
+
+    fn finish(mut self, source: &str) -> RunModel {
+        if self.problem.is_none() && self.lines.is_empty() {
+            self.fail(
                 source,
                 0,
                 "the file holds no trace record (a trace is JSON lines, docs/trace-format.md)"
                     .to_string(),
             );
         }
-        model.finished = true;
-        model
+        self.finished = true;
+        self
     }
 
     fn fail(&mut self, source: &str, line: usize, message: String) {

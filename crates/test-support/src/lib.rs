@@ -19,6 +19,8 @@
 //! let python = test_support::python_venv(&["mcap"]).unwrap_or_else(|why| panic!("{why}"));
 //! ```
 
+pub mod browser;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

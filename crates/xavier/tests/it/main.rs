@@ -2,7 +2,6 @@
 //! virtual time, asserted on the trace, and the `xavier` binary.
 
 mod binary;
-mod cdp;
 mod scenarios;
 mod util;
 mod viewer;

@@ -8,6 +8,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, anyhow, bail};
+
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{Value, json};
 use tokio_tungstenite::tungstenite::Message;
@@ -16,7 +17,7 @@ type Socket =
     tokio_tungstenite::WebSocketStream<tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>>;
 
 /// One browser with one page.
-pub(crate) struct Browser {
+pub struct Browser {
     child: Child,
     socket: Socket,
     session: String,
@@ -42,7 +43,7 @@ impl Drop for Browser {
 
 impl Browser {
     /// Starts headless Chromium (`chromium`, found on the path) with a page of `width` × `height`.
-    pub(crate) async fn start(chromium: &Path, width: u32, height: u32) -> anyhow::Result<Browser> {
+    pub async fn start(chromium: &Path, width: u32, height: u32) -> anyhow::Result<Browser> {
         let profile = std::env::temp_dir().join(format!(
             "tdl-browser-{}-{}",
             std::process::id(),
@@ -155,13 +156,13 @@ impl Browser {
     }
 
     /// Opens `url` in the page.
-    pub(crate) async fn goto(&mut self, url: &str) -> anyhow::Result<()> {
+    pub async fn goto(&mut self, url: &str) -> anyhow::Result<()> {
         self.page("Page.navigate", json!({"url": url})).await?;
         Ok(())
     }
 
     /// The value of a JavaScript expression (awaited if a promise).
-    pub(crate) async fn eval(&mut self, js: &str) -> anyhow::Result<Value> {
+    pub async fn eval(&mut self, js: &str) -> anyhow::Result<Value> {
         let r = self
             .page(
                 "Runtime.evaluate",
@@ -176,7 +177,7 @@ impl Browser {
 
     /// Polls `js` until it is truthy, up to `limit`; returns its value. An exception (the page
     /// still loading) counts as not yet.
-    pub(crate) async fn wait_for(&mut self, js: &str, limit: Duration) -> anyhow::Result<Value> {
+    pub async fn wait_for(&mut self, js: &str, limit: Duration) -> anyhow::Result<Value> {
         let start = Instant::now();
         let guarded =
             format!("(() => {{ try {{ return ({js}); }} catch (e) {{ return null; }} }})()");
@@ -200,7 +201,7 @@ impl Browser {
     }
 
     /// Clicks, with the mouse, at the centre of the first element matching `selector`.
-    pub(crate) async fn click(&mut self, selector: &str) -> anyhow::Result<()> {
+    pub async fn click(&mut self, selector: &str) -> anyhow::Result<()> {
         let sel = serde_json::to_string(selector)?;
         let rect = self
             .eval(&format!(
@@ -224,7 +225,7 @@ impl Browser {
     }
 
     /// Saves a PNG of the page.
-    pub(crate) async fn screenshot(&mut self, path: &Path) -> anyhow::Result<()> {
+    pub async fn screenshot(&mut self, path: &Path) -> anyhow::Result<()> {
         use base64::Engine as _;
         let r = self
             .page("Page.captureScreenshot", json!({"format": "png"}))
