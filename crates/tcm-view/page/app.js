@@ -435,7 +435,9 @@ async function showExceptions() {
   tab.replaceChildren(...list.map((x) => el('div', { class: 'exc' },
     el('div', {}, secs(x.at.t) + ' ', el('b', {}, x.exception), ' raised by ', nodeLink(x.node, x.path + ' {' + x.node + '}'), ': ' + x.message),
     el('ol', { class: 'steps' }, ...(x.steps.length ? x.steps : [{ what: 'pending', detail: 'no handler chosen yet', node: null, at: x.at }]).map((s) => el('li', {},
-      secs(s.at.t) + ' ' + s.what + ' ', s.node !== null ? nodeLink(s.node) : '', s.detail ? ' ' + s.detail : ''))))));
+      ...(s.what === 'chosen' ? [secs(s.at.t) + ' handler ', el('b', {}, s.detail), ' chosen, run as ', nodeLink(s.node)]
+        : s.what === 'retried' ? [secs(s.at.t) + ' retried as ', nodeLink(s.node)]
+        : [secs(s.at.t) + ' ' + s.what + ' ', s.node !== null ? nodeLink(s.node) : '', s.detail ? ' ' + s.detail : ''])))))));
 }
 
 async function showStats() {

@@ -183,6 +183,68 @@ fn the_viewer_shows_a_mission_trace_why_a_node_waits_and_replays_it() -> anyhow:
         )
         .await?;
         b.screenshot(&shots().join("xavier-trace.png")).await?;
+
+        // The exception's story: raised by the guarded move, the detour handler chosen.
+        b.click("#tabs [data-tab=exceptions]").await?;
+        let story = b
+            .wait_for(
+                "(() => { const e = document.querySelector('#tab-exceptions .exc'); \
+                 return e ? e.textContent : null; })()",
+                Duration::from_secs(10),
+            )
+            .await?;
+        let story = story.as_str().unwrap_or_default();
+        ensure!(
+            story.contains("Blocked") && story.contains("guardedMove") && story.contains("chosen"),
+            "exceptions tab: {story}"
+        );
+        b.screenshot(&shots().join("xavier-exceptions.png")).await?;
+
+        // Counts and durations per task.
+        b.click("#tabs [data-tab=stats]").await?;
+        let stats = b
+            .wait_for(
+                "(() => { const r = [...document.querySelectorAll('#tab-stats tr')] \
+                 .find(r => r.cells[0] && r.cells[0].textContent === 'guardedMove'); \
+                 return r ? [...r.cells].map(c => c.textContent) : null; })()",
+                Duration::from_secs(10),
+            )
+            .await?;
+        let failed_moves = stats[4].as_str().unwrap_or_default();
+        ensure!(failed_moves == "1", "guardedMove's row: {stats}");
+
+        // The event list, filtered by name and time range.
+        b.click("#tabs [data-tab=events]").await?;
+        b.eval(
+            "document.getElementById('evname').value = 'planPath'; \
+             document.getElementById('evfrom').value = '50'; \
+             document.getElementById('evto').value = '60';",
+        )
+        .await?;
+        b.click("#evfilter button").await?;
+        let listed = b
+            .wait_for(
+                "(() => { const l = [...document.querySelectorAll('#evlist li')]; \
+                 return l.length ? l.map(e => e.textContent) : null; })()",
+                Duration::from_secs(10),
+            )
+            .await?;
+        let listed: Vec<&str> = listed
+            .as_array()
+            .map(|a| a.iter().filter_map(|v| v.as_str()).collect())
+            .unwrap_or_default();
+        ensure!(
+            listed.iter().all(|l| l.contains("planPath")),
+            "only planPath's records: {listed:?}"
+        );
+        let times_ok = listed.iter().all(|l| {
+            l.split_whitespace()
+                .nth(1)
+                .and_then(|t| t.parse::<f64>().ok())
+                .is_some_and(|t| (50.0..=60.0).contains(&t))
+        });
+        ensure!(times_ok, "records between 50 s and 60 s: {listed:?}");
+        b.screenshot(&shots().join("xavier-events.png")).await?;
         anyhow::Ok(())
     })?;
     viewer.stop();
