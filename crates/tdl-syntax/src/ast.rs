@@ -91,6 +91,75 @@ pub struct Task {
     pub span: Span,
 }
 
+impl Task {
+    /// The task's doc comments (`///` lines or `/** */` blocks before it), joined by newlines
+    /// with the indentation they share removed; `None` when it has none.
+    pub fn doc(&self) -> Option<String> {
+        doc_text(&self.attrs)
+    }
+}
+
+impl ExceptionDecl {
+    /// The exception's doc comments, as [`Task::doc`] gives a task's.
+    pub fn doc(&self) -> Option<String> {
+        doc_text(&self.attrs)
+    }
+}
+
+/// The text of the `#[doc = "…"]` attributes among `attrs` (what `///` and `/** */` become),
+/// joined by newlines, with the indentation every non-blank line shares removed and blank lines
+/// at either end dropped; `None` when there is no doc text.
+pub fn doc_text(attrs: &[syn::Attribute]) -> Option<String> {
+    // (line, whether it counts for the shared indentation): the first line of a `/** */` block
+    // continues the `/**` and is only stripped of its leading blanks.
+    let mut lines: Vec<(String, bool)> = Vec::new();
+    for attr in attrs {
+        if !attr.path().is_ident("doc") {
+            continue;
+        }
+        let syn::Meta::NameValue(nv) = &attr.meta else {
+            continue;
+        };
+        let syn::Expr::Lit(syn::ExprLit {
+            lit: syn::Lit::Str(text),
+            ..
+        }) = &nv.value
+        else {
+            continue;
+        };
+        let text = text.value();
+        let block = text.contains('\n');
+        for (i, line) in text.split('\n').enumerate() {
+            let line = line.strip_suffix('\r').unwrap_or(line);
+            if block && i == 0 {
+                lines.push((line.trim_start_matches([' ', '\t']).to_string(), false));
+            } else {
+                lines.push((line.to_string(), true));
+            }
+        }
+    }
+    let indent = lines
+        .iter()
+        .filter(|(l, counts)| *counts && !l.trim().is_empty())
+        .map(|(l, _)| l.len() - l.trim_start_matches([' ', '\t']).len())
+        .min()
+        .unwrap_or(0);
+    let lines: Vec<&str> = lines
+        .iter()
+        .map(|(l, counts)| {
+            let l = if *counts {
+                l.get(indent..).unwrap_or("")
+            } else {
+                l
+            };
+            l.trim_end()
+        })
+        .collect();
+    let start = lines.iter().position(|l| !l.is_empty())?;
+    let end = lines.iter().rposition(|l| !l.is_empty())?;
+    Some(lines[start..=end].join("\n"))
+}
+
 /// A task argument `[mut] name: Type`.
 #[derive(Clone, Debug)]
 pub struct Arg {

@@ -303,3 +303,35 @@ fn generics_and_references_nested_too_deep_are_an_error_not_a_crash() {
         );
     }
 }
+
+/// `tdl doc` reads the doc comments of tasks and exceptions from the tree: `///` lines and
+/// `/** */` blocks are kept (as `#[doc]` attributes) with their text, and plain comments are not.
+#[test]
+fn doc_comments_of_tasks_and_exceptions_are_kept() {
+    let src = "\
+// Not a doc comment.
+/// Delivers the mail.
+///
+///     indented: kept relative to the rest
+/// Second paragraph.
+pub goal deliver(room: u32) { spawn go(room); }
+
+/** A block
+    doc comment. */
+exception Lost;
+
+// Plain comment only.
+command go(room: u32) {}
+";
+    let parse = tdl_syntax::parse_str("doc.tdl", src);
+    assert!(parse.diagnostics.is_empty(), "{:?}", parse.diagnostics);
+    let [Item::Task(deliver), Item::Exception(lost), Item::Task(go)] = &parse.file.items[..] else {
+        panic!("expected a task, an exception and a task")
+    };
+    assert_eq!(
+        deliver.doc().as_deref(),
+        Some("Delivers the mail.\n\n    indented: kept relative to the rest\nSecond paragraph.")
+    );
+    assert_eq!(lost.doc().as_deref(), Some("A block\ndoc comment."));
+    assert_eq!(go.doc(), None);
+}
