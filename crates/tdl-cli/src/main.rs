@@ -1,9 +1,14 @@
-//! `tdl`: check TDL files and print the Rust they compile to.
+//! `tdl`: check TDL files, print the Rust they compile to, draw and document them, and read trace
+//! files.
 //!
 //! - `tdl check FILE...` checks the files as one program (task and exception names resolve across
 //!   them) and prints every diagnostic (errors and warnings) as rustc does (`error: message`,
 //!   ` --> file:line:col`, the source with the span underlined, a hint), in colour on a terminal.
 //! - `tdl expand FILE` prints the generated Rust, formatted, or the diagnostics.
+//! - `tdl graph FILE...` prints the program's static structure as Graphviz `dot` or Mermaid
+//!   (`graph.rs`, over the structure `model.rs` finds); `tdl doc FILE... -o DIR` writes its HTML
+//!   documentation (`doc.rs`). Both first check the files as `tdl check` does and stop, printing
+//!   the same diagnostics on standard error, when there are errors.
 //! - `tdl trace check|log|tree|story TRACE.jsonl` reads a trace written by a run (for example
 //!   `xavier --trace`): verifies it with the trace checker (exit 1 on violations), prints TCM's text
 //!   log, the task tree of the whole run (or the live tree at `--at`), or the story of the run, one
@@ -12,7 +17,7 @@
 //! - `tdl view TRACE.jsonl...` serves the task-tree viewer on the files (`serve.rs`).
 //!
 //! Exit codes (after ripgrep): 0 ok (warnings only or nothing), 1 errors found, 2 usage or I/O
-//! error. All the work is done by `tdl-syntax`.
+//! error. The front end is `tdl-syntax`.
 
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
@@ -22,13 +27,16 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 
 mod serve;
+mod doc;
+mod graph;
+mod model;
 mod view;
 
 #[derive(Parser)]
 #[command(
     name = "tdl",
     version,
-    about = "TDL for Rust: check and expand .tdl files, read trace files"
+    about = "TDL for Rust: check, expand, draw and document .tdl files; read trace files"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -58,6 +66,32 @@ enum Command {
         /// Listen on this address instead (a warning is printed when it is not loopback).
         #[arg(long, value_name = "ADDR")]
         listen: Option<std::net::SocketAddr>,
+    },
+    /// Print the static structure of a program as a graph: a node per task (shape and colour by
+    /// kind), a cluster per body with its spawns, constraints between spawns as labelled edges,
+    /// exception handlers and exceptions. Exit 1, with the diagnostics `tdl check` prints, if the
+    /// files have errors.
+    Graph {
+        /// The `.tdl` files of the program.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Only this task and what it reaches (what it spawns, its handlers, and so on down).
+        #[arg(long)]
+        task: Option<String>,
+        /// Output format: Graphviz `dot` (render with `dot -Tsvg`) or a Mermaid flowchart.
+        #[arg(long, value_enum, default_value = "dot")]
+        format: graph::Format,
+    },
+    /// Write HTML documentation of a program: `index.html` (tasks by kind, exceptions, the graph)
+    /// and a page per task. The graph is an SVG when Graphviz's `dot` is on PATH, Mermaid text
+    /// otherwise. Exit 1, with the diagnostics `tdl check` prints, if the files have errors.
+    Doc {
+        /// The `.tdl` files of the program.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// The directory to write into (created if needed).
+        #[arg(short, long, value_name = "DIR")]
+        out: PathBuf,
     },
     /// Read a trace file (JSON lines, as written by `--trace` or `tcm::JsonLines`).
     Trace {
@@ -158,34 +192,45 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     let mut out = std::io::stdout().lock();
     match cli.command {
         Command::Check { files } => {
-            let mut clean = true;
-            // The files are one program: names resolve across all of them.
-            let sources = files.iter().map(read).collect::<anyhow::Result<Vec<_>>>()?;
-            let program: Vec<(&str, &str)> = sources
-                .iter()
-                .map(|(name, src)| (name.as_str(), src.as_str()))
-                .collect();
-            let results = tdl_syntax::compile_program(&program);
-            let mut first = true;
-            for ((name, src), (_, diagnostics)) in program.iter().zip(&results) {
-                clean &= !diagnostics.iter().any(tdl_syntax::Diagnostic::is_error);
-                if diagnostics.is_empty() {
-                    continue;
-                }
-                if !first {
-                    out.write_all(b"\n")?;
-                }
-                first = false;
-                out.write_all(render(diagnostics, name, src).as_bytes())?;
-            }
-            Ok(clean)
+            let checked = check_program(&files, stdout_colour())?;
+            out.write_all(checked.rendered.as_bytes())?;
+            Ok(checked.clean)
+        }
+        Command::Graph {
+            files,
+            task,
+            format,
+        } => {
+            let Some(sources) = checked_sources(&files)? else {
+                return Ok(false);
+            };
+            let asts = parse_all(&sources);
+            let program = model::Program::new(&asts);
+            let options = graph::Options {
+                task: task.as_deref(),
+                links: false,
+            };
+            let text = graph::render(&program, format, options).map_err(anyhow::Error::msg)?;
+            out.write_all(text.as_bytes())?;
+            Ok(true)
+        }
+        Command::Doc { files, out: dir } => {
+            let Some(sources) = checked_sources(&files)? else {
+                return Ok(false);
+            };
+            let asts = parse_all(&sources);
+            let program = model::Program::new(&asts);
+            let names: Vec<String> = sources.iter().map(|(name, _)| name.clone()).collect();
+            let written = doc::write(&program, &names, &dir)?;
+            writeln!(out, "wrote {} pages to {}", written.len(), dir.display())?;
+            Ok(true)
         }
         Command::Trace { what } => trace(what, &mut out),
         Command::View { files, listen } => serve::view(&files, listen),
         Command::Expand { file } => {
             let (name, src) = read(&file)?;
             let (code, diagnostics) = tdl_syntax::compile_str(&name, &src);
-            let rendered = render(&diagnostics, &name, &src);
+            let rendered = render(&diagnostics, &name, &src, stdout_colour());
             match code {
                 Some(code) => {
                     eprint!("{rendered}");
@@ -284,15 +329,77 @@ fn trace(what: TraceCommand, out: &mut impl Write) -> anyhow::Result<bool> {
     }
 }
 
-/// The diagnostics as text, in colour when standard output is a terminal and `NO_COLOR` is not set
+/// Whether to colour what goes to standard output: a terminal, and `NO_COLOR` not set
 /// (<https://no-color.org>).
-fn render(diagnostics: &[tdl_syntax::Diagnostic], name: &str, src: &str) -> String {
-    let colour = std::io::stdout().is_terminal() && std::env::var_os("NO_COLOR").is_none();
+fn stdout_colour() -> bool {
+    std::io::stdout().is_terminal() && std::env::var_os("NO_COLOR").is_none()
+}
+
+/// The same for standard error.
+fn stderr_colour() -> bool {
+    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none()
+}
+
+/// The diagnostics as text, in colour if asked.
+fn render(diagnostics: &[tdl_syntax::Diagnostic], name: &str, src: &str, colour: bool) -> String {
     if colour {
         tdl_syntax::render_all_styled(diagnostics, name, Some(src))
     } else {
         tdl_syntax::render_all(diagnostics, name, Some(src))
     }
+}
+
+/// The files of a program, checked as one program as `tdl check` does.
+struct Checked {
+    /// `(name, source)` per file.
+    sources: Vec<(String, String)>,
+    /// Every diagnostic, rendered, files separated by a blank line.
+    rendered: String,
+    /// No diagnostic is an error.
+    clean: bool,
+}
+
+fn check_program(files: &[PathBuf], colour: bool) -> anyhow::Result<Checked> {
+    let sources = files.iter().map(read).collect::<anyhow::Result<Vec<_>>>()?;
+    // The files are one program: names resolve across all of them.
+    let program: Vec<(&str, &str)> = sources
+        .iter()
+        .map(|(name, src)| (name.as_str(), src.as_str()))
+        .collect();
+    let results = tdl_syntax::compile_program(&program);
+    let mut clean = true;
+    let mut rendered = String::new();
+    for ((name, src), (_, diagnostics)) in program.iter().zip(&results) {
+        clean &= !diagnostics.iter().any(tdl_syntax::Diagnostic::is_error);
+        if diagnostics.is_empty() {
+            continue;
+        }
+        if !rendered.is_empty() {
+            rendered.push('\n');
+        }
+        rendered.push_str(&render(diagnostics, name, src, colour));
+    }
+    Ok(Checked {
+        sources,
+        rendered,
+        clean,
+    })
+}
+
+/// The sources of a program for `graph` and `doc`, after printing its diagnostics on standard
+/// error; `None` when there are errors.
+fn checked_sources(files: &[PathBuf]) -> anyhow::Result<Option<Vec<(String, String)>>> {
+    let checked = check_program(files, stderr_colour())?;
+    eprint!("{}", checked.rendered);
+    Ok(checked.clean.then_some(checked.sources))
+}
+
+/// The syntax tree of every file.
+fn parse_all(sources: &[(String, String)]) -> Vec<(String, tdl_syntax::Ast)> {
+    sources
+        .iter()
+        .map(|(name, src)| (name.clone(), tdl_syntax::parse_str(name, src).file))
+        .collect()
 }
 
 fn read(file: &PathBuf) -> anyhow::Result<(String, String)> {

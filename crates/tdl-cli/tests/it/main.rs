@@ -1,7 +1,11 @@
 //! The one integration-test binary of the `tdl` CLI: runs the built binary on files in
-//! `tests/data` and checks output and exit codes.
+//! `tests/data` and checks output and exit codes. `tdl graph` and `tdl doc` have their own
+//! modules (`graph.rs`, `doc.rs`).
 
 use std::process::Command;
+
+mod doc;
+mod graph;
 
 fn tdl(args: &[&str]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_tdl"))

@@ -1,0 +1,1147 @@
+//! The static structure of a TDL program, which `tdl graph` draws and `tdl doc` describes: per
+//! task, the spawns of its body (spawn sites, with their labels, flags and constraints), the
+//! constraints between those spawns resolved to the spawns their tags name, the exception handlers
+//! attached, the exceptions raised; and the exceptions of the program.
+//!
+//! `previous` is resolved statically: every spawn (or `with` group) that may have run just before,
+//! through `if` branches, `match` arms and loops (a spawn at the start of a loop body may follow
+//! the last spawn of the iteration before).
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use quote::{ToTokens, quote};
+use tdl_syntax::{
+    Ast, Block, Constraint, ConstraintKind, Count, Else, Event, ExceptionDecl, ExternalName,
+    HandlerRef, If, Item, RelTime, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind, Then,
+    TimeOfDay, When,
+};
+
+/// A program: the tasks and exceptions of its files, in source order.
+pub(crate) struct Program<'a> {
+    /// The tasks.
+    pub(crate) tasks: Vec<TaskInfo<'a>>,
+    /// The exceptions declared.
+    pub(crate) exceptions: Vec<ExceptionInfo<'a>>,
+    task_index: BTreeMap<String, usize>,
+    exception_index: BTreeMap<String, usize>,
+}
+
+/// A task definition and what its body does.
+pub(crate) struct TaskInfo<'a> {
+    /// The definition.
+    pub(crate) task: &'a Task,
+    /// Its name.
+    pub(crate) name: String,
+    /// A name made of `[A-Za-z0-9_]` only, unique among the tasks: for graph ids and file names.
+    pub(crate) id: String,
+    /// The file it is defined in, and the line of its name.
+    pub(crate) file: String,
+    /// Line of the task's name.
+    pub(crate) line: usize,
+    /// Task-level constraints other than handlers and on-terminate tasks (`delay expansion`,
+    /// `period 1500ms`), and constraints of the body on the task itself (`parent …`).
+    pub(crate) notes: Vec<Text>,
+    /// Task-level exception handlers, in the order they are tried.
+    pub(crate) handlers: Vec<HandlerUse>,
+    /// Every spawn of the body, then the task-level on-terminate tasks.
+    pub(crate) sites: Vec<Site>,
+    /// Constraints between spawns (or between the task and a spawn).
+    pub(crate) relations: Vec<Relation>,
+    /// Exceptions the body raises with `fail E`.
+    pub(crate) raises: BTreeSet<String>,
+    /// The body says `retry;` or `retry with (…)`.
+    pub(crate) retries: bool,
+    /// The body says `bypass;`.
+    pub(crate) bypasses: bool,
+    /// The body says `trigger;`.
+    pub(crate) triggers: bool,
+}
+
+/// A declared exception.
+pub(crate) struct ExceptionInfo<'a> {
+    /// The declaration.
+    pub(crate) decl: &'a ExceptionDecl,
+    /// Its name.
+    pub(crate) name: String,
+    /// A name made of `[A-Za-z0-9_]` only, unique among the exceptions.
+    pub(crate) id: String,
+    /// The file it is declared in.
+    pub(crate) file: String,
+    /// Line of its name.
+    pub(crate) line: usize,
+}
+
+/// `exception handler h(args) [maximum activate N]`, at a task or a spawn.
+#[derive(Clone, Debug)]
+pub(crate) struct HandlerUse {
+    /// The handler task.
+    pub(crate) name: String,
+    /// Its arguments as written.
+    pub(crate) args: String,
+    /// `maximum activate N`, if given.
+    pub(crate) max: Option<String>,
+}
+
+/// Where a spawn site is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Origin {
+    /// A `spawn` statement of the body.
+    Body,
+    /// `on terminate t(…)` of a spawn (its site) or of the task itself (`None`).
+    OnTerminate(Option<usize>),
+}
+
+/// One spawn of a body.
+#[derive(Clone, Debug)]
+pub(crate) struct Site {
+    /// The task spawned.
+    pub(crate) task: String,
+    /// Its arguments as written.
+    pub(crate) args: String,
+    /// Labels naming it (`l: spawn …`).
+    pub(crate) labels: Vec<String>,
+    /// Where it is.
+    pub(crate) origin: Origin,
+    /// `wait` (on the spawn or a later `X wait;`), `outcome`, `propagate`.
+    pub(crate) flags: Vec<&'static str>,
+    /// Every constraint on it, in canonical spelling, tags resolved (for `tdl doc`).
+    pub(crate) constraints: Vec<Text>,
+    /// The constraints that name no other spawn, short (for `tdl graph`'s node label).
+    pub(crate) notes: Vec<String>,
+    /// Spawn-level exception handlers.
+    pub(crate) handlers: Vec<HandlerUse>,
+    /// Source line of the spawn.
+    pub(crate) line: usize,
+    /// Inside a loop: spawned once per iteration.
+    pub(crate) repeated: bool,
+    /// Inside an `if` or `match`: maybe not spawned.
+    pub(crate) conditional: bool,
+}
+
+/// Text with references: what `tdl doc` links and `tdl graph` prints plainly.
+pub(crate) type Text = Vec<Piece>;
+
+/// A piece of [`Text`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) enum Piece {
+    /// Plain text.
+    Text(String),
+    /// A tag naming a spawn site of the same body (shown as the string).
+    Site(usize, String),
+    /// A task name (a link when the program defines it).
+    Task(String),
+}
+
+/// Plain text of a [`Text`].
+pub(crate) fn plain(text: &Text) -> String {
+    text.iter()
+        .map(|p| match p {
+            Piece::Text(s) | Piece::Site(_, s) | Piece::Task(s) => s.as_str(),
+        })
+        .collect()
+}
+
+/// One end of a [`Relation`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum Endpoint {
+    /// The task whose body it is (`parent`, `this`).
+    Task,
+    /// A spawn site of the body.
+    Site(usize),
+}
+
+/// What a relation does to its constrained spawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum RelationKind {
+    /// Holds it back (`sequential`, `serial`, `disable … until`).
+    Order,
+    /// Terminates it.
+    Terminate,
+    /// Activates it (a monitor).
+    Activate,
+}
+
+/// A constraint on spawn `to` that waits for something of `from`.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) struct Relation {
+    /// What it waits for.
+    pub(crate) from: Endpoint,
+    /// The constrained spawn.
+    pub(crate) to: usize,
+    /// What it does.
+    pub(crate) kind: RelationKind,
+    /// The constraint without its tag: `serial`, `terminate at execution completed`.
+    pub(crate) label: String,
+}
+
+impl<'a> Program<'a> {
+    /// The program of the parsed files, `(file name, tree)`.
+    pub(crate) fn new(files: &'a [(String, Ast)]) -> Program<'a> {
+        let mut tasks = Vec::new();
+        let mut exceptions = Vec::new();
+        let mut task_ids = BTreeSet::new();
+        let mut exception_ids = BTreeSet::new();
+        for (file, ast) in files {
+            for item in &ast.items {
+                match item {
+                    Item::Task(task) => {
+                        let name = task.name.to_string();
+                        tasks.push(TaskInfo {
+                            task,
+                            id: unique_id(&name, &mut task_ids),
+                            name,
+                            file: file.clone(),
+                            line: task.name.span().start().line,
+                            notes: Vec::new(),
+                            handlers: Vec::new(),
+                            sites: Vec::new(),
+                            relations: Vec::new(),
+                            raises: BTreeSet::new(),
+                            retries: false,
+                            bypasses: false,
+                            triggers: false,
+                        });
+                    }
+                    Item::Exception(decl) => {
+                        let name = decl.name.to_string();
+                        exceptions.push(ExceptionInfo {
+                            decl,
+                            id: unique_id(&name, &mut exception_ids),
+                            name,
+                            file: file.clone(),
+                            line: decl.name.span().start().line,
+                        });
+                    }
+                    Item::Rust(_) => {}
+                }
+            }
+        }
+        for info in &mut tasks {
+            analyse(info);
+        }
+        let mut task_index = BTreeMap::new();
+        for (i, t) in tasks.iter().enumerate() {
+            task_index.entry(t.name.clone()).or_insert(i);
+        }
+        let mut exception_index = BTreeMap::new();
+        for (i, e) in exceptions.iter().enumerate() {
+            exception_index.entry(e.name.clone()).or_insert(i);
+        }
+        Program {
+            tasks,
+            exceptions,
+            task_index,
+            exception_index,
+        }
+    }
+
+    /// The task of that name, if the program defines it.
+    pub(crate) fn task(&self, name: &str) -> Option<&TaskInfo<'a>> {
+        self.task_index.get(name).map(|&i| &self.tasks[i])
+    }
+
+    /// The exception of that name, if the program declares it.
+    pub(crate) fn exception(&self, name: &str) -> Option<&ExceptionInfo<'a>> {
+        self.exception_index.get(name).map(|&i| &self.exceptions[i])
+    }
+
+    /// The handlers declared `for` the task `name` (attached from outside).
+    pub(crate) fn attached_to(&self, name: &str) -> Vec<&TaskInfo<'a>> {
+        self.tasks
+            .iter()
+            .filter(|t| t.task.for_task.as_ref().is_some_and(|f| f == name))
+            .collect()
+    }
+
+    /// The tasks whose bodies spawn `name` (or have it as an on-terminate task), in order.
+    pub(crate) fn spawners(&self, name: &str) -> Vec<&TaskInfo<'a>> {
+        self.tasks
+            .iter()
+            .filter(|t| t.sites.iter().any(|s| s.task == name))
+            .collect()
+    }
+
+    /// The tasks that attach the handler `name` (at task level or at a spawn).
+    pub(crate) fn handler_users(&self, name: &str) -> Vec<&TaskInfo<'a>> {
+        self.tasks
+            .iter()
+            .filter(|t| {
+                t.handlers.iter().any(|h| h.name == name)
+                    || t.sites
+                        .iter()
+                        .any(|s| s.handlers.iter().any(|h| h.name == name))
+            })
+            .collect()
+    }
+
+    /// The names of tasks spawned somewhere that the program does not define (Rust functions
+    /// returning a `Task`), sorted.
+    pub(crate) fn external_tasks(&self) -> BTreeSet<String> {
+        self.tasks
+            .iter()
+            .flat_map(|t| t.sites.iter())
+            .filter(|s| self.task(&s.task).is_none())
+            .map(|s| s.task.clone())
+            .collect()
+    }
+
+    /// What task `start` reaches: the tasks it spawns, the handlers attached to it (at task level,
+    /// at its spawns, or from outside), its on-terminate tasks, and so on from each of those; and
+    /// the exceptions they raise or handle, with their ancestors. `None` if there is no such task.
+    pub(crate) fn reach(&self, start: &str) -> Option<(BTreeSet<String>, BTreeSet<String>)> {
+        self.task(start)?;
+        let mut tasks = BTreeSet::new();
+        let mut exceptions = BTreeSet::new();
+        let mut todo = vec![start.to_string()];
+        while let Some(name) = todo.pop() {
+            let Some(info) = self.task(&name) else {
+                continue;
+            };
+            if !tasks.insert(name.clone()) {
+                continue;
+            }
+            let mut next: Vec<String> = Vec::new();
+            next.extend(info.sites.iter().map(|s| s.task.clone()));
+            next.extend(info.handlers.iter().map(|h| h.name.clone()));
+            for site in &info.sites {
+                next.extend(site.handlers.iter().map(|h| h.name.clone()));
+            }
+            next.extend(self.attached_to(&name).iter().map(|h| h.name.clone()));
+            todo.extend(next.into_iter().filter(|n| !tasks.contains(n)));
+            exceptions.extend(info.raises.iter().cloned());
+            exceptions.extend(info.task.handles.iter().map(ToString::to_string));
+        }
+        // The ancestors of every exception reached.
+        let mut todo: Vec<String> = exceptions.iter().cloned().collect();
+        while let Some(name) = todo.pop() {
+            if let Some(parent) = self
+                .exception(&name)
+                .and_then(|e| e.decl.parent.as_ref())
+                .map(ToString::to_string)
+            {
+                if exceptions.insert(parent.clone()) {
+                    todo.push(parent);
+                }
+            }
+        }
+        exceptions.retain(|e| self.exception(e).is_some());
+        Some((tasks, exceptions))
+    }
+}
+
+/// `name` reduced to `[A-Za-z0-9_]` (other characters become `_`), made unique among `used`.
+pub(crate) fn unique_id(name: &str, used: &mut BTreeSet<String>) -> String {
+    let mut base: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    if base.is_empty() {
+        base.push('_');
+    }
+    let mut id = base.clone();
+    let mut n = 2;
+    while used.contains(&id) {
+        id = format!("{base}_{n}");
+        n += 1;
+    }
+    used.insert(id.clone());
+    id
+}
+
+/// How deep loops are walked twice to find what `previous` is at the start of an iteration.
+const LOOP_DEPTH: usize = 4;
+
+/// Fills in the sites, relations, handlers and notes of a task.
+fn analyse(info: &mut TaskInfo<'_>) {
+    let task = info.task;
+    let mut walker = Walker::default();
+    walker.block(&task.body);
+    let Walker {
+        mut sites,
+        labels,
+        spawned,
+        pending,
+        raises,
+        retries,
+        bypasses,
+        triggers,
+        ..
+    } = walker;
+    let mut notes = Vec::new();
+    for c in &task.constraints {
+        let text = |s: String| vec![Piece::Text(s)];
+        match &c.kind {
+            TaskConstraintKind::ExpandFirst => notes.push(text("expand first".into())),
+            TaskConstraintKind::DelayExpansion => notes.push(text("delay expansion".into())),
+            TaskConstraintKind::ExceptionHandler(h) => info.handlers.push(handler_use(h)),
+            TaskConstraintKind::OnTerminate(ot) => {
+                sites.push(Site::new(
+                    ot.task.to_string(),
+                    exprs_text(&ot.args),
+                    Vec::new(),
+                    Origin::OnTerminate(None),
+                    ot.task.span().start().line,
+                ));
+            }
+            TaskConstraintKind::Persistent(p) => {
+                let init = p
+                    .init
+                    .as_ref()
+                    .map(|e| format!(" = {}", expr_text(e)))
+                    .unwrap_or_default();
+                notes.push(text(format!(
+                    "persistent {}: {}{init}",
+                    p.name,
+                    type_text(&p.ty)
+                )));
+            }
+            TaskConstraintKind::MaximumActivate(n) => {
+                notes.push(text(format!("maximum activate {}", count(n))));
+            }
+            TaskConstraintKind::MaximumTrigger(n) => {
+                notes.push(text(format!("maximum trigger {}", count(n))));
+            }
+            TaskConstraintKind::Period(t) => notes.push(text(format!("period {}", rel(t)))),
+            TaskConstraintKind::InitialWait => notes.push(text("initial wait".into())),
+            TaskConstraintKind::Serial => notes.push(text("serial".into())),
+            TaskConstraintKind::Sequential(f) => {
+                notes.push(text(format!("sequential {}", f.as_str())));
+            }
+        }
+    }
+    let scope = Scope {
+        labels: &labels,
+        spawned: &spawned,
+        sites: &sites.clone(),
+    };
+    let mut relations = BTreeSet::new();
+    for p in &pending {
+        let targets: Vec<usize> = match p.target {
+            Target::Site(i) => vec![i],
+            Target::Tag(tag) => match scope.resolve(tag, &p.prev) {
+                Resolved::Sites(sites) => sites,
+                Resolved::Task | Resolved::Own | Resolved::Unknown => {
+                    // A constraint on the task itself, or on a node the body holds in Rust.
+                    let mut text = scope.tag_text(tag, &p.prev);
+                    text.push(Piece::Text(" ".into()));
+                    text.extend(constraint_text(&p.constraint.kind, &scope, &p.prev));
+                    notes.push(text);
+                    continue;
+                }
+            },
+        };
+        for t in targets {
+            apply(&mut sites, &mut relations, &scope, t, p);
+        }
+    }
+    info.sites = sites;
+    info.relations = relations.into_iter().collect();
+    info.notes = notes;
+    info.raises = raises;
+    info.retries = retries;
+    info.bypasses = bypasses;
+    info.triggers = triggers;
+}
+
+/// Applies one pending constraint to the spawn site `t`.
+fn apply(
+    sites: &mut [Site],
+    relations: &mut BTreeSet<Relation>,
+    scope: &Scope<'_>,
+    t: usize,
+    p: &Pending<'_>,
+) {
+    let kind = &p.constraint.kind;
+    let text = constraint_text(kind, scope, &p.prev);
+    let mut relate = |tag: Option<&Tag>, kind: RelationKind, label: String| -> bool {
+        let from: Vec<Endpoint> = match tag.map(|tag| scope.resolve(tag, &p.prev)) {
+            None => p.prev.iter().map(|&s| Endpoint::Site(s)).collect(),
+            Some(Resolved::Sites(s)) => s.into_iter().map(Endpoint::Site).collect(),
+            Some(Resolved::Task) => vec![Endpoint::Task],
+            Some(Resolved::Own | Resolved::Unknown) => Vec::new(),
+        };
+        for from in &from {
+            relations.insert(Relation {
+                from: *from,
+                to: t,
+                kind,
+                label: label.clone(),
+            });
+        }
+        !from.is_empty()
+    };
+    let site = &mut sites[t];
+    let mut flag = |f: &'static str| {
+        if !site.flags.contains(&f) {
+            site.flags.push(f);
+        }
+    };
+    match kind {
+        ConstraintKind::Wait => flag("wait"),
+        ConstraintKind::Outcome => flag("outcome"),
+        ConstraintKind::Propagate => flag("propagate"),
+        ConstraintKind::Parallel => {}
+        ConstraintKind::ExceptionHandler(h) => site.handlers.push(handler_use(h)),
+        ConstraintKind::Sequential { facet, tag } => {
+            relate(
+                tag.as_ref(),
+                RelationKind::Order,
+                format!("sequential {}", facet.as_str()),
+            );
+        }
+        ConstraintKind::Serial { tag } => {
+            relate(tag.as_ref(), RelationKind::Order, "serial".into());
+        }
+        ConstraintKind::Trigger { when, then } => {
+            let related = when.event().is_some_and(|ev| {
+                let kind = match then {
+                    Then::Enable(_) => RelationKind::Order,
+                    Then::Terminate => RelationKind::Terminate,
+                    Then::Activate => RelationKind::Activate,
+                };
+                relate(Some(&ev.tag), kind, plain(&when_text(when, *then, None)))
+            });
+            if !related {
+                site.notes.push(plain(&text));
+            }
+        }
+        _ => site.notes.push(plain(&text)),
+    }
+    site.constraints.push(text);
+}
+
+impl Site {
+    fn new(task: String, args: String, labels: Vec<String>, origin: Origin, line: usize) -> Site {
+        Site {
+            task,
+            args,
+            labels,
+            origin,
+            flags: Vec::new(),
+            constraints: Vec::new(),
+            notes: Vec::new(),
+            handlers: Vec::new(),
+            line,
+            repeated: false,
+            conditional: false,
+        }
+    }
+}
+
+fn handler_use(h: &HandlerRef) -> HandlerUse {
+    HandlerUse {
+        name: h.name.to_string(),
+        args: exprs_text(&h.args),
+        max: h.max_activate.as_ref().map(count),
+    }
+}
+
+/// What a constraint applies to before the end of the body is known.
+#[derive(Clone)]
+enum Target<'a> {
+    /// The spawn site (a constraint written on the spawn or its group).
+    Site(usize),
+    /// A constraint statement's tag.
+    Tag(&'a Tag),
+}
+
+/// A constraint to resolve once every label of the body is known.
+#[derive(Clone)]
+struct Pending<'a> {
+    target: Target<'a>,
+    constraint: &'a Constraint,
+    /// What `previous` may be where the constraint applies.
+    prev: Vec<usize>,
+}
+
+/// An enclosing `with (…) { … }` group.
+#[derive(Clone)]
+struct Group<'a> {
+    constraints: &'a [Constraint],
+    /// `previous` when the group started.
+    entry_prev: Vec<usize>,
+    members: Vec<usize>,
+}
+
+/// The walk of one body, in source order.
+#[derive(Clone, Default)]
+struct Walker<'a> {
+    sites: Vec<Site>,
+    labels: BTreeMap<String, Vec<usize>>,
+    spawned: BTreeMap<String, Vec<usize>>,
+    pending: Vec<Pending<'a>>,
+    /// Every spawn site that may be `previous` here (a group is all its members).
+    prev: Vec<usize>,
+    groups: Vec<Group<'a>>,
+    loops: usize,
+    branches: usize,
+    raises: BTreeSet<String>,
+    retries: bool,
+    bypasses: bool,
+    triggers: bool,
+}
+
+impl<'a> Walker<'a> {
+    fn block(&mut self, block: &'a Block) {
+        for stmt in &block.stmts {
+            self.stmt(stmt);
+        }
+    }
+
+    fn stmt(&mut self, stmt: &'a Stmt) {
+        match stmt {
+            Stmt::Rust(_) | Stmt::Bind(_) | Stmt::Succeed(_) => {}
+            Stmt::Spawn(spawn) => {
+                let labels: Vec<String> = spawn.labels.iter().map(ToString::to_string).collect();
+                let i = self.site(Site::new(
+                    spawn.task.to_string(),
+                    exprs_text(&spawn.args),
+                    labels,
+                    Origin::Body,
+                    spawn.task.span().start().line,
+                ));
+                self.spawned
+                    .entry(spawn.task.to_string())
+                    .or_default()
+                    .push(i);
+                for c in &spawn.constraints {
+                    if let ConstraintKind::OnTerminate(ot) = &c.kind {
+                        let labels: Vec<String> =
+                            ot.labels.iter().map(ToString::to_string).collect();
+                        self.site(Site::new(
+                            ot.task.to_string(),
+                            exprs_text(&ot.args),
+                            labels,
+                            Origin::OnTerminate(Some(i)),
+                            ot.task.span().start().line,
+                        ));
+                    } else {
+                        self.pending.push(Pending {
+                            target: Target::Site(i),
+                            constraint: c,
+                            prev: self.prev.clone(),
+                        });
+                    }
+                }
+                // The constraints of the enclosing groups: for the innermost, `previous` is this
+                // spawn's; for an outer one, what came before the group nested in it.
+                let n = self.groups.len();
+                for k in 0..n {
+                    let prev = if k + 1 == n {
+                        self.prev.clone()
+                    } else {
+                        self.groups[k + 1].entry_prev.clone()
+                    };
+                    for c in self.groups[k].constraints {
+                        self.pending.push(Pending {
+                            target: Target::Site(i),
+                            constraint: c,
+                            prev: prev.clone(),
+                        });
+                    }
+                    self.groups[k].members.push(i);
+                }
+                self.prev = vec![i];
+            }
+            Stmt::With(group) => {
+                self.groups.push(Group {
+                    constraints: &group.constraints,
+                    entry_prev: self.prev.clone(),
+                    members: Vec::new(),
+                });
+                self.block(&group.body);
+                let members = self.groups.pop().map(|g| g.members).unwrap_or_default();
+                for label in &group.labels {
+                    self.labels
+                        .entry(label.to_string())
+                        .or_default()
+                        .extend(&members);
+                }
+                if !members.is_empty() {
+                    self.prev = members;
+                }
+            }
+            Stmt::Constrain(c) => self.pending.push(Pending {
+                target: Target::Tag(&c.tag),
+                constraint: &c.constraint,
+                prev: self.prev.clone(),
+            }),
+            Stmt::Fail(fail) => {
+                let name = fail
+                    .exception
+                    .as_ref()
+                    .map_or_else(|| "Failure".to_string(), ToString::to_string);
+                self.raises.insert(name);
+            }
+            Stmt::Bypass(_) => self.bypasses = true,
+            Stmt::Trigger(_) => self.triggers = true,
+            Stmt::Retry(_) => self.retries = true,
+            Stmt::If(it) => self.if_(it),
+            Stmt::For(it) => self.loop_(&it.body),
+            Stmt::While(it) => self.loop_(&it.body),
+            Stmt::Loop(it) => self.loop_(&it.body),
+            Stmt::Match(m) => {
+                let before = self.prev.clone();
+                let mut after = Vec::new();
+                self.branches += 1;
+                for arm in &m.arms {
+                    self.prev = before.clone();
+                    self.block(&arm.body);
+                    after.extend(self.prev.iter().copied());
+                }
+                self.branches -= 1;
+                if m.arms.is_empty() {
+                    after = before;
+                }
+                self.prev = union(&after, &[]);
+            }
+            Stmt::Block(block) => self.block(block),
+        }
+    }
+
+    fn site(&mut self, mut site: Site) -> usize {
+        site.repeated = self.loops > 0;
+        site.conditional = self.branches > 0;
+        let i = self.sites.len();
+        for label in &site.labels {
+            self.labels.entry(label.clone()).or_default().push(i);
+        }
+        self.sites.push(site);
+        i
+    }
+
+    fn if_(&mut self, it: &'a If) {
+        let before = self.prev.clone();
+        self.branches += 1;
+        self.block(&it.then_branch);
+        let then = std::mem::replace(&mut self.prev, before.clone());
+        match it.else_branch.as_deref() {
+            Some(Else::If(next)) => self.if_(next),
+            Some(Else::Block(block)) => self.block(block),
+            None => {}
+        }
+        self.branches -= 1;
+        self.prev = union(&then, &self.prev);
+    }
+
+    fn loop_(&mut self, body: &'a Block) {
+        let before = self.prev.clone();
+        // What `previous` is at the end of an iteration, found by walking the body once on a
+        // copy: the sites are numbered the same way.
+        let carried = if self.loops < LOOP_DEPTH {
+            let mut dry = self.clone();
+            dry.loops += 1;
+            dry.block(body);
+            dry.prev
+        } else {
+            Vec::new()
+        };
+        self.prev = union(&before, &carried);
+        self.loops += 1;
+        self.block(body);
+        self.loops -= 1;
+        self.prev = union(&before, &self.prev);
+    }
+}
+
+fn union(a: &[usize], b: &[usize]) -> Vec<usize> {
+    let set: BTreeSet<usize> = a.iter().chain(b).copied().collect();
+    set.into_iter().collect()
+}
+
+/// What a tag names.
+enum Resolved {
+    /// Spawn sites of the body.
+    Sites(Vec<usize>),
+    /// The task itself (`parent`, `this`).
+    Task,
+    /// The node being spawned (`self`, `child`).
+    Own,
+    /// A node held in Rust (`bind`), or nothing known.
+    Unknown,
+}
+
+/// The names of one body, once walked.
+struct Scope<'s> {
+    labels: &'s BTreeMap<String, Vec<usize>>,
+    spawned: &'s BTreeMap<String, Vec<usize>>,
+    sites: &'s [Site],
+}
+
+impl Scope<'_> {
+    fn resolve(&self, tag: &Tag, prev: &[usize]) -> Resolved {
+        match &tag.kind {
+            TagKind::Named { name, .. } => {
+                let name = name.to_string();
+                match self.labels.get(&name).or_else(|| self.spawned.get(&name)) {
+                    Some(sites) => Resolved::Sites(sites.clone()),
+                    None => Resolved::Unknown,
+                }
+            }
+            TagKind::Previous if prev.is_empty() => Resolved::Unknown,
+            TagKind::Previous => Resolved::Sites(prev.to_vec()),
+            TagKind::Child => Resolved::Own,
+            TagKind::Parent => Resolved::Task,
+        }
+    }
+
+    /// The tag as written, a reference to the spawn it names; `previous` followed by the spawns
+    /// it may be.
+    fn tag_text(&self, tag: &Tag, prev: &[usize]) -> Text {
+        match &tag.kind {
+            TagKind::Named { name, indexes } => {
+                let mut written = name.to_string();
+                for index in indexes {
+                    match index {
+                        TagIndex::Expr(e) => written.push_str(&format!("[{}]", expr_text(e))),
+                        TagIndex::Current => written.push_str("[.]"),
+                    }
+                }
+                match self.resolve(tag, prev) {
+                    Resolved::Sites(sites) if !sites.is_empty() => {
+                        vec![Piece::Site(sites[0], written)]
+                    }
+                    _ => vec![Piece::Text(written)],
+                }
+            }
+            TagKind::Previous => self.previous_text(prev),
+            TagKind::Child => vec![Piece::Text("self".into())],
+            TagKind::Parent => vec![Piece::Text("parent".into())],
+        }
+    }
+
+    /// `previous`, followed by the spawns it may be.
+    fn previous_text(&self, prev: &[usize]) -> Text {
+        let mut text = vec![Piece::Text("previous".into())];
+        if !prev.is_empty() {
+            text.push(Piece::Text(" (".into()));
+            for (n, &s) in prev.iter().enumerate() {
+                if n > 0 {
+                    text.push(Piece::Text(", ".into()));
+                }
+                let name = self.sites.get(s).map_or("?", |site| site.task.as_str());
+                text.push(Piece::Site(s, name.to_string()));
+            }
+            text.push(Piece::Text(")".into()));
+        }
+        text
+    }
+}
+
+/// A constraint in canonical TDL spelling, tags resolved.
+fn constraint_text(kind: &ConstraintKind, scope: &Scope<'_>, prev: &[usize]) -> Text {
+    let text = |s: &str| vec![Piece::Text(s.to_string())];
+    let tag_or_previous = |tag: &Option<Tag>| match tag {
+        Some(tag) => scope.tag_text(tag, prev),
+        None => scope.previous_text(prev),
+    };
+    match kind {
+        ConstraintKind::ExpandFirst => text("expand first"),
+        ConstraintKind::DelayExpansion => text("delay expansion"),
+        ConstraintKind::Sequential { facet, tag } => {
+            let mut t = text(&format!("sequential {} ", facet.as_str()));
+            t.extend(tag_or_previous(tag));
+            t
+        }
+        ConstraintKind::Serial { tag } => {
+            let mut t = text("serial ");
+            t.extend(tag_or_previous(tag));
+            t
+        }
+        ConstraintKind::Parallel => text("parallel"),
+        ConstraintKind::Wait => text("wait"),
+        ConstraintKind::Outcome => text("outcome"),
+        ConstraintKind::Propagate => text("propagate"),
+        ConstraintKind::Trigger { when, then } => when_text(when, *then, Some((scope, prev))),
+        ConstraintKind::MaximumActivate(n) => text(&format!("maximum activate {}", count(n))),
+        ConstraintKind::MaximumTrigger(n) => text(&format!("maximum trigger {}", count(n))),
+        ConstraintKind::Period(t) => text(&format!("period {}", rel(t))),
+        ConstraintKind::ExceptionHandler(h) => {
+            let mut t = vec![
+                Piece::Text("exception handler ".into()),
+                Piece::Task(h.name.to_string()),
+                Piece::Text(format!("({})", exprs_text(&h.args))),
+            ];
+            if let Some(n) = &h.max_activate {
+                t.push(Piece::Text(format!(" maximum activate {}", count(n))));
+            }
+            t
+        }
+        ConstraintKind::OnTerminate(ot) => {
+            let labels: String = ot.labels.iter().map(|l| format!("{l}: ")).collect();
+            vec![
+                Piece::Text(format!("on terminate {labels}")),
+                Piece::Task(ot.task.to_string()),
+                Piece::Text(format!("({})", exprs_text(&ot.args))),
+            ]
+        }
+        ConstraintKind::Name(e) => text(&format!("name {}", expr_text(e))),
+        ConstraintKind::Parent(e) => text(&format!("parent {}", expr_text(e))),
+        ConstraintKind::OnAgent(e) => text(&format!("on {}", expr_text(e))),
+    }
+}
+
+/// A trigger: `terminate at X execution completed`, `disable execution until 13:00:00`, …; with
+/// `scope` the tag is written (resolved), without it it is left out (an edge label).
+fn when_text(when: &When, then: Then, scope: Option<(&Scope<'_>, &[usize])>) -> Text {
+    let (verb, at, within) = match then {
+        Then::Enable(facet) => (
+            match facet {
+                Some(f) => format!("disable {}", f.as_str()),
+                None => "disable".to_string(),
+            },
+            "until",
+            "for",
+        ),
+        Then::Terminate => ("terminate".to_string(), "at", "in"),
+        Then::Activate => ("activate".to_string(), "at", "in"),
+    };
+    let event = |ev: &Event| -> Text {
+        let mut t = Vec::new();
+        if let Some((scope, prev)) = scope {
+            t.extend(scope.tag_text(&ev.tag, prev));
+            t.push(Piece::Text(" ".into()));
+        }
+        let facet = ev
+            .facet
+            .map(|f| format!("{} ", f.as_str()))
+            .unwrap_or_default();
+        t.push(Piece::Text(format!("{facet}{}", ev.point.as_str())));
+        t
+    };
+    let mut t = vec![Piece::Text(verb)];
+    match when {
+        When::Now => {}
+        When::At(tod) => t.push(Piece::Text(format!(" {at} {}", time_of_day(*tod)))),
+        When::In(r) => t.push(Piece::Text(format!(" {within} {}", rel(r)))),
+        When::Event(ev) => {
+            t.push(Piece::Text(format!(" {at} ")));
+            t.extend(event(ev));
+        }
+        When::After(r, ev) => {
+            t.push(Piece::Text(format!(" {within} {} after ", rel(r))));
+            t.extend(event(ev));
+        }
+        When::External(name) => {
+            let name = match name {
+                ExternalName::Lit(lit) => format!("{:?}", lit.value()),
+                ExternalName::Expr(e) => format!("({})", expr_text(e)),
+            };
+            t.push(Piece::Text(format!(" {at} external {name}")));
+        }
+    }
+    t
+}
+
+fn time_of_day(t: TimeOfDay) -> String {
+    let mut s = format!("{}:{:02}:{:02}", t.hour, t.minute, t.second);
+    if t.nanos > 0 {
+        let frac = format!("{:09}", t.nanos);
+        s.push('.');
+        s.push_str(frac.trim_end_matches('0'));
+    }
+    s
+}
+
+fn rel(t: &RelTime) -> String {
+    match t {
+        RelTime::Nanos(n) => tdl_syntax::format_nanos(*n),
+        RelTime::Seconds(e) => format!("({})", expr_text(e)),
+    }
+}
+
+fn count(n: &Count) -> String {
+    match n {
+        Count::Const(n) => n.to_string(),
+        Count::Expr(e) => format!("({})", expr_text(e)),
+    }
+}
+
+/// A Rust type as rustfmt would write it, on one line.
+pub(crate) fn type_text(ty: &impl ToTokens) -> String {
+    let formatted = squash(&tdl_syntax::pretty(&quote!(type T = #ty;)));
+    formatted
+        .strip_prefix("type T = ")
+        .and_then(|s| s.strip_suffix(';'))
+        .map_or_else(|| squash(&ty.to_token_stream().to_string()), str::to_string)
+}
+
+/// A Rust expression as rustfmt would write it, on one line.
+pub(crate) fn expr_text(e: &impl ToTokens) -> String {
+    exprs_text(std::slice::from_ref(e))
+}
+
+/// Arguments as rustfmt would write them, on one line, without the parentheses.
+pub(crate) fn exprs_text<E: ToTokens>(args: &[E]) -> String {
+    if args.is_empty() {
+        return String::new();
+    }
+    let formatted = squash(&tdl_syntax::pretty(&quote!(fn f() { g(#(#args),*); })));
+    formatted
+        .strip_prefix("fn f() { g(")
+        .and_then(|s| s.strip_suffix("); }"))
+        .map(|s| s.trim_end_matches([',', ' ']).to_string())
+        .unwrap_or_else(|| {
+            args.iter()
+                .map(|a| squash(&a.to_token_stream().to_string()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+}
+
+/// Whitespace runs made one space; no space just inside brackets.
+fn squash(s: &str) -> String {
+    let one = s.split_whitespace().collect::<Vec<_>>().join(" ");
+    one.replace("( ", "(")
+        .replace(" )", ")")
+        .replace(",)", ")")
+        .replace("[ ", "[")
+        .replace(" ]", "]")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn program(src: &str) -> Vec<(String, Ast)> {
+        let parse = tdl_syntax::parse_str("t.tdl", src);
+        assert!(!parse.has_errors(), "{:?}", parse.diagnostics);
+        vec![("t.tdl".to_string(), parse.file)]
+    }
+
+    fn relations(p: &Program<'_>, task: &str) -> Vec<String> {
+        let t = p.task(task).expect("the task");
+        t.relations
+            .iter()
+            .map(|r| {
+                let from = match r.from {
+                    Endpoint::Task => "this".to_string(),
+                    Endpoint::Site(s) => t.sites[s].task.clone(),
+                };
+                format!("{from} -> {}: {}", t.sites[r.to].task, r.label)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn constraints_name_the_spawns_their_tags_resolve_to() {
+        let files = program(
+            "goal g() {
+                spawn a();
+                spawn w() with terminate at a execution completed;
+                spawn b() with sequential execution previous, terminate in 30s after self handling active;
+                l: spawn c() with wait, exception handler h(1) maximum activate 2;
+                spawn d() with serial l, disable until parent handling active, on terminate e();
+            }
+            handler h(n: u32) handles Oops { bypass; }
+            exception Oops;",
+        );
+        let p = Program::new(&files);
+        assert_eq!(
+            relations(&p, "g"),
+            [
+                "this -> d: disable until handling active",
+                "a -> w: terminate at execution completed",
+                "w -> b: sequential execution",
+                "c -> d: serial",
+            ]
+        );
+        let g = p.task("g").expect("g");
+        let names: Vec<&str> = g.sites.iter().map(|s| s.task.as_str()).collect();
+        assert_eq!(names, ["a", "w", "b", "c", "d", "e"]);
+        assert_eq!(g.sites[5].origin, Origin::OnTerminate(Some(4)));
+        assert_eq!(
+            g.sites[2].notes,
+            ["terminate in 30s after self handling active"]
+        );
+        assert_eq!(g.sites[3].flags, ["wait"]);
+        assert_eq!(g.sites[3].labels, ["l"]);
+        assert_eq!(g.sites[3].handlers[0].name, "h");
+        assert_eq!(g.sites[3].handlers[0].max.as_deref(), Some("2"));
+        assert_eq!(
+            plain(&g.sites[2].constraints[0]),
+            "sequential execution previous (w)"
+        );
+        let h = p.task("h").expect("h");
+        assert!(h.bypasses);
+        assert_eq!(p.handler_users("h").len(), 1);
+    }
+
+    #[test]
+    fn previous_is_every_spawn_that_may_come_just_before() {
+        let files = program(
+            "goal g(n: u32) {
+                spawn p();
+                for i in 0..n {
+                    if i > 0 { spawn t() with sequential execution previous; }
+                    spawn m() with sequential execution previous;
+                }
+                with (serial previous) { spawn x(); spawn y(); }
+                spawn z() with serial previous;
+            }",
+        );
+        let p = Program::new(&files);
+        assert_eq!(
+            relations(&p, "g"),
+            [
+                "p -> t: sequential execution",
+                "p -> m: sequential execution",
+                "p -> x: serial",
+                "t -> m: sequential execution",
+                "m -> t: sequential execution",
+                "m -> m: sequential execution",
+                "m -> x: serial",
+                "x -> y: serial",
+                "x -> z: serial",
+                "y -> z: serial",
+            ]
+        );
+        let g = p.task("g").expect("g");
+        assert!(g.sites[1].repeated && g.sites[1].conditional);
+        assert!(g.sites[2].repeated && !g.sites[2].conditional);
+    }
+
+    #[test]
+    fn reach_follows_spawns_handlers_and_exceptions() {
+        let files = program(
+            "exception Base;
+            exception Oops: Base;
+            goal top() with exception handler fix() { spawn mid(); }
+            goal mid() { spawn leaf(); fail Oops; }
+            command leaf() {}
+            handler fix() handles Base { retry; }
+            handler outside() handles Base for leaf { bypass; }
+            goal unrelated() {}",
+        );
+        let p = Program::new(&files);
+        let (tasks, exceptions) = p.reach("mid").expect("mid");
+        assert_eq!(
+            tasks.into_iter().collect::<Vec<_>>(),
+            ["leaf", "mid", "outside"]
+        );
+        assert_eq!(exceptions.into_iter().collect::<Vec<_>>(), ["Base", "Oops"]);
+        let (tasks, _) = p.reach("top").expect("top");
+        assert_eq!(tasks.len(), 5, "{tasks:?}");
+        assert!(p.reach("nowhere").is_none());
+    }
+
+    #[test]
+    fn ids_are_plain_and_unique() {
+        let mut used = BTreeSet::new();
+        assert_eq!(unique_id("r#type", &mut used), "r_type");
+        assert_eq!(unique_id("r_type", &mut used), "r_type_2");
+        assert_eq!(unique_id("façade", &mut used), "fa_ade");
+    }
+
+    #[test]
+    fn rust_fragments_are_written_as_rustfmt_would() {
+        let files = program(
+            "goal g(v: Vec < Option < u32 > >, m: & 'static str) { spawn t(m . len (), v [0] . clone ()); }",
+        );
+        let g = Program::new(&files);
+        let g = g.task("g").expect("g");
+        assert_eq!(type_text(&g.task.args[0].ty), "Vec<Option<u32>>");
+        assert_eq!(type_text(&g.task.args[1].ty), "&'static str");
+        assert_eq!(g.sites[0].args, "m.len(), v[0].clone()");
+    }
+}
