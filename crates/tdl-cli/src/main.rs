@@ -1,5 +1,5 @@
-//! `tdl`: check TDL files, print the Rust they compile to, draw and document them, and read trace
-//! files.
+//! `tdl`: check TDL files, print the Rust they compile to, draw and document them, and read and
+//! export trace files.
 //!
 //! - `tdl check FILE...` checks the files as one program (task and exception names resolve across
 //!   them) and prints every diagnostic (errors and warnings) as rustc does (`error: message`,
@@ -13,6 +13,7 @@
 //!   `xavier --trace`): verifies it with the trace checker (exit 1 on violations), prints TCM's text
 //!   log, the task tree of the whole run (or the live tree at `--at`), or the story of the run, one
 //!   line per record with node numbers, filtered by kind, name, path, node and time (`view.rs`).
+//!   `tdl trace export --mcap OUT.mcap TRACE.jsonl` writes it as MCAP (`export.rs`).
 //!
 //! - `tdl view TRACE.jsonl...` serves the task-tree viewer on the files (`serve.rs`).
 //!
@@ -28,6 +29,7 @@ use clap::{Parser, Subcommand};
 
 mod serve;
 mod doc;
+mod export;
 mod graph;
 mod model;
 mod view;
@@ -36,7 +38,7 @@ mod view;
 #[command(
     name = "tdl",
     version,
-    about = "TDL for Rust: check, expand, draw and document .tdl files; read trace files"
+    about = "TDL for Rust: check, expand, draw and document .tdl files; read and export trace files"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -133,6 +135,15 @@ enum TraceCommand {
         /// TCM's dump format (`name {id} [h|a|p|t]`) of the live tree (at `--at`, or at the end).
         #[arg(long)]
         tcm: bool,
+    },
+    /// Write the trace in another format: `--mcap OUT.mcap` writes MCAP, one channel per kind of
+    /// record (`/tdl/trace/<kind>`), JSON messages with a JSON Schema per kind, log time = `t`.
+    Export {
+        /// The trace file.
+        file: PathBuf,
+        /// Write MCAP to this file (replaced only once the export is complete).
+        #[arg(long, value_name = "OUT.mcap", required = true)]
+        mcap: PathBuf,
     },
     /// Print one line per record: `<seconds> {id} <name> <what>`: transitions, spawns,
     /// termination, failures, handlers chosen, bypasses, retries, wiretap checks, monitor
@@ -276,6 +287,19 @@ fn trace(what: TraceCommand, out: &mut impl Write) -> anyhow::Result<bool> {
                 Ok(false)
             }
         },
+        TraceCommand::Export { file, mcap } => {
+            let trace = load(&file)?;
+            let written = export::mcap(&trace, &mcap)?;
+            writeln!(
+                out,
+                "{}: wrote {} records on {} channels to {}",
+                file.display(),
+                written.messages,
+                written.channels,
+                mcap.display()
+            )?;
+            Ok(true)
+        }
         TraceCommand::Log { file, time, all } => {
             let options = tcm_trace::TextLogOptions { time, trace: all };
             out.write_all(tcm_trace::TextLog::render(options, &load(&file)?).as_bytes())?;

@@ -1,10 +1,11 @@
 //! The one integration-test binary of the `tdl` CLI: runs the built binary on files in
 //! `tests/data` and checks output and exit codes. `tdl graph` and `tdl doc` have their own
-//! modules (`graph.rs`, `doc.rs`).
+//! modules (`graph.rs`, `doc.rs`), as has `tdl trace export` (`export.rs`).
 
 use std::process::Command;
 
 mod doc;
+mod export;
 mod graph;
 
 fn tdl(args: &[&str]) -> (i32, String, String) {
