@@ -27,11 +27,11 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 
-mod serve;
 mod doc;
 mod export;
 mod graph;
 mod model;
+mod serve;
 mod view;
 
 #[derive(Parser)]
