@@ -451,7 +451,7 @@ async function showStats() {
     el('td', {}, s.ran ? secs(s.mean_ns) : ''), el('td', {}, s.ran ? secs(s.max_ns) : ''), el('td', {}, s.ran ? secs(s.total_ns) : '')))));
 }
 
-let evOffset = 0;
+let evOffset = 0, evAsked = 0;
 async function showEvents() {
   const p = new URLSearchParams();
   if ($('evname').value) p.set('name', $('evname').value);
@@ -460,7 +460,9 @@ async function showEvents() {
   if ($('evto').value && !isNaN(parseFloat($('evto').value))) p.set('to', toNs($('evto').value));
   if ($('evnode').checked && S.selected !== null) p.set('node', S.selected);
   p.set('offset', evOffset); p.set('limit', 200);
+  const asked = ++evAsked;
   const r = await getJSON('/api/runs/' + S.runId + '/events?' + p);
+  if (asked !== evAsked) return; // a later filter was asked for meanwhile
   $('evcount').textContent = r.total ? (r.offset + 1) + '–' + (r.offset + r.records.length) + ' of ' + r.total : 'no record matches';
   $('evlist').replaceChildren(...r.records.map((rec) => {
     const rest = Object.assign({}, rec);

@@ -225,7 +225,7 @@ fn the_viewer_shows_a_mission_trace_why_a_node_waits_and_replays_it() -> anyhow:
         let listed = b
             .wait_for(
                 "(() => { const l = [...document.querySelectorAll('#evlist li')]; \
-                 return l.length ? l.map(e => e.textContent) : null; })()",
+                 return l.length && l.length < 50 ? l.map(e => e.textContent) : null; })()",
                 Duration::from_secs(10),
             )
             .await?;
