@@ -9,6 +9,11 @@
 //! `self`, monitor-only constraints on other tasks, constraints that only go on a spawn, misused
 //! `node!(tag)`, `bind` and `parent`, and the statements that only handlers or monitors may use.
 
+mod cycles;
+mod flow;
+mod graph;
+mod waits;
+
 use std::collections::BTreeSet;
 
 use proc_macro2::{Ident, Span};
@@ -65,6 +70,9 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                     scope: BodyScope::new(task),
                 };
                 body.diagnose(diags);
+                let flow = flow::Flow::new(file, task, &body.scope);
+                cycles::check(&flow, &body.scope, diags);
+                waits::check(&flow, &body.scope, diags);
             }
             Item::Exception(exc) => {
                 if let Some(parent) = &exc.parent {

@@ -513,6 +513,11 @@ impl<'a> BodyScope<'a> {
         self.spawns.get(*id)
     }
 
+    /// The number of the spawn statement `spawn`.
+    pub(crate) fn spawn_id(&self, spawn: &Spawn) -> Option<SpawnId> {
+        self.spawn_ids.get(&std::ptr::from_ref(spawn)).copied()
+    }
+
     /// The number of the group `group`.
     pub(crate) fn group_id(&self, group: &WithGroup) -> Option<GroupId> {
         self.group_ids.get(&std::ptr::from_ref(group)).copied()
