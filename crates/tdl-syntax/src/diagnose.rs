@@ -12,6 +12,7 @@
 mod cycles;
 mod flow;
 mod graph;
+mod raises;
 mod waits;
 
 use std::collections::BTreeSet;
@@ -82,6 +83,7 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
             Item::Rust(_) => {}
         }
     }
+    raises::check(file, ast, diags);
 }
 
 /// Reports `name` when the program declares exceptions and `name` is not one of them.
