@@ -13,6 +13,7 @@ mod cycles;
 mod flow;
 mod graph;
 mod raises;
+mod recursion;
 mod waits;
 
 use std::collections::BTreeSet;
@@ -84,6 +85,7 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
         }
     }
     raises::check(file, ast, diags);
+    recursion::check(file, ast, diags);
 }
 
 /// Reports `name` when the program declares exceptions and `name` is not one of them.
