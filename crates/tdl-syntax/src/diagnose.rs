@@ -8,6 +8,11 @@
 //! constraints each task kind allows, `wait` on a forward reference, circular constraints on
 //! `self`, monitor-only constraints on other tasks, constraints that only go on a spawn, misused
 //! `node!(tag)`, `bind` and `parent`, and the statements that only handlers or monitors may use.
+//!
+//! Its submodules check the program as a whole (docs/language.md, "Static checks"): circular
+//! constraints (`cycles.rs`) and waits that cannot end (`waits.rs`) in each body, on the model of
+//! its waits in `flow.rs`; exceptions no handler handles (`raises.rs`) and recursion without a
+//! base case (`recursion.rs`) over every file of the program; `graph.rs` finds the cycles.
 
 mod cycles;
 mod flow;
