@@ -7,13 +7,14 @@
 //! keeps `e` from happening ([`blocked`]); the node running the body completes only after its
 //! children. A cycle of such edges can never be satisfied. Only spawns that surely run count
 //! (see `flow.rs`): a constraint inside an `if` or a loop, or on a spawn that may not run, makes
-//! no edge, and neither do termination and activation constraints, which hold nothing.
+//! no edge, and neither do termination and activation constraints, which hold nothing, nor a
+//! constraint statement after a wait, which may come too late and be refused.
 
 use std::collections::BTreeSet;
 
 use proc_macro2::Span;
 
-use super::flow::{Ev, Flow, Node, blocked, gate};
+use super::flow::{Ev, Flow, Node, Target, blocked, gate};
 use super::graph;
 use crate::ast::{Facet, TaskKind};
 use crate::diagnostic::Diagnostic;
@@ -72,6 +73,16 @@ pub(super) fn check(flow: &Flow<'_>, scope: &BodyScope<'_>, diags: &mut Vec<Diag
             let Some(spawn) = flow.spawns.get(target) else {
                 continue;
             };
+            // A constraint statement after a wait may come once the node started: the run then
+            // refuses it (docs/semantics.md, "Constraints"), and it holds nothing.
+            let late = matches!(applied.target, Target::Tag(_))
+                && flow
+                    .waits
+                    .iter()
+                    .any(|w| spawn.position <= w.position && w.position < applied.position);
+            if late {
+                continue;
+            }
             let held: BTreeSet<Ev> = gate
                 .facets
                 .iter()
