@@ -8,6 +8,18 @@
 //! constraints each task kind allows, `wait` on a forward reference, circular constraints on
 //! `self`, monitor-only constraints on other tasks, constraints that only go on a spawn, misused
 //! `node!(tag)`, `bind` and `parent`, and the statements that only handlers or monitors may use.
+//!
+//! Its submodules check the program as a whole (docs/language.md, "Static checks"): circular
+//! constraints (`cycles.rs`) and waits that cannot end (`waits.rs`) in each body, on the model of
+//! its waits in `flow.rs`; exceptions no handler handles (`raises.rs`) and recursion without a
+//! base case (`recursion.rs`) over every file of the program; `graph.rs` finds the cycles.
+
+mod cycles;
+mod flow;
+mod graph;
+mod raises;
+mod recursion;
+mod waits;
 
 use std::collections::BTreeSet;
 
@@ -65,6 +77,9 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                     scope: BodyScope::new(task),
                 };
                 body.diagnose(diags);
+                let flow = flow::Flow::new(file, task, &body.scope);
+                cycles::check(&flow, &body.scope, diags);
+                waits::check(&flow, &body.scope, diags);
             }
             Item::Exception(exc) => {
                 if let Some(parent) = &exc.parent {
@@ -74,6 +89,8 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
             Item::Rust(_) => {}
         }
     }
+    raises::check(file, ast, diags);
+    recursion::check(file, ast, diags);
 }
 
 /// Reports `name` when the program declares exceptions and `name` is not one of them.

@@ -16,8 +16,9 @@
 //!   exceptions of the file, and per body its spawns, groups, loops and what each tag denotes.
 //!   Both consumers read it: the static diagnosis and the code generator.
 //! - The static diagnosis of docs/semantics.md, "Tags and forward references" (unknown and ambiguous tags, duplicate labels, `wait`
-//!   on a forward reference, ...) runs as part of parsing and adds to the same diagnostics
-//!   (`diagnose.rs`).
+//!   on a forward reference, ...) and the static checks of docs/language.md, "Static checks"
+//!   (circular constraints, waits that cannot end, unhandled exceptions, unbounded recursion) run
+//!   as part of parsing and add to the same diagnostics (`diagnose.rs`, `diagnose/`).
 //! - [`generate`] turns the tree into Rust calling the `tcm` runtime through the `tdl` crate
 //!   (`codegen.rs`, `codegen/`).
 //! - [`Diagnostic::render`] prints a diagnostic as rustc does, with `annotate-snippets`:

@@ -145,6 +145,36 @@ impl<'a> FileScope<'a> {
             .copied()
     }
 
+    /// Every task of the program, this source's first, then those of the other files (the first
+    /// declaration of a name only).
+    pub(crate) fn all_tasks(&self) -> impl Iterator<Item = &'a Task> + '_ {
+        let others = self
+            .other_tasks
+            .iter()
+            .filter(|(name, _)| !self.tasks.contains_key(*name))
+            .map(|(_, task)| *task);
+        self.tasks.values().copied().chain(others)
+    }
+
+    /// Whether `task` is declared in this source (not in another file of the program).
+    pub(crate) fn is_local(&self, task: &Task) -> bool {
+        self.tasks
+            .get(&task.name.to_string())
+            .is_some_and(|it| std::ptr::eq(*it, task))
+    }
+
+    /// Whether the whole ancestry of exception `name` is known: it and each of its ancestors are
+    /// declared in the program (an exception declared elsewhere, in Rust, may have ancestors the
+    /// front end cannot see).
+    pub(crate) fn ancestry_known(&self, name: &str) -> bool {
+        // `ancestry` ends with the first parent that is not declared, if any.
+        self.declares_exception(name)
+            && self
+                .ancestry(name)
+                .iter()
+                .all(|it| self.declares_exception(it))
+    }
+
     /// The kind of the task of this name defined in the source.
     pub(crate) fn kind_of(&self, name: &str) -> Option<TaskKind> {
         self.task(name).map(|it| it.kind)
@@ -511,6 +541,11 @@ impl<'a> BodyScope<'a> {
     pub(crate) fn spawn_def(&self, spawn: &Spawn) -> Option<&SpawnDef<'a>> {
         let id = self.spawn_ids.get(&std::ptr::from_ref(spawn))?;
         self.spawns.get(*id)
+    }
+
+    /// The number of the spawn statement `spawn`.
+    pub(crate) fn spawn_id(&self, spawn: &Spawn) -> Option<SpawnId> {
+        self.spawn_ids.get(&std::ptr::from_ref(spawn)).copied()
     }
 
     /// The number of the group `group`.

@@ -96,6 +96,25 @@ fn check_accepts_every_ok_file_and_refuses_every_err_file() {
     }
 }
 
+/// Warnings are printed, and do not fail the check.
+#[test]
+fn check_prints_warnings_and_exits_0_on_every_warn_file() {
+    let warn = syntax_data("warn");
+    assert!(warn.len() >= 2, "{warn:?}");
+    for file in &warn {
+        let (code, out, err) = tdl(&["check", file]);
+        assert_eq!(code, 0, "{file}:\n{out}{err}");
+        assert!(
+            out.lines().any(|l| l.starts_with("warning: ")),
+            "{file}:\n{out}"
+        );
+        assert!(
+            !out.lines().any(|l| l.starts_with("error")),
+            "{file}:\n{out}"
+        );
+    }
+}
+
 /// Issue 12, point 3: `tdl check` takes the files of one program and resolves names across them.
 #[test]
 fn check_resolves_names_across_the_files_of_a_program() {

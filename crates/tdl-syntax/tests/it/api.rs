@@ -234,6 +234,53 @@ fn names_resolve_across_the_files_of_a_program() {
     }
 }
 
+/// The program-wide checks see every file: a handler in one file handles an exception raised in
+/// another, and a recursion through two files is reported once, in the file of the task named
+/// first.
+#[test]
+fn unhandled_exceptions_and_recursion_are_checked_across_files() {
+    let messages = |results: &[(
+        Option<proc_macro2::TokenStream>,
+        Vec<tdl_syntax::Diagnostic>,
+    )]| {
+        results
+            .iter()
+            .map(|(_, diags)| diags.iter().map(|it| it.message().to_owned()).collect())
+            .collect::<Vec<Vec<String>>>()
+    };
+    let leg = "exception Fault; exception Slip : Fault; command move_leg() { fail Slip; }";
+    let walk = "handler steady() handles Fault { let _ = 1; } \
+                goal walk() { spawn move_leg() with exception handler steady(); }";
+    let results = tdl_syntax::compile_program(&[("leg.tdl", leg), ("walk.tdl", walk)]);
+    assert_eq!(messages(&results), [Vec::<String>::new(), Vec::new()]);
+    let walk = "goal walk() { spawn move_leg(); }";
+    let results = tdl_syntax::compile_program(&[("leg.tdl", leg), ("walk.tdl", walk)]);
+    assert_eq!(
+        messages(&results),
+        [
+            vec!["no handler in this program handles `Slip` raised here".to_owned()],
+            Vec::new()
+        ]
+    );
+    // Warnings do not keep the code from being generated.
+    assert!(results.iter().all(|(code, _)| code.is_some()));
+
+    let ping = "goal ping() { spawn pong(); }";
+    let pong = "goal pong() { spawn ping(); }";
+    let results = tdl_syntax::compile_program(&[("pong.tdl", pong), ("ping.tdl", ping)]);
+    assert_eq!(
+        messages(&results),
+        [
+            Vec::new(),
+            vec![
+                "`ping` spawns `pong`, which spawns `ping`, each on every path through its body: \
+                 the recursion never ends"
+                    .to_owned()
+            ]
+        ]
+    );
+}
+
 /// Found by fuzzing: brackets nested thousands deep exhausted the stack of the recursive parser
 /// (a crash, not a diagnostic). Now a clear error at the first bracket too deep, on a thread with
 /// a small stack, as the parser of a debug build would see it.

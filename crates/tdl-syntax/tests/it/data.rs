@@ -1,6 +1,8 @@
 //! Data-driven parser tests: add a case by adding a `.tdl` file under `test_data/ok` (must parse
-//! with no error; the tree dump is snapshotted) or `test_data/err` (must give at least one error;
-//! the rendered diagnostics are snapshotted). Snapshots live beside the files as `<stem>.snap`.
+//! with no error; the tree dump is snapshotted), `test_data/err` (must give at least one error;
+//! the rendered diagnostics are snapshotted) or `test_data/warn` (must give warnings and no
+//! error; the rendered diagnostics are snapshotted). Snapshots live beside the files as
+//! `<stem>.snap`.
 
 use std::path::{Path, PathBuf};
 
@@ -75,6 +77,33 @@ fn err_files_give_errors() {
         assert!(parse.has_errors(), "{name} gives no error:\n{rendered}");
         insta::with_settings!({
             snapshot_path => data_dir("err"),
+            prepend_module_to_snapshot => false,
+            description => name.clone(),
+            omit_expression => true,
+        }, {
+            insta::assert_snapshot!(stem, rendered);
+        });
+    }
+}
+
+#[test]
+fn warn_files_give_warnings_only() {
+    let cases = cases("warn");
+    assert!(
+        cases.len() >= 2,
+        "expected the warn/ corpus, found {} files",
+        cases.len()
+    );
+    for (stem, name, text) in cases {
+        let parse = tdl_syntax::parse_str(&name, &text);
+        let rendered = parse.render(&name, Some(&text));
+        assert!(!parse.has_errors(), "{name} has errors:\n{rendered}");
+        assert!(
+            !parse.diagnostics.is_empty(),
+            "{name} gives no warning:\n{rendered}"
+        );
+        insta::with_settings!({
+            snapshot_path => data_dir("warn"),
             prepend_module_to_snapshot => false,
             description => name.clone(),
             omit_expression => true,
