@@ -379,7 +379,7 @@ impl RunModel {
                 return Err(format!("time goes backwards: {} ns after {last} ns", ev.t));
             }
         }
-        if let Some(n) = record_node(&ev.kind) {
+        if let Some(n) = ev.kind.node() {
             if n > self.rows.len() as u64 + NUMBER_SLACK {
                 return Err(format!("node number {n} is implausible (damaged trace?)"));
             }
@@ -402,7 +402,7 @@ impl RunModel {
             self.times.push((ev.seq, ev.t));
         }
         self.record(at, &ev.kind);
-        self.index.push((ev.t, record_node(&ev.kind)));
+        self.index.push((ev.t, ev.kind.node()));
         self.lines.push(line);
         Ok(())
     }
@@ -801,33 +801,5 @@ pub(crate) fn kind_str(kind: NodeKind) -> &'static str {
         NodeKind::Command => "command",
         NodeKind::Monitor => "monitor",
         NodeKind::Handler => "handler",
-    }
-}
-
-/// The node a record is about, if one.
-pub(crate) fn record_node(kind: &TraceKind) -> Option<u64> {
-    use TraceKind as K;
-    match kind {
-        K::Reserved { node, .. }
-        | K::Spawned { node, .. }
-        | K::Constrained { node, .. }
-        | K::ConstraintVoid { node, .. }
-        | K::Transition { node, .. }
-        | K::Terminating { node }
-        | K::Terminated { node }
-        | K::Suspended { node }
-        | K::Unsuspended { node }
-        | K::Failed { node, .. }
-        | K::Dead { node }
-        | K::Reclaimed { node }
-        | K::MonitorParams { node, .. }
-        | K::Activated { node, .. }
-        | K::HandlerChosen { node, .. }
-        | K::Bypassed { node, .. }
-        | K::Retried { node, .. }
-        | K::Tapped { node, .. } => Some(*node),
-        K::Triggered { monitor, .. } => Some(*monitor),
-        K::Warning { node, .. } | K::CallbackSet { node, .. } => *node,
-        _ => None,
     }
 }
