@@ -103,6 +103,32 @@ impl Session {
             .and_then(|r| r.outcome.clone()))
     }
 
+    /// Reserves the resource `name` for `holder` and its subtree, as
+    /// [`Ctx::reserve_resource`] does from an action.
+    pub fn reserve_resource(&self, name: &str, holder: NodeId) -> Result<(), Error> {
+        self.ctx.reserve_resource(name, holder)
+    }
+
+    /// Ends the reservation of the resource `name`.
+    pub fn unreserve_resource(&self, name: &str) -> Result<(), Error> {
+        self.ctx.unreserve_resource(name)
+    }
+
+    /// Locks the resource `name`: nobody is granted it until it is unlocked.
+    pub fn lock_resource(&self, name: &str) -> Result<(), Error> {
+        self.ctx.lock_resource(name)
+    }
+
+    /// Unlocks the resource `name`.
+    pub fn unlock_resource(&self, name: &str) -> Result<(), Error> {
+        self.ctx.unlock_resource(name)
+    }
+
+    /// The resource `name` now (`None` if not declared).
+    pub fn resource_info(&self, name: &str) -> Result<Option<tcm_core::ResourceInfo>, Error> {
+        self.ctx.resource_info(name)
+    }
+
     /// Ends the run: waits, as [`Runtime::run`](crate::Runtime::run) does for its task, until every
     /// top-level task's execution completed, a failure is fatal, or the run is stuck (quiescent
     /// with no event handle open); aborts whatever still runs, and reports. The outcome is the
