@@ -28,6 +28,8 @@ pub enum Item {
     Task(Task),
     /// `exception Name [: Parent] (; | { fields })`.
     Exception(ExceptionDecl),
+    /// `resource name(capacity) [pending N];` (docs/semantics.md, "Resources").
+    Resource(ResourceDecl),
     /// Any Rust item (`fn`, `use`, `struct`, ...), passed through verbatim.
     Rust(Box<syn::Item>),
 }
@@ -119,6 +121,42 @@ pub struct ExceptionDecl {
     pub span: Span,
 }
 
+/// `resource name(capacity) [pending N];`: a resource of the program, with its capacity and the
+/// most requests that may wait for it (docs/semantics.md, "Resources").
+#[derive(Clone, Debug)]
+pub struct ResourceDecl {
+    /// Outer attributes, including doc comments (kept for the reader; nothing is generated).
+    pub attrs: Vec<syn::Attribute>,
+    /// Resource name, as spawns name it in `uses`.
+    pub name: Ident,
+    /// Units it has.
+    pub capacity: syn::LitInt,
+    /// `pending N`: most requests that may wait for it.
+    pub pending: Option<syn::LitInt>,
+    /// Span of the name.
+    pub span: Span,
+}
+
+/// One resource of a `uses` list: `name` or `name(amount)`.
+#[derive(Clone, Debug)]
+pub struct ResourceAmount {
+    /// The resource.
+    pub name: Ident,
+    /// How much of it; `None`: 1.
+    pub amount: Option<Count>,
+    /// Span of the amount, or of the name without one.
+    pub span: Span,
+}
+
+/// A request's priority: lower is granted first.
+#[derive(Clone, Debug)]
+pub enum Priority {
+    /// An integer literal, possibly negative.
+    Const(i64),
+    /// Any other expression (an `i32`).
+    Expr(syn::Expr),
+}
+
 /// An exception data field `name: Type`.
 #[derive(Clone, Debug)]
 pub struct Field {
@@ -171,6 +209,10 @@ pub enum TaskConstraintKind {
     Serial,
     /// `sequential expansion|execution` between activations (monitors).
     Sequential(Facet),
+    /// `uses r, r2(n)`: every node of the task uses these resources (goals and commands).
+    Uses(Vec<ResourceAmount>),
+    /// `priority N`: the priority of every node's request for resources.
+    Priority(Priority),
 }
 
 /// `persistent name: Type [= init]`: per-instance state surviving across activations.
@@ -494,6 +536,14 @@ pub enum ConstraintKind {
     Parent(syn::Expr),
     /// `on AGENT`: rejected until distributed agents exist.
     OnAgent(syn::Expr),
+    /// `uses r, r2(n)`: resources granted, all at once, before the node starts, and released when
+    /// its action ends (docs/semantics.md, "Resources").
+    Uses(Vec<ResourceAmount>),
+    /// `priority N`: the priority of the node's request for resources (lower first).
+    Priority(Priority),
+    /// `deny if busy`: a request that cannot be granted at once fails the node with
+    /// `ResourceDenied` instead of waiting.
+    DenyIfBusy,
 }
 
 /// When a [`ConstraintKind::Trigger`] fires: the one "when" of `disable`, `terminate` and

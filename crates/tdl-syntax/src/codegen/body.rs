@@ -124,6 +124,7 @@ pub(super) fn task_body(
         // The caught exception only through the explicit binding `handles E as name`: a word
         // `exception` in the body is plain Rust (docs/semantics.md, "Exceptions and handlers").
         if let (Some(exc), Some(var)) = (&task.handles, &task.caught) {
+            let exc = g.file.exception_type(exc);
             head.extend(quote! {
                 let #var: ::tdl::Caught<#exc> = ::tdl::codegen::caught::<#exc>(&ctx, #name)?;
             });
