@@ -110,13 +110,6 @@ impl Inner {
             .declare_resource(r.name.clone(), r.capacity, r.pending_limit)
     }
 
-    /// The resource named `name`.
-    pub(crate) fn resource_named(&self, name: &str) -> Result<ResourceId, EngineError> {
-        self.engine
-            .resource_id(name)
-            .ok_or_else(|| EngineError::UnknownResource(name.to_string()))
-    }
-
     /// The engine's uses for `wanted`: each name resolved, each declaration declared if new.
     pub(crate) fn resolve(&mut self, wanted: Wanted) -> Result<Option<Box<Uses>>, EngineError> {
         if wanted.uses.is_empty() {
@@ -128,52 +121,61 @@ impl Inner {
             deny_if_busy: wanted.deny_if_busy,
         };
         for (r, amount) in wanted.uses {
-            let id = match (&r.0, self.engine.resource_id(r.name())) {
-                (_, Some(id)) => id,
-                (Ref::Declared(decl), None) => self.declare(decl)?,
-                (Ref::Named(name), None) => {
-                    return Err(EngineError::UnknownResource(name.to_string()));
-                }
-            };
+            let id = self.resource_for(&r)?;
             uses.amounts.push((id, amount));
         }
         Ok(Some(Box::new(uses)))
     }
+
+    /// The resource `r` names: the run's resource of that name, or, for a declaration the run
+    /// does not have yet, the resource it declares now.
+    pub(crate) fn resource_for(&mut self, r: &ResourceRef) -> Result<ResourceId, EngineError> {
+        match (&r.0, self.engine.resource_id(r.name())) {
+            (_, Some(id)) => Ok(id),
+            (Ref::Declared(decl), None) => self.declare(decl),
+            (Ref::Named(name), None) => Err(EngineError::UnknownResource(name.to_string())),
+        }
+    }
 }
 
 impl Ctx {
-    /// Reserves the resource `name` for `holder` (TCA: a resource reserved for one module): until
-    /// it is unreserved, or the holder's execution completes, only `holder` and its descendants
-    /// are granted it; others wait (docs/semantics.md, "Resources").
-    pub fn reserve_resource(&self, name: &str, holder: NodeId) -> Result<(), Error> {
+    /// Reserves `resource` (a name the run declared, or a [`Resource`], declared on first use) for
+    /// `holder` (TCA: a resource reserved for one module): until it is unreserved, or the holder's
+    /// execution completes, only `holder` and its descendants are granted it; others wait
+    /// (docs/semantics.md, "Resources"). TDL's `reserve r;`.
+    pub fn reserve_resource(
+        &self,
+        resource: impl Into<ResourceRef>,
+        holder: NodeId,
+    ) -> Result<(), Error> {
         let mut inner = self.shared.enter()?;
         let now = self.shared.now();
-        let r = inner.resource_named(name)?;
+        let r = inner.resource_for(&resource.into())?;
         Ok(inner.engine.reserve_resource(now, r, holder)?)
     }
 
-    /// Ends the reservation of the resource `name`, if it has one.
-    pub fn unreserve_resource(&self, name: &str) -> Result<(), Error> {
+    /// Ends the reservation of `resource`, if it has one. TDL's `unreserve r;`.
+    pub fn unreserve_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
         let mut inner = self.shared.enter()?;
         let now = self.shared.now();
-        let r = inner.resource_named(name)?;
+        let r = inner.resource_for(&resource.into())?;
         Ok(inner.engine.unreserve_resource(now, r)?)
     }
 
-    /// Locks the resource `name`: nobody is granted it until it is unlocked; grants already made
-    /// stay (TCA's lock).
-    pub fn lock_resource(&self, name: &str) -> Result<(), Error> {
+    /// Locks `resource`: nobody is granted it until it is unlocked; grants already made stay
+    /// (TCA's lock). TDL's `lock r;`.
+    pub fn lock_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
         let mut inner = self.shared.enter()?;
         let now = self.shared.now();
-        let r = inner.resource_named(name)?;
+        let r = inner.resource_for(&resource.into())?;
         Ok(inner.engine.lock_resource(now, r)?)
     }
 
-    /// Unlocks the resource `name`.
-    pub fn unlock_resource(&self, name: &str) -> Result<(), Error> {
+    /// Unlocks `resource`. TDL's `unlock r;`.
+    pub fn unlock_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
         let mut inner = self.shared.enter()?;
         let now = self.shared.now();
-        let r = inner.resource_named(name)?;
+        let r = inner.resource_for(&resource.into())?;
         Ok(inner.engine.unlock_resource(now, r)?)
     }
 

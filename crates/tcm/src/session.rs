@@ -103,25 +103,29 @@ impl Session {
             .and_then(|r| r.outcome.clone()))
     }
 
-    /// Reserves the resource `name` for `holder` and its subtree, as
+    /// Reserves `resource` for `holder` and its subtree, as
     /// [`Ctx::reserve_resource`] does from an action.
-    pub fn reserve_resource(&self, name: &str, holder: NodeId) -> Result<(), Error> {
-        self.ctx.reserve_resource(name, holder)
+    pub fn reserve_resource(
+        &self,
+        resource: impl Into<crate::ResourceRef>,
+        holder: NodeId,
+    ) -> Result<(), Error> {
+        self.ctx.reserve_resource(resource, holder)
     }
 
-    /// Ends the reservation of the resource `name`.
-    pub fn unreserve_resource(&self, name: &str) -> Result<(), Error> {
-        self.ctx.unreserve_resource(name)
+    /// Ends the reservation of `resource`.
+    pub fn unreserve_resource(&self, resource: impl Into<crate::ResourceRef>) -> Result<(), Error> {
+        self.ctx.unreserve_resource(resource)
     }
 
-    /// Locks the resource `name`: nobody is granted it until it is unlocked.
-    pub fn lock_resource(&self, name: &str) -> Result<(), Error> {
-        self.ctx.lock_resource(name)
+    /// Locks `resource`: nobody is granted it until it is unlocked.
+    pub fn lock_resource(&self, resource: impl Into<crate::ResourceRef>) -> Result<(), Error> {
+        self.ctx.lock_resource(resource)
     }
 
-    /// Unlocks the resource `name`.
-    pub fn unlock_resource(&self, name: &str) -> Result<(), Error> {
-        self.ctx.unlock_resource(name)
+    /// Unlocks `resource`.
+    pub fn unlock_resource(&self, resource: impl Into<crate::ResourceRef>) -> Result<(), Error> {
+        self.ctx.unlock_resource(resource)
     }
 
     /// The resource `name` now (`None` if not declared).

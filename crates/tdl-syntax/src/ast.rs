@@ -175,6 +175,42 @@ pub struct Retry {
     pub span: Span,
 }
 
+/// `lock r;`, `unlock r;`, `reserve r;` or `unreserve r;`.
+#[derive(Clone, Debug)]
+pub struct ResourceStmt {
+    /// What is done to the resource.
+    pub op: ResourceOp,
+    /// The resource.
+    pub name: Ident,
+    /// Span of the keyword.
+    pub span: Span,
+}
+
+/// What a [`ResourceStmt`] does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResourceOp {
+    /// `lock r;`: nobody is granted it until it is unlocked.
+    Lock,
+    /// `unlock r;`.
+    Unlock,
+    /// `reserve r;`: only this task's node and its descendants are granted it.
+    Reserve,
+    /// `unreserve r;`.
+    Unreserve,
+}
+
+impl ResourceOp {
+    /// The keyword.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ResourceOp::Lock => "lock",
+            ResourceOp::Unlock => "unlock",
+            ResourceOp::Reserve => "reserve",
+            ResourceOp::Unreserve => "unreserve",
+        }
+    }
+}
+
 /// A task-level constraint with its span.
 #[derive(Clone, Debug)]
 pub struct TaskConstraint {
@@ -284,6 +320,9 @@ pub enum Stmt {
     /// `retry;` or `retry with (args);` (handlers only): run the failed task again, with the
     /// same or with other arguments, and wait for it.
     Retry(Retry),
+    /// `lock r;`, `unlock r;`, `reserve r;` (for this task's subtree), `unreserve r;`
+    /// (docs/semantics.md, "Resources").
+    Resource(ResourceStmt),
     /// `if cond { ... } [else ...]`.
     If(If),
     /// `['label:] for pat in expr { ... }`.

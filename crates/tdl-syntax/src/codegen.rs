@@ -344,8 +344,19 @@ pub(crate) fn uses_expr(
     it: &ResourceAmount,
     diags: &mut Vec<Diagnostic>,
 ) -> TokenStream {
-    let name = it.name.to_string();
-    let resource = match file.resource(&name) {
+    let resource = resource_ref(file, &it.name);
+    let amount = match &it.amount {
+        Some(n) => count_expr(n, it.span, diags),
+        None => quote!(1),
+    };
+    quote!(.uses(#resource, #amount))
+}
+
+/// The resource `name` as generated code names it: by its declaration when the program declares
+/// it (the run then declares it on first use), else by its name.
+pub(crate) fn resource_ref(file: &FileScope<'_>, name: &Ident) -> TokenStream {
+    let text = name.to_string();
+    match file.resource(&text) {
         Some(decl) => {
             let capacity = decl.capacity.base10_parse::<u32>().unwrap_or(0);
             let pending = decl
@@ -353,15 +364,10 @@ pub(crate) fn uses_expr(
                 .as_ref()
                 .and_then(|p| p.base10_parse::<u32>().ok())
                 .map(|p| quote!(.pending_limit(#p)));
-            quote!(::tdl::Resource::new(#name, #capacity) #pending)
+            quote!(::tdl::Resource::new(#text, #capacity) #pending)
         }
-        None => quote!(#name),
-    };
-    let amount = match &it.amount {
-        Some(n) => count_expr(n, it.span, diags),
-        None => quote!(1),
-    };
-    quote!(.uses(#resource, #amount))
+        None => quote!(#text),
+    }
 }
 
 /// `.priority(p)`: a literal as it is (the diagnosis checks it fits an `i32`), else the

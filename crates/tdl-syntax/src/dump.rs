@@ -190,6 +190,7 @@ fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
             };
             line(out, depth, &format!("fail{exc}{fields}"));
         }
+        Stmt::Resource(it) => line(out, depth, &format!("{} {}", it.op.as_str(), it.name)),
         Stmt::Bypass(_) => line(out, depth, "bypass"),
         Stmt::Trigger(_) => line(out, depth, "trigger"),
         Stmt::Retry(it) => match &it.args {

@@ -30,7 +30,7 @@ use quote::{ToTokens, format_ident};
 use crate::ast::{
     Ast, Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Count, Else, Event,
     ExceptionDecl, ExternalName, Fail, If, Item, OnTerminate, Priority, RelTime, ResourceDecl,
-    Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskKind, When, WithGroup,
+    ResourceStmt, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskKind, When, WithGroup,
 };
 
 /// A spawn of a body, numbered in source order.
@@ -439,6 +439,8 @@ pub(crate) struct BodyScope<'a> {
     pub(crate) duplicate_labels: Vec<(&'a Ident, Span)>,
     /// Whether some constraint refers to `previous`.
     pub(crate) uses_previous: bool,
+    /// Its `lock`, `unlock`, `reserve` and `unreserve` statements, in source order.
+    pub(crate) resource_stmts: Vec<&'a ResourceStmt>,
     /// Labels, the first of each.
     labels: BTreeMap<String, Named<'a>>,
     /// The spawns of each task.
@@ -466,6 +468,7 @@ impl<'a> BodyScope<'a> {
                 bound: BTreeMap::new(),
                 duplicate_labels: Vec::new(),
                 uses_previous: false,
+                resource_stmts: Vec::new(),
                 labels: BTreeMap::new(),
                 by_task: BTreeMap::new(),
                 spawn_ids: BTreeMap::new(),
@@ -810,6 +813,7 @@ impl<'a> Walk<'a> {
                 }
                 self.scope.stmts.push(Tdl::Fail(it));
             }
+            Stmt::Resource(it) => self.scope.resource_stmts.push(it),
             Stmt::Bypass(span) => self.scope.stmts.push(Tdl::Bypass(*span)),
             Stmt::Trigger(span) => self.scope.stmts.push(Tdl::Trigger(*span)),
             Stmt::Retry(it) => {

@@ -532,6 +532,11 @@ fn resources_generate_uses_with_their_declarations() {
         // The runtime's own exceptions, handled without a declaration.
         "::tdl::codegen::handles::<::tdl::ResourceDenied>(\"ResourceDenied\")",
         "let denied: ::tdl::Caught<::tdl::ResourceDenied> = ::tdl::codegen::caught::<::tdl::ResourceDenied>(&ctx, \"retake\")?;",
+        // Reserve and lock statements.
+        "ctx.reserve_resource(::tdl::Resource::new(\"base\", 1u32), ctx.node())?;",
+        "ctx.lock_resource(::tdl::Resource::new(\"camera\", 1u32))?;",
+        "ctx.unlock_resource(::tdl::Resource::new(\"camera\", 1u32))?;",
+        "ctx.unreserve_resource(::tdl::Resource::new(\"base\", 1u32))?;",
     ] {
         assert!(has(&out, line), "missing {line:?} in:\n{out}");
     }

@@ -1,12 +1,13 @@
 //! The static diagnosis of resources (docs/semantics.md, "Resources"; docs/language.md,
 //! "Resources"): declarations (a name declared twice, a capacity of 0 or not an integer), and
-//! every `uses` of a task or spawn (an unknown resource once the program declares any, an amount
-//! of 0, more than a declared capacity), `priority` out of range, the resource options in a
+//! every `uses` of a task or spawn and every `lock`, `unlock`, `reserve` and `unreserve` (an
+//! unknown resource once the program declares any; for `uses`, an amount of 0 or more than a
+//! declared capacity), `priority` out of range, the resource options in a
 //! constraint statement, and `priority` or `deny if busy` on a spawn that uses no resource.
 
 use std::collections::BTreeMap;
 
-use proc_macro2::Span;
+use proc_macro2::{Ident, Span};
 
 use crate::ast::{
     Ast, Constraint, ConstraintKind, Count, Item, Priority, ResourceAmount, Task,
@@ -116,6 +117,9 @@ fn task_uses(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
             );
         }
     }
+    for it in &scope.resource_stmts {
+        known(file, &it.name, diags);
+    }
     for stmt in &scope.stmts {
         let Tdl::Constrain(stmt, _) = stmt else {
             continue;
@@ -155,17 +159,7 @@ fn amounts(file: &FileScope<'_>, list: &[ResourceAmount], diags: &mut Vec<Diagno
     for it in list {
         let name = it.name.to_string();
         let decl = file.resource(&name);
-        if decl.is_none() && file.declares_resources() {
-            let known: Vec<&str> = file.resource_names().collect();
-            diags.push(
-                Diagnostic::error(it.name.span(), format!("unknown resource `{name}`")).with_hint(
-                    format!(
-                        "declare it with `resource {name}(capacity);` or use one of: {}",
-                        known.join(", ")
-                    ),
-                ),
-            );
-        }
+        known(file, &it.name, diags);
         let Some(Count::Const(n)) = it.amount else {
             continue;
         };
@@ -189,6 +183,21 @@ fn amounts(file: &FileScope<'_>, list: &[ResourceAmount], diags: &mut Vec<Diagno
             );
         }
     }
+}
+
+/// Reports `name` when the program declares resources and `name` is not one of them (a program
+/// that declares none may use resources its Rust code declares on the runtime).
+fn known(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
+    if file.resource(&name.to_string()).is_some() || !file.declares_resources() {
+        return;
+    }
+    let names: Vec<&str> = file.resource_names().collect();
+    diags.push(
+        Diagnostic::error(name.span(), format!("unknown resource `{name}`")).with_hint(format!(
+            "declare it with `resource {name}(capacity);` or use one of: {}",
+            names.join(", ")
+        )),
+    );
 }
 
 /// A literal priority fits an `i32`.
