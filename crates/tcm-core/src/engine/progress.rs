@@ -377,6 +377,10 @@ impl<A, F: Clone> Engine<A, F> {
         }
         if n.suspended {
             n.parked = true;
+            // A grant it could not use yet goes back; it asks again once unsuspended.
+            if n.grant() == super::resource::Grant::Held {
+                self.release_resources(id);
+            }
             return;
         }
         // Its resources are granted before anything of it starts (docs/semantics.md,
