@@ -464,7 +464,7 @@ impl<A, F: Clone> Engine<A, F> {
     pub(super) fn complete_handling(&mut self, id: NodeId) {
         // Its grant goes back as its action ends; an action still stopping keeps it until it
         // stopped (`handle_action_stopped`).
-        if !self.node(id).stopping {
+        if !self.res.list.is_empty() && !self.node(id).stopping {
             self.release_resources(id);
         }
         self.transition(id, Facet::Handling, State::Completed);
