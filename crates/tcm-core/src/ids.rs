@@ -54,3 +54,11 @@ pub enum TapWhen {
     /// When a tapped node's action returned successfully: a failing check fails the node.
     After,
 }
+
+/// A resource of one run, declared with `Engine::declare_resource` (docs/semantics.md,
+/// "Resources"). It carries its run's number: a resource of another run is refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct ResourceId {
+    pub(crate) run: u32,
+    pub(crate) idx: u32,
+}

@@ -47,10 +47,11 @@ pub use constraint::{Constraint, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{
     Blocked, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorInfo,
-    MonitorSpec, NodeInfo, OnTerminate, Purpose, Spawn, Stats, WatchOutcome,
+    MonitorSpec, NodeInfo, OnTerminate, Purpose, ResourceDenied, ResourceDropped, ResourceInfo,
+    Spawn, Stats, Uses, WatchOutcome,
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
-pub use ids::{ExternalId, NodeId, TapWhen, WatchToken, WiretapId};
+pub use ids::{ExternalId, NodeId, ResourceId, TapWhen, WatchToken, WiretapId};
 pub use tcm_trace::{Facet, NodeKind, Outcome, Point, State, Termination};
 pub use time::Time;
 

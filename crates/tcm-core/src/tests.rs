@@ -12,6 +12,7 @@
 //! - `triggers`: the one trigger concept, every "when" with every "then";
 //! - `termination`: terminate constraints, cascades, on-terminate tasks, suspension;
 //! - `references`: reservations, forward and dead references, `previous`, held children;
+//! - `resources`: capacity, priority, all or nothing, reserve, lock, pending limit, denial, release, wait cycles;
 //! - `monitors`, `monitor_limits` (limits changed after the spawn) and `exceptions` (handlers, retry, wiretaps, unhandled failures);
 //! - `api`: the engine's inputs, outputs and errors without the simulator, and memory.
 
@@ -21,6 +22,7 @@ mod exceptions;
 mod monitor_limits;
 mod monitors;
 mod references;
+mod resources;
 mod tcm_semantics;
 mod termination;
 mod triggers;

@@ -20,6 +20,7 @@ use std::cmp::Reverse;
 use std::collections::{BTreeMap, BTreeSet, BinaryHeap};
 
 mod facets;
+mod resources;
 mod rule;
 #[cfg(test)]
 mod tests;
@@ -314,6 +315,7 @@ impl Checker {
                 to,
             } => {
                 self.check_transition(ev, *node, *facet, *from, *to);
+                self.check_resource_state(seq, *node, &ev.kind);
             }
             TraceKind::Terminating { node } => {
                 if let Some(n) = self.replay.node(*node) {
@@ -323,8 +325,25 @@ impl Checker {
                     }
                 }
             }
-            TraceKind::Terminated { node } => self.check_terminated(seq, *node),
-            TraceKind::Reclaimed { node } => self.check_reclaimed(seq, *node),
+            TraceKind::Terminated { node } => {
+                self.check_terminated(seq, *node);
+                self.check_resource_state(seq, *node, &ev.kind);
+            }
+            TraceKind::Reclaimed { node } => {
+                self.check_reclaimed(seq, *node);
+                self.check_resource_state(seq, *node, &ev.kind);
+            }
+            TraceKind::Resource { .. }
+            | TraceKind::Requested { .. }
+            | TraceKind::Granted { .. }
+            | TraceKind::Released { .. }
+            | TraceKind::Withdrawn { .. }
+            | TraceKind::Denied { .. }
+            | TraceKind::Dropped { .. }
+            | TraceKind::ResourceReserved { .. }
+            | TraceKind::ResourceUnreserved { .. }
+            | TraceKind::ResourceLocked { .. }
+            | TraceKind::ResourceUnlocked { .. } => self.check_resource(ev),
             TraceKind::Activated {
                 monitor,
                 node,
@@ -511,6 +530,10 @@ impl Checker {
             );
         }
         self.settle_owed(None, last_seq);
+        if !self.prefix {
+            // The request that went past a pending limit was dealt with before the trace ended.
+            self.pending_within_limits(last_seq);
+        }
         // A reservation dies when its parent's body ends, or, for the label of an on-terminate task,
         // which the trace records under the body that stated it, when the spawned node that took it
         // over completes its execution (docs/semantics.md, "Tags and forward references"). So only

@@ -9,7 +9,7 @@ use crate::state::{Facet, NodeKind, Outcome, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 4;
+pub const TRACE_FORMAT_VERSION: u32 = 5;
 
 /// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
 pub const OLDEST_READABLE_VERSION: u32 = 1;
@@ -116,6 +116,25 @@ impl TraceWhen {
         match self {
             TraceWhen::Event(e) | TraceWhen::After { event: e, .. } => Some(*e),
             _ => None,
+        }
+    }
+}
+
+/// An amount of one resource, as a request, grant or release names it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ResourceUse {
+    /// The resource's name (its `resource` record).
+    pub resource: String,
+    /// How much of its capacity.
+    pub amount: u32,
+}
+
+impl ResourceUse {
+    /// `amount` of `resource`.
+    pub fn new(resource: impl Into<String>, amount: u32) -> ResourceUse {
+        ResourceUse {
+            resource: resource.into(),
+            amount,
         }
     }
 }
@@ -424,6 +443,83 @@ pub enum TraceKind {
         /// The callback's name.
         name: String,
     },
+    /// A resource was declared (docs/semantics.md, "Resources"): `capacity` units, at most
+    /// `pending_limit` requests waiting for it (`None`: no limit).
+    Resource {
+        /// Its name, unique in the run.
+        resource: String,
+        /// Units it has.
+        capacity: u32,
+        /// Most requests that may wait for it; past it the oldest is dropped.
+        pending_limit: Option<u32>,
+    },
+    /// A node asks for resources: its handling is enabled and it would start.
+    Requested {
+        /// The node.
+        node: u64,
+        /// What it asks for, all at once.
+        uses: Vec<ResourceUse>,
+        /// Lower is granted first.
+        priority: i32,
+    },
+    /// A node's request was granted: it holds `uses` until its action ends.
+    Granted {
+        /// The node.
+        node: u64,
+        /// What it holds now.
+        uses: Vec<ResourceUse>,
+    },
+    /// A node gave back what it was granted (its handling completed, or its terminated action
+    /// stopped).
+    Released {
+        /// The node.
+        node: u64,
+        /// What it gave back.
+        uses: Vec<ResourceUse>,
+    },
+    /// A waiting request was withdrawn: its node was terminated before it was granted.
+    Withdrawn {
+        /// The node.
+        node: u64,
+    },
+    /// A request was refused (a `deny if busy` request that could not be granted at once, or one
+    /// asking for more than a capacity); its node fails with `ResourceDenied`.
+    Denied {
+        /// The node.
+        node: u64,
+        /// The resource that could not be granted.
+        resource: String,
+    },
+    /// A waiting request was dropped: a newer one came past the resource's pending limit. Its node
+    /// fails with `ResourceDropped`.
+    Dropped {
+        /// The node.
+        node: u64,
+        /// The resource whose pending limit was passed.
+        resource: String,
+    },
+    /// A resource was reserved for a node: only that node's subtree may be granted it.
+    ResourceReserved {
+        /// The resource.
+        resource: String,
+        /// The node whose subtree may use it.
+        holder: u64,
+    },
+    /// A resource's reservation ended.
+    ResourceUnreserved {
+        /// The resource.
+        resource: String,
+    },
+    /// A resource was locked: nobody is granted it until it is unlocked.
+    ResourceLocked {
+        /// The resource.
+        resource: String,
+    },
+    /// A resource was unlocked.
+    ResourceUnlocked {
+        /// The resource.
+        resource: String,
+    },
     /// Something worth a person's attention; the run goes on.
     Warning {
         /// Node concerned, if any.
@@ -439,7 +535,11 @@ impl TraceKind {
         match self {
             TraceKind::RunStarted { .. }
             | TraceKind::External { .. }
-            | TraceKind::CallbackRan { .. } => None,
+            | TraceKind::CallbackRan { .. }
+            | TraceKind::Resource { .. }
+            | TraceKind::ResourceUnreserved { .. }
+            | TraceKind::ResourceLocked { .. }
+            | TraceKind::ResourceUnlocked { .. } => None,
             TraceKind::Warning { node, .. } | TraceKind::CallbackSet { node, .. } => *node,
             TraceKind::Reserved { node, .. }
             | TraceKind::Spawned { node, .. }
@@ -458,7 +558,14 @@ impl TraceKind {
             | TraceKind::HandlerChosen { node, .. }
             | TraceKind::Bypassed { node, .. }
             | TraceKind::Retried { node, .. }
-            | TraceKind::Tapped { node, .. } => Some(*node),
+            | TraceKind::Tapped { node, .. }
+            | TraceKind::Requested { node, .. }
+            | TraceKind::Granted { node, .. }
+            | TraceKind::Released { node, .. }
+            | TraceKind::Withdrawn { node }
+            | TraceKind::Denied { node, .. }
+            | TraceKind::Dropped { node, .. } => Some(*node),
+            TraceKind::ResourceReserved { holder, .. } => Some(*holder),
             TraceKind::Triggered { monitor, .. } => Some(*monitor),
         }
     }

@@ -50,10 +50,10 @@ mod test_util;
 pub use check::{CheckReport, Checker, MAX_VIOLATIONS, Rule, Violation, check, check_prefix};
 pub use dump::{dump_modern, dump_tcm};
 pub use event::{
-    OLDEST_READABLE_VERSION, TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent, TraceEventRef,
-    TraceKind, TraceThen, TraceWhen,
+    OLDEST_READABLE_VERSION, ResourceUse, TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent,
+    TraceEventRef, TraceKind, TraceThen, TraceWhen,
 };
 pub use jsonl::{JsonlReader, ReadError, read_jsonl, to_line, write_line};
-pub use replay::{MonitorInfo, ROOT_NAME, Replay, ReplayError, ReplayNode};
+pub use replay::{MonitorInfo, ROOT_NAME, Replay, ReplayError, ReplayNode, ReplayResource};
 pub use state::{Facet, NodeKind, Outcome, Point, State, Termination};
 pub use textlog::{TextLog, TextLogOptions, tcm_state_word, time_suffix};

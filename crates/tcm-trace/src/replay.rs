@@ -6,12 +6,15 @@
 //! constant time per record. Nodes are kept after they are reclaimed (flagged), so a viewer can still show
 //! them and a constraint can still name them.
 
-use crate::event::{TraceConstraint, TraceEvent, TraceKind};
+use crate::event::{ResourceUse, TraceConstraint, TraceEvent, TraceKind};
 use crate::state::{Facet, NodeKind, Outcome, Point, State, Termination};
 use std::collections::BTreeMap;
 
+mod resources;
 #[cfg(test)]
 mod tests;
+
+pub use resources::ReplayResource;
 
 /// Display name of the implicit root, as TCM prints it.
 pub const ROOT_NAME: &str = "Root Node";
@@ -49,6 +52,10 @@ pub enum ReplayError {
     /// The record would change the implicit root.
     #[error("the root (node 0) is implicit and never changes")]
     Root,
+    /// A resource record does not fit the resources as declared and used so far (an unknown or
+    /// twice declared resource, a grant without a request, a release without a grant).
+    #[error("{0}")]
+    Resource(String),
     /// A facet would move backwards or stay in place.
     #[error("node {node}: {facet} cannot move from {from} to {to}")]
     Backwards {
@@ -117,6 +124,10 @@ pub struct ReplayNode {
     retry_of: Option<u64>,
     // A retry of this failed node completed its execution without failing or being terminated.
     recovered: bool,
+    // Resources: the request waiting to be granted, the grant held, and whether it ever asked.
+    request: Option<Vec<ResourceUse>>,
+    grant: Option<Vec<ResourceUse>>,
+    requested: bool,
 }
 
 /// What the trace says of a monitor: its parameters and counts.
@@ -175,6 +186,9 @@ impl ReplayNode {
             handler_for: None,
             retry_of: None,
             recovered: false,
+            request: None,
+            grant: None,
+            requested: false,
         }
     }
 
@@ -290,6 +304,18 @@ impl ReplayNode {
     pub fn reached_while_terminating(&self, facet: Facet, point: Point) -> bool {
         self.reached_terminating[facet.index()][point_index(point)]
     }
+    /// Its request for resources still waiting to be granted (docs/semantics.md, "Resources").
+    pub fn request(&self) -> Option<&[ResourceUse]> {
+        self.request.as_deref()
+    }
+    /// The resources it holds.
+    pub fn grant(&self) -> Option<&[ResourceUse]> {
+        self.grant.as_deref()
+    }
+    /// Whether it ever asked for resources (a `requested` record).
+    pub fn has_requested(&self) -> bool {
+        self.requested
+    }
     /// Whether the node is goal-like (its handling belongs to its expansion).
     pub fn expands(&self) -> bool {
         self.kind.is_some_and(NodeKind::expands)
@@ -308,6 +334,8 @@ impl ReplayNode {
 #[derive(Clone, Debug)]
 pub struct Replay {
     nodes: BTreeMap<u64, ReplayNode>,
+    // Declared resources, by name.
+    resources: BTreeMap<String, ReplayResource>,
     run: Option<u32>,
     n_records: u64,
     last_t: u64,
@@ -326,6 +354,7 @@ impl Replay {
         nodes.insert(0, ReplayNode::root());
         Replay {
             nodes,
+            resources: BTreeMap::new(),
             run: None,
             n_records: 0,
             last_t: 0,
@@ -451,6 +480,17 @@ impl Replay {
                 it.dead = true;
                 it.dead_t = Some(t);
             }
+            TraceKind::Resource { .. }
+            | TraceKind::Requested { .. }
+            | TraceKind::Granted { .. }
+            | TraceKind::Released { .. }
+            | TraceKind::Withdrawn { .. }
+            | TraceKind::Denied { .. }
+            | TraceKind::Dropped { .. }
+            | TraceKind::ResourceReserved { .. }
+            | TraceKind::ResourceUnreserved { .. }
+            | TraceKind::ResourceLocked { .. }
+            | TraceKind::ResourceUnlocked { .. } => self.apply_resource(&ev.kind)?,
             TraceKind::External { .. }
             | TraceKind::Warning { .. }
             | TraceKind::Tapped { .. }

@@ -10,7 +10,10 @@ use crate::event::{TraceEvent, TraceKind};
 use std::collections::BTreeMap;
 
 /// Renders a trace as story lines: facet transitions, termination, failures, dead reservations,
-/// suspension and timer callbacks run (`callback <name> ran`). Other records (constraints, reclamation, …) are left out.
+/// suspension, timer callbacks run (`callback <name> ran`) and resources (`drive requests base,
+/// arm(2)`, `drive granted …`, `drive released …`, `drive withdrawn`, `drive denied base`,
+/// `drive dropped base`, `base reserved for plan`, `base unreserved`, `base locked`, `base
+/// unlocked`). Other records (constraints, reclamation, …) are left out.
 pub fn story(trace: &[TraceEvent]) -> Vec<String> {
     let mut names: BTreeMap<u64, String> = BTreeMap::new();
     let mut out = Vec::new();
@@ -36,11 +39,45 @@ pub fn story(trace: &[TraceEvent]) -> Vec<String> {
             TraceKind::Suspended { node } => format!("{} suspended", name(&names, node)),
             TraceKind::Unsuspended { node } => format!("{} unsuspended", name(&names, node)),
             TraceKind::CallbackRan { name, .. } => format!("callback {name} ran"),
+            TraceKind::Requested { node, uses, .. } => {
+                format!("{} requests {}", name(&names, node), uses_text(uses))
+            }
+            TraceKind::Granted { node, uses } => {
+                format!("{} granted {}", name(&names, node), uses_text(uses))
+            }
+            TraceKind::Released { node, uses } => {
+                format!("{} released {}", name(&names, node), uses_text(uses))
+            }
+            TraceKind::Withdrawn { node } => format!("{} withdrawn", name(&names, node)),
+            TraceKind::Denied { node, resource } => {
+                format!("{} denied {resource}", name(&names, node))
+            }
+            TraceKind::Dropped { node, resource } => {
+                format!("{} dropped {resource}", name(&names, node))
+            }
+            TraceKind::ResourceReserved { resource, holder } => {
+                format!("{resource} reserved for {}", name(&names, holder))
+            }
+            TraceKind::ResourceUnreserved { resource } => format!("{resource} unreserved"),
+            TraceKind::ResourceLocked { resource } => format!("{resource} locked"),
+            TraceKind::ResourceUnlocked { resource } => format!("{resource} unlocked"),
             _ => continue,
         };
         out.push(format!("{} {line}", ev.t as f64 / 1e9));
     }
     out
+}
+
+/// `base, arm(2)`: resource uses as people write them (an amount of 1 is left out).
+pub fn uses_text(uses: &[crate::event::ResourceUse]) -> String {
+    let parts: Vec<String> = uses
+        .iter()
+        .map(|u| match u.amount {
+            1 => u.resource.clone(),
+            n => format!("{}({n})", u.resource),
+        })
+        .collect();
+    parts.join(", ")
 }
 
 /// How failures were handled, in order: `handler<-Exception` for each handler chosen, `bypass` for

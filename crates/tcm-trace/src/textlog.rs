@@ -38,6 +38,10 @@
 //!   such transitions instead.
 //! - Records TCM had no line for (`reserved`, `dead`, `constrained`, `constraint_void`, `external`) print
 //!   nothing.
+//! - Resource records (TCM had no resources) print short lines of our own: `Resource grant: base,
+//!   arm(2) to drive {3}`, `Resource release: …`, `Resource denied: …`, `Resource request dropped:
+//!   …`, reservations and locks; a request prints `Resource wait: drive {3} waits: base is held by
+//!   plan {1}` only when it must wait, naming the holders, a lock or a reservation.
 
 use crate::event::{TraceEvent, TraceKind};
 use crate::replay::{Replay, ReplayNode};
@@ -245,8 +249,92 @@ impl TextLog {
                 lines.push(format!("Deleting {}", n.name()));
             }
             (TraceKind::Warning { message, .. }, _) => lines.push(format!("WARNING: {message}")),
-            _ => {}
+            (kind, node) => {
+                if let Some(line) = self.resource_line(kind, node) {
+                    lines.push(line);
+                }
+            }
         }
         lines
+    }
+
+    /// The line of a resource record (TCM had no resources; these lines are ours). A request
+    /// prints a line only when it must wait, naming why: the holders of a resource without
+    /// enough room left, a lock, a reservation for another subtree.
+    fn resource_line(&self, kind: &TraceKind, node: Option<&ReplayNode>) -> Option<String> {
+        let who = |n: &ReplayNode| format!("{} {{{}}}", n.name(), n.number());
+        let uses = |uses: &[crate::event::ResourceUse]| {
+            let parts: Vec<String> = uses
+                .iter()
+                .map(|u| match u.amount {
+                    1 => u.resource.clone(),
+                    n => format!("{}({n})", u.resource),
+                })
+                .collect();
+            parts.join(", ")
+        };
+        let holder = |number: u64| match self.replay.node(number) {
+            Some(n) => who(n),
+            None => format!("{{{number}}}"),
+        };
+        Some(match (kind, node) {
+            (TraceKind::Requested { uses: asked, .. }, Some(n)) => {
+                let mut why = Vec::new();
+                for u in asked {
+                    let Some(r) = self.replay.resource(&u.resource) else {
+                        continue;
+                    };
+                    if r.is_locked() {
+                        why.push(format!("{} is locked", u.resource));
+                    }
+                    if let Some(h) = r.reserved_for() {
+                        if !self.replay.is_in_subtree(n.number(), h) {
+                            why.push(format!("{} is reserved for {}", u.resource, holder(h)));
+                        }
+                    }
+                    if r.in_use() + u64::from(u.amount) > u64::from(r.capacity()) {
+                        let held: Vec<String> =
+                            r.holders().iter().map(|(h, _)| holder(*h)).collect();
+                        why.push(format!("{} is held by {}", u.resource, held.join(", ")));
+                    }
+                }
+                if why.is_empty() {
+                    return None;
+                }
+                format!("Resource wait: {} waits: {}", who(n), why.join("; "))
+            }
+            (TraceKind::Granted { uses: got, .. }, Some(n)) => {
+                format!("Resource grant: {} to {}", uses(got), who(n))
+            }
+            (TraceKind::Released { uses: gave, .. }, Some(n)) => {
+                format!("Resource release: {} from {}", uses(gave), who(n))
+            }
+            (TraceKind::Withdrawn { .. }, Some(n)) => {
+                format!("Resource request withdrawn: {}", who(n))
+            }
+            (TraceKind::Denied { resource, .. }, Some(n)) => {
+                format!("Resource denied: {resource} to {}", who(n))
+            }
+            (TraceKind::Dropped { resource, .. }, Some(n)) => {
+                format!("Resource request dropped: {resource} for {}", who(n))
+            }
+            (
+                TraceKind::ResourceReserved {
+                    resource,
+                    holder: h,
+                },
+                _,
+            ) => {
+                format!("Resource reserved: {resource} for {}", holder(*h))
+            }
+            (TraceKind::ResourceUnreserved { resource }, _) => {
+                format!("Resource unreserved: {resource}")
+            }
+            (TraceKind::ResourceLocked { resource }, _) => format!("Resource locked: {resource}"),
+            (TraceKind::ResourceUnlocked { resource }, _) => {
+                format!("Resource unlocked: {resource}")
+            }
+            _ => return None,
+        })
     }
 }

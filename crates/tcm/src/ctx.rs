@@ -161,17 +161,18 @@ impl Ctx {
     /// every running action is parked and nothing else can happen, the run is stuck
     /// (docs/semantics.md, "Run outcome").
     pub async fn wait(&self, node: NodeId) -> Result<WatchOutcome, Error> {
-        // Only an action holds children (not a callback's or the program's context).
-        let held = self.job.is_some()
-            && self.with_engine(|e, now| e.hold_children(now, self.node, false))?;
-        let res = self.wait_released(node).await;
+        let mut held = false;
+        let res = self.wait_released(node, &mut held).await;
         if held {
             self.with_engine(|e, now| e.hold_children(now, self.node, true))?;
         }
         res
     }
 
-    async fn wait_released(&self, node: NodeId) -> Result<WatchOutcome, Error> {
+    /// Waits for `node`'s execution to complete, releasing this action's held children once the
+    /// watch is set (`held` tells whether it held them), so a child that ends at once when it is
+    /// released (a resource denied) is still seen ending, with its failure.
+    async fn wait_released(&self, node: NodeId, held: &mut bool) -> Result<WatchOutcome, Error> {
         let event = Event::on(node, Facet::Execution, Point::Completed);
         let (rx, token) = {
             let mut inner = self.shared.enter()?;
@@ -187,6 +188,15 @@ impl Ctx {
             // already completed) or until this future is dropped.
             if let Some(job) = self.job {
                 inner.park(token, job, event);
+                // Only an action holds children (not a callback's or the program's context).
+                match inner.engine.hold_children(now, self.node, false) {
+                    Ok(was) => *held = was,
+                    Err(e) => {
+                        inner.parking.unpark(token);
+                        inner.watchers.remove(&token);
+                        return Err(e.into());
+                    }
+                }
             }
             (rx, token)
         };
@@ -390,6 +400,7 @@ impl Ctx {
                 args,
                 grace,
                 fail_parent: false,
+                wanted: None,
             },
         );
         Ok(id)
@@ -547,6 +558,37 @@ impl Spawner<'_> {
     /// task (docs/semantics.md, "Termination").
     pub fn grace(mut self, grace: Duration) -> Self {
         self.kept.grace = Some(grace);
+        self
+    }
+
+    /// The node uses `amount` of the resource `resource` (a name the run declared, or a
+    /// [`crate::Resource`], declared on first use), besides what its task uses: all are granted
+    /// at once before it starts, and released when its action ends (docs/semantics.md,
+    /// "Resources"). Until then it waits, enabled; asking for more than a capacity fails it with
+    /// [`crate::ResourceDenied`].
+    pub fn uses(mut self, resource: impl Into<crate::ResourceRef>, amount: u32) -> Self {
+        self.kept
+            .wanted
+            .get_or_insert_with(Box::default)
+            .uses
+            .push((resource.into(), amount));
+        self
+    }
+
+    /// The priority of the node's request for resources: lower is granted first, requests of one
+    /// priority in the order they were made (0 by default).
+    pub fn priority(mut self, priority: i32) -> Self {
+        self.kept.wanted.get_or_insert_with(Box::default).priority = Some(priority);
+        self
+    }
+
+    /// If its resources cannot be granted at once, the node does not wait: it fails with
+    /// [`crate::ResourceDenied`], which a handler may take (TDL's `deny if busy`).
+    pub fn deny_if_busy(mut self) -> Self {
+        self.kept
+            .wanted
+            .get_or_insert_with(Box::default)
+            .deny_if_busy = true;
         self
     }
 

@@ -300,9 +300,12 @@ impl Inner {
     pub(crate) fn spawn(
         &mut self,
         now: Time,
-        spec: Spawn<Action, Factory>,
-        kept: Kept,
+        mut spec: Spawn<Action, Factory>,
+        mut kept: Kept,
     ) -> Result<NodeId, EngineError> {
+        if let Some(wanted) = kept.wanted.take() {
+            spec.uses = self.resolve(*wanted)?;
+        }
         let id = self.engine.spawn(now, spec)?;
         if kept.fail_parent {
             self.engine.propagate_to_parent(id)?;

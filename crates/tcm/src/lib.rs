@@ -31,6 +31,7 @@ mod host;
 mod invoke;
 pub mod patterns;
 mod query;
+mod resource;
 mod runtime;
 mod session;
 mod sink;
@@ -41,6 +42,7 @@ mod timer;
 pub use cancel::DEFAULT_GRACE;
 pub use ctx::{Ctx, Ended, Spawner};
 pub use host::Panicked;
+pub use resource::{Resource, ResourceDenied, ResourceDropped, ResourceRef};
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use session::Session;
 pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink, TracingSink};
@@ -52,7 +54,9 @@ pub use tcm_core::{
     FatalFailure, MonitorInfo, NodeId, NodeInfo, NodeKind, NodeRef, Point, State, Stats,
     Termination, Time, WatchOutcome,
 };
-pub use tcm_core::{EachActivation, Outcome, PassedOn, TapWhen, Then, When, WiretapId};
+pub use tcm_core::{
+    EachActivation, Outcome, PassedOn, ResourceInfo, TapWhen, Then, When, WiretapId,
+};
 pub use tcm_trace::{TraceEvent, TraceKind};
 
 /// Errors of the runtime API. Inside an action, `?` turns them into a failure of the node.

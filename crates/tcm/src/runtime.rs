@@ -213,6 +213,8 @@ pub struct Runtime {
     shared: Arc<Shared>,
     sinks: Vec<Box<dyn TraceSink>>,
     precise: bool,
+    // A declaration the builder could not make (`Runtime::declare`), returned when the run starts.
+    setup: Option<tcm_core::EngineError>,
 }
 
 impl Default for Runtime {
@@ -238,7 +240,28 @@ impl Runtime {
             }),
             sinks: Vec::new(),
             precise: false,
+            setup: None,
         }
+    }
+
+    /// Declares a resource of `capacity` units (docs/semantics.md, "Resources"): a robot's base,
+    /// an arm, a camera, a CPU that runs one heavy planner at a time. Tasks and spawns name it in
+    /// their `uses`. A name declared twice, or a capacity of 0, is an error when the run starts.
+    pub fn resource(self, name: impl Into<tcm_core::Name>, capacity: u32) -> Runtime {
+        self.declare(crate::Resource::new(name, capacity))
+    }
+
+    /// Declares a resource with its options ([`crate::Resource::pending_limit`]), as
+    /// [`Runtime::resource`] does.
+    pub fn declare(mut self, resource: crate::Resource) -> Runtime {
+        if self.setup.is_none() {
+            let declared = match self.shared.inner.lock() {
+                Ok(mut inner) => inner.declare(&resource).map(|_| ()),
+                Err(_) => Ok(()),
+            };
+            self.setup = declared.err();
+        }
+        self
     }
 
     /// Wakes for timers with a dedicated thread instead of tokio's millisecond timer, so polling
@@ -425,7 +448,10 @@ impl Runtime {
     }
 
     /// Makes the run ready to drive: where actions are spawned, and whether to build the trace.
-    fn prepare(&self, rt: tokio::runtime::Handle) -> Result<Arc<Shared>, Error> {
+    fn prepare(&mut self, rt: tokio::runtime::Handle) -> Result<Arc<Shared>, Error> {
+        if let Some(e) = self.setup.take() {
+            return Err(e.into());
+        }
         // Time zero, on the clock of the tokio runtime that drives the run.
         self.shared.clock.start();
         let mut inner = lock(&self.shared)?;

@@ -103,6 +103,36 @@ impl Session {
             .and_then(|r| r.outcome.clone()))
     }
 
+    /// Reserves `resource` for `holder` and its subtree, as
+    /// [`Ctx::reserve_resource`] does from an action.
+    pub fn reserve_resource(
+        &self,
+        resource: impl Into<crate::ResourceRef>,
+        holder: NodeId,
+    ) -> Result<(), Error> {
+        self.ctx.reserve_resource(resource, holder)
+    }
+
+    /// Ends the reservation of `resource`.
+    pub fn unreserve_resource(&self, resource: impl Into<crate::ResourceRef>) -> Result<(), Error> {
+        self.ctx.unreserve_resource(resource)
+    }
+
+    /// Locks `resource`: nobody is granted it until it is unlocked.
+    pub fn lock_resource(&self, resource: impl Into<crate::ResourceRef>) -> Result<(), Error> {
+        self.ctx.lock_resource(resource)
+    }
+
+    /// Unlocks `resource`.
+    pub fn unlock_resource(&self, resource: impl Into<crate::ResourceRef>) -> Result<(), Error> {
+        self.ctx.unlock_resource(resource)
+    }
+
+    /// The resource `name` now (`None` if not declared).
+    pub fn resource_info(&self, name: &str) -> Result<Option<tcm_core::ResourceInfo>, Error> {
+        self.ctx.resource_info(name)
+    }
+
     /// Ends the run: waits, as [`Runtime::run`](crate::Runtime::run) does for its task, until every
     /// top-level task's execution completed, a failure is fatal, or the run is stuck (quiescent
     /// with no event handle open); aborts whatever still runs, and reports. The outcome is the

@@ -24,6 +24,8 @@ pub(crate) struct Kept {
     pub(crate) grace: Option<Duration>,
     // The spawn's failure fails its parent (`Spawner::propagate`).
     pub(crate) fail_parent: bool,
+    // The resources it uses, by name until the spawn resolves them (`resource.rs`).
+    pub(crate) wanted: Option<Box<crate::resource::Wanted>>,
 }
 
 /// A value an action returns, handed to whoever waits for the node ([`crate::Spawner::wait_value`]).
@@ -200,6 +202,7 @@ pub struct Task {
     pub(crate) persistent: bool,
     pub(crate) args: Option<AnyArgs>,
     pub(crate) grace: Option<Duration>,
+    pub(crate) wanted: Option<Box<crate::resource::Wanted>>,
 }
 
 impl Task {
@@ -217,6 +220,7 @@ impl Task {
             persistent: false,
             args: None,
             grace: None,
+            wanted: None,
         }
     }
 
@@ -364,6 +368,7 @@ impl Task {
             args: self.args.clone(),
             grace: self.grace,
             fail_parent: false,
+            wanted: self.wanted.clone(),
         }
     }
 
@@ -431,6 +436,25 @@ impl Task {
         self
     }
 
+    /// Every node of this task uses `amount` of the resource `resource` (a name the run declared,
+    /// or a [`crate::Resource`], declared on first use): it is granted, all at once with the
+    /// task's other resources and those its spawn adds, before it starts, and released when its
+    /// action ends (docs/semantics.md, "Resources"). TDL's task-level `uses`.
+    pub fn uses(mut self, resource: impl Into<crate::ResourceRef>, amount: u32) -> Task {
+        self.wanted
+            .get_or_insert_with(Box::default)
+            .uses
+            .push((resource.into(), amount));
+        self
+    }
+
+    /// The priority of this task's requests for resources (lower is granted first; 0 by
+    /// default); a spawn's own priority replaces it.
+    pub fn priority(mut self, priority: i32) -> Task {
+        self.wanted.get_or_insert_with(Box::default).priority = Some(priority);
+        self
+    }
+
     /// Renames the instance (TDL's `name` constraint); the task name stays (see
     /// [`Task::task_name`]).
     pub fn named(mut self, name: impl Into<Name>) -> Task {
@@ -458,6 +482,8 @@ impl Task {
             monitor: self.monitor,
             handlers: self.handlers.into_iter().map(|h| h.spec).collect(),
             retry: self.retry,
+            // Resolved by name when the spawn is made (`Kept::wanted`).
+            uses: None,
         }
     }
 

@@ -184,6 +184,7 @@ impl<'a> Program<'a> {
         for (file, ast) in files {
             for item in &ast.items {
                 match item {
+                    Item::Resource(_) => {}
                     Item::Task(task) => {
                         let name = task.name.to_string();
                         tasks.push(TaskInfo {
@@ -372,6 +373,10 @@ fn analyse(info: &mut TaskInfo<'_>) {
         let text = |s: String| vec![Piece::Text(s)];
         match &c.kind {
             TaskConstraintKind::ExpandFirst => notes.push(text("expand first".into())),
+            TaskConstraintKind::Uses(list) => notes.push(text(format!("uses {}", uses(list)))),
+            TaskConstraintKind::Priority(p) => {
+                notes.push(text(format!("priority {}", priority(p))));
+            }
             TaskConstraintKind::DelayExpansion => notes.push(text("delay expansion".into())),
             TaskConstraintKind::ExceptionHandler(h) => info.handlers.push(handler_use(h)),
             TaskConstraintKind::OnTerminate(ot) => {
@@ -480,6 +485,9 @@ fn apply(
         ConstraintKind::Wait => flag("wait"),
         ConstraintKind::Outcome => flag("outcome"),
         ConstraintKind::Propagate => flag("propagate"),
+        ConstraintKind::Uses(_) => flag("uses resources"),
+        ConstraintKind::Priority(_) => flag("priority"),
+        ConstraintKind::DenyIfBusy => flag("deny if busy"),
         ConstraintKind::Parallel => {}
         ConstraintKind::ExceptionHandler(h) => site.handlers.push(handler_use(h)),
         ConstraintKind::Sequential { facet, tag } => {
@@ -590,7 +598,7 @@ impl<'a> Walker<'a> {
 
     fn stmt(&mut self, stmt: &'a Stmt) {
         match stmt {
-            Stmt::Rust(_) | Stmt::Bind(_) | Stmt::Succeed(_) => {}
+            Stmt::Rust(_) | Stmt::Bind(_) | Stmt::Succeed(_) | Stmt::Resource(_) => {}
             Stmt::Spawn(spawn) => {
                 let labels: Vec<String> = spawn.labels.iter().map(ToString::to_string).collect();
                 let i = self.site(Site::new(
@@ -852,6 +860,9 @@ fn constraint_text(kind: &ConstraintKind, scope: &Scope<'_>, prev: &[usize]) -> 
         ConstraintKind::Wait => text("wait"),
         ConstraintKind::Outcome => text("outcome"),
         ConstraintKind::Propagate => text("propagate"),
+        ConstraintKind::Uses(list) => text(&format!("uses {}", uses(list))),
+        ConstraintKind::Priority(p) => text(&format!("priority {}", priority(p))),
+        ConstraintKind::DenyIfBusy => text("deny if busy"),
         ConstraintKind::Trigger { when, then } => when_text(when, *then, Some((scope, prev))),
         ConstraintKind::MaximumActivate(n) => text(&format!("maximum activate {}", count(n))),
         ConstraintKind::MaximumTrigger(n) => text(&format!("maximum trigger {}", count(n))),
@@ -947,6 +958,25 @@ fn rel(t: &RelTime) -> String {
     match t {
         RelTime::Nanos(n) => tdl_syntax::format_nanos(*n),
         RelTime::Seconds(e) => format!("({})", expr_text(e)),
+    }
+}
+
+/// `base, arm(2)`.
+fn uses(list: &[tdl_syntax::ResourceAmount]) -> String {
+    let parts: Vec<String> = list
+        .iter()
+        .map(|r| match &r.amount {
+            Some(n) => format!("{}({})", r.name, count(n)),
+            None => r.name.to_string(),
+        })
+        .collect();
+    parts.join(", ")
+}
+
+fn priority(p: &tdl_syntax::Priority) -> String {
+    match p {
+        tdl_syntax::Priority::Const(n) => n.to_string(),
+        tdl_syntax::Priority::Expr(e) => format!("({})", expr_text(e)),
     }
 }
 

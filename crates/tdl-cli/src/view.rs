@@ -4,6 +4,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
+use tcm_trace::story::uses_text;
 use tcm_trace::{Facet, Replay, ReplayNode, Termination, TraceEvent, TraceKind};
 
 /// The tree of every node the run spawned, reclaimed ones included (marked `reclaimed`), as the
@@ -89,6 +90,8 @@ pub(crate) enum Kind {
     Monitor,
     /// External events and timer callbacks.
     Event,
+    /// Resources: declarations, requests, grants, releases, refusals, reservations and locks.
+    Resource,
     /// Warnings.
     Warning,
 }
@@ -314,6 +317,59 @@ fn describe(
             (Kind::Event, *node, format!("callback {name} set"))
         }
         TraceKind::CallbackRan { name, .. } => (Kind::Event, None, format!("callback {name} ran")),
+        TraceKind::Resource {
+            resource,
+            capacity,
+            pending_limit,
+        } => {
+            let pending = pending_limit.map_or(String::new(), |p| format!(", pending {p}"));
+            let text = format!("resource {resource} capacity {capacity}{pending}");
+            (Kind::Resource, None, text)
+        }
+        TraceKind::Requested {
+            node,
+            uses,
+            priority,
+        } => (
+            Kind::Resource,
+            Some(*node),
+            format!("requests {} (priority {priority})", uses_text(uses)),
+        ),
+        TraceKind::Granted { node, uses } => (
+            Kind::Resource,
+            Some(*node),
+            format!("granted {}", uses_text(uses)),
+        ),
+        TraceKind::Released { node, uses } => (
+            Kind::Resource,
+            Some(*node),
+            format!("released {}", uses_text(uses)),
+        ),
+        TraceKind::Withdrawn { node } => {
+            (Kind::Resource, Some(*node), "withdraws its request".into())
+        }
+        TraceKind::Denied { node, resource } => {
+            (Kind::Resource, Some(*node), format!("denied {resource}"))
+        }
+        TraceKind::Dropped { node, resource } => (
+            Kind::Resource,
+            Some(*node),
+            format!("dropped from {resource}'s queue"),
+        ),
+        TraceKind::ResourceReserved { resource, holder } => (
+            Kind::Resource,
+            Some(*holder),
+            format!("reserves {resource} for its subtree"),
+        ),
+        TraceKind::ResourceUnreserved { resource } => {
+            (Kind::Resource, None, format!("{resource} unreserved"))
+        }
+        TraceKind::ResourceLocked { resource } => {
+            (Kind::Resource, None, format!("{resource} locked"))
+        }
+        TraceKind::ResourceUnlocked { resource } => {
+            (Kind::Resource, None, format!("{resource} unlocked"))
+        }
         TraceKind::Warning { node, message } => {
             (Kind::Warning, *node, format!("warning: {message}"))
         }

@@ -28,6 +28,8 @@ pub enum Item {
     Task(Task),
     /// `exception Name [: Parent] (; | { fields })`.
     Exception(ExceptionDecl),
+    /// `resource name(capacity) [pending N];` (docs/semantics.md, "Resources").
+    Resource(ResourceDecl),
     /// Any Rust item (`fn`, `use`, `struct`, ...), passed through verbatim.
     Rust(Box<syn::Item>),
 }
@@ -188,6 +190,42 @@ pub struct ExceptionDecl {
     pub span: Span,
 }
 
+/// `resource name(capacity) [pending N];`: a resource of the program, with its capacity and the
+/// most requests that may wait for it (docs/semantics.md, "Resources").
+#[derive(Clone, Debug)]
+pub struct ResourceDecl {
+    /// Outer attributes, including doc comments (kept for the reader; nothing is generated).
+    pub attrs: Vec<syn::Attribute>,
+    /// Resource name, as spawns name it in `uses`.
+    pub name: Ident,
+    /// Units it has.
+    pub capacity: syn::LitInt,
+    /// `pending N`: most requests that may wait for it.
+    pub pending: Option<syn::LitInt>,
+    /// Span of the name.
+    pub span: Span,
+}
+
+/// One resource of a `uses` list: `name` or `name(amount)`.
+#[derive(Clone, Debug)]
+pub struct ResourceAmount {
+    /// The resource.
+    pub name: Ident,
+    /// How much of it; `None`: 1.
+    pub amount: Option<Count>,
+    /// Span of the amount, or of the name without one.
+    pub span: Span,
+}
+
+/// A request's priority: lower is granted first.
+#[derive(Clone, Debug)]
+pub enum Priority {
+    /// An integer literal, possibly negative.
+    Const(i64),
+    /// Any other expression (an `i32`).
+    Expr(syn::Expr),
+}
+
 /// An exception data field `name: Type`.
 #[derive(Clone, Debug)]
 pub struct Field {
@@ -204,6 +242,42 @@ pub struct Retry {
     pub args: Option<Vec<syn::Expr>>,
     /// Span of `retry`.
     pub span: Span,
+}
+
+/// `lock r;`, `unlock r;`, `reserve r;` or `unreserve r;`.
+#[derive(Clone, Debug)]
+pub struct ResourceStmt {
+    /// What is done to the resource.
+    pub op: ResourceOp,
+    /// The resource.
+    pub name: Ident,
+    /// Span of the keyword.
+    pub span: Span,
+}
+
+/// What a [`ResourceStmt`] does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResourceOp {
+    /// `lock r;`: nobody is granted it until it is unlocked.
+    Lock,
+    /// `unlock r;`.
+    Unlock,
+    /// `reserve r;`: only this task's node and its descendants are granted it.
+    Reserve,
+    /// `unreserve r;`.
+    Unreserve,
+}
+
+impl ResourceOp {
+    /// The keyword.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ResourceOp::Lock => "lock",
+            ResourceOp::Unlock => "unlock",
+            ResourceOp::Reserve => "reserve",
+            ResourceOp::Unreserve => "unreserve",
+        }
+    }
 }
 
 /// A task-level constraint with its span.
@@ -240,6 +314,10 @@ pub enum TaskConstraintKind {
     Serial,
     /// `sequential expansion|execution` between activations (monitors).
     Sequential(Facet),
+    /// `uses r, r2(n)`: every node of the task uses these resources (goals and commands).
+    Uses(Vec<ResourceAmount>),
+    /// `priority N`: the priority of every node's request for resources.
+    Priority(Priority),
 }
 
 /// `persistent name: Type [= init]`: per-instance state surviving across activations.
@@ -311,6 +389,9 @@ pub enum Stmt {
     /// `retry;` or `retry with (args);` (handlers only): run the failed task again, with the
     /// same or with other arguments, and wait for it.
     Retry(Retry),
+    /// `lock r;`, `unlock r;`, `reserve r;` (for this task's subtree), `unreserve r;`
+    /// (docs/semantics.md, "Resources").
+    Resource(ResourceStmt),
     /// `if cond { ... } [else ...]`.
     If(If),
     /// `['label:] for pat in expr { ... }`.
@@ -563,6 +644,14 @@ pub enum ConstraintKind {
     Parent(syn::Expr),
     /// `on AGENT`: rejected until distributed agents exist.
     OnAgent(syn::Expr),
+    /// `uses r, r2(n)`: resources granted, all at once, before the node starts, and released when
+    /// its action ends (docs/semantics.md, "Resources").
+    Uses(Vec<ResourceAmount>),
+    /// `priority N`: the priority of the node's request for resources (lower first).
+    Priority(Priority),
+    /// `deny if busy`: a request that cannot be granted at once fails the node with
+    /// `ResourceDenied` instead of waiting.
+    DenyIfBusy,
 }
 
 /// When a [`ConstraintKind::Trigger`] fires: the one "when" of `disable`, `terminate` and

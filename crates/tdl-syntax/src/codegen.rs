@@ -26,7 +26,8 @@ use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
 
 use crate::ast::{
-    Ast, Count, ExceptionDecl, Facet, HandlerRef, Item, Task, TaskConstraintKind, TaskKind,
+    Ast, Count, ExceptionDecl, Facet, HandlerRef, Item, Priority, ResourceAmount, Task,
+    TaskConstraintKind, TaskKind,
 };
 use crate::diagnostic::Diagnostic;
 use crate::resolve::FileScope;
@@ -56,6 +57,8 @@ fn generate_in(file: &FileScope<'_>, ast: &Ast, source: Option<&str>) -> Generat
         match item {
             Item::Task(task) => tokens.extend(task_items(file, task, source, &mut diagnostics)),
             Item::Exception(exc) => tokens.extend(exception_items(file, exc)),
+            // A resource is declared by the spawns that use it (`uses_expr`): no item of its own.
+            Item::Resource(_) => {}
             Item::Rust(item) => tokens.extend(quote!(#item)),
         }
     }
@@ -81,6 +84,7 @@ pub fn stubs(ast: &Ast) -> TokenStream {
                 tokens.extend(task_shell(task, &body, Allow::Stub));
             }
             Item::Exception(exc) => tokens.extend(exception_items(&file, exc)),
+            Item::Resource(_) => {}
             Item::Rust(item) => tokens.extend(quote!(#item)),
         }
     }
@@ -331,6 +335,53 @@ pub(crate) fn count_expr(count: &Count, span: Span, diags: &mut Vec<Diagnostic>)
     }
 }
 
+/// `.uses(resource, amount)` for one resource of a `uses` list (docs/semantics.md,
+/// "Resources"): a resource the program declares is named by its declaration, so the run
+/// declares it on first use; any other by its name, which the runtime must declare
+/// (`Runtime::resource`).
+pub(crate) fn uses_expr(
+    file: &FileScope<'_>,
+    it: &ResourceAmount,
+    diags: &mut Vec<Diagnostic>,
+) -> TokenStream {
+    let resource = resource_ref(file, &it.name);
+    let amount = match &it.amount {
+        Some(n) => count_expr(n, it.span, diags),
+        None => quote!(1),
+    };
+    quote!(.uses(#resource, #amount))
+}
+
+/// The resource `name` as generated code names it: by its declaration when the program declares
+/// it (the run then declares it on first use), else by its name.
+pub(crate) fn resource_ref(file: &FileScope<'_>, name: &Ident) -> TokenStream {
+    let text = name.to_string();
+    match file.resource(&text) {
+        Some(decl) => {
+            let capacity = decl.capacity.base10_parse::<u32>().unwrap_or(0);
+            let pending = decl
+                .pending
+                .as_ref()
+                .and_then(|p| p.base10_parse::<u32>().ok())
+                .map(|p| quote!(.pending_limit(#p)));
+            quote!(::tdl::Resource::new(#text, #capacity) #pending)
+        }
+        None => quote!(#text),
+    }
+}
+
+/// `.priority(p)`: a literal as it is (the diagnosis checks it fits an `i32`), else the
+/// expression.
+pub(crate) fn priority_expr(p: &Priority) -> TokenStream {
+    match p {
+        Priority::Const(n) => {
+            let n = i32::try_from(*n).unwrap_or(if *n < 0 { i32::MIN } else { i32::MAX });
+            quote!(.priority(#n))
+        }
+        Priority::Expr(e) => quote!(.priority(#e)),
+    }
+}
+
 /// `h(args)` with its `maximum activate N`: a `tdl::Handler` expression.
 pub(crate) fn handler_expr(
     it: &HandlerRef,
@@ -414,6 +465,12 @@ fn task_items(
                 let d = lower::duration(t);
                 params.extend(quote!(period: ::core::option::Option::Some(#d),));
             }
+            TaskConstraintKind::Uses(list) => {
+                for it in list {
+                    modifiers.extend(uses_expr(file, it, diags));
+                }
+            }
+            TaskConstraintKind::Priority(p) => modifiers.extend(priority_expr(p)),
             TaskConstraintKind::InitialWait => params.extend(quote!(initial_wait: true,)),
             TaskConstraintKind::Serial => each.extend(quote!(serial: true,)),
             TaskConstraintKind::Sequential(Facet::Execution) => {
@@ -507,7 +564,8 @@ fn task_items(
             let exception = match &task.handles {
                 Some(exc) => {
                     let text = exc.to_string();
-                    quote!(::tdl::codegen::handles::<#exc>(#text))
+                    let ty = file.exception_type(exc);
+                    quote!(::tdl::codegen::handles::<#ty>(#text))
                 }
                 None => quote!(""),
             };

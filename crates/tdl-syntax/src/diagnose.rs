@@ -31,6 +31,9 @@ use crate::ast::{
     TagIndex, TagKind, Task, TaskConstraintKind, TaskKind, Then, When,
 };
 use crate::diagnostic::Diagnostic;
+
+mod resources;
+
 use crate::resolve::{
     BodyScope, Def, Duplicate, FileScope, IndexError, LoopId, Named, NodeUse, Refers, Resolution,
     Tdl, refers,
@@ -86,11 +89,12 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                     exception(file, parent, diags);
                 }
             }
-            Item::Rust(_) => {}
+            Item::Resource(_) | Item::Rust(_) => {}
         }
     }
     raises::check(file, ast, diags);
     recursion::check(file, ast, diags);
+    resources::diagnose(file, ast, diags);
 }
 
 /// Reports `name` when the program declares exceptions and `name` is not one of them.
@@ -197,6 +201,8 @@ fn task_constraint_name(kind: &TaskConstraintKind) -> &'static str {
         TaskConstraintKind::InitialWait => "initial wait",
         TaskConstraintKind::Serial => "serial",
         TaskConstraintKind::Sequential(_) => "sequential",
+        TaskConstraintKind::Uses(_) => "uses",
+        TaskConstraintKind::Priority(_) => "priority",
     }
 }
 
@@ -214,6 +220,9 @@ fn task_header(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
         let allowed = match (&constraint.kind, task.kind) {
             (TaskConstraintKind::Persistent(_), _) => true,
             (TaskConstraintKind::MaximumActivate(_), TaskKind::Monitor | TaskKind::Handler) => true,
+            (TaskConstraintKind::Uses(_) | TaskConstraintKind::Priority(_), kind) => {
+                kind != TaskKind::Handler
+            }
             (_, TaskKind::Handler) => false,
             (
                 TaskConstraintKind::ExpandFirst

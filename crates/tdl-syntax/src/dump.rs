@@ -10,8 +10,8 @@ use quote::ToTokens;
 
 use crate::ast::{
     Ast, Block, Constraint, ConstraintKind, Count, Else, Event, ExternalName, HandlerRef, If, Item,
-    Match, OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind,
-    Then, TimeOfDay, When,
+    Match, OnTerminate, Priority, RelTime, ResourceAmount, Spawn, Stmt, Tag, TagIndex, TagKind,
+    Task, TaskConstraintKind, Then, TimeOfDay, When,
 };
 use crate::time::format_nanos;
 
@@ -38,6 +38,14 @@ pub fn dump(ast: &Ast) -> String {
                     exc.name,
                     fields.join(", ")
                 );
+            }
+            Item::Resource(r) => {
+                let pending = r
+                    .pending
+                    .as_ref()
+                    .map(|it| format!(" pending {it}"))
+                    .unwrap_or_default();
+                let _ = writeln!(out, "resource {}({}){pending}", r.name, r.capacity);
             }
             Item::Rust(item) => {
                 let _ = writeln!(out, "rust item: {}", tokens(item.as_ref()));
@@ -114,6 +122,8 @@ fn dump_task(out: &mut String, task: &Task) {
             TaskConstraintKind::InitialWait => "initial wait".to_owned(),
             TaskConstraintKind::Serial => "serial".to_owned(),
             TaskConstraintKind::Sequential(facet) => format!("sequential {}", facet.as_str()),
+            TaskConstraintKind::Uses(list) => uses(list),
+            TaskConstraintKind::Priority(p) => priority(p),
         };
         let _ = writeln!(out, "  | {text}");
     }
@@ -180,6 +190,7 @@ fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
             };
             line(out, depth, &format!("fail{exc}{fields}"));
         }
+        Stmt::Resource(it) => line(out, depth, &format!("{} {}", it.op.as_str(), it.name)),
         Stmt::Bypass(_) => line(out, depth, "bypass"),
         Stmt::Trigger(_) => line(out, depth, "trigger"),
         Stmt::Retry(it) => match &it.args {
@@ -411,5 +422,27 @@ fn constraint(it: &Constraint) -> String {
         ConstraintKind::Name(e) => format!("name {}", tokens(e)),
         ConstraintKind::Parent(e) => format!("parent {}", tokens(e)),
         ConstraintKind::OnAgent(e) => format!("on {}", tokens(e)),
+        ConstraintKind::Uses(list) => uses(list),
+        ConstraintKind::Priority(p) => priority(p),
+        ConstraintKind::DenyIfBusy => "deny if busy".to_owned(),
+    }
+}
+
+fn uses(list: &[ResourceAmount]) -> String {
+    let items: Vec<String> = list
+        .iter()
+        .map(|it| match &it.amount {
+            Some(Count::Const(n)) => format!("{}({n})", it.name),
+            Some(Count::Expr(e)) => format!("{}({})", it.name, tokens(e)),
+            None => it.name.to_string(),
+        })
+        .collect();
+    format!("uses {}", items.join(", "))
+}
+
+fn priority(p: &Priority) -> String {
+    match p {
+        Priority::Const(n) => format!("priority {n}"),
+        Priority::Expr(e) => format!("priority {}", tokens(e)),
     }
 }

@@ -21,8 +21,10 @@ const VOCABULARY: &[&str] = &[
     "active",
     "after",
     "at",
+    "busy",
     "completed",
     "delay",
+    "deny",
     "disable",
     "enabled",
     "exception",
@@ -35,6 +37,7 @@ const VOCABULARY: &[&str] = &[
     "for",
     "handler",
     "handling",
+    "if",
     "in",
     "initial",
     "max",
@@ -48,6 +51,7 @@ const VOCABULARY: &[&str] = &[
     "propagate",
     "persistent",
     "planning",
+    "priority",
     "sequential",
     "serial",
     "succeeded",
@@ -56,6 +60,7 @@ const VOCABULARY: &[&str] = &[
     "trigger",
     "triggers",
     "until",
+    "uses",
     "wait",
 ];
 
@@ -214,6 +219,9 @@ pub(crate) fn starts_constraint(word: &str) -> bool {
             | "on"
             | "name"
             | "parent"
+            | "uses"
+            | "priority"
+            | "deny"
     )
 }
 

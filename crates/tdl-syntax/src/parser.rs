@@ -17,7 +17,7 @@ use syn::parse::{ParseStream, Parser};
 use syn::punctuated::Punctuated;
 use syn::{Token, Type};
 
-use crate::ast::{Arg, Ast, Block, ExceptionDecl, Field, Item, Task, TaskKind};
+use crate::ast::{Arg, Ast, Block, ExceptionDecl, Field, Item, ResourceDecl, Task, TaskKind};
 use crate::diagnostic::Diagnostic;
 
 pub(crate) use constraint::parse_task_constraints;
@@ -226,6 +226,10 @@ fn tdl_item_keyword(input: ParseStream) -> Option<String> {
     } else {
         word
     };
+    // `resource NAME(…)` declares a resource; `resource!(…)` stays a Rust macro call.
+    if word == "resource" {
+        return fork.peek(syn::Ident).then_some(word);
+    }
     matches!(
         word.as_str(),
         "goal" | "command" | "monitor" | "handler" | "exception"
@@ -267,9 +271,54 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
         "command" => TaskKind::Command,
         "monitor" => TaskKind::Monitor,
         "handler" => TaskKind::Handler,
+        "resource" => return resource(input, attrs, persistent, keyword.span(), cx),
         _ => return exception(input, attrs, vis, persistent, keyword.span(), cx),
     };
     task(input, cx, attrs, vis, persistent, kind)
+}
+
+/// `resource name(capacity) [pending N];` (docs/semantics.md, "Resources").
+fn resource(
+    input: ParseStream,
+    attrs: Vec<syn::Attribute>,
+    persistent: bool,
+    keyword_span: Span,
+    cx: &mut Cx,
+) -> syn::Result<Item> {
+    if persistent {
+        cx.diags.push(
+            Diagnostic::error(keyword_span, "a resource cannot be `persistent`")
+                .with_hint("remove `persistent`"),
+        );
+    }
+    let name: Ident = input.parse()?;
+    let group = take_group(
+        input,
+        Delimiter::Parenthesis,
+        "`(` and the resource's capacity, as in `resource arm(2);`",
+    )?;
+    let capacity: syn::LitInt = parse_group_as(group)?;
+    let pending = if input.peek(syn::Ident) && input.fork().call(Ident::parse_any)? == "pending" {
+        input.call(Ident::parse_any)?;
+        Some(input.parse::<syn::LitInt>()?)
+    } else {
+        None
+    };
+    if !input.peek(Token![;]) {
+        return Err(input.error(
+            "expected `;` or `pending N` after the resource's capacity, as in \
+             `resource arm(2) pending 4;`",
+        ));
+    }
+    input.parse::<Token![;]>()?;
+    let span = name.span();
+    Ok(Item::Resource(ResourceDecl {
+        attrs,
+        name,
+        capacity,
+        pending,
+        span,
+    }))
 }
 
 fn exception(

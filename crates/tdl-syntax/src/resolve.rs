@@ -29,8 +29,8 @@ use quote::{ToTokens, format_ident};
 
 use crate::ast::{
     Ast, Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Count, Else, Event,
-    ExceptionDecl, ExternalName, Fail, If, Item, OnTerminate, RelTime, Spawn, Stmt, Tag, TagIndex,
-    TagKind, Task, TaskKind, When, WithGroup,
+    ExceptionDecl, ExternalName, Fail, If, Item, OnTerminate, Priority, RelTime, ResourceDecl,
+    ResourceStmt, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskKind, When, WithGroup,
 };
 
 /// A spawn of a body, numbered in source order.
@@ -42,6 +42,10 @@ pub(crate) type LoopId = usize;
 /// A labelled `on terminate` task of a spawn, numbered in source order.
 pub(crate) type CleanupId = usize;
 
+/// The exceptions the runtime raises itself, which handlers name without declaring them
+/// (docs/semantics.md, "Resources").
+pub(crate) const BUILTIN_EXCEPTIONS: &[&str] = &["ResourceDenied", "ResourceDropped"];
+
 /// The tasks and exceptions a source declares.
 ///
 /// Compiled as part of a program ([`crate::compile_program`]), it also knows the declarations of
@@ -50,6 +54,8 @@ pub(crate) type CleanupId = usize;
 pub(crate) struct FileScope<'a> {
     tasks: BTreeMap<String, &'a Task>,
     exceptions: BTreeMap<String, &'a ExceptionDecl>,
+    /// Resources of the program: this file's (the first of a name), then the other files'.
+    resources: BTreeMap<String, &'a ResourceDecl>,
     /// Declarations of a name already declared, in source order.
     pub(crate) duplicates: Vec<Duplicate<'a>>,
     /// Tasks and exceptions of the program's other files (the first file declaring a name wins).
@@ -74,6 +80,7 @@ impl<'a> FileScope<'a> {
         let mut scope = FileScope {
             tasks: BTreeMap::new(),
             exceptions: BTreeMap::new(),
+            resources: BTreeMap::new(),
             duplicates: Vec::new(),
             other_tasks: BTreeMap::new(),
             other_exceptions: BTreeMap::new(),
@@ -93,6 +100,10 @@ impl<'a> FileScope<'a> {
                         scope.exceptions.insert(exc.name.to_string(), exc);
                     }
                 },
+                // Duplicates are diagnosed with the other resource checks (`diagnose/resources.rs`).
+                Item::Resource(r) => {
+                    scope.resources.entry(r.name.to_string()).or_insert(r);
+                }
                 Item::Rust(_) => {}
             }
         }
@@ -118,6 +129,15 @@ impl<'a> FileScope<'a> {
                             scope.elsewhere.push((&mine.name, file));
                         }
                         scope.other_exceptions.entry(name).or_insert(exc);
+                    }
+                    Item::Resource(r) => {
+                        let name = r.name.to_string();
+                        if let Some(mine) = scope.resources.get(&name) {
+                            if !std::ptr::eq(*mine, r) {
+                                scope.elsewhere.push((&mine.name, file));
+                            }
+                        }
+                        scope.resources.entry(name).or_insert(r);
                     }
                     Item::Rust(_) => {}
                 }
@@ -187,9 +207,36 @@ impl<'a> FileScope<'a> {
         names.into_iter()
     }
 
-    /// Whether `name` is an exception declared in the source or another file of the program.
+    /// Whether `name` is an exception declared in the source or another file of the program, or
+    /// one of the runtime's own (`ResourceDenied`, `ResourceDropped`).
     pub(crate) fn declares_exception(&self, name: &str) -> bool {
-        self.exception_decl(name).is_some()
+        self.exception_decl(name).is_some() || BUILTIN_EXCEPTIONS.contains(&name)
+    }
+
+    /// The Rust type of the exception `name` as generated code names it: the runtime's own
+    /// exceptions through `::tdl` unless the program declares one of that name, others as written.
+    pub(crate) fn exception_type(&self, name: &Ident) -> proc_macro2::TokenStream {
+        let text = name.to_string();
+        if self.exception_decl(&text).is_none() && BUILTIN_EXCEPTIONS.contains(&text.as_str()) {
+            quote::quote!(::tdl::#name)
+        } else {
+            quote::quote!(#name)
+        }
+    }
+
+    /// The resource of this name declared in the program.
+    pub(crate) fn resource(&self, name: &str) -> Option<&'a ResourceDecl> {
+        self.resources.get(name).copied()
+    }
+
+    /// Whether the program declares any resource.
+    pub(crate) fn declares_resources(&self) -> bool {
+        !self.resources.is_empty()
+    }
+
+    /// The names of the resources declared in the program, sorted.
+    pub(crate) fn resource_names(&self) -> impl Iterator<Item = &str> {
+        self.resources.keys().map(String::as_str)
     }
 
     /// The ancestors of exception `name`, nearest first: its parent, the parent's parent, ... (a
@@ -422,6 +469,8 @@ pub(crate) struct BodyScope<'a> {
     pub(crate) duplicate_labels: Vec<(&'a Ident, Span)>,
     /// Whether some constraint refers to `previous`.
     pub(crate) uses_previous: bool,
+    /// Its `lock`, `unlock`, `reserve` and `unreserve` statements, in source order.
+    pub(crate) resource_stmts: Vec<&'a ResourceStmt>,
     /// Labels, the first of each.
     labels: BTreeMap<String, Named<'a>>,
     /// The spawns of each task.
@@ -449,6 +498,7 @@ impl<'a> BodyScope<'a> {
                 bound: BTreeMap::new(),
                 duplicate_labels: Vec::new(),
                 uses_previous: false,
+                resource_stmts: Vec::new(),
                 labels: BTreeMap::new(),
                 by_task: BTreeMap::new(),
                 spawn_ids: BTreeMap::new(),
@@ -798,6 +848,7 @@ impl<'a> Walk<'a> {
                 }
                 self.scope.stmts.push(Tdl::Fail(it));
             }
+            Stmt::Resource(it) => self.scope.resource_stmts.push(it),
             Stmt::Bypass(span) => self.scope.stmts.push(Tdl::Bypass(*span)),
             Stmt::Trigger(span) => self.scope.stmts.push(Tdl::Trigger(*span)),
             Stmt::Retry(it) => {
@@ -966,6 +1017,14 @@ fn constraint_code(kind: &ConstraintKind) -> TokenStream {
             when: When::External(ExternalName::Expr(expr)),
             ..
         } => expr.to_tokens(&mut out),
+        ConstraintKind::Uses(list) => {
+            for it in list {
+                if let Some(n) = &it.amount {
+                    count(n, &mut out);
+                }
+            }
+        }
+        ConstraintKind::Priority(Priority::Expr(expr)) => expr.to_tokens(&mut out),
         _ => {}
     }
     out

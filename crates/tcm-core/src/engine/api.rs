@@ -4,6 +4,7 @@
 use super::exception::HandlerSpec;
 use super::monitor::MonitorSpec;
 use super::node::{OnTerminate, Purpose};
+use super::resource::Uses;
 use crate::constraint::Constraint;
 use crate::failure::Failure;
 use crate::ids::{NodeId, WatchToken, WiretapId};
@@ -98,6 +99,8 @@ pub struct Spawn<A, F = ()> {
     pub handlers: Vec<HandlerSpec<F>>,
     /// A factory that re-runs this task (same arguments), so handlers can retry it.
     pub retry: Option<F>,
+    /// The resources it uses, granted before it starts (docs/semantics.md, "Resources").
+    pub uses: Option<Box<Uses>>,
 }
 
 impl<A, F: Clone> Spawn<A, F> {
@@ -116,6 +119,7 @@ impl<A, F: Clone> Spawn<A, F> {
             monitor: None,
             handlers: Vec::new(),
             retry: None,
+            uses: None,
         }
     }
 
@@ -134,12 +138,22 @@ impl<A, F: Clone> Spawn<A, F> {
             monitor: Some(Box::new(spec)),
             handlers: Vec::new(),
             retry: None,
+            uses: None,
         }
     }
 
     /// Adds a constraint.
     pub fn with(mut self, c: Constraint) -> Spawn<A, F> {
         self.constraints.push(c);
+        self
+    }
+
+    /// Uses `amount` of `resource` (docs/semantics.md, "Resources").
+    pub fn using(mut self, resource: crate::ResourceId, amount: u32) -> Spawn<A, F> {
+        self.uses
+            .get_or_insert_with(Box::default)
+            .amounts
+            .push((resource, amount));
         self
     }
 }
@@ -214,6 +228,24 @@ pub enum EngineError {
     /// Retry of a task spawned without a retry factory.
     #[error("node {{{0}}} cannot be retried: it was spawned without a retry factory")]
     NotRetryable(u64),
+    /// A resource of this name was already declared.
+    #[error("resource `{0}` is already declared")]
+    DuplicateResource(String),
+    /// A resource needs a capacity of at least 1.
+    #[error("resource `{0}` needs a capacity of at least 1")]
+    ZeroCapacity(String),
+    /// A spawn uses none of a resource.
+    #[error("a spawn uses 0 of resource `{0}`: an amount is at least 1")]
+    ZeroAmount(String),
+    /// The resource handle belongs to another run (or to no resource).
+    #[error("the resource belongs to another run than this one ({run})")]
+    ForeignResource {
+        /// This engine's run.
+        run: u32,
+    },
+    /// No resource is declared under this name.
+    #[error("no resource `{0}` is declared")]
+    UnknownResource(String),
 }
 
 /// Counters for benchmarks and tests.

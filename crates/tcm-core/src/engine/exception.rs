@@ -136,6 +136,8 @@ impl<A, F: Clone> Engine<A, F> {
             .partition(|ot| ot.fulfils.is_some());
         c.on_terminate = labelled;
         let constraints = c.retry_constraints.clone();
+        // A retry uses the same resources as the run it repeats.
+        let uses = c.uses.clone();
         let new = self.node_mut(id);
         new.persistent = persistent;
         let cold = new.cold_mut();
@@ -145,6 +147,7 @@ impl<A, F: Clone> Engine<A, F> {
         cold.propagate = propagate;
         cold.on_terminate = on_terminate;
         cold.retry_constraints = constraints.clone();
+        cold.uses = uses;
         for c in constraints {
             self.apply(id, node, None, c);
         }

@@ -19,10 +19,12 @@
 //! | commands: monitors | [`Engine::activate`], [`Engine::trigger`], [`Engine::set_max_activations`], [`Engine::set_max_triggers`], [`Engine::set_period`] | `monitor.rs` |
 //! | commands: exceptions | [`Engine::request_bypass`], [`Engine::retry`] | `exception.rs` |
 //! | commands: wiretaps | [`Engine::wiretap`] | `wiretap.rs` |
+//! | commands: resources | [`Engine::declare_resource`], [`Engine::reserve_resource`], [`Engine::unreserve_resource`], [`Engine::lock_resource`], [`Engine::unlock_resource`] | `resource.rs` |
 //! | commands: timer callbacks | [`Engine::invoke_when`], [`Engine::invoke_at`], [`Engine::notify_at`], [`Engine::callback_ran`] | `callback.rs` |
 //! | outputs | [`Engine::poll_effect`], [`Engine::poll_trace`], [`Engine::poll_timeout`] | here |
 //! | queries | [`Engine::root`], [`Engine::now`], [`Engine::stats`], [`Engine::path`], [`Engine::fatal`], [`Engine::is_idle`], [`Engine::is_settled`] | here |
 //! | | [`Engine::info`], [`Engine::parent`], [`Engine::children`], [`Engine::monitor_info`], [`Engine::blocked`], [`Engine::blocked_awaiting`] | `report.rs` |
+//! | | [`Engine::resource_id`], [`Engine::resource_info`] | `resource.rs` |
 //!
 //! Every entry point that takes a node handle checks first that it belongs to this run
 //! (`check_run`, through `live` or `lookup`): a handle of another run is an error, never an alias.
@@ -83,6 +85,7 @@ mod monitor;
 pub(crate) mod node;
 mod progress;
 mod report;
+mod resource;
 mod terminate;
 mod timers;
 mod tree;
@@ -101,6 +104,7 @@ use node::Node;
 pub use node::{OnTerminate, Purpose};
 use progress::timer_is_live;
 pub use report::{Blocked, MonitorInfo, NodeInfo};
+pub use resource::{ResourceDenied, ResourceDropped, ResourceInfo, Uses};
 use std::collections::{BTreeMap, VecDeque};
 use tcm_trace::{State, TRACE_FORMAT_VERSION, TraceEvent, TraceKind};
 use timers::Timers;
@@ -153,6 +157,8 @@ pub struct Engine<A, F = ()> {
     taps: Vec<Wiretap<F>>,
     // Handlers attached from outside to a task name (`Engine::handler_for`), in the order attached.
     class_handlers: BTreeMap<Name, Vec<HandlerSpec<F>>>,
+    // Resources and the requests waiting for them (`resource.rs`).
+    res: resource::Resources,
 }
 
 impl<A, F: Clone> Engine<A, F> {
@@ -188,6 +194,7 @@ impl<A, F: Clone> Engine<A, F> {
             fatal: None,
             taps: Vec::new(),
             class_handlers: BTreeMap::new(),
+            res: resource::Resources::default(),
         };
         engine.push_trace(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,

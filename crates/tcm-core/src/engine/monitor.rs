@@ -351,6 +351,7 @@ impl<A, F: Clone> Engine<A, F> {
         if n.state(Facet::Handling) != State::Active {
             return;
         }
+        self.release_resources(monitor);
         self.transition(monitor, Facet::Handling, State::Completed);
         self.bury_reservations(monitor);
         self.work.push_back(Work::Progress(monitor));

@@ -287,6 +287,9 @@ pub(crate) struct Cold<A, F> {
     // Where its own failure goes when no handler on it takes it, instead of being searched for
     // further up (`Engine::propagate`, `Engine::propagate_to_parent`).
     pub(crate) propagate: Propagate,
+    // The resources it uses (`resource.rs`), and where it stands with them.
+    pub(crate) uses: Option<super::resource::Uses>,
+    pub(crate) grant: super::resource::Grant,
 }
 
 /// Where a node's failure goes when no handler on the node takes it.
@@ -324,6 +327,8 @@ impl<A, F> Default for Cold<A, F> {
             recovered_by: None,
             retry_constraints: Vec::new(),
             propagate: Propagate::Up,
+            uses: None,
+            grant: super::resource::Grant::None,
         }
     }
 }
@@ -481,6 +486,22 @@ impl<A, F> Node<A, F> {
     /// Its own failure goes to its parent when no handler on it takes it.
     pub(crate) fn propagates(&self) -> Propagate {
         self.cold.as_ref().map_or(Propagate::Up, |c| c.propagate)
+    }
+
+    /// The resources it uses, if any (most nodes have no cold part at all).
+    pub(crate) fn uses(&self) -> Option<&super::resource::Uses> {
+        self.cold.as_ref().and_then(|c| c.uses.as_ref())
+    }
+
+    /// Where it stands with its resources.
+    pub(crate) fn grant(&self) -> super::resource::Grant {
+        self.cold
+            .as_ref()
+            .map_or(super::resource::Grant::None, |c| c.grant)
+    }
+
+    pub(crate) fn set_grant(&mut self, grant: super::resource::Grant) {
+        self.cold_mut().grant = grant;
     }
 
     pub(crate) fn handled(&self) -> bool {

@@ -100,6 +100,9 @@ impl<A, F: Clone> Engine<A, F> {
         if stopping {
             self.node_mut(node).stopping = false;
             self.running -= 1;
+            // Its action no longer runs: what it was granted goes back (docs/semantics.md,
+            // "Resources").
+            self.release_resources(node);
             self.work.push_back(Work::Progress(node));
             self.settle();
         }
@@ -176,6 +179,10 @@ impl<A, F: Clone> Engine<A, F> {
                     Work::Progress(id) => self.progress(id),
                     Work::Terminate { node, explicit } => self.do_terminate(node, explicit),
                 }
+            }
+            if self.res.dirty {
+                // Room was made: waiting requests that fit now are granted and queued.
+                self.scan_resources();
             }
             match self.ready.pop_front() {
                 Some(id) => self.start(id),
@@ -265,6 +272,7 @@ impl<A, F: Clone> Engine<A, F> {
                 self.note_recovery(id);
                 self.transition(id, Facet::Execution, State::Completed);
                 self.bury_labels(id);
+                self.end_reservations_of(id);
                 if let Some(p) = self.node(id).parent {
                     if let Some(p) = self.nodes.get_mut(p) {
                         p.open_executions -= 1;
@@ -369,8 +377,23 @@ impl<A, F: Clone> Engine<A, F> {
         }
         if n.suspended {
             n.parked = true;
+            // A grant it could not use yet goes back; it asks again once unsuspended.
+            if n.grant() == super::resource::Grant::Held {
+                self.release_resources(id);
+            }
             return;
         }
+        // Its resources are granted before anything of it starts (docs/semantics.md,
+        // "Resources"): it waits, enabled, until then, or fails if it is refused.
+        if n.uses().is_some()
+            && n.grant() != super::resource::Grant::Held
+            && !self.request_resources(id)
+        {
+            return;
+        }
+        let Some(n) = self.nodes.get_mut(id) else {
+            return;
+        };
         let is_monitor = n.monitor().is_some();
         let tapped = n.tapped_before();
         if !is_monitor && !tapped && !self.taps.is_empty() {
@@ -439,6 +462,11 @@ impl<A, F: Clone> Engine<A, F> {
     }
 
     pub(super) fn complete_handling(&mut self, id: NodeId) {
+        // Its grant goes back as its action ends; an action still stopping keeps it until it
+        // stopped (`handle_action_stopped`).
+        if !self.res.list.is_empty() && !self.node(id).stopping {
+            self.release_resources(id);
+        }
         self.transition(id, Facet::Handling, State::Completed);
         if std::mem::replace(&mut self.node_mut(id).holding, false) {
             self.progress_children(id);

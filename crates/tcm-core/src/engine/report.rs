@@ -180,8 +180,9 @@ impl<A, F: Clone> Engine<A, F> {
             mut activate,
         } = self.reasons();
         let mut parked = self.parked(awaits);
+        let mut cycles = self.resource_cycles(awaits);
         let mut out = Vec::new();
-        for (_, n) in self.nodes.iter() {
+        for (id, n) in self.nodes.iter() {
             if n.reserved || n.kind == NodeKind::Root || !n.alive() {
                 continue;
             }
@@ -214,6 +215,22 @@ impl<A, F: Clone> Engine<A, F> {
                         Point::Active,
                         vec!["being unsuspended".into()],
                     );
+                }
+                State::Enabled if n.grant() == super::resource::Grant::Waiting => {
+                    // Waiting for its resources: which, and who holds them; and the wait cycle
+                    // it closes, if any (docs/semantics.md, "Resources").
+                    let mut w: Vec<String> = self
+                        .why_waiting(id)
+                        .iter()
+                        .map(|(r, why)| self.waits_for_resource(*r, why))
+                        .collect();
+                    if w.is_empty() {
+                        w.push("its resources".into());
+                    }
+                    if let Some(cycle) = cycles.remove(&n.display) {
+                        w.push(cycle);
+                    }
+                    push(Facet::Handling, Point::Active, w);
                 }
                 State::Active => {
                     if let Some(w) = parked.remove(&n.display) {
@@ -350,6 +367,174 @@ impl<A, F: Clone> Engine<A, F> {
     }
 }
 
+/// Why one node of a stuck run waits for another, in a wait cycle.
+#[derive(Clone, Debug)]
+enum Edge {
+    /// Its request waits for a resource the other holds (`true`), or asked for first.
+    Resource(String, bool),
+    /// Its action awaits an event of the other.
+    Await,
+    /// Its execution waits for its child's.
+    Child,
+    /// A facet of it is held disabled until an event of the other.
+    Event,
+}
+
+impl<A, F: Clone> Engine<A, F> {
+    /// The wait cycles through resources: who waits for whom (a request for the holders of what it
+    /// needs, or for the earlier requests it may not overtake; a parked action for the node it
+    /// awaits; a node whose own action ended for its unfinished children; a facet held disabled
+    /// for the node of its event), and each cycle of that graph with at least one resource wait,
+    /// in words, by the first node of the cycle that waits for a resource.
+    fn resource_cycles(&self, awaits: &[(NodeId, Event)]) -> BTreeMap<u64, String> {
+        let mut out = BTreeMap::new();
+        if self.res.waiting.is_empty() {
+            return out;
+        }
+        let mut edges: BTreeMap<u64, Vec<(u64, Edge)>> = BTreeMap::new();
+        let mut names: BTreeMap<u64, String> = BTreeMap::new();
+        for (id, n) in self.nodes.iter() {
+            if n.reserved || n.kind == NodeKind::Root || !n.alive() {
+                continue;
+            }
+            names.insert(n.display, format!("{} {{{}}}", n.name, n.display));
+            let mut to: Vec<(u64, Edge)> = Vec::new();
+            for (r, why) in self.why_waiting(id) {
+                let name = self.res.list[r.idx as usize].name.to_string();
+                let (others, held) = match why {
+                    super::resource::Why::Held(h) => (h, true),
+                    super::resource::Why::Behind(h) => (h, false),
+                    _ => continue,
+                };
+                for o in others {
+                    if let Some(o) = self.nodes.get(o) {
+                        to.push((o.display, Edge::Resource(name.clone(), held)));
+                    }
+                }
+            }
+            if n.state(Facet::Handling) == State::Completed
+                && n.state(Facet::Execution) != State::Completed
+            {
+                let mut c = self.first_child(id);
+                while let Some(ch) = c {
+                    let cn = self.node(ch);
+                    if cn.state(Facet::Execution) != State::Completed {
+                        to.push((cn.display, Edge::Child));
+                    }
+                    c = self.next_sibling(ch);
+                }
+            }
+            for w in n.waiters.iter() {
+                if let WaitKind::Trigger {
+                    target,
+                    then: Then::Enable(_),
+                    ..
+                } = w.kind
+                {
+                    if let Some(t) = self.nodes.get(target) {
+                        edges
+                            .entry(t.display)
+                            .or_default()
+                            .push((n.display, Edge::Event));
+                    }
+                }
+            }
+            edges.entry(n.display).or_default().extend(to);
+        }
+        for (node, event) in awaits {
+            let (Some(n), NodeRef::Node(e)) = (self.query(*node), event.node) else {
+                continue;
+            };
+            if let Some(e) = self.query(e) {
+                edges
+                    .entry(n.display)
+                    .or_default()
+                    .push((e.display, Edge::Await));
+            }
+        }
+        for cycle in find_cycles(&edges) {
+            let Some(start) = cycle
+                .iter()
+                .position(|(_, e)| matches!(e, Edge::Resource(..)))
+            else {
+                continue;
+            };
+            // Begin at the first resource wait, so the report reads from the waiting request.
+            let mut steps = cycle.clone();
+            steps.rotate_left(start);
+            let name = |d: u64| names.get(&d).cloned().unwrap_or_else(|| format!("{{{d}}}"));
+            let first = steps[0].0;
+            let mut parts = Vec::new();
+            for (i, (from, edge)) in steps.iter().enumerate() {
+                let to = steps.get(i + 1).map_or(first, |(n, _)| *n);
+                parts.push(match edge {
+                    Edge::Resource(r, true) => {
+                        format!("{} needs `{r}`, held by {}", name(*from), name(to))
+                    }
+                    Edge::Resource(r, false) => format!(
+                        "{} needs `{r}`, promised first to {}",
+                        name(*from),
+                        name(to)
+                    ),
+                    Edge::Await => format!("{}'s action awaits {}", name(*from), name(to)),
+                    Edge::Child => format!("{} waits for its child {}", name(*from), name(to)),
+                    Edge::Event => format!("{} waits for an event of {}", name(*from), name(to)),
+                });
+            }
+            out.entry(first)
+                .or_insert_with(|| format!("in the wait cycle: {}", parts.join("; ")));
+        }
+        out
+    }
+}
+
+/// The cycles of a graph found by depth-first search from each vertex in order (each as its
+/// vertices with the edge leaving each), every cycle once.
+fn find_cycles(edges: &BTreeMap<u64, Vec<(u64, Edge)>>) -> Vec<Vec<(u64, Edge)>> {
+    let mut out: Vec<Vec<(u64, Edge)>> = Vec::new();
+    let mut seen_sets: Vec<Vec<u64>> = Vec::new();
+    let mut done: std::collections::BTreeSet<u64> = std::collections::BTreeSet::new();
+    for start in edges.keys() {
+        if done.contains(start) {
+            continue;
+        }
+        // The path from `start`: each vertex with the index of its next edge to try.
+        let mut path: Vec<(u64, usize)> = vec![(*start, 0)];
+        while let Some(&(v, i)) = path.last() {
+            let next = edges.get(&v).and_then(|es| es.get(i));
+            let Some((w, _)) = next else {
+                done.insert(v);
+                path.pop();
+                continue;
+            };
+            if let Some(last) = path.last_mut() {
+                last.1 += 1;
+            }
+            if let Some(at) = path.iter().position(|(p, _)| p == w) {
+                // A cycle: the path from `w` on, each with the edge it left by.
+                let cycle: Vec<(u64, Edge)> = path[at..]
+                    .iter()
+                    .filter_map(|(p, j)| {
+                        edges
+                            .get(p)
+                            .and_then(|es| es.get(j - 1))
+                            .map(|(_, e)| (*p, e.clone()))
+                    })
+                    .collect();
+                let mut set: Vec<u64> = cycle.iter().map(|(p, _)| *p).collect();
+                set.sort_unstable();
+                if !seen_sets.contains(&set) {
+                    seen_sets.push(set);
+                    out.push(cycle);
+                }
+            } else if !done.contains(w) {
+                path.push((*w, 0));
+            }
+        }
+    }
+    out
+}
+
 /// What waiters wait for, by the node they would release.
 #[derive(Default)]
 struct Reasons {
@@ -357,6 +542,39 @@ struct Reasons {
     enable: BTreeMap<(u64, Facet), Vec<String>>,
     // Monitor display -> the armed activations that could still come.
     activate: BTreeMap<u64, Vec<String>>,
+}
+
+impl<A, F: Clone> Engine<A, F> {
+    /// What a waiting request waits for, about resource `r`, as the report writes it.
+    fn waits_for_resource(&self, r: crate::ids::ResourceId, why: &super::resource::Why) -> String {
+        use super::resource::Why;
+        let res = &self.res.list[r.idx as usize];
+        let names = |nodes: &[NodeId]| {
+            let v: Vec<String> = nodes
+                .iter()
+                .filter_map(|n| self.nodes.get(*n))
+                .map(|n| format!("{} {{{}}}", n.name, n.display))
+                .collect();
+            v.join(", ")
+        };
+        match why {
+            Why::Held(holders) => format!(
+                "resource `{}`, held by {} ({} of {})",
+                res.name,
+                names(holders),
+                res.in_use,
+                res.capacity
+            ),
+            Why::Behind(nodes) => format!(
+                "resource `{}`, promised first to the earlier request(s) of {}",
+                res.name,
+                names(nodes)
+            ),
+            Why::Locked => format!("resource `{}` to be unlocked", res.name),
+            Why::Reserved(h) => format!("resource `{}`, reserved for {}", res.name, names(&[*h])),
+            Why::OverCapacity { .. } => self.why_text(r, why),
+        }
+    }
 }
 
 /// `name {display} facet point`, as the report writes an event.

@@ -164,6 +164,11 @@ impl<A, F: Clone> Engine<A, F> {
             }
             match h {
                 State::Active | State::Enabled => {
+                    // A waiting request is withdrawn, a grant goes back, unless its action is
+                    // still stopping (then once it stopped).
+                    if !self.node(c).stopping {
+                        self.release_resources(c);
+                    }
                     self.transition(c, Facet::Handling, State::Completed);
                     self.bury_reservations(c);
                 }
@@ -274,6 +279,7 @@ impl<A, F: Clone> Engine<A, F> {
                 n.suspended = on;
                 let display = n.display;
                 let resume = !on && std::mem::replace(&mut n.parked, false);
+                let n_waits = n.grant() == super::resource::Grant::Waiting;
                 emit!(
                     self,
                     if on {
@@ -284,6 +290,10 @@ impl<A, F: Clone> Engine<A, F> {
                 );
                 if resume {
                     self.ready.push_back(c);
+                }
+                if !on && n_waits {
+                    // Its waiting request may be granted now.
+                    self.res.dirty = true;
                 }
             }
             let mut child = self.first_child(c);

@@ -62,8 +62,12 @@ impl<A, F: Clone> Engine<A, F> {
             monitor,
             handlers,
             retry,
+            mut uses,
         } = spec;
         self.live(parent)?;
+        if let Some(u) = uses.as_mut() {
+            self.validate_uses(u)?;
+        }
         // Handlers attached from outside to this node's task.
         let class_handlers: Vec<HandlerEntry<F>> = if self.class_handlers.is_empty() {
             Vec::new()
@@ -144,6 +148,9 @@ impl<A, F: Clone> Engine<A, F> {
             }
             if !class_handlers.is_empty() {
                 node.cold_mut().class_handlers = class_handlers;
+            }
+            if let Some(u) = uses.filter(|u| !u.amounts.is_empty()) {
+                node.cold_mut().uses = Some(*u);
             }
         }
         self.link(parent, id);

@@ -3,7 +3,8 @@
 //!
 //! Timed and event-driven constraints are generated as the engine sees them, one trigger: a "when"
 //! ([`when`]) combined with a "then" ([`then`]), so every combination comes up; with monitors,
-//! exception handlers, failures, and external events that the program raises itself.
+//! exception handlers, failures, external events that the program raises itself, and resources
+//! (random uses, priorities and refusals to wait, over capacities and a pending limit).
 
 use proptest::prelude::*;
 use std::rc::Rc;
@@ -11,7 +12,7 @@ use std::time::Duration;
 use tcm_core::sim::{Body, Factory, Outcome, Sim, SimEngine, body, factory};
 use tcm_core::{
     Constraint, EngineError, Event, ExternalId, Facet, Failure, HandlerSpec, MonitorSpec, NodeId,
-    NodeKind, NodeRef, Point, Purpose, Spawn, Then, Time, When,
+    NodeKind, NodeRef, Point, Purpose, Spawn, Then, Time, Uses, When,
 };
 
 #[derive(Clone, Debug)]
@@ -89,6 +90,12 @@ struct Plan {
     children: Vec<Plan>,
     monitor: Option<Mon>,
     handlers: Vec<H>,
+    /// Resources it uses: (resource `r<k>`, a draw for the amount: 0 asks for more than any
+    /// capacity, 1 to 3 for two units of `r1`, else one unit), at a priority, maybe refusing to
+    /// wait.
+    uses: Vec<(u8, u8)>,
+    priority: i8,
+    deny: bool,
 }
 
 /// A monitor instead of a plain node.
@@ -214,9 +221,21 @@ fn leaf() -> impl Strategy<Value = Plan> {
         prop::collection::vec(constraint(), 0..3),
         mon(),
         handlers(),
+        (
+            prop::collection::vec((0u8..3, 0u8..10), 0..3),
+            -1i8..2,
+            prop::bool::weighted(0.1),
+        ),
     )
         .prop_map(
-            |((goal, secs, fail, exc), (never, raise), constraints, monitor, handlers)| Plan {
+            |(
+                (goal, secs, fail, exc),
+                (never, raise),
+                constraints,
+                monitor,
+                handlers,
+                (uses, priority, deny),
+            )| Plan {
                 goal,
                 secs,
                 fail,
@@ -227,6 +246,9 @@ fn leaf() -> impl Strategy<Value = Plan> {
                 children: vec![],
                 monitor,
                 handlers,
+                uses,
+                priority,
+                deny,
             },
         )
 }
@@ -326,6 +348,25 @@ fn action(plan: Rc<Plan>) -> Body {
             };
             if child.goal && child.monitor.is_none() {
                 spec.handlers = child.handlers.iter().map(handler).collect();
+            }
+            if !child.uses.is_empty() {
+                let amounts = child
+                    .uses
+                    .iter()
+                    .filter_map(|(r, draw)| {
+                        let amount = match (*r, *draw) {
+                            (_, 0) => 3,
+                            (1, 1..=3) => 2,
+                            _ => 1,
+                        };
+                        Some((e.resource_id(&format!("r{r}"))?, amount))
+                    })
+                    .collect();
+                spec.uses = Some(Box::new(Uses {
+                    amounts,
+                    priority: i32::from(child.priority),
+                    deny_if_busy: child.deny,
+                }));
             }
             let mut has_first = false;
             for c in &child.constraints {
@@ -435,6 +476,12 @@ fn monitor_spec(m: &Mon) -> MonitorSpec<Factory> {
 fn run(plan: &Plan) -> Vec<tcm_trace::TraceEvent> {
     let mut sim = Sim::new();
     let root = sim.engine.root();
+    // Resources the nodes use: one unit, two units with at most one request waiting, one unit.
+    for (name, capacity, pending) in [("r0", 1, None), ("r1", 2, Some(1)), ("r2", 1, None)] {
+        sim.engine
+            .declare_resource(name, capacity, pending)
+            .expect("declare");
+    }
     let spec = Spawn::new(root, NodeKind::Goal, "top", action(Rc::new(plan.clone())));
     sim.engine.spawn(Time::ZERO, spec).expect("spawn top");
     sim.run_until(Time::ZERO + Duration::from_secs(600));

@@ -102,6 +102,25 @@ pub enum Rule {
     /// A timer callback set twice under one number, run without being set, run twice, or run before
     /// its event happened (its node reached the point, or was found dead) or its time came.
     Callback,
+    /// A resource record that does not fit what came before: a resource declared twice or never
+    /// declared, a request from a node that already waits for or holds resources, a grant,
+    /// withdrawal, denial or drop without a waiting request, a grant of other amounts than those
+    /// requested, a release without a grant or of other amounts than those granted.
+    ResourceRequest,
+    /// More requests wait for a resource than its pending limit allows, once the request that
+    /// went past it was dealt with (checked at the next request and at the end).
+    ResourcePending,
+    /// A grant takes a resource past its capacity.
+    ResourceCapacity,
+    /// A grant of a locked resource, or of a resource reserved for a node outside whose subtree
+    /// the grantee is.
+    ResourceLock,
+    /// A node that asked for resources went active without holding its grant.
+    ResourceGrant,
+    /// A node's handling completed, while it was not terminating, with resources still granted
+    /// or a request still waiting; or its execution completed, it was terminated or reclaimed
+    /// with either.
+    ResourceRelease,
 }
 
 impl Rule {
@@ -144,6 +163,12 @@ impl Rule {
             Rule::Handler => "handler",
             Rule::Retry => "retry",
             Rule::Callback => "callback",
+            Rule::ResourceRequest => "resource-request",
+            Rule::ResourcePending => "resource-pending",
+            Rule::ResourceCapacity => "resource-capacity",
+            Rule::ResourceLock => "resource-lock",
+            Rule::ResourceGrant => "resource-grant",
+            Rule::ResourceRelease => "resource-release",
         }
     }
 }

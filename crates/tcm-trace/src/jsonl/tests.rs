@@ -10,7 +10,7 @@ fn lines_serialise_flat_with_tags() {
     let t = small_run();
     assert_eq!(
         to_line(&t[0]),
-        r#"{"seq":0,"t":0,"ev":"run_started","version":4,"run":0}"#
+        r#"{"seq":0,"t":0,"ev":"run_started","version":5,"run":0}"#
     );
     assert_eq!(
         to_line(&t[1]),
@@ -174,7 +174,7 @@ fn errors_name_the_line_and_the_problem() {
     let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":9,\"run\":0}");
     assert_eq!(
         e,
-        "line 1: the trace has format version 9, but this reader reads versions 1 to 4"
+        "line 1: the trace has format version 9, but this reader reads versions 1 to 5"
     );
     assert!(matches!(
         read_jsonl(&b"\xff\n"[..]),
@@ -215,7 +215,7 @@ fn documented_examples_are_exact() {
             thens.insert(key(&value["constraint"]["then"]));
         }
     }
-    assert_eq!(kinds.len(), 24, "{kinds:?}");
+    assert_eq!(kinds.len(), 35, "{kinds:?}");
     assert_eq!(forms.len(), 3, "{forms:?}");
     // Every kind of "when" with every kind of "then" is shown (the empty string is not a trigger).
     assert_eq!(whens.len(), 6, "{whens:?}");

@@ -15,6 +15,7 @@ mod loud;
 mod monitors;
 mod panics;
 mod paper;
+mod resources;
 mod runtime;
 mod session;
 mod stuck;

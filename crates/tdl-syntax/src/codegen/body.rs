@@ -32,7 +32,7 @@ use proc_macro2::{Ident, Literal, Span, TokenStream, TokenTree};
 use quote::{format_ident, quote};
 
 use super::spawn::Frame;
-use crate::ast::{Block, Else, Fail, Stmt, Task, TaskConstraintKind, TaskKind};
+use crate::ast::{Block, Else, Fail, ResourceOp, Stmt, Task, TaskConstraintKind, TaskKind};
 use crate::diagnostic::Diagnostic;
 use crate::resolve::{BodyScope, FileScope, LoopId, node_macro};
 
@@ -124,6 +124,7 @@ pub(super) fn task_body(
         // The caught exception only through the explicit binding `handles E as name`: a word
         // `exception` in the body is plain Rust (docs/semantics.md, "Exceptions and handlers").
         if let (Some(exc), Some(var)) = (&task.handles, &task.caught) {
+            let exc = g.file.exception_type(exc);
             head.extend(quote! {
                 let #var: ::tdl::Caught<#exc> = ::tdl::codegen::caught::<#exc>(&ctx, #name)?;
             });
@@ -252,6 +253,7 @@ fn stmt_span(stmt: &Stmt) -> Span {
         Stmt::Block(it) => it.span,
         Stmt::Succeed(span) | Stmt::Bypass(span) | Stmt::Trigger(span) => *span,
         Stmt::Retry(it) => it.span,
+        Stmt::Resource(it) => it.span,
     }
 }
 
@@ -408,6 +410,15 @@ impl<'a> Gen<'_, 'a> {
             // Handlers only, monitors only (the diagnosis reports them elsewhere).
             Stmt::Bypass(_) => quote!(return ctx.bypass();),
             Stmt::Trigger(_) => quote!(ctx.trigger()?;),
+            Stmt::Resource(it) => {
+                let r = super::resource_ref(self.file, &it.name);
+                match it.op {
+                    ResourceOp::Lock => quote!(ctx.lock_resource(#r)?;),
+                    ResourceOp::Unlock => quote!(ctx.unlock_resource(#r)?;),
+                    ResourceOp::Reserve => quote!(ctx.reserve_resource(#r, ctx.node())?;),
+                    ResourceOp::Unreserve => quote!(ctx.unreserve_resource(#r)?;),
+                }
+            }
             Stmt::Retry(it) => {
                 let retry = match &it.args {
                     None => quote!(ctx.retry()?),

@@ -405,7 +405,10 @@ impl Gen<'_, '_> {
             | ConstraintKind::Propagate
             | ConstraintKind::Name(_)
             | ConstraintKind::Parent(_)
-            | ConstraintKind::OnTerminate(_) => None,
+            | ConstraintKind::OnTerminate(_)
+            | ConstraintKind::Uses(_)
+            | ConstraintKind::Priority(_)
+            | ConstraintKind::DenyIfBusy => None,
         }
     }
 

@@ -9,7 +9,7 @@ use quote::{format_ident, quote};
 
 use super::body::Gen;
 use super::lower::{Low, Lowered, Nodes, duration};
-use super::{count_expr, handler_expr};
+use super::{count_expr, handler_expr, priority_expr, uses_expr};
 use crate::ast::{
     Bind, BindTarget, Binding, Constraint, ConstraintKind, ConstraintStmt, OnTerminate, Spawn,
     TagKind, Then, When, WithGroup,
@@ -221,6 +221,15 @@ impl<'a> Gen<'_, 'a> {
                         let d = duration(t);
                         quote!(.period(#d))
                     }
+                    ConstraintKind::Uses(list) => {
+                        for it in list {
+                            let m = uses_expr(self.file, it, self.diags);
+                            parts.steps.push(Step::Method(m));
+                        }
+                        continue;
+                    }
+                    ConstraintKind::Priority(p) => priority_expr(p),
+                    ConstraintKind::DenyIfBusy => quote!(.deny_if_busy()),
                     _ => {
                         match self.lower(c, list_prev) {
                             Some(Lowered::Each { nodes, low, empty }) => {
@@ -397,7 +406,10 @@ impl<'a> Gen<'_, 'a> {
             | ConstraintKind::ExceptionHandler(_)
             | ConstraintKind::Parent(_)
             | ConstraintKind::Outcome
-            | ConstraintKind::Propagate => return TokenStream::new(),
+            | ConstraintKind::Propagate
+            | ConstraintKind::Uses(_)
+            | ConstraintKind::Priority(_)
+            | ConstraintKind::DenyIfBusy => return TokenStream::new(),
             _ => {}
         }
         match self.lower(c, &prev) {

@@ -518,3 +518,37 @@ fn macro_expansion_has_no_source_markers() {
     assert!(out.contains("println!(\"{x}\");\n"), "{out}");
     assert!(!out.contains("__tdl_source"), "{out}");
 }
+
+#[test]
+fn resources_generate_uses_with_their_declarations() {
+    let out = expand(include_str!("../../test_data/ok/resources.tdl"));
+    for line in [
+        // A task-level use and priority go on the task.
+        ".uses(::tdl::Resource::new(\"cpu\", 1u32), 1).priority(2i32)",
+        // A declared resource is named by its declaration, so the run declares it on first use.
+        ".uses(::tdl::Resource::new(\"base\", 1u32), 1).uses(::tdl::Resource::new(\"arm\", 2u32).pending_limit(4u32), 2).priority(-1i32)",
+        ".uses(::tdl::Resource::new(\"arm\", 2u32).pending_limit(4u32), ::tdl::codegen::count(n)).deny_if_busy()",
+        ".priority((n as i32 + 1))",
+        // The runtime's own exceptions, handled without a declaration.
+        "::tdl::codegen::handles::<::tdl::ResourceDenied>(\"ResourceDenied\")",
+        "let denied: ::tdl::Caught<::tdl::ResourceDenied> = ::tdl::codegen::caught::<::tdl::ResourceDenied>(&ctx, \"retake\")?;",
+        // Reserve and lock statements.
+        "ctx.reserve_resource(::tdl::Resource::new(\"base\", 1u32), ctx.node())?;",
+        "ctx.lock_resource(::tdl::Resource::new(\"camera\", 1u32))?;",
+        "ctx.unlock_resource(::tdl::Resource::new(\"camera\", 1u32))?;",
+        "ctx.unreserve_resource(::tdl::Resource::new(\"base\", 1u32))?;",
+    ] {
+        assert!(has(&out, line), "missing {line:?} in:\n{out}");
+    }
+    // A resource the program does not declare is named, for the runtime to have declared it.
+    let out = expand("command c() {} goal g() { spawn c() with uses lidar(2); }");
+    assert!(has(&out, ".uses(\"lidar\", 2)"), "{out}");
+}
+
+#[test]
+fn resource_misuse_is_an_error() {
+    assert_eq!(
+        errors("resource arm(2); command c() {} goal g() { spawn c() with uses arm(3); }"),
+        ["asks for 3 of `arm`, whose capacity is 2"]
+    );
+}

@@ -525,6 +525,7 @@ impl<'a> Walk<'_, 'a> {
             | Stmt::Fail(_)
             | Stmt::Bypass(_)
             | Stmt::Trigger(_)
+            | Stmt::Resource(_)
             | Stmt::Retry(_) => {}
         }
     }

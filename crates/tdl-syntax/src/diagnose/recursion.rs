@@ -251,7 +251,7 @@ impl<'a> Must<'a> {
             }
             Stmt::Rust(it) => self.exited |= may_exit(it.tokens.clone()),
             Stmt::Bind(it) => self.exited |= may_exit(it.expr.to_token_stream()),
-            Stmt::Constrain(_) | Stmt::Trigger(_) => {}
+            Stmt::Constrain(_) | Stmt::Trigger(_) | Stmt::Resource(_) => {}
             Stmt::Succeed(_) | Stmt::Fail(_) | Stmt::Bypass(_) | Stmt::Retry(_) => {
                 self.exited = true;
             }
@@ -405,6 +405,7 @@ fn by_hand(block: &Block) -> bool {
         | Stmt::Fail(_)
         | Stmt::Bypass(_)
         | Stmt::Trigger(_)
+        | Stmt::Resource(_)
         | Stmt::Retry(_) => false,
     })
 }

@@ -27,6 +27,8 @@ fn splits_joined_keywords() {
         split("terminateatexternal"),
         Some(vec!["terminate", "at", "external"])
     );
+    assert_eq!(split("denyifbusy"), Some(vec!["deny", "if", "busy"]));
+    assert_eq!(split("uses"), Some(vec!["uses"]));
     assert_eq!(split("monitorpickup"), None);
     assert_eq!(split("waiter"), None);
 }

@@ -13,7 +13,8 @@ use syn::{Token, Type};
 use super::{Cx, parse_group, parse_group_as, take_group};
 use crate::ast::{
     Constraint, ConstraintKind, Count, Event, ExternalName, Facet, HandlerRef, OnTerminate,
-    Persistent, Point, Tag, TagIndex, TagKind, TaskConstraint, TaskConstraintKind, Then, When,
+    Persistent, Point, Priority, ResourceAmount, Tag, TagIndex, TagKind, TaskConstraint,
+    TaskConstraintKind, Then, When,
 };
 use crate::keyword::{Word, expect_phrase, peek_phrase, peek_words, take_words};
 use crate::time::{TIME_HINT, parse_rel_time, parse_time_of_day, peek_time_of_day};
@@ -172,6 +173,18 @@ fn parse_constraint_inner(input: ParseStream, cx: &mut Cx) -> syn::Result<Constr
         Some("parent") => {
             take_words(input, 1)?;
             ConstraintKind::Parent(input.call(syn::Expr::parse_without_eager_brace)?)
+        }
+        Some("uses") => {
+            take_words(input, 1)?;
+            ConstraintKind::Uses(parse_uses(input)?)
+        }
+        Some("priority") => {
+            take_words(input, 1)?;
+            ConstraintKind::Priority(parse_priority(input)?)
+        }
+        Some("deny") => {
+            expect_phrase(input, &["deny", "if", "busy"])?;
+            ConstraintKind::DenyIfBusy
         }
         _ => {
             let what = match input.cursor().token_tree() {
@@ -399,8 +412,101 @@ pub(crate) fn parse_tag(input: ParseStream) -> syn::Result<Tag> {
     Ok(Tag { kind, span })
 }
 
-fn parse_count(input: ParseStream) -> syn::Result<Count> {
+/// Parses the list after `uses`: `name` or `name(amount)`, comma separated. The list goes on
+/// after a comma while the next identifier is not a constraint keyword (`uses base, arm(2),
+/// priority 1` ends before `priority`).
+fn parse_uses(input: ParseStream) -> syn::Result<Vec<ResourceAmount>> {
+    let mut out = vec![resource_amount(input)?];
+    loop {
+        let fork = input.fork();
+        if fork.parse::<Token![,]>().is_err() {
+            break;
+        }
+        let next = peek_words(fork.cursor(), 1);
+        let starts = next
+            .first()
+            .and_then(|it| it.text)
+            .is_some_and(crate::keyword::starts_constraint);
+        if starts || fork.cursor().ident().is_none() {
+            break;
+        }
+        input.parse::<Token![,]>()?;
+        out.push(resource_amount(input)?);
+    }
+    Ok(out)
+}
+
+/// `name` or `name(amount)`.
+fn resource_amount(input: ParseStream) -> syn::Result<ResourceAmount> {
+    if input.cursor().ident().is_none() {
+        return Err(
+            input.error("expected a resource's name after `uses`, as in `uses base, arm(2)`")
+        );
+    }
+    let name = input.call(Ident::parse_any)?;
+    if !input.peek(syn::token::Paren) {
+        let span = name.span();
+        return Ok(ResourceAmount {
+            name,
+            amount: None,
+            span,
+        });
+    }
+    let group = take_group(input, Delimiter::Parenthesis, "`(`")?;
+    let span = group.span;
+    let expr: syn::Expr = parse_group_as(group)?;
+    Ok(ResourceAmount {
+        name,
+        amount: Some(count_of(expr)?),
+        span,
+    })
+}
+
+/// `priority N`: an integer literal (possibly negative) or a Rust expression.
+fn parse_priority(input: ParseStream) -> syn::Result<Priority> {
     let expr = input.call(syn::Expr::parse_without_eager_brace)?;
+    let literal = |lit: &syn::LitInt, negative: bool| -> syn::Result<Option<Priority>> {
+        if !lit.suffix().is_empty() {
+            return Ok(None);
+        }
+        let n = lit.base10_parse::<i64>()?;
+        Ok(Some(Priority::Const(if negative { -n } else { n })))
+    };
+    match &expr {
+        syn::Expr::Lit(syn::ExprLit {
+            lit: syn::Lit::Int(lit),
+            ..
+        }) => {
+            if let Some(p) = literal(lit, false)? {
+                return Ok(p);
+            }
+        }
+        syn::Expr::Unary(syn::ExprUnary {
+            op: syn::UnOp::Neg(_),
+            expr: inner,
+            ..
+        }) => {
+            if let syn::Expr::Lit(syn::ExprLit {
+                lit: syn::Lit::Int(lit),
+                ..
+            }) = inner.as_ref()
+            {
+                if let Some(p) = literal(lit, true)? {
+                    return Ok(p);
+                }
+            }
+        }
+        _ => {}
+    }
+    Ok(Priority::Expr(expr))
+}
+
+fn parse_count(input: ParseStream) -> syn::Result<Count> {
+    count_of(input.call(syn::Expr::parse_without_eager_brace)?)
+}
+
+/// A count: an integer literal without suffix, or any other expression.
+fn count_of(expr: syn::Expr) -> syn::Result<Count> {
     if let syn::Expr::Lit(syn::ExprLit {
         lit: syn::Lit::Int(lit),
         ..
@@ -515,6 +621,8 @@ fn task_constraint(input: ParseStream, cx: &mut Cx) -> syn::Result<TaskConstrain
         ConstraintKind::Period(it) => TaskConstraintKind::Period(it),
         ConstraintKind::Serial { tag: None } => TaskConstraintKind::Serial,
         ConstraintKind::Sequential { facet, tag: None } => TaskConstraintKind::Sequential(facet),
+        ConstraintKind::Uses(it) => TaskConstraintKind::Uses(it),
+        ConstraintKind::Priority(it) => TaskConstraintKind::Priority(it),
         _ => {
             return Err(syn::Error::new(
                 span,

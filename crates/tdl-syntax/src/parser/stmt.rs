@@ -20,8 +20,8 @@ use super::constraint::{
 };
 use super::{Cx, attempt, parse_block, parse_group, recover, take_group};
 use crate::ast::{
-    Arm, Bind, BindTarget, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match, Retry,
-    RustStmt, Spawn, Stmt, While, WithGroup,
+    Arm, Bind, BindTarget, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match,
+    ResourceOp, ResourceStmt, Retry, RustStmt, Spawn, Stmt, While, WithGroup,
 };
 use crate::keyword::{peek_words, starts_constraint};
 
@@ -154,6 +154,24 @@ fn is_bare(cursor: Cursor<'_>, keyword: &str) -> bool {
     }
 }
 
+/// The resource statement at the cursor: `lock r;`, `unlock r;`, `reserve r;`, `unreserve r;`
+/// (a keyword, an identifier and `;`, which no Rust statement is).
+fn resource_op(cursor: Cursor<'_>) -> Option<ResourceOp> {
+    let (word, rest) = first_ident(cursor)?;
+    let op = match word.as_str() {
+        "lock" => ResourceOp::Lock,
+        "unlock" => ResourceOp::Unlock,
+        "reserve" => ResourceOp::Reserve,
+        "unreserve" => ResourceOp::Unreserve,
+        _ => return None,
+    };
+    let (_, after) = rest.ident()?;
+    after
+        .punct()
+        .is_some_and(|(p, _)| p.as_char() == ';')
+        .then_some(op)
+}
+
 fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
     let mut labels = Vec::new();
     while input.peek(syn::Ident) && input.peek2(Token![:]) && !input.peek2(Token![::]) {
@@ -206,6 +224,16 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
     }
     if is_bind(cursor) {
         return bind(input).map(Stmt::Bind);
+    }
+    if let Some(op) = resource_op(cursor) {
+        let keyword = input.call(Ident::parse_any)?;
+        let name: Ident = input.parse()?;
+        input.parse::<Token![;]>()?;
+        return Ok(Stmt::Resource(ResourceStmt {
+            op,
+            name,
+            span: keyword.span(),
+        }));
     }
     if is_constraint_stmt(cursor) {
         return constraint_stmt(input, cx).map(Stmt::Constrain);

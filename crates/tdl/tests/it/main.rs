@@ -19,6 +19,7 @@ mod patterns;
 mod porting;
 mod propagation;
 mod refs;
+mod resources;
 mod ui;
 mod util;
 mod warnings;
