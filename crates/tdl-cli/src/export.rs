@@ -114,6 +114,14 @@ pub(crate) fn schema(ev: &str) -> Option<Value> {
     let node = || json!({"type": "integer", "minimum": 0, "description": "display number of a node ({id} in TCM's log)"});
     let maybe_node = || json!({"type": ["integer", "null"], "minimum": 0});
     let string = || json!({"type": "string"});
+    let resource_uses = || {
+        json!({"type": "array", "items": {
+            "type": "object",
+            "properties": {"resource": {"type": "string"}, "amount": {"type": "integer", "minimum": 1, "maximum": u32::MAX}},
+            "required": ["resource", "amount"],
+            "additionalProperties": false,
+        }})
+    };
     let mut uses_defs = false;
     let (description, fields): (&str, Vec<(&str, Value)>) = match ev {
         "run_started" => (
@@ -269,6 +277,61 @@ pub(crate) fn schema(ev: &str) -> Option<Value> {
             "The callback's event happened or its time came; the shell runs it now.",
             vec![("callback", count()), ("name", string())],
         ),
+        "resource" => (
+            "A resource was declared: its capacity, and how many requests may wait for it (null: no limit).",
+            vec![
+                ("resource", string()),
+                ("capacity", u32_()),
+                (
+                    "pending_limit",
+                    json!({"type": ["integer", "null"], "minimum": 0, "maximum": u32::MAX}),
+                ),
+            ],
+        ),
+        "requested" => (
+            "A node asks for resources, all at once: its handling is enabled and it would start.",
+            vec![
+                ("node", node()),
+                ("uses", resource_uses()),
+                (
+                    "priority",
+                    json!({"type": "integer", "minimum": i32::MIN, "maximum": i32::MAX}),
+                ),
+            ],
+        ),
+        "granted" => (
+            "A node's request was granted: it holds the resources until its action ends.",
+            vec![("node", node()), ("uses", resource_uses())],
+        ),
+        "released" => (
+            "A node gave back what it was granted.",
+            vec![("node", node()), ("uses", resource_uses())],
+        ),
+        "withdrawn" => (
+            "A waiting request was withdrawn: its node was terminated before it was granted.",
+            vec![("node", node())],
+        ),
+        "denied" => (
+            "A request was refused; its node fails with ResourceDenied.",
+            vec![("node", node()), ("resource", string())],
+        ),
+        "dropped" => (
+            "A waiting request was dropped past the resource's pending limit; its node fails with ResourceDropped.",
+            vec![("node", node()), ("resource", string())],
+        ),
+        "resource_reserved" => (
+            "A resource was reserved for a node's subtree.",
+            vec![("resource", string()), ("holder", node())],
+        ),
+        "resource_unreserved" => (
+            "A resource's reservation ended.",
+            vec![("resource", string())],
+        ),
+        "resource_locked" => (
+            "A resource was locked: nobody is granted it until it is unlocked.",
+            vec![("resource", string())],
+        ),
+        "resource_unlocked" => ("A resource was unlocked.", vec![("resource", string())]),
         _ => return None,
     };
     let mut properties = serde_json::Map::new();
@@ -512,7 +575,7 @@ mod tests {
                 _ => {}
             }
         }
-        assert_eq!(kinds.len(), 24, "{kinds:?}");
+        assert_eq!(kinds.len(), 35, "{kinds:?}");
         for file in ["run.jsonl", "handled_run.jsonl"] {
             let path = format!("{}/tests/data/{file}", env!("CARGO_MANIFEST_DIR"));
             let text = std::fs::read_to_string(&path).expect("a test trace");
