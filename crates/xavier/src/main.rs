@@ -40,8 +40,8 @@ struct Cli {
 
     /// What is special about the floor: nominal (passers-by only), blocked-corridor (a cart blocks
     /// the south corridor: the guarded move fails, the robot detours), no-path (room 12 cannot be
-    /// reached: it is given up, the others are delivered), overheat (the motor heats fast: motion
-    /// is suspended until it cools).
+    /// reached: it is given up, the others are delivered), overheat (the motor heats fast: the motor
+    /// monitor keeps the base, and motion waits for it, until the motor cools).
     #[arg(long, value_enum, default_value_t = ScenarioArg::Nominal)]
     scenario: ScenarioArg,
 

@@ -11,13 +11,14 @@
 //! - `NoPath`, and whatever the two above give up on (`Blocked`, `Overheating`), and
 //!   `DoorNotFound`: the `give_up_*` handlers, attached to the delivery, record the room as
 //!   undeliverable and terminate the delivery, so the round goes on with the next room.
-//! - `watch_motor` polls the motor temperature while the robot travels and suspends the
-//!   navigation at [`OVERHEAT_WARNING_C`] (the running stretch finishes, no new one starts), then
-//!   unsuspends it below [`MOTOR_COOL_C`].
+//! - `watch_motor` polls the motor temperature while the robot travels and, at
+//!   [`OVERHEAT_WARNING_C`], reserves the base for itself: every motion command uses the base, so
+//!   the running stretch finishes and the next one waits, enabled, for the base; below
+//!   [`MOTOR_COOL_C`] it gives the reservation up (docs/semantics.md, "Resources").
 
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
-use tdl::{Ctx, Failure, NodeId};
+use tdl::{Ctx, Failure};
 use xavier_world::{
     CENTRING_STEP, MOTOR_COOL_C, OVERHEAT_WARNING_C, SharedWorld, Waypoint, guarded_move, legs,
     look_for_door, mail_gone, motor_temperature, plan_path, speak, turn,
@@ -41,8 +42,8 @@ pub const NOTIFY_TIME: Duration = Duration::from_millis(300);
 pub const COOLING_POLL: Duration = Duration::from_secs(1);
 /// Turns smaller than this (radians) are not spawned.
 pub const TURN_EPSILON: f64 = 1e-6;
-/// Legs are driven in guarded moves of at most this many metres: a suspended navigation stops
-/// at the end of the stretch under way.
+/// Legs are driven in guarded moves of at most this many metres: when the motor monitor takes the
+/// base, the robot stops at the end of the stretch under way.
 pub const STRETCH: f64 = 5.0;
 
 /// `distance` metres cut into stretches of at most [`STRETCH`] metres, as equal as can be.
@@ -69,8 +70,6 @@ pub struct Undeliverable {
 
 #[derive(Debug, Default)]
 struct Log {
-    /// The latest navigation node, for the motor monitor.
-    navigation: Option<NodeId>,
     undeliverable: Vec<Undeliverable>,
     notified: Vec<u32>,
 }
@@ -95,16 +94,6 @@ impl Mission {
     fn log(&self) -> MutexGuard<'_, Log> {
         // The log is plain data changed in non-panicking steps: a poisoned lock still guards it.
         self.log.lock().unwrap_or_else(PoisonError::into_inner)
-    }
-
-    /// Called by `navigate_to_locn`: `node` is now the navigation the motor monitor suspends.
-    pub fn navigating(&self, node: NodeId) {
-        self.log().navigation = Some(node);
-    }
-
-    /// The latest navigation node.
-    pub fn navigation(&self) -> Option<NodeId> {
-        self.log().navigation
     }
 
     /// Called by `notify_sender`.

@@ -1,7 +1,8 @@
 //! The summary of a run, read from its trace and the mission's log: rooms delivered, rooms given
 //! up and why, every exception raised and how it was handled (`failed`, `handler_chosen`,
-//! `bypassed`, `retried` and unhandled-exception `warning` records), the suspensions of motion,
-//! and the times.
+//! `bypassed`, `retried` and unhandled-exception `warning` records), the waits for a resource
+//! (`requested` to `granted`, with what held it: the motor monitor keeps the base while the motor
+//! cools), and the times.
 
 use crate::mission::Undeliverable;
 use crate::{Done, Setup, secs};
@@ -45,15 +46,19 @@ impl ExceptionStory {
     }
 }
 
-/// A span of time the navigation was suspended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Suspension {
-    /// The suspended node's number.
-    pub node: u64,
-    /// When it was suspended.
+/// A node that waited, enabled, for a resource: from its request to its grant.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ResourceWait {
+    /// The waiting node, as `name {id}`.
+    pub node: String,
+    /// What it asked for, as `base` or `arm(2), base`.
+    pub uses: String,
+    /// When it asked.
     pub from: Duration,
-    /// When it was unsuspended (or terminated); `None` if never.
+    /// When it was granted; `None` if never.
     pub until: Option<Duration>,
+    /// Why, when it asked: the reservation or the holders in its way.
+    pub why: String,
 }
 
 /// What a run achieved.
@@ -71,8 +76,8 @@ pub struct Summary {
     pub not_taken: Vec<u32>,
     /// Every exception raised, in order.
     pub exceptions: Vec<ExceptionStory>,
-    /// Every suspension of a subtree (its top node), in order.
-    pub suspensions: Vec<Suspension>,
+    /// Every wait of a node for a resource, in order of its grant (those never granted last).
+    pub resource_waits: Vec<ResourceWait>,
     /// How the run ended.
     pub outcome: RunOutcome,
     /// Every failure no handler took (the run went on after each, as in TCM).
@@ -106,7 +111,7 @@ impl Summary {
             .copied()
             .filter(|r| !delivered.contains(r) && !undeliverable.iter().any(|u| u.room == *r))
             .collect();
-        let (exceptions, suspensions) = read_trace(setup, trace);
+        let (exceptions, resource_waits) = read_trace(setup, trace);
         Summary {
             setup: setup.clone(),
             delivered,
@@ -114,7 +119,7 @@ impl Summary {
             undeliverable,
             not_taken,
             exceptions,
-            suspensions,
+            resource_waits,
             outcome: done.report.outcome.clone(),
             unhandled: done.report.unhandled.clone(),
             failures: done.report.failures,
@@ -131,8 +136,8 @@ impl Summary {
     }
 }
 
-/// Exceptions and suspensions from the trace.
-fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<Suspension>) {
+/// Exceptions and resource waits from the trace.
+fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<ResourceWait>) {
     let mut names: BTreeMap<u64, (String, u64)> = BTreeMap::new();
     // Delivery nodes are spawned in the order of the rooms.
     let mut deliveries: BTreeMap<u64, u32> = BTreeMap::new();
@@ -140,8 +145,11 @@ fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<
     // Failing node -> its story; handler node -> the story it handles.
     let mut by_failing: BTreeMap<u64, usize> = BTreeMap::new();
     let mut by_handler: BTreeMap<u64, usize> = BTreeMap::new();
-    let mut suspended: BTreeMap<u64, usize> = BTreeMap::new();
-    let mut suspensions: Vec<Suspension> = Vec::new();
+    // Resource -> the node it is reserved for; node -> what it holds; node -> its open wait.
+    let mut reserved: BTreeMap<String, u64> = BTreeMap::new();
+    let mut held: BTreeMap<u64, Vec<String>> = BTreeMap::new();
+    let mut asked: BTreeMap<u64, (Duration, String, String)> = BTreeMap::new();
+    let mut waits: Vec<ResourceWait> = Vec::new();
     let label = |names: &BTreeMap<u64, (String, u64)>, id: u64| match names.get(&id) {
         Some((name, _)) => format!("{name} {{{id}}}"),
         None => format!("{{{id}}}"),
@@ -219,30 +227,70 @@ fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<
                     stories[i].recovery.push("no handler".to_string());
                 }
             }
-            TraceKind::Suspended { node } => {
-                let parent = names.get(node).map(|(_, p)| *p);
-                if !parent.is_some_and(|p| suspended.contains_key(&p)) {
-                    suspended.insert(*node, suspensions.len());
-                    suspensions.push(Suspension {
-                        node: *node,
-                        from: at,
-                        until: None,
-                    });
-                } else {
-                    suspended.insert(*node, usize::MAX);
-                }
-            }
-            TraceKind::Unsuspended { node } => {
-                if let Some(i) = suspended.remove(node) {
-                    if let Some(s) = suspensions.get_mut(i) {
-                        s.until = Some(at);
+            TraceKind::Requested { node, uses, .. } => {
+                let mut why = Vec::new();
+                for u in uses {
+                    if let Some(holder) = reserved.get(&u.resource) {
+                        why.push(format!(
+                            "{} reserved for {}",
+                            u.resource,
+                            label(&names, *holder)
+                        ));
+                    }
+                    let holders: Vec<String> = held
+                        .iter()
+                        .filter(|(_, rs)| rs.contains(&u.resource))
+                        .map(|(n, _)| label(&names, *n))
+                        .collect();
+                    if !holders.is_empty() {
+                        why.push(format!("{} held by {}", u.resource, holders.join(", ")));
                     }
                 }
+                let text = tcm_trace::story::uses_text(uses);
+                asked.insert(*node, (at, text, why.join("; ")));
+            }
+            TraceKind::Granted { node, uses } => {
+                held.insert(*node, uses.iter().map(|u| u.resource.clone()).collect());
+                if let Some((from, uses, why)) = asked.remove(node) {
+                    if at > from {
+                        waits.push(ResourceWait {
+                            node: label(&names, *node),
+                            uses,
+                            from,
+                            until: Some(at),
+                            why,
+                        });
+                    }
+                }
+            }
+            TraceKind::Released { node, .. } => {
+                held.remove(node);
+            }
+            TraceKind::Withdrawn { node }
+            | TraceKind::Denied { node, .. }
+            | TraceKind::Dropped { node, .. } => {
+                asked.remove(node);
+            }
+            TraceKind::ResourceReserved { resource, holder } => {
+                reserved.insert(resource.clone(), *holder);
+            }
+            TraceKind::ResourceUnreserved { resource } => {
+                reserved.remove(resource);
             }
             _ => {}
         }
     }
-    (stories, suspensions)
+    // Waits still open at the end of the run.
+    for (node, (from, uses, why)) in asked {
+        waits.push(ResourceWait {
+            node: label(&names, node),
+            uses,
+            from,
+            until: None,
+            why,
+        });
+    }
+    (stories, waits)
 }
 
 fn rooms(rooms: &[u32]) -> String {
@@ -301,13 +349,24 @@ impl fmt::Display for Summary {
                 writeln!(f, "             -> ended with its task (no handler search)")?;
             }
         }
-        if self.suspensions.is_empty() {
-            writeln!(f, "  suspensions:     none")?;
+        if self.resource_waits.is_empty() {
+            writeln!(f, "  resource waits:  none")?;
         } else {
-            writeln!(f, "  suspensions:     {}", self.suspensions.len())?;
-            for sp in &self.suspensions {
-                let until = sp.until.map_or("the end".to_string(), secs);
-                writeln!(f, "    {{{}}} from {} to {until}", sp.node, secs(sp.from))?;
+            writeln!(f, "  resource waits:  {}", self.resource_waits.len())?;
+            for w in &self.resource_waits {
+                let until = w.until.map_or("the end".to_string(), secs);
+                let why = if w.why.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", w.why)
+                };
+                writeln!(
+                    f,
+                    "    {} waited for {} from {} to {until}{why}",
+                    w.node,
+                    w.uses,
+                    secs(w.from)
+                )?;
             }
         }
         writeln!(
@@ -354,7 +413,7 @@ mod tests {
             undeliverable: Vec::new(),
             not_taken: Vec::new(),
             exceptions: Vec::new(),
-            suspensions: Vec::new(),
+            resource_waits: Vec::new(),
             outcome: RunOutcome::Completed,
             unhandled: vec![FatalFailure {
                 failure: Failure::new("NoPath", "every route to room 3 is blocked"),

@@ -22,7 +22,7 @@ fn nominal_delivers_every_room() {
         assert!(story.failures().is_empty(), "seed {seed}:\n{log}");
         // Figure 6: one pickup monitor per room, each triggered once.
         assert_eq!(story.triggers("monitor_pickup"), 3, "seed {seed}:\n{log}");
-        assert!(story.suspended().is_empty(), "seed {seed}:\n{log}");
+        assert!(story.reservations("base").is_empty(), "seed {seed}:\n{log}");
     }
 }
 
@@ -94,26 +94,26 @@ fn no_path_gives_up_on_room_12_and_delivers_the_others() {
 }
 
 #[test]
-fn overheat_suspends_motion_until_the_motor_cools_then_resumes() {
+fn overheat_keeps_the_base_still_until_the_motor_cools_then_motion_resumes() {
     let s = setup(1, Scenario::Overheat, &[3, 7, 12]);
     let (summary, trace, _) = run_checked(&s);
     let log = log_of(&trace);
     let story = Story::new(&trace);
-    let spans = story.suspended();
+    // The motor monitor reserved the base for itself, then gave it back.
+    let spans = story.reservations("base");
     assert!(!spans.is_empty(), "{log}");
-    for &(node, from, until) in &spans {
-        assert_eq!(story.name(node), "navigate_to_locn", "{log}");
-        let until = until.unwrap_or_else(|| panic!("{{{node}}} never unsuspended:\n{log}"));
-        assert!(until > from);
-        // While suspended, no motion starts (the stretch under way may finish)...
+    for &(holder, from, until) in &spans {
+        assert_eq!(story.name(holder), "watch_motor", "{log}");
+        let until = until.unwrap_or_else(|| panic!("the base stayed reserved:\n{log}"));
+        // While reserved, no motion starts (the stretch under way may finish)...
         let started = story.motions_started_between(from, until);
         assert!(
             started.is_empty(),
-            "motions started while suspended: {started:?}\n{log}"
+            "motions started while the base was reserved: {started:?}\n{log}"
         );
         // ...and the robot stood long enough to cool from the warning to MOTOR_COOL_C.
         assert!(until - from >= Duration::from_secs(20), "{log}");
-        // Motion resumes in that navigation after the unsuspension.
+        // Motion resumes after it.
         assert!(
             !story
                 .motions_started_between(until, Duration::MAX)
@@ -122,6 +122,17 @@ fn overheat_suspends_motion_until_the_motor_cools_then_resumes() {
         );
     }
     assert!(story.triggers("watch_motor") >= 1);
+    // The summary names the motion that waited for the base, and why.
+    let wait = summary
+        .resource_waits
+        .iter()
+        .find(|w| w.uses == "base")
+        .unwrap_or_else(|| panic!("no wait for the base:\n{summary}"));
+    assert!(wait.why.contains("reserved for watch_motor"), "{summary}");
+    assert!(
+        summary.to_string().contains("resource waits:  1"),
+        "{summary}"
+    );
     let mut delivered = summary.delivered.clone();
     delivered.sort_unstable();
     assert_eq!(delivered, [3, 7, 12], "{summary}");

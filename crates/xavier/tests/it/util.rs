@@ -123,30 +123,20 @@ impl<'a> Story<'a> {
             .count()
     }
 
-    /// `(node, suspended at, unsuspended at)` of every suspension a monitor applied: the top
-    /// node of each suspended subtree (its parent is not suspended).
-    pub(crate) fn suspended(&self) -> Vec<(u64, Duration, Option<Duration>)> {
-        let mut parents: BTreeMap<u64, u64> = BTreeMap::new();
-        let mut now_suspended: std::collections::BTreeSet<u64> = Default::default();
+    /// Each reservation of `resource`: its holder, from when, until when (`None`: to the end).
+    pub(crate) fn reservations(&self, resource: &str) -> Vec<(u64, Duration, Option<Duration>)> {
         let mut out: Vec<(u64, Duration, Option<Duration>)> = Vec::new();
         for ev in self.trace {
             let t = Duration::from_nanos(ev.t);
-            match ev.kind {
-                TraceKind::Spawned { node, parent, .. } => {
-                    parents.insert(node, parent);
+            match &ev.kind {
+                TraceKind::ResourceReserved {
+                    resource: r,
+                    holder,
+                } if r == resource => {
+                    out.push((*holder, t, None));
                 }
-                TraceKind::Suspended { node } => {
-                    let top = parents
-                        .get(&node)
-                        .is_none_or(|p| !now_suspended.contains(p));
-                    now_suspended.insert(node);
-                    if top {
-                        out.push((node, t, None));
-                    }
-                }
-                TraceKind::Unsuspended { node } => {
-                    now_suspended.remove(&node);
-                    for s in out.iter_mut().filter(|s| s.0 == node && s.2.is_none()) {
+                TraceKind::ResourceUnreserved { resource: r } if r == resource => {
+                    for s in out.iter_mut().filter(|s| s.2.is_none()) {
                         s.2 = Some(t);
                     }
                 }
