@@ -13,7 +13,8 @@ mod why;
 
 pub use model::{
     EventFilter, ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SPAWNED,
-    M_TERMINATED, M_TERMINATING, MARKS, Mark, NameStats, Problem, Row, RunModel, Step, m_point,
+    M_TERMINATED, M_TERMINATING, MARKS, Mark, NameStats, Problem, Restriction, Row, RunModel, Step,
+    m_point,
 };
 pub use server::{DEFAULT_ADDR, LiveSink, ViewError, Viewer, exposure_warning, snapshot_json};
 pub use why::{EventView, NodeView, Wait};

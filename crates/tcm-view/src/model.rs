@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 
 use serde::Serialize;
-use tcm_trace::{Facet, NodeKind, Point, TraceConstraint, TraceEvent, TraceKind};
+use tcm_trace::{Facet, NodeKind, Point, ResourceUse, TraceConstraint, TraceEvent, TraceKind};
 
 /// Index of the spawn mark in a row's marks.
 pub const M_SPAWNED: usize = 0;
@@ -93,6 +93,14 @@ pub struct Row {
     pub handles: Option<(u64, String)>,
     /// For a retry: the node it runs again.
     pub retry_of: Option<u64>,
+    /// Its request for resources, if it made one: when, and what.
+    pub request: Option<(Mark, Vec<ResourceUse>)>,
+    /// When the request was granted.
+    pub granted: Option<Mark>,
+    /// When it gave the resources back.
+    pub released: Option<Mark>,
+    /// When the request ended without a grant (withdrawn, denied, dropped), and how.
+    pub refused: Option<(Mark, &'static str)>,
 }
 
 impl Row {
@@ -112,6 +120,10 @@ impl Row {
             activation_of: None,
             handles: None,
             retry_of: None,
+            request: None,
+            granted: None,
+            released: None,
+            refused: None,
         }
     }
 
@@ -236,6 +248,8 @@ pub struct RunModel {
     times: Vec<(u64, u64)>,
     externals: Vec<(Mark, String)>,
     exceptions: Vec<ExceptionStory>,
+    /// Reservations and locks of resources, with when they began and ended.
+    restrictions: Vec<Restriction>,
     /// The first thing that stopped the reading, if any; everything before it is shown.
     pub problem: Option<Problem>,
     /// Whether the run ended (a file read to its end; a live run whose sinks were flushed).
@@ -264,6 +278,7 @@ impl RunModel {
             times: Vec::new(),
             externals: Vec::new(),
             exceptions: Vec::new(),
+            restrictions: Vec::new(),
             problem: None,
             finished: false,
         }
@@ -544,6 +559,38 @@ impl RunModel {
                 self.row(*node).retry_of = Some(*of);
                 self.step_for(*of, "retried", Some(*node), String::new(), at);
             }
+            K::Requested { node, uses, .. } => {
+                let row = self.row(*node);
+                row.request = Some((at, uses.clone()));
+                row.granted = None;
+                row.released = None;
+                row.refused = None;
+            }
+            K::Granted { node, .. } => self.row(*node).granted = Some(at),
+            K::Released { node, .. } => self.row(*node).released = Some(at),
+            K::Withdrawn { node } => self.row(*node).refused = Some((at, "withdrawn")),
+            K::Denied { node, .. } => self.row(*node).refused = Some((at, "denied")),
+            K::Dropped { node, .. } => self.row(*node).refused = Some((at, "dropped")),
+            K::ResourceReserved { resource, holder } => self.restrictions.push(Restriction {
+                resource: resource.clone(),
+                holder: Some(*holder),
+                from: at,
+                until: None,
+            }),
+            K::ResourceLocked { resource } => self.restrictions.push(Restriction {
+                resource: resource.clone(),
+                holder: None,
+                from: at,
+                until: None,
+            }),
+            K::ResourceUnreserved { resource } | K::ResourceUnlocked { resource } => {
+                let lock = matches!(kind, K::ResourceUnlocked { .. });
+                if let Some(r) = self.restrictions.iter_mut().rev().find(|r| {
+                    &r.resource == resource && r.until.is_none() && r.holder.is_none() == lock
+                }) {
+                    r.until = Some(at);
+                }
+            }
             K::Warning {
                 node: Some(node),
                 message,
@@ -750,6 +797,26 @@ impl RunModel {
         }
         out.sort_by(|a, b| b.total_ns.cmp(&a.total_ns).then(a.name.cmp(&b.name)));
         out
+    }
+}
+
+/// A reservation (for a holder's subtree) or a lock (against all) of a resource.
+#[derive(Clone, Debug)]
+pub struct Restriction {
+    /// The resource.
+    pub resource: String,
+    /// The node whose subtree may still be granted it; `None` for a lock.
+    pub holder: Option<u64>,
+    /// When it began.
+    pub from: Mark,
+    /// When it ended, if it did.
+    pub until: Option<Mark>,
+}
+
+impl RunModel {
+    /// The reservations and locks of the run, in order.
+    pub fn restrictions(&self) -> &[Restriction] {
+        &self.restrictions
     }
 }
 

@@ -358,6 +358,12 @@ impl RunModel {
         if row.point_at(Facet::Handling, at.seq) == Some(Point::Enabled) {
             let enabled = row.marks[m_point(Facet::Handling, Point::Enabled)].map_or(0, |m| m.t);
             let suspended = self.suspended_by(row, at);
+            if suspended.is_none() {
+                if let Some(w) = self.resource_wait(row, at) {
+                    out.push(w);
+                    return out;
+                }
+            }
             let what = match suspended {
                 Some(n) if n == row.number => "it is suspended".to_string(),
                 Some(n) => format!("its ancestor {} is suspended", self.label(n)),
@@ -375,6 +381,68 @@ impl RunModel {
             });
         }
         out
+    }
+
+    /// The wait of a node that asked for resources and was not granted them yet at `at`: each
+    /// resource it asked for, with who holds it, and whether it is reserved or locked.
+    fn resource_wait(&self, row: &Row, at: Mark) -> Option<Wait> {
+        let (asked, uses) = row.request.as_ref().filter(|(m, _)| m.seq <= at.seq)?;
+        if row.granted.is_some_and(|g| g.seq <= at.seq)
+            || row.refused.is_some_and(|(m, _)| m.seq <= at.seq)
+        {
+            return None;
+        }
+        let mut parts = Vec::new();
+        for u in uses {
+            let mut why = Vec::new();
+            let holders: Vec<String> = self
+                .rows()
+                .iter()
+                .filter(|r| {
+                    r.granted.is_some_and(|g| g.seq <= at.seq)
+                        && r.released.is_none_or(|rel| rel.seq > at.seq)
+                        && r.request
+                            .as_ref()
+                            .is_some_and(|(_, us)| us.iter().any(|x| x.resource == u.resource))
+                })
+                .map(|r| self.label(r.number))
+                .collect();
+            if !holders.is_empty() {
+                why.push(format!("held by {}", holders.join(", ")));
+            }
+            for r in self.restrictions().iter().filter(|r| {
+                r.resource == u.resource
+                    && r.from.seq <= at.seq
+                    && r.until.is_none_or(|until| until.seq > at.seq)
+            }) {
+                match r.holder {
+                    Some(h) => why.push(format!("reserved for {}", self.label(h))),
+                    None => why.push("locked".to_string()),
+                }
+            }
+            let amount = if u.amount == 1 {
+                String::new()
+            } else {
+                format!(" ({})", u.amount)
+            };
+            let why = if why.is_empty() {
+                "queued behind an earlier request".to_string()
+            } else {
+                why.join(", ")
+            };
+            parts.push(format!("`{}`{amount}: {why}", u.resource));
+        }
+        Some(Wait {
+            facet: "start",
+            what: format!(
+                "the resources it asked for, all at once: {}",
+                parts.join("; ")
+            ),
+            event: None,
+            time: None,
+            external: None,
+            since: asked.t,
+        })
     }
 
     fn suspended_by(&self, row: &Row, at: Mark) -> Option<u64> {

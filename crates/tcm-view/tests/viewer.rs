@@ -163,6 +163,40 @@ async fn exceptions_counts_and_the_event_filter() {
     assert!(lines.iter().all(|l| l.contains("\"t\":2000000000")));
 }
 
+/// `a` and `b` both use the base (capacity 1); `b` asks while `a` holds it.
+#[tokio::test(start_paused = true)]
+async fn a_node_waiting_for_a_resource_names_it_and_its_holder() {
+    let task = Task::goal("mission", |ctx| async move {
+        for name in ["a", "b"] {
+            ctx.spawn(Task::command(name, |_| async {
+                tokio::time::sleep(secs(2)).await;
+                Ok(())
+            }))
+            .uses("base", 1)
+            .start()?;
+        }
+        Ok(())
+    });
+    let trace = run_checked(Runtime::new().resource("base", 1), task)
+        .await
+        .1;
+    let m = model_of(&trace);
+    let (a, b) = (number(&m, "a"), number(&m, "b"));
+    let v = m.node_view(b, m.seq_at(1_000_000_000)).expect("b");
+    assert_eq!(v.states[0], "enabled");
+    let start: Vec<_> = v.waits.iter().filter(|w| w.facet == "start").collect();
+    assert_eq!(start.len(), 1, "{:?}", v.waits);
+    assert!(
+        start[0].what.contains("`base`: held by a {")
+            && start[0].what.contains(&format!("{{{a}}}")),
+        "{}",
+        start[0].what
+    );
+    // Granted at 2 s: nothing holds it back any more.
+    let v = m.node_view(b, m.seq_at(2_000_000_000)).expect("b");
+    assert!(v.waits.is_empty(), "{:?}", v.waits);
+}
+
 #[test]
 fn a_bad_line_is_named_with_its_file_and_line_and_what_came_before_is_kept() {
     let good = [
