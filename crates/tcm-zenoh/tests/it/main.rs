@@ -7,4 +7,5 @@ mod exceptions;
 mod goals;
 mod remote_command;
 mod termination;
+mod timeouts;
 mod util;
