@@ -254,6 +254,11 @@ impl Agent {
         &self.inner.name
     }
 
+    /// The agent's zenoh session, for a program's own traffic.
+    pub fn session(&self) -> &zenoh::Session {
+        &self.inner.session
+    }
+
     /// The agent's counters.
     pub fn stats(&self) -> AgentStats {
         self.inner.lock().stats

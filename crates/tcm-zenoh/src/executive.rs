@@ -28,6 +28,8 @@ pub(crate) enum Incoming {
     Msg(ToExec),
     /// The agent's liveliness token was deleted.
     Lost,
+    /// The executive was closed.
+    Closed,
 }
 
 /// A remote task placed on an agent and not ended yet.
@@ -57,6 +59,8 @@ struct State {
     // Ended remote tasks and the sequence number of their last message, oldest ids first.
     ended: BTreeMap<u64, u64>,
     placed: BTreeMap<NodeId, Placement>,
+    // `Executive::close` was called.
+    closed: bool,
     publishers: BTreeMap<String, Arc<Publisher<'static>>>,
     stats: Stats,
 }
@@ -85,16 +89,16 @@ pub(crate) struct Inner {
     outbox: mpsc::UnboundedSender<(String, Msg<ToAgent>)>,
     // Fault injection for tests: send every message twice.
     pub(crate) duplicate: bool,
+    // The executive's declarations, until it is closed.
+    keep: Mutex<Option<Keep>>,
 }
 
 /// The process that owns the task tree and runs some of its nodes' actions on agents. Cheap to
 /// clone. Remote tasks are made with [`Executive::remote`]; they are nodes of any `tcm` run of
-/// this process.
+/// this process, and keep the executive open while they exist.
 #[derive(Clone)]
 pub struct Executive {
     pub(crate) inner: Arc<Inner>,
-    // Kept for their declarations: the executive's token and its subscribers.
-    _keep: Arc<Keep>,
 }
 
 struct Keep {
@@ -162,6 +166,7 @@ impl Executive {
         let id = session.zid().to_string();
         let (outbox, mut outgoing) = mpsc::unbounded_channel::<(String, Msg<ToAgent>)>();
         let inner = Arc::new(Inner {
+            keep: Mutex::new(None),
             session: session.clone(),
             system: system.into(),
             id: id.clone(),
@@ -212,14 +217,41 @@ impl Executive {
                 }
             }
         });
-        Ok(Executive {
-            inner,
-            _keep: Arc::new(Keep {
-                _token: token,
-                _inbox: inbox,
-                _agents: agents,
-            }),
-        })
+        *inner.keep.lock().unwrap_or_else(|p| p.into_inner()) = Some(Keep {
+            _token: token,
+            _inbox: inbox,
+            _agents: agents,
+        });
+        Ok(Executive { inner })
+    }
+
+    /// Leaves the system: the executive's token goes (agents abort the bodies it started and run
+    /// their cleanups), its session closes, and every remote task still placed or waiting for an
+    /// agent fails with [`RemoteError`](crate::RemoteError).
+    pub async fn close(&self) {
+        let keep = self
+            .inner
+            .keep
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        {
+            let mut s = self.inner.lock();
+            s.closed = true;
+            let pending: Vec<u64> = s.pending.keys().copied().collect();
+            for id in pending {
+                if let Some(p) = s.pending.get(&id) {
+                    let _ = p.tx.send(Incoming::Closed);
+                    let last = p.last_seq;
+                    s.end(id, last);
+                }
+            }
+        }
+        self.inner.changed.send_modify(|n| *n += 1);
+        drop(keep);
+        if let Err(e) = self.inner.session.close().await {
+            tracing::warn!(target: "tcm_zenoh", "closing the executive's session: {e}");
+        }
     }
 
     /// The system's name.
@@ -418,7 +450,7 @@ impl Inner {
 
     /// Places remote task `task` (of node `node`, numbered `display`) on a live agent that
     /// offers `name`: `agent`, or the first by name when `None`. Waits until there is one; the
-    /// task is then pending there, its messages going to `tx`.
+    /// task is then pending there, its messages going to `tx`. `None` once the executive closed.
     pub(crate) async fn place(
         &self,
         agent: Option<&str>,
@@ -427,11 +459,14 @@ impl Inner {
         node: NodeId,
         display: u64,
         tx: mpsc::UnboundedSender<Incoming>,
-    ) -> String {
+    ) -> Option<String> {
         let mut rx = self.changed.subscribe();
         loop {
             {
                 let mut s = self.lock();
+                if s.closed {
+                    return None;
+                }
                 let chosen = s.offers.get(name).and_then(|offering| match agent {
                     Some(a) => (offering.contains(a) && s.live.contains(a)).then(|| a.to_string()),
                     None => offering.iter().find(|a| s.live.contains(*a)).cloned(),
@@ -454,12 +489,11 @@ impl Inner {
                         },
                     );
                     s.stats.placed += 1;
-                    return chosen;
+                    return Some(chosen);
                 }
             }
             if rx.changed().await.is_err() {
-                // The executive is gone: wait for the schedule-to-start timeout.
-                std::future::pending::<()>().await;
+                return None;
             }
         }
     }

@@ -7,8 +7,8 @@
 use crate::executive::{Executive, Incoming, Inner};
 use crate::failure::{AgentLost, RemoteError, RemoteFailure, RemoteTimeout, TimeoutKind};
 use crate::wire::{
-    Answer, ChildAt, ChildEnded, ChildRef, ChildSpec, Constraint, Json, Kind, Msg, Op, ToAgent,
-    ToExec,
+    self, Answer, ChildAt, ChildEnded, ChildRef, ChildSpec, Constraint, Json, Kind, Msg, Op,
+    ToAgent, ToExec,
 };
 use serde::Serialize;
 use std::sync::Arc;
@@ -306,8 +306,18 @@ async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
         At::Agent(a) => Some(a.as_str()),
         At::Any => None,
     };
+    if !wire::valid_name(&spec.name) || !named.is_none_or(wire::valid_name) {
+        return Err(RemoteError::failure(format!(
+            "bad task or agent name in {}{}: use ASCII letters, digits, `_`, `-` and `.`",
+            spec.name,
+            named.map(|a| format!(" on {a}")).unwrap_or_default()
+        )));
+    }
     let agent = tokio::select! {
-        a = exec.place(named, &spec.name, task, node, display, tx) => a,
+        a = exec.place(named, &spec.name, task, node, display, tx) => match a {
+            Some(a) => a,
+            None => return Err(RemoteError::failure("the executive was closed")),
+        },
         () = sleep_until(sts) => {
             return Err(timeout(TimeoutKind::ScheduleToStart, &spec, named, opts.schedule_to_start));
         }
@@ -347,6 +357,10 @@ async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
                     return Err(RemoteError::failure("the executive closed"));
                 };
                 match msg {
+                    Incoming::Closed => {
+                        link.ended = true;
+                        return Err(RemoteError::failure("the executive was closed"));
+                    }
                     Incoming::Lost => {
                         link.ended = true;
                         if link.cancelled {

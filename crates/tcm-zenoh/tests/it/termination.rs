@@ -123,3 +123,58 @@ async fn terminating_a_remote_subtree_runs_each_cleanup_on_its_agent() {
     })
     .await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn closing_the_executive_aborts_its_bodies_on_the_agents_and_fails_its_remote_tasks() {
+    bounded(async {
+        let net = Net::new("close").await;
+        let log = Log::default();
+        let (l1, l2) = (log.clone(), log.clone());
+        let agent = net
+            .agent("arm")
+            .command("spin", move |_: RemoteCtx, (): ()| {
+                let log = l1.clone();
+                async move {
+                    log.push("spin");
+                    tokio::time::sleep(Duration::from_secs(3600)).await;
+                    Ok::<(), RemoteFailure>(())
+                }
+            })
+            .on_terminate("spin", move |(): ()| {
+                let log = l2.clone();
+                async move { log.push("spin cleanup") }
+            });
+        let arm = net.join(agent, "arm").await;
+        let exec = net.exec.clone();
+        let watch = log.clone();
+        let main = Task::goal("main", move |ctx| async move {
+            let close = async {
+                watch.wait_for("spin", Duration::from_secs(10)).await;
+                exec.close().await;
+            };
+            let spin = ctx
+                .spawn(exec.remote("arm", "spin", ()).task())
+                .wait_outcome::<tcm_zenoh::Json>();
+            let (ended, ()) = tokio::join!(spin, close);
+            let failure = ended?.failure().cloned().expect("spin failed");
+            assert_eq!(failure.exception, "RemoteError");
+            assert_eq!(failure.message, "the executive was closed");
+            // Nothing more can be placed.
+            let later = ctx
+                .spawn(exec.remote("arm", "spin", ()).task())
+                .wait_outcome::<tcm_zenoh::Json>()
+                .await?;
+            assert_eq!(
+                later.failure().map(|f| f.message.as_str()),
+                Some("the executive was closed")
+            );
+            Ok(())
+        });
+        let (report, _) = run_checked(Runtime::new(), main).await;
+        assert!(report.is_clean(), "{report}");
+        log.wait_for("spin cleanup", Duration::from_secs(5)).await;
+        assert_eq!(arm.stats().orphaned, 1);
+        assert_eq!(arm.running(), 0);
+    })
+    .await;
+}
