@@ -103,7 +103,7 @@ async fn a_body_that_stops_heartbeating_or_runs_too_long_times_out_and_is_cancel
                 let log = l1.clone();
                 async move {
                     for _ in 0..3 {
-                        tokio::time::sleep(ms(30)).await;
+                        tokio::time::sleep(ms(20)).await;
                         ctx.heartbeat().await;
                     }
                     log.push("watch stops heartbeating");
@@ -128,12 +128,12 @@ async fn a_body_that_stops_heartbeating_or_runs_too_long_times_out_and_is_cancel
         let (h1, h2) = (keep(&caught), keep(&caught));
         let exec = net.exec.clone();
         let main = Task::goal("main", move |ctx| async move {
-            ctx.spawn(exec.remote("slow", "watch", ()).heartbeat(ms(150)).task())
+            ctx.spawn(exec.remote("slow", "watch", ()).heartbeat(ms(400)).task())
                 .handler(h1)
                 .start()?;
             ctx.spawn(
                 exec.remote("slow", "long", ())
-                    .start_to_close(ms(400))
+                    .start_to_close(ms(1000))
                     .task(),
             )
             .handler(h2)
