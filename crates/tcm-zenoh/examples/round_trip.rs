@@ -1,7 +1,8 @@
 //! Benchmark of remote tasks on loopback: the round trip of a remote no-op command (from its spawn
 //! to the completion of its execution, seen by the parent that waits for it), beside a bare zenoh
 //! query round trip between the same two sessions and a local no-op command, measured in the same
-//! run; then the throughput of many remote no-op commands in flight at once.
+//! run (each series alone, then the two alternately, which exposes both to the same load on a
+//! small machine); then the throughput of many remote no-op commands in flight at once.
 //!
 //! `cargo run --release -p tcm-zenoh --example round_trip [-- <round trips> <in flight>]`
 //! (defaults 2000 and 20000). The executive and the agent are two zenoh sessions of this process
@@ -77,51 +78,95 @@ async fn main() -> Result<(), Error> {
 
     // Bare zenoh: a query with a payload of the size of a start message, and its reply.
     let payload = br#"{"task":1,"seq":1,"body":{"kind":"start","node":3,"name":"noop","task_kind":"command","args":null}}"#.to_vec();
-    let bare = |count: usize| {
-        let session = exec.session().clone();
+    let session = exec.session().clone();
+    let bare = move || {
+        let session = session.clone();
         let payload = payload.clone();
         async move {
-            let mut samples = Vec::with_capacity(count);
-            for _ in 0..count {
-                let t0 = Instant::now();
-                let replies = session.get("bench/echo").payload(payload.clone()).await?;
-                while let Ok(reply) = replies.recv_async().await {
-                    if reply.result().is_err() {
-                        return Err::<_, Error>("error reply".into());
-                    }
+            let t0 = Instant::now();
+            let replies = session
+                .get("bench/echo")
+                .payload(payload)
+                .await
+                .map_err(|e| tcm::Failure::new("Zenoh", e.to_string()))?;
+            while let Ok(reply) = replies.recv_async().await {
+                if reply.result().is_err() {
+                    return Err(tcm::Failure::new("Zenoh", "error reply"));
                 }
-                samples.push(t0.elapsed());
             }
-            Ok(samples)
+            Ok(t0.elapsed())
         }
     };
-    bare(200).await?; // warm-up
-    let bare_samples = bare(n).await?;
+
+    // Each alone first: `n` bare queries in a row, then `n` remote no-op commands in a row.
+    let mut bare_alone = Vec::with_capacity(n);
+    for i in 0..n + 200 {
+        let dt = bare().await.map_err(|f| f.to_string())?;
+        if i >= 200 {
+            bare_alone.push(dt);
+        }
+    }
+    let alone_exec = exec.clone();
+    let (task, remote_alone) = rounds(n + 200, move || {
+        alone_exec.remote("agent", "noop", ()).task()
+    });
+    Runtime::new().run(task).await?;
+    let remote_alone: Vec<Duration> = remote_alone
+        .lock()
+        .map(|v| v.iter().skip(200).copied().collect())
+        .unwrap_or_default();
 
     // A local no-op command: the runtime's own share of a round trip.
     let (task, local) = rounds(n, || Task::command("noop", |_| async { Ok(()) }));
     Runtime::new().run(task).await?;
 
-    // A remote no-op command.
+    // The bare query and the remote no-op command, alternately, from one action, so that both
+    // see the same machine: warm-up rounds first, then `n` of each.
     let remote_exec = exec.clone();
-    let (warm, _) = rounds(200, {
-        let exec = remote_exec.clone();
-        move || exec.remote("agent", "noop", ()).task()
+    let samples: Arc<Mutex<(Vec<Duration>, Vec<Duration>)>> = Arc::default();
+    let keep = samples.clone();
+    let alternate = Task::goal("alternate", move |ctx| async move {
+        for i in 0..n + 200 {
+            let b = bare().await?;
+            let t0 = Instant::now();
+            ctx.spawn(remote_exec.remote("agent", "noop", ()).task())
+                .wait()
+                .await?;
+            let r = t0.elapsed();
+            if i >= 200 {
+                let mut s = keep
+                    .lock()
+                    .map_err(|_| tcm::Failure::new("Poisoned", "samples"))?;
+                s.0.push(b);
+                s.1.push(r);
+            }
+        }
+        Ok(())
     });
-    Runtime::new().run(warm).await?;
-    let (task, remote) = rounds(n, move || remote_exec.remote("agent", "noop", ()).task());
-    let report = Runtime::new().run(task).await?;
+    let report = Runtime::new().run(alternate).await?;
     if !report.is_clean() {
         return Err(format!("the remote rounds did not run cleanly: {report}").into());
     }
+    let (bare_samples, remote_samples) = samples.lock().map(|s| s.clone()).unwrap_or_default();
 
+    let (a50, a99) = percentiles(bare_alone);
+    let (ra50, ra99) = percentiles(remote_alone);
     let (b50, b99) = percentiles(bare_samples);
     let take = |s: Arc<Mutex<Vec<Duration>>>| s.lock().map(|v| v.clone()).unwrap_or_default();
     let (l50, l99) = percentiles(take(local));
-    let (r50, r99) = percentiles(take(remote));
+    let (r50, r99) = percentiles(remote_samples);
     println!("round trip over loopback, n = {n} (µs)      p50      p99");
-    println!("  bare zenoh query                     {b50:8.1} {b99:8.1}");
     println!("  local no-op command                  {l50:8.1} {l99:8.1}");
+    println!("each alone, one series after the other:");
+    println!("  bare zenoh query                     {a50:8.1} {a99:8.1}");
+    println!("  remote no-op command                 {ra50:8.1} {ra99:8.1}");
+    println!(
+        "  remote / bare                        {:8.2} {:8.2}",
+        ra50 / a50,
+        ra99 / a99
+    );
+    println!("alternately, one of each in turn:");
+    println!("  bare zenoh query                     {b50:8.1} {b99:8.1}");
     println!("  remote no-op command                 {r50:8.1} {r99:8.1}");
     println!(
         "  remote / bare                        {:8.2} {:8.2}",

@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::task::Poll;
+use std::task::{Context, Poll, Waker};
 use tokio::task::AbortHandle;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
@@ -188,14 +188,24 @@ impl AgentBuilder {
         let execs = session
             .liveliness()
             .declare_subscriber(format!("tdl/{}/executives/*", self.system))
+            .history(true)
             .callback(move |sample| {
+                let Some(inner) = weak.upgrade() else { return };
+                let key = sample.key_expr().as_str();
+                let Some(exec) = key.rsplit('/').next() else {
+                    return;
+                };
                 if sample.kind() == SampleKind::Delete {
-                    if let Some(inner) = weak.upgrade() {
-                        let key = sample.key_expr().as_str();
-                        if let Some(exec) = key.rsplit('/').next() {
-                            inner.executive_gone(exec);
+                    inner.executive_gone(exec);
+                } else {
+                    // Declared now, so the first `Done` to it can leave from the receiving thread.
+                    let exec = exec.to_string();
+                    let me = inner.clone();
+                    inner.rt.spawn(async move {
+                        if let Err(e) = me.publisher(&exec).await {
+                            tracing::warn!(target: "tcm_zenoh", agent = me.name, "no publisher to {exec}: {e}");
                         }
-                    }
+                    });
                 }
             })
             .await
@@ -337,6 +347,11 @@ impl AgentInner {
         self.state.lock().unwrap_or_else(|p| p.into_inner())
     }
 
+    /// The publisher to executive `exec`'s inbox, if it was declared.
+    pub(crate) fn cached_publisher(&self, exec: &str) -> Option<Arc<Publisher<'static>>> {
+        self.lock().publishers.get(exec).cloned()
+    }
+
     /// The publisher to executive `exec`'s inbox.
     pub(crate) async fn publisher(&self, exec: &str) -> Result<Arc<Publisher<'static>>, Error> {
         if let Some(p) = self.lock().publishers.get(exec) {
@@ -464,44 +479,70 @@ impl AgentInner {
             }
         };
         s.stats.started += 1;
-        let ctx = RemoteCtx::new(link.clone(), name);
-        let mut fut = (offer.body)(ctx, args.clone());
-        let me = self.clone();
-        let key2 = key.clone();
-        let body_link = link.clone();
-        // Spawned under the lock, so a cancel that comes next finds the body to abort.
-        let handle = self.rt.spawn(async move {
-            // A body that ends at once needs no `Started`: its `Done` says both.
-            let first = std::future::poll_fn(|cx| Poll::Ready(fut.as_mut().poll(cx))).await;
-            let result = match first {
-                Poll::Ready(r) => r,
-                Poll::Pending => {
-                    body_link.send(ToExec::Started).await;
-                    fut.await
-                }
-            };
-            // Ended before `Done` leaves: a cancel that comes now is late.
-            {
-                let mut s = me.lock();
-                let Some(r) = s.running.get(&key2) else {
-                    return;
-                };
-                let seq = r.last_seq;
-                s.end(key2, seq);
-                s.stats.ended += 1;
-            }
-            body_link.send(ToExec::Done { result }).await;
-        });
         s.running.insert(
-            key,
+            key.clone(),
             Running {
                 last_seq: seq,
-                body: Some(handle.abort_handle()),
-                link,
-                offer,
-                args,
+                body: None,
+                link: link.clone(),
+                offer: offer.clone(),
+                args: args.clone(),
             },
         );
+        drop(s);
+        // The body's first poll runs here, on the thread that received the start, in the agent's
+        // runtime: a body that ends at once (a no-op, a query of a cached value) then costs no
+        // hop to another thread, and its `Done` says both that it started and that it ended. A
+        // body must not block before its first await, as on any async executor.
+        let ctx = RemoteCtx::new(link.clone(), name);
+        let (fut, first) = {
+            let _rt = self.rt.enter();
+            let mut fut = (offer.body)(ctx, args);
+            let first = fut.as_mut().poll(&mut Context::from_waker(Waker::noop()));
+            (fut, first)
+        };
+        match first {
+            Poll::Ready(result) => {
+                if self.finish(&key) {
+                    if let Some(body) = link.send_now(ToExec::Done { result }) {
+                        self.rt.spawn(async move { link.send(body).await });
+                    }
+                }
+            }
+            Poll::Pending => {
+                let me = self.clone();
+                let key2 = key.clone();
+                let body_link = link.clone();
+                let mut s = self.lock();
+                let Some(r) = s.running.get_mut(&key) else {
+                    // Cancelled meanwhile: the body is dropped here.
+                    return;
+                };
+                // Spawned under the lock, so a cancel that comes next finds the body to abort.
+                // Tokio polls it again at once, with a waker that works.
+                let handle = self.rt.spawn(async move {
+                    body_link.send(ToExec::Started).await;
+                    let result = fut.await;
+                    if me.finish(&key2) {
+                        body_link.send(ToExec::Done { result }).await;
+                    }
+                });
+                r.body = Some(handle.abort_handle());
+            }
+        }
+    }
+
+    /// The body of `key` ended by itself: it is no longer running, so a cancel that comes now is
+    /// late. False if it was not running any more (cancelled meanwhile).
+    fn finish(&self, key: &(String, u64)) -> bool {
+        let mut s = self.lock();
+        let Some(r) = s.running.get(key) else {
+            return false;
+        };
+        let seq = r.last_seq;
+        s.end(key.clone(), seq);
+        s.stats.ended += 1;
+        true
     }
 
     /// Executive `exec`'s token went: its bodies are aborted and cleaned up.

@@ -55,6 +55,38 @@ impl Link {
         }
     }
 
+    /// Sends `body` from where no await is possible, if that can be done without waiting (the
+    /// publisher is declared and no other send is under way); else gives it back.
+    pub(crate) fn send_now(&self, body: ToExec) -> Option<ToExec> {
+        use zenoh::Wait;
+        let Some(publisher) = self.agent.cached_publisher(&self.exec) else {
+            return Some(body);
+        };
+        let Ok(mut seq) = self.seq.try_lock() else {
+            return Some(body);
+        };
+        *seq += 1;
+        let bytes = Msg {
+            task: self.task,
+            seq: *seq,
+            body,
+        }
+        .encode();
+        let sent = if self.agent.duplicate {
+            publisher
+                .put(bytes.clone())
+                .wait()
+                .and_then(|()| publisher.put(bytes).wait())
+        } else {
+            publisher.put(bytes).wait()
+        };
+        if let Err(e) = sent {
+            tracing::warn!(target: "tcm_zenoh", agent = self.agent.name, task = self.task,
+                "cannot reach the executive: {e}");
+        }
+        None
+    }
+
     async fn try_send(&self, body: ToExec) -> Result<(), Error> {
         let publisher = self.agent.publisher(&self.exec).await?;
         let mut seq = self.seq.lock().await;

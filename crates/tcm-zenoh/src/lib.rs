@@ -16,6 +16,9 @@
 //! (schedule-to-start, start-to-close, heartbeat; [`RemoteOptions`]) fail it with
 //! [`RemoteTimeout`]. Nothing waits silently for ever.
 //!
+//! Executives and agents need a multi-thread tokio runtime (zenoh does not support tokio's
+//! current-thread scheduler), and so run on real time.
+//!
 //! ```no_run
 //! # async fn demo() -> Result<(), Box<dyn std::error::Error>> {
 //! use tcm_zenoh::{Agent, At, Executive, RemoteCtx, RemoteFailure};
