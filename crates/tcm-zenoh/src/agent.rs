@@ -239,8 +239,8 @@ impl AgentBuilder {
     }
 }
 
-/// A running agent. Dropping it (or [`Agent::close`]) withdraws it: its tokens go, and executives
-/// fail the tasks it ran with `AgentLost`.
+/// A running agent. Dropping it (or [`Agent::close`]) withdraws it: its tokens go, executives
+/// fail the tasks it ran with `AgentLost`, and its bodies are aborted.
 pub struct Agent {
     inner: Arc<AgentInner>,
     _inbox: zenoh::pubsub::Subscriber<()>,
@@ -279,8 +279,21 @@ impl Agent {
         self.inner.lock().running.len()
     }
 
-    /// Withdraws the agent: its bodies are aborted (without cleanup) and its session closed.
+    /// Withdraws the agent and closes its session (see [`Agent`]'s drop).
     pub async fn close(self) {
+        let session = self.inner.session.clone();
+        drop(self);
+        if let Err(e) = session.close().await {
+            tracing::warn!(target: "tcm_zenoh", "closing the agent's session: {e}");
+        }
+    }
+}
+
+impl Drop for Agent {
+    /// Withdraws the agent: its tokens and subscriptions go (executives fail the tasks it ran
+    /// with `AgentLost`), and its bodies are aborted, without cleanup: nobody waits for their
+    /// confirmation any more.
+    fn drop(&mut self) {
         let bodies: Vec<AbortHandle> = {
             let mut s = self.inner.lock();
             std::mem::take(&mut s.running)
@@ -290,11 +303,6 @@ impl Agent {
         };
         for b in bodies {
             b.abort();
-        }
-        let session = self.inner.session.clone();
-        drop(self);
-        if let Err(e) = session.close().await {
-            tracing::warn!(target: "tcm_zenoh", "closing the agent's session: {e}");
         }
     }
 }
