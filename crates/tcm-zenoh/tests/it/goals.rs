@@ -191,3 +191,56 @@ async fn a_remote_body_sees_how_its_children_ended() {
     })
     .await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_remote_body_raises_external_events_and_terminates_its_children() {
+    bounded(async {
+        let net = Net::new("events").await;
+        let arm = net
+            .agent("arm")
+            .goal("open", |ctx: RemoteCtx, (): ()| async move {
+                let guard = ctx.spawn(Child::local("guard", ())).start().await?;
+                ctx.raise_event("door_open").await?;
+                ctx.terminate(guard).await?;
+                let ended = ctx.wait(guard).await?;
+                assert_eq!(ended, ChildEnded::Terminated);
+                Ok::<_, RemoteFailure>(())
+            });
+        let _arm = net.join(arm, "arm").await;
+        net.exec.register("guard", |_| {
+            Ok(Task::command("guard", |_| async {
+                tokio::time::sleep(Duration::from_secs(3600)).await;
+                Ok(())
+            }))
+        });
+        let exec = net.exec.clone();
+        let main = Task::goal("main", move |ctx| async move {
+            let door = ctx.external("door_open")?;
+            ctx.spawn(Task::command("enter", |_| async { Ok(()) }))
+                .with(tcm::Constraint::disable(
+                    Facet::Handling,
+                    tcm::When::External(door),
+                ))
+                .start()?;
+            ctx.spawn(exec.remote("arm", "open", ()).goal().task())
+                .start()?;
+            Ok(())
+        });
+        let (report, trace) = run_checked(Runtime::new(), main).await;
+        assert!(report.is_clean(), "{report}");
+        assert_order(
+            &untimed(&trace),
+            &[
+                "open handling active",
+                "guard terminating",
+                "guard terminated",
+                "open handling completed",
+            ],
+        );
+        assert_order(
+            &untimed(&trace),
+            &["open handling active", "enter handling active"],
+        );
+    })
+    .await;
+}

@@ -178,3 +178,61 @@ async fn closing_the_executive_aborts_its_bodies_on_the_agents_and_fails_its_rem
     })
     .await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_remote_action_dropped_at_once_still_cancels_its_body() {
+    bounded(async {
+        let net = Net::new("drop").await;
+        let log = Log::default();
+        let (l1, l2) = (log.clone(), log.clone());
+        let agent = net
+            .agent("arm")
+            .command("spin", move |_: RemoteCtx, (): ()| {
+                let log = l1.clone();
+                async move {
+                    log.push("spin");
+                    tokio::time::sleep(Duration::from_secs(3600)).await;
+                    Ok::<(), RemoteFailure>(())
+                }
+            })
+            .on_terminate("spin", move |(): ()| {
+                let log = l2.clone();
+                async move { log.push("spin cleanup") }
+            });
+        let arm = net.join(agent, "arm").await;
+        let exec = net.exec.clone();
+        let watch = log.clone();
+        let main = Task::goal("main", move |ctx| async move {
+            ctx.hold_children(false)?;
+            // No grace period: the action is dropped as soon as its node is terminated.
+            let spin = ctx
+                .spawn(exec.remote("arm", "spin", ()).grace(Duration::ZERO).task())
+                .start()?;
+            watch.wait_for("spin", Duration::from_secs(10)).await;
+            ctx.terminate(spin)?;
+            Ok(())
+        });
+        let (report, trace) = run_checked(Runtime::new(), main).await;
+        assert!(report.is_clean(), "{report}");
+        assert_order(&untimed(&trace), &["spin terminating", "spin terminated"]);
+        // The cancel left from the dropped action; the agent's confirmation is late.
+        log.wait_for("spin cleanup", Duration::from_secs(5)).await;
+        let start = std::time::Instant::now();
+        while net.exec.stats().late < 1 {
+            assert!(
+                start.elapsed() < Duration::from_secs(5),
+                "{:?}",
+                net.exec.stats()
+            );
+            tokio::time::sleep(ms(5)).await;
+        }
+        let stats = net.exec.stats();
+        assert_eq!(
+            (stats.cancels, stats.cancelled, stats.late),
+            (1, 0, 1),
+            "{stats:?}"
+        );
+        assert_eq!(arm.stats().cancelled, 1);
+    })
+    .await;
+}
