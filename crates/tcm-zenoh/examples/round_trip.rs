@@ -89,14 +89,28 @@ async fn main() -> Result<(), Error> {
                 .payload(payload)
                 .await
                 .map_err(|e| tcm::Failure::new("Zenoh", e.to_string()))?;
+            let mut n = 0;
             while let Ok(reply) = replies.recv_async().await {
                 if reply.result().is_err() {
                     return Err(tcm::Failure::new("Zenoh", "error reply"));
                 }
+                n += 1;
+            }
+            if n != 1 {
+                return Err(tcm::Failure::new("Zenoh", format!("{n} replies")));
             }
             Ok(t0.elapsed())
         }
     };
+
+    // The queryable's declaration reaches the executive's session shortly after it is made.
+    let t0 = Instant::now();
+    while bare().await.is_err() {
+        if t0.elapsed() > Duration::from_secs(10) {
+            return Err("the echo queryable is not reachable".into());
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
 
     // Each alone first: `n` bare queries in a row, then `n` remote no-op commands in a row.
     let mut bare_alone = Vec::with_capacity(n);
