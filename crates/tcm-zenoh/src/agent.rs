@@ -1,0 +1,580 @@
+//! Agents: processes that join a system and offer tasks by name. An agent holds a liveliness token
+//! for itself and one per offered task, runs a body for each `Start` it receives (once, however
+//! often the message comes), reports its end, and on a `Cancel` aborts the body, runs the task's
+//! cleanup and confirms. When an executive's token goes, the bodies it started are aborted and
+//! cleaned up too: nobody is left to want them.
+
+use crate::Error;
+use crate::body::{Link, RemoteCtx};
+use crate::failure::{RemoteError, RemoteFailure};
+use crate::wire::{self, Json, Kind, Msg, ToAgent, ToExec};
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use std::collections::BTreeMap;
+use std::future::Future;
+use std::pin::Pin;
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::task::{Context, Poll, Waker};
+use tokio::task::AbortHandle;
+use zenoh::pubsub::Publisher;
+use zenoh::qos::CongestionControl;
+use zenoh::sample::SampleKind;
+
+/// How many ended tasks an agent remembers, to tell a duplicate message from a late one.
+const ENDED_KEPT: usize = 65_536;
+
+type BoxFuture<T> = Pin<Box<dyn Future<Output = T> + Send>>;
+type BodyFn = Arc<dyn Fn(RemoteCtx, Json) -> BoxFuture<Result<Json, RemoteFailure>> + Send + Sync>;
+type CleanupFn = Arc<dyn Fn(Json) -> BoxFuture<()> + Send + Sync>;
+
+/// A task an agent offers.
+#[derive(Clone)]
+struct Offer {
+    kind: Kind,
+    body: BodyFn,
+    cleanup: Option<CleanupFn>,
+}
+
+/// The counters of an agent.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AgentStats {
+    /// Bodies started.
+    pub started: u64,
+    /// Bodies that ended by themselves (value or failure).
+    pub ended: u64,
+    /// Bodies aborted by a cancel.
+    pub cancelled: u64,
+    /// Bodies aborted because their executive's token went.
+    pub orphaned: u64,
+    /// Messages received twice, ignored.
+    pub duplicates: u64,
+    /// Messages about a task that ended, or that this agent never had, ignored.
+    pub late: u64,
+    /// Messages that could not be read, ignored.
+    pub malformed: u64,
+}
+
+/// An agent being built: the tasks it offers.
+pub struct AgentBuilder {
+    system: String,
+    name: String,
+    offers: BTreeMap<String, Offer>,
+    duplicate: bool,
+}
+
+impl AgentBuilder {
+    /// Offers the command `name`: `body` runs with the arguments the executive sent, read as an
+    /// `A` (arguments that do not read fail the node with `RemoteError`); its value travels back
+    /// as JSON, its failure typed ([`RemoteFailure::raise`]).
+    pub fn command<A, R, F, Fut>(self, name: impl Into<String>, body: F) -> AgentBuilder
+    where
+        A: DeserializeOwned + Send + 'static,
+        R: Serialize + 'static,
+        F: Fn(RemoteCtx, A) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<R, RemoteFailure>> + Send + 'static,
+    {
+        self.offer(Kind::Command, name.into(), body)
+    }
+
+    /// Offers the goal `name`: as [`AgentBuilder::command`], and its body may spawn children
+    /// through its [`RemoteCtx`].
+    pub fn goal<A, R, F, Fut>(self, name: impl Into<String>, body: F) -> AgentBuilder
+    where
+        A: DeserializeOwned + Send + 'static,
+        R: Serialize + 'static,
+        F: Fn(RemoteCtx, A) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<R, RemoteFailure>> + Send + 'static,
+    {
+        self.offer(Kind::Goal, name.into(), body)
+    }
+
+    fn offer<A, R, F, Fut>(mut self, kind: Kind, name: String, body: F) -> AgentBuilder
+    where
+        A: DeserializeOwned + Send + 'static,
+        R: Serialize + 'static,
+        F: Fn(RemoteCtx, A) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<R, RemoteFailure>> + Send + 'static,
+    {
+        let task = name.clone();
+        let body: BodyFn = Arc::new(move |ctx, args| match serde_json::from_value::<A>(args) {
+            Ok(a) => {
+                let fut = body(ctx, a);
+                let task = task.clone();
+                Box::pin(async move {
+                    let v = fut.await?;
+                    serde_json::to_value(v).map_err(|e| {
+                        RemoteError::remote(format!("the value of {task} does not serialise: {e}"))
+                    })
+                })
+            }
+            Err(e) => {
+                let message = format!("bad arguments for {task}: {e}");
+                Box::pin(async move { Err(RemoteError::remote(message)) })
+            }
+        });
+        self.offers.insert(
+            name,
+            Offer {
+                kind,
+                body,
+                cleanup: None,
+            },
+        );
+        self
+    }
+
+    /// Sets the cleanup of the offered task `name` (TDL's `on terminate`, on the agent): when a
+    /// body of it is cancelled, it is aborted, then `cleanup` runs with its arguments, and the
+    /// cancel is confirmed when it returns.
+    pub fn on_terminate<A, F, Fut>(mut self, name: &str, cleanup: F) -> AgentBuilder
+    where
+        A: DeserializeOwned + Send + 'static,
+        F: Fn(A) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = ()> + Send + 'static,
+    {
+        let cleanup: CleanupFn = Arc::new(move |args| match serde_json::from_value::<A>(args) {
+            Ok(a) => Box::pin(cleanup(a)),
+            Err(_) => Box::pin(async {}),
+        });
+        if let Some(o) = self.offers.get_mut(name) {
+            o.cleanup = Some(cleanup);
+        }
+        self
+    }
+
+    /// Fault injection for tests: every message this agent sends is sent twice, so the executive's
+    /// exactly-once handling is exercised.
+    pub fn duplicate_messages(mut self, on: bool) -> AgentBuilder {
+        self.duplicate = on;
+        self
+    }
+
+    /// Joins the system with a zenoh session opened from `config` (see [`crate::config`]) and
+    /// starts serving. Must be called inside a tokio runtime, where the bodies run.
+    pub async fn start(self, config: zenoh::Config) -> Result<Agent, Error> {
+        for name in [&self.system, &self.name]
+            .into_iter()
+            .chain(self.offers.keys())
+        {
+            if !wire::valid_name(name) {
+                return Err(Error::BadName(name.clone()));
+            }
+        }
+        let rt = tokio::runtime::Handle::try_current()
+            .map_err(|_| Error::Zenoh("an agent must start inside a tokio runtime".into()))?;
+        let session = zenoh::open(config).await.map_err(Error::zenoh)?;
+        let inner = Arc::new(AgentInner {
+            session: session.clone(),
+            system: self.system.clone(),
+            name: self.name.clone(),
+            offers: self.offers,
+            rt,
+            duplicate: self.duplicate,
+            state: Mutex::new(AgentState::default()),
+        });
+        let weak = Arc::downgrade(&inner);
+        let inbox = session
+            .declare_subscriber(wire::agent_inboxes(&self.system, &self.name))
+            .callback(move |sample| {
+                if let Some(inner) = weak.upgrade() {
+                    let key = sample.key_expr().as_str();
+                    let exec = key.rsplit('/').next().unwrap_or_default();
+                    inner.receive(exec, &sample.payload().to_bytes());
+                }
+            })
+            .await
+            .map_err(Error::zenoh)?;
+        let weak = Arc::downgrade(&inner);
+        let execs = session
+            .liveliness()
+            .declare_subscriber(format!("tdl/{}/executives/*", self.system))
+            .history(true)
+            .callback(move |sample| {
+                let Some(inner) = weak.upgrade() else { return };
+                let key = sample.key_expr().as_str();
+                let Some(exec) = key.rsplit('/').next() else {
+                    return;
+                };
+                if sample.kind() == SampleKind::Delete {
+                    inner.executive_gone(exec);
+                } else {
+                    // Declared now, so the first `Done` to it can leave from the receiving thread.
+                    let exec = exec.to_string();
+                    let me = inner.clone();
+                    inner.rt.spawn(async move {
+                        if let Err(e) = me.publisher(&exec).await {
+                            tracing::warn!(target: "tcm_zenoh", agent = me.name, "no publisher to {exec}: {e}");
+                        }
+                    });
+                }
+            })
+            .await
+            .map_err(Error::zenoh)?;
+        // Offers first, so an executive that sees the agent sees what it offers.
+        let mut tokens = Vec::new();
+        for task in inner.offers.keys() {
+            let key = wire::offer_token(&self.system, task, &self.name);
+            tokens.push(
+                session
+                    .liveliness()
+                    .declare_token(key)
+                    .await
+                    .map_err(Error::zenoh)?,
+            );
+        }
+        let key = wire::agent_token(&self.system, &self.name);
+        tokens.push(
+            session
+                .liveliness()
+                .declare_token(key)
+                .await
+                .map_err(Error::zenoh)?,
+        );
+        Ok(Agent {
+            inner,
+            _inbox: inbox,
+            _execs: execs,
+            _tokens: tokens,
+        })
+    }
+}
+
+/// A running agent. Dropping it (or [`Agent::close`]) withdraws it: its tokens go, executives
+/// fail the tasks it ran with `AgentLost`, and its bodies are aborted.
+pub struct Agent {
+    inner: Arc<AgentInner>,
+    _inbox: zenoh::pubsub::Subscriber<()>,
+    _execs: zenoh::pubsub::Subscriber<()>,
+    _tokens: Vec<zenoh::liveliness::LivelinessToken>,
+}
+
+impl Agent {
+    /// An agent named `name` of `system`, offering nothing yet.
+    pub fn builder(system: impl Into<String>, name: impl Into<String>) -> AgentBuilder {
+        AgentBuilder {
+            system: system.into(),
+            name: name.into(),
+            offers: BTreeMap::new(),
+            duplicate: false,
+        }
+    }
+
+    /// The agent's name.
+    pub fn name(&self) -> &str {
+        &self.inner.name
+    }
+
+    /// The agent's zenoh session, for a program's own traffic.
+    pub fn session(&self) -> &zenoh::Session {
+        &self.inner.session
+    }
+
+    /// The agent's counters.
+    pub fn stats(&self) -> AgentStats {
+        self.inner.lock().stats
+    }
+
+    /// How many bodies run now.
+    pub fn running(&self) -> usize {
+        self.inner.lock().running.len()
+    }
+
+    /// Withdraws the agent and closes its session (see [`Agent`]'s drop).
+    pub async fn close(self) {
+        let session = self.inner.session.clone();
+        drop(self);
+        if let Err(e) = session.close().await {
+            tracing::warn!(target: "tcm_zenoh", "closing the agent's session: {e}");
+        }
+    }
+}
+
+impl Drop for Agent {
+    /// Withdraws the agent: its tokens and subscriptions go (executives fail the tasks it ran
+    /// with `AgentLost`), and its bodies are aborted, without cleanup: nobody waits for their
+    /// confirmation any more.
+    fn drop(&mut self) {
+        let bodies: Vec<AbortHandle> = {
+            let mut s = self.inner.lock();
+            std::mem::take(&mut s.running)
+                .into_values()
+                .filter_map(|r| r.body)
+                .collect()
+        };
+        for b in bodies {
+            b.abort();
+        }
+    }
+}
+
+/// A body that runs.
+struct Running {
+    last_seq: u64,
+    body: Option<AbortHandle>,
+    link: Arc<Link>,
+    offer: Offer,
+    args: Json,
+}
+
+#[derive(Default)]
+struct AgentState {
+    // By executive and task id.
+    running: BTreeMap<(String, u64), Running>,
+    ended: BTreeMap<(String, u64), u64>,
+    ended_order: std::collections::VecDeque<(String, u64)>,
+    publishers: BTreeMap<String, Arc<Publisher<'static>>>,
+    stats: AgentStats,
+}
+
+impl AgentState {
+    fn end(&mut self, key: (String, u64), last_seq: u64) {
+        self.running.remove(&key);
+        if self.ended.insert(key.clone(), last_seq).is_none() {
+            self.ended_order.push_back(key);
+        }
+        while self.ended_order.len() > ENDED_KEPT {
+            if let Some(old) = self.ended_order.pop_front() {
+                self.ended.remove(&old);
+            }
+        }
+    }
+}
+
+pub(crate) struct AgentInner {
+    session: zenoh::Session,
+    system: String,
+    pub(crate) name: String,
+    offers: BTreeMap<String, Offer>,
+    rt: tokio::runtime::Handle,
+    pub(crate) duplicate: bool,
+    state: Mutex<AgentState>,
+}
+
+impl AgentInner {
+    fn lock(&self) -> MutexGuard<'_, AgentState> {
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The publisher to executive `exec`'s inbox, if it was declared.
+    pub(crate) fn cached_publisher(&self, exec: &str) -> Option<Arc<Publisher<'static>>> {
+        self.lock().publishers.get(exec).cloned()
+    }
+
+    /// The publisher to executive `exec`'s inbox.
+    pub(crate) async fn publisher(&self, exec: &str) -> Result<Arc<Publisher<'static>>, Error> {
+        if let Some(p) = self.lock().publishers.get(exec) {
+            return Ok(p.clone());
+        }
+        let p = self
+            .session
+            .declare_publisher(wire::executive_inbox(&self.system, exec))
+            .congestion_control(CongestionControl::Block)
+            .await
+            .map_err(Error::zenoh)?;
+        let p = Arc::new(p);
+        Ok(self
+            .lock()
+            .publishers
+            .entry(exec.to_string())
+            .or_insert(p)
+            .clone())
+    }
+
+    /// A message from executive `exec` arrived: applied once, in order; duplicates and messages
+    /// of ended tasks are counted and dropped.
+    fn receive(self: &Arc<Self>, exec: &str, bytes: &[u8]) {
+        let msg: Msg<ToAgent> = match serde_json::from_slice(bytes) {
+            Ok(m) => m,
+            Err(e) => {
+                self.lock().stats.malformed += 1;
+                tracing::warn!(target: "tcm_zenoh", agent = self.name, "malformed message ignored: {e}");
+                return;
+            }
+        };
+        match msg.body {
+            ToAgent::Start {
+                node,
+                name,
+                task_kind,
+                args,
+            } => self.start(
+                exec.to_string(),
+                msg.task,
+                msg.seq,
+                node,
+                name,
+                task_kind,
+                args,
+            ),
+            body => {
+                let key = (exec.to_string(), msg.task);
+                let mut s = self.lock();
+                let Some(r) = s.running.get_mut(&key) else {
+                    let dup = s.ended.get(&key).is_some_and(|last| msg.seq <= *last);
+                    if dup {
+                        s.stats.duplicates += 1;
+                    } else {
+                        s.stats.late += 1;
+                    }
+                    return;
+                };
+                if msg.seq <= r.last_seq {
+                    s.stats.duplicates += 1;
+                    return;
+                }
+                r.last_seq = msg.seq;
+                match body {
+                    ToAgent::Cancel => {
+                        let seq = r.last_seq;
+                        let body = r.body.take();
+                        let link = r.link.clone();
+                        let cleanup = r.offer.cleanup.clone();
+                        let args = r.args.clone();
+                        s.end(key, seq);
+                        s.stats.cancelled += 1;
+                        drop(s);
+                        if let Some(b) = body {
+                            b.abort();
+                        }
+                        self.rt.spawn(async move {
+                            if let Some(c) = cleanup {
+                                c(args).await;
+                            }
+                            link.send(ToExec::Cancelled).await;
+                        });
+                    }
+                    ToAgent::Reply { call, result } => r.link.answer(call, result),
+                    ToAgent::Start { .. } => {}
+                }
+            }
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn start(
+        self: &Arc<Self>,
+        exec: String,
+        task: u64,
+        seq: u64,
+        node: u64,
+        name: String,
+        kind: Kind,
+        args: Json,
+    ) {
+        let key = (exec.clone(), task);
+        let mut s = self.lock();
+        if s.running.contains_key(&key) || s.ended.contains_key(&key) {
+            s.stats.duplicates += 1;
+            return;
+        }
+        let link = Arc::new(Link::new(self.clone(), exec, task, node));
+        let offer = match self.offers.get(&name) {
+            Some(o) if o.kind == kind => o.clone(),
+            other => {
+                let message = match other {
+                    Some(_) => format!("agent {} offers {name} as another kind of task", self.name),
+                    None => format!("agent {} does not offer {name}", self.name),
+                };
+                s.end(key, seq);
+                drop(s);
+                self.rt.spawn(async move {
+                    link.send(ToExec::Done {
+                        result: Err(RemoteError::remote(message)),
+                    })
+                    .await;
+                });
+                return;
+            }
+        };
+        s.stats.started += 1;
+        s.running.insert(
+            key.clone(),
+            Running {
+                last_seq: seq,
+                body: None,
+                link: link.clone(),
+                offer: offer.clone(),
+                args: args.clone(),
+            },
+        );
+        drop(s);
+        // The body's first poll runs here, on the thread that received the start, in the agent's
+        // runtime: a body that ends at once (a no-op, a query of a cached value) then costs no
+        // hop to another thread, and its `Done` says both that it started and that it ended. A
+        // body must not block before its first await, as on any async executor.
+        let ctx = RemoteCtx::new(link.clone(), name);
+        let (fut, first) = {
+            let _rt = self.rt.enter();
+            let mut fut = (offer.body)(ctx, args);
+            let first = fut.as_mut().poll(&mut Context::from_waker(Waker::noop()));
+            (fut, first)
+        };
+        match first {
+            Poll::Ready(result) => {
+                if self.finish(&key) {
+                    if let Some(body) = link.send_now(ToExec::Done { result }) {
+                        self.rt.spawn(async move { link.send(body).await });
+                    }
+                }
+            }
+            Poll::Pending => {
+                let me = self.clone();
+                let key2 = key.clone();
+                let body_link = link.clone();
+                let mut s = self.lock();
+                let Some(r) = s.running.get_mut(&key) else {
+                    // Cancelled meanwhile: the body is dropped here.
+                    return;
+                };
+                // Spawned under the lock, so a cancel that comes next finds the body to abort.
+                // Tokio polls it again at once, with a waker that works.
+                let handle = self.rt.spawn(async move {
+                    body_link.send(ToExec::Started).await;
+                    let result = fut.await;
+                    if me.finish(&key2) {
+                        body_link.send(ToExec::Done { result }).await;
+                    }
+                });
+                r.body = Some(handle.abort_handle());
+            }
+        }
+    }
+
+    /// The body of `key` ended by itself: it is no longer running, so a cancel that comes now is
+    /// late. False if it was not running any more (cancelled meanwhile).
+    fn finish(&self, key: &(String, u64)) -> bool {
+        let mut s = self.lock();
+        let Some(r) = s.running.get(key) else {
+            return false;
+        };
+        let seq = r.last_seq;
+        s.end(key.clone(), seq);
+        s.stats.ended += 1;
+        true
+    }
+
+    /// Executive `exec`'s token went: its bodies are aborted and cleaned up.
+    fn executive_gone(self: &Arc<Self>, exec: &str) {
+        let mut s = self.lock();
+        let keys: Vec<(String, u64)> = s
+            .running
+            .keys()
+            .filter(|(e, _)| e == exec)
+            .cloned()
+            .collect();
+        for key in keys {
+            if let Some(r) = s.running.remove(&key) {
+                s.stats.orphaned += 1;
+                if let Some(b) = r.body {
+                    b.abort();
+                }
+                if let Some(c) = r.offer.cleanup.clone() {
+                    let args = r.args.clone();
+                    self.rt.spawn(async move { c(args).await });
+                }
+                s.end(key, r.last_seq);
+            }
+        }
+        s.publishers.remove(exec);
+    }
+}

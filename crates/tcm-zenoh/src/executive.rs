@@ -1,0 +1,543 @@
+//! The executive: the process that owns the one task tree. It joins a system, follows which agents
+//! are live and what they offer (their liveliness tokens), receives the messages of its remote
+//! tasks and hands each, once and in order, to the node's action (`remote.rs`), and fails the
+//! remote tasks of an agent whose token is deleted with [`AgentLost`](crate::AgentLost).
+
+use crate::wire::{self, Json, Msg, ToAgent, ToExec};
+use crate::{Error, RemoteOptions, Stats};
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, RwLock};
+use std::time::Duration;
+use tcm::{Failure, NodeId, Task};
+use tokio::sync::{mpsc, watch};
+use zenoh::pubsub::Publisher;
+use zenoh::qos::CongestionControl;
+use zenoh::sample::SampleKind;
+
+/// How many ended remote tasks the executive remembers, to tell a duplicate of their last message
+/// from a late one.
+const ENDED_KEPT: usize = 65_536;
+
+/// A task the executive can run for a remote body's `spawn` ([`Executive::register`]).
+type Local = Arc<dyn Fn(Json) -> Result<Task, Failure> + Send + Sync>;
+
+/// What the executive hands to a remote task's action.
+#[derive(Debug)]
+pub(crate) enum Incoming {
+    Msg(ToExec),
+    /// The agent's liveliness token was deleted.
+    Lost,
+    /// The executive was closed.
+    Closed,
+}
+
+/// A remote task placed on an agent and not ended yet.
+struct Pending {
+    agent: String,
+    last_seq: u64,
+    tx: mpsc::UnboundedSender<Incoming>,
+}
+
+/// Where a node ran: its display number and its agent.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Placement {
+    /// The node.
+    pub node: NodeId,
+    /// Its display number in the run's trace.
+    pub display: u64,
+    /// The agent that ran its action.
+    pub agent: String,
+}
+
+#[derive(Default)]
+struct State {
+    live: BTreeSet<String>,
+    // Task → the agents whose offer token is live (an agent's offers go when its token does).
+    offers: BTreeMap<String, BTreeSet<String>>,
+    pending: BTreeMap<u64, Pending>,
+    // Ended remote tasks and the sequence number of their last message, oldest ids first.
+    ended: BTreeMap<u64, u64>,
+    placed: BTreeMap<NodeId, Placement>,
+    // `Executive::close` was called.
+    closed: bool,
+    publishers: BTreeMap<String, Arc<Publisher<'static>>>,
+    stats: Stats,
+}
+
+impl State {
+    fn end(&mut self, task: u64, seq: u64) {
+        self.pending.remove(&task);
+        self.ended.insert(task, seq);
+        while self.ended.len() > ENDED_KEPT {
+            self.ended.pop_first();
+        }
+    }
+}
+
+pub(crate) struct Inner {
+    pub(crate) session: zenoh::Session,
+    pub(crate) system: String,
+    pub(crate) id: String,
+    state: Mutex<State>,
+    // Bumped whenever an agent or an offer comes or goes; placement waits on it.
+    changed: watch::Sender<u64>,
+    next_task: AtomicU64,
+    pub(crate) defaults: RemoteOptions,
+    locals: RwLock<BTreeMap<String, Local>>,
+    // Messages sent from where no await is possible (a dropped action's cancel).
+    outbox: mpsc::UnboundedSender<(String, Msg<ToAgent>)>,
+    // Fault injection for tests: send every message twice.
+    pub(crate) duplicate: bool,
+    // The executive's declarations, until it is closed.
+    keep: Mutex<Option<Keep>>,
+}
+
+/// The process that owns the task tree and runs some of its nodes' actions on agents. Cheap to
+/// clone. Remote tasks are made with [`Executive::remote`]; they are nodes of any `tcm` run of
+/// this process, and keep the executive open while they exist.
+#[derive(Clone)]
+pub struct Executive {
+    pub(crate) inner: Arc<Inner>,
+}
+
+struct Keep {
+    _token: zenoh::liveliness::LivelinessToken,
+    _inbox: zenoh::pubsub::Subscriber<()>,
+    _agents: zenoh::pubsub::Subscriber<()>,
+}
+
+impl Executive {
+    /// Joins `system` with a zenoh session opened from `config` (see [`crate::config`]), with the
+    /// default options of remote tasks.
+    pub async fn open(system: &str, config: zenoh::Config) -> Result<Executive, Error> {
+        Executive::open_with(system, config, RemoteOptions::default()).await
+    }
+
+    /// As [`Executive::open`], with `defaults` for every remote task that sets no options of its
+    /// own (and for the children remote bodies spawn on agents).
+    pub async fn open_with(
+        system: &str,
+        config: zenoh::Config,
+        defaults: RemoteOptions,
+    ) -> Result<Executive, Error> {
+        let session = zenoh::open(config).await.map_err(Error::zenoh)?;
+        Executive::join(system, session, defaults, false).await
+    }
+
+    /// Opens an executive listening on a free port of 127.0.0.1 (peer mode, multicast scouting
+    /// off); returns it and the port agents connect to.
+    pub async fn open_loopback(system: &str) -> Result<(Executive, u16), Error> {
+        Executive::open_loopback_with(system, RemoteOptions::default(), false).await
+    }
+
+    /// As [`Executive::open_loopback`], with default options; `duplicate` sends every message
+    /// twice (fault injection: agents must ignore the copies).
+    pub async fn open_loopback_with(
+        system: &str,
+        defaults: RemoteOptions,
+        duplicate: bool,
+    ) -> Result<(Executive, u16), Error> {
+        let mut last = None;
+        // The port was free when chosen; another process may have taken it since.
+        for _ in 0..5 {
+            let port = crate::config::free_port()?;
+            match zenoh::open(crate::config::loopback_listen(port)?).await {
+                Ok(session) => {
+                    let exec =
+                        Executive::join(system, session, defaults.clone(), duplicate).await?;
+                    return Ok((exec, port));
+                }
+                Err(e) => last = Some(Error::zenoh(e)),
+            }
+        }
+        Err(last.unwrap_or_else(|| Error::Zenoh("cannot open a session".into())))
+    }
+
+    async fn join(
+        system: &str,
+        session: zenoh::Session,
+        defaults: RemoteOptions,
+        duplicate: bool,
+    ) -> Result<Executive, Error> {
+        if !wire::valid_name(system) {
+            return Err(Error::BadName(system.into()));
+        }
+        let id = session.zid().to_string();
+        let (outbox, mut outgoing) = mpsc::unbounded_channel::<(String, Msg<ToAgent>)>();
+        let inner = Arc::new(Inner {
+            keep: Mutex::new(None),
+            session: session.clone(),
+            system: system.into(),
+            id: id.clone(),
+            state: Mutex::new(State::default()),
+            changed: watch::Sender::new(0),
+            next_task: AtomicU64::new(1),
+            defaults,
+            locals: RwLock::new(BTreeMap::new()),
+            outbox,
+            duplicate,
+        });
+        let weak = Arc::downgrade(&inner);
+        let inbox = session
+            .declare_subscriber(wire::executive_inbox(system, &id))
+            .callback(move |sample| {
+                if let Some(inner) = weak.upgrade() {
+                    inner.receive(&sample.payload().to_bytes());
+                }
+            })
+            .await
+            .map_err(Error::zenoh)?;
+        let weak = Arc::downgrade(&inner);
+        let prefix = format!("tdl/{system}/");
+        let agents = session
+            .liveliness()
+            .declare_subscriber(format!("tdl/{system}/**"))
+            .history(true)
+            .callback(move |sample| {
+                if let Some(inner) = weak.upgrade() {
+                    let key = sample.key_expr().as_str();
+                    let rest = key.strip_prefix(&prefix).unwrap_or(key);
+                    inner.liveliness(rest, sample.kind() == SampleKind::Put);
+                }
+            })
+            .await
+            .map_err(Error::zenoh)?;
+        let token = session
+            .liveliness()
+            .declare_token(wire::executive_token(system, &id))
+            .await
+            .map_err(Error::zenoh)?;
+        let weak = Arc::downgrade(&inner);
+        tokio::spawn(async move {
+            while let Some((agent, msg)) = outgoing.recv().await {
+                let Some(inner) = weak.upgrade() else { break };
+                if let Err(e) = inner.send(&agent, &msg).await {
+                    tracing::warn!(target: "tcm_zenoh", agent, task = msg.task, "cannot send: {e}");
+                }
+            }
+        });
+        *inner.keep.lock().unwrap_or_else(|p| p.into_inner()) = Some(Keep {
+            _token: token,
+            _inbox: inbox,
+            _agents: agents,
+        });
+        Ok(Executive { inner })
+    }
+
+    /// Leaves the system: the executive's token goes (agents abort the bodies it started and run
+    /// their cleanups), its session closes, and every remote task still placed or waiting for an
+    /// agent fails with [`RemoteError`](crate::RemoteError).
+    pub async fn close(&self) {
+        let keep = self
+            .inner
+            .keep
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        {
+            let mut s = self.inner.lock();
+            s.closed = true;
+            let pending: Vec<u64> = s.pending.keys().copied().collect();
+            for id in pending {
+                if let Some(p) = s.pending.get(&id) {
+                    let _ = p.tx.send(Incoming::Closed);
+                    let last = p.last_seq;
+                    s.end(id, last);
+                }
+            }
+        }
+        self.inner.changed.send_modify(|n| *n += 1);
+        drop(keep);
+        if let Err(e) = self.inner.session.close().await {
+            tracing::warn!(target: "tcm_zenoh", "closing the executive's session: {e}");
+        }
+    }
+
+    /// The system's name.
+    pub fn system(&self) -> &str {
+        &self.inner.system
+    }
+
+    /// This executive's id: its zenoh session's, unique per run of the process.
+    pub fn id(&self) -> &str {
+        &self.inner.id
+    }
+
+    /// The zenoh session, for a program's own traffic.
+    pub fn session(&self) -> &zenoh::Session {
+        &self.inner.session
+    }
+
+    /// Registers a task of this process that remote bodies may spawn by name (`Child::local`):
+    /// `make` builds it from the arguments the body gave, or fails (the body's spawn then fails
+    /// with that failure). A task called for its value (`call`) gives it to the body when its
+    /// action returns a [`serde_json::Value`].
+    pub fn register(
+        &self,
+        name: impl Into<String>,
+        make: impl Fn(Json) -> Result<Task, Failure> + Send + Sync + 'static,
+    ) {
+        if let Ok(mut locals) = self.inner.locals.write() {
+            locals.insert(name.into(), Arc::new(make));
+        }
+    }
+
+    /// The agent that ran (or runs) `node`'s action, if it is a remote task that was placed.
+    pub fn agent_of(&self, node: NodeId) -> Option<String> {
+        self.inner.lock().placed.get(&node).map(|p| p.agent.clone())
+    }
+
+    /// Every remote task placed so far, by node.
+    pub fn placements(&self) -> Vec<Placement> {
+        self.inner.lock().placed.values().cloned().collect()
+    }
+
+    /// The live agents, by name.
+    pub fn agents(&self) -> Vec<String> {
+        self.inner.lock().live.iter().cloned().collect()
+    }
+
+    /// The live agents that offer `task`, by name.
+    pub fn offering(&self, task: &str) -> Vec<String> {
+        let s = self.inner.lock();
+        s.offers
+            .get(task)
+            .map(|a| a.intersection(&s.live).cloned().collect())
+            .unwrap_or_default()
+    }
+
+    /// The executive's counters.
+    pub fn stats(&self) -> Stats {
+        self.inner.lock().stats
+    }
+
+    /// Waits until `agent` is live and offers `task` (with `task` `None`: until it is live), at
+    /// most `timeout`.
+    pub async fn wait_for(
+        &self,
+        agent: &str,
+        task: Option<&str>,
+        timeout: Duration,
+    ) -> Result<(), Error> {
+        let mut rx = self.inner.changed.subscribe();
+        let ready = || {
+            let s = self.inner.lock();
+            s.live.contains(agent)
+                && task.is_none_or(|t| s.offers.get(t).is_some_and(|a| a.contains(agent)))
+        };
+        let wait = async {
+            while !ready() {
+                if rx.changed().await.is_err() {
+                    break;
+                }
+            }
+        };
+        tokio::time::timeout(timeout, wait)
+            .await
+            .map_err(|_| Error::Timeout(format!("agent {agent} not live after {timeout:?}")))
+    }
+
+    /// Waits until `agent` is no longer live, at most `timeout`.
+    pub async fn wait_gone(&self, agent: &str, timeout: Duration) -> Result<(), Error> {
+        let mut rx = self.inner.changed.subscribe();
+        let wait = async {
+            while self.inner.lock().live.contains(agent) {
+                if rx.changed().await.is_err() {
+                    break;
+                }
+            }
+        };
+        tokio::time::timeout(timeout, wait)
+            .await
+            .map_err(|_| Error::Timeout(format!("agent {agent} still live after {timeout:?}")))
+    }
+}
+
+impl Inner {
+    fn lock(&self) -> MutexGuard<'_, State> {
+        // A panic under this lock leaves consistent maps (each update is one insert or remove).
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub(crate) fn next_task(&self) -> u64 {
+        self.next_task.fetch_add(1, Ordering::Relaxed)
+    }
+
+    pub(crate) fn local(&self, name: &str) -> Option<Local> {
+        self.locals.read().ok()?.get(name).cloned()
+    }
+
+    /// A message arrived on the inbox: handed to its task's action once, in order; duplicates and
+    /// messages of ended tasks are counted and dropped.
+    fn receive(&self, bytes: &[u8]) {
+        let msg: Msg<ToExec> = match serde_json::from_slice(bytes) {
+            Ok(m) => m,
+            Err(e) => {
+                self.lock().stats.malformed += 1;
+                tracing::warn!(target: "tcm_zenoh", "malformed message ignored: {e}");
+                return;
+            }
+        };
+        let mut s = self.lock();
+        let Some(p) = s.pending.get_mut(&msg.task) else {
+            let dup = s.ended.get(&msg.task).is_some_and(|last| msg.seq <= *last);
+            if dup {
+                s.stats.duplicates += 1;
+            } else {
+                s.stats.late += 1;
+            }
+            drop(s);
+            let what = if dup { "duplicate" } else { "late" };
+            tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq,
+                "{what} message of an ended remote task ignored");
+            return;
+        };
+        if msg.seq <= p.last_seq {
+            s.stats.duplicates += 1;
+            drop(s);
+            tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq,
+                "duplicate message ignored");
+            return;
+        }
+        p.last_seq = msg.seq;
+        // Sent before the task is marked ended, so nothing can overtake it.
+        let _ = p.tx.send(Incoming::Msg(msg.body.clone()));
+        if matches!(msg.body, ToExec::Done { .. } | ToExec::Cancelled) {
+            s.end(msg.task, msg.seq);
+        }
+    }
+
+    /// A liveliness token came (`put`) or went, its key without the system's prefix.
+    fn liveliness(&self, key: &str, put: bool) {
+        let mut parts = key.split('/');
+        let mut s = self.lock();
+        match (parts.next(), parts.next(), parts.next()) {
+            (Some("agents"), Some(agent), None) => {
+                if put {
+                    s.live.insert(agent.to_string());
+                } else {
+                    s.live.remove(agent);
+                    s.publishers.remove(agent);
+                    let lost: Vec<u64> = s
+                        .pending
+                        .iter()
+                        .filter(|(_, p)| p.agent == agent)
+                        .map(|(id, _)| *id)
+                        .collect();
+                    for id in lost {
+                        if let Some(p) = s.pending.get(&id) {
+                            let _ = p.tx.send(Incoming::Lost);
+                            let last = p.last_seq;
+                            s.end(id, last);
+                        }
+                    }
+                }
+            }
+            (Some("offers"), Some(task), Some(agent)) => {
+                let agents = s.offers.entry(task.to_string()).or_default();
+                if put {
+                    agents.insert(agent.to_string());
+                } else {
+                    agents.remove(agent);
+                }
+            }
+            _ => return,
+        }
+        drop(s);
+        self.changed.send_modify(|n| *n += 1);
+    }
+
+    /// Places remote task `task` (of node `node`, numbered `display`) on a live agent that
+    /// offers `name`: `agent`, or the first by name when `None`. Waits until there is one; the
+    /// task is then pending there, its messages going to `tx`. `None` once the executive closed.
+    pub(crate) async fn place(
+        &self,
+        agent: Option<&str>,
+        name: &str,
+        task: u64,
+        node: NodeId,
+        display: u64,
+        tx: mpsc::UnboundedSender<Incoming>,
+    ) -> Option<String> {
+        let mut rx = self.changed.subscribe();
+        loop {
+            {
+                let mut s = self.lock();
+                if s.closed {
+                    return None;
+                }
+                let chosen = s.offers.get(name).and_then(|offering| match agent {
+                    Some(a) => (offering.contains(a) && s.live.contains(a)).then(|| a.to_string()),
+                    None => offering.iter().find(|a| s.live.contains(*a)).cloned(),
+                });
+                if let Some(chosen) = chosen {
+                    s.pending.insert(
+                        task,
+                        Pending {
+                            agent: chosen.clone(),
+                            last_seq: 0,
+                            tx,
+                        },
+                    );
+                    s.placed.insert(
+                        node,
+                        Placement {
+                            node,
+                            display,
+                            agent: chosen.clone(),
+                        },
+                    );
+                    s.stats.placed += 1;
+                    return Some(chosen);
+                }
+            }
+            if rx.changed().await.is_err() {
+                return None;
+            }
+        }
+    }
+
+    /// The remote task ended on this side (a timeout, a dropped action): later messages are late.
+    pub(crate) fn forget(&self, task: u64) {
+        let mut s = self.lock();
+        if let Some(p) = s.pending.get(&task) {
+            let last = p.last_seq;
+            s.end(task, last);
+        }
+    }
+
+    pub(crate) fn count(&self, f: impl FnOnce(&mut Stats)) {
+        f(&mut self.lock().stats);
+    }
+
+    /// Sends `msg` to `agent`'s inbox, reliably (zenoh blocks rather than drop it when congested).
+    pub(crate) async fn send(&self, agent: &str, msg: &Msg<ToAgent>) -> Result<(), Error> {
+        let publisher = self.publisher(agent).await?;
+        let bytes = msg.encode();
+        if self.duplicate {
+            publisher.put(bytes.clone()).await.map_err(Error::zenoh)?;
+        }
+        publisher.put(bytes).await.map_err(Error::zenoh)
+    }
+
+    /// Queues `msg` for `agent`, from where no await is possible.
+    pub(crate) fn send_later(&self, agent: &str, msg: Msg<ToAgent>) {
+        let _ = self.outbox.send((agent.to_string(), msg));
+    }
+
+    async fn publisher(&self, agent: &str) -> Result<Arc<Publisher<'static>>, Error> {
+        if let Some(p) = self.lock().publishers.get(agent) {
+            return Ok(p.clone());
+        }
+        let p = self
+            .session
+            .declare_publisher(wire::agent_inbox(&self.system, agent, &self.id))
+            .congestion_control(CongestionControl::Block)
+            .await
+            .map_err(Error::zenoh)?;
+        let p = Arc::new(p);
+        let mut s = self.lock();
+        Ok(s.publishers.entry(agent.to_string()).or_insert(p).clone())
+    }
+}

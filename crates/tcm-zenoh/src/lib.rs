@@ -1,0 +1,100 @@
+//! Distributed task trees over zenoh, built on the public `tcm` API (docs/distributed.md).
+//!
+//! A system is a set of processes that share a name (the key prefix `tdl/<system>/`). The
+//! [`Executive`] owns the one task tree, and so the one trace. An [`Agent`] joins the system and
+//! offers tasks by name, holding a liveliness token `tdl/<system>/agents/<agent>` (and one per
+//! offered task). A remote task ([`Executive::remote`]) is a node of the executive's tree whose
+//! action an agent carries out: its constraints, waits, termination and handlers are the tree's,
+//! as for any node. Its value comes back as JSON and its failure typed, so handler search by type
+//! works across processes; terminating it cancels the body on the agent, which runs its cleanup
+//! and confirms; a remote goal's body spawns children in the tree through calls to the executive.
+//!
+//! Every message carries its task's id and a sequence number: each is applied once, in order,
+//! and duplicates and late messages are counted ([`Stats`]) and logged through `tracing`. A lost
+//! agent (its token deleted: its process died, or its link broke) fails each task it ran with
+//! [`AgentLost`] as soon as the executive sees it; timeouts in the style of durable workflows
+//! (schedule-to-start, start-to-close, heartbeat; [`RemoteOptions`]) fail it with
+//! [`RemoteTimeout`]. Nothing waits silently for ever.
+//!
+//! Executives and agents need a multi-thread tokio runtime (zenoh does not support tokio's
+//! current-thread scheduler), and so run on real time.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), Box<dyn std::error::Error>> {
+//! use tcm_zenoh::{Agent, At, Executive, RemoteCtx, RemoteFailure};
+//! let (exec, port) = Executive::open_loopback("robot").await?;
+//! let _arm = Agent::builder("robot", "arm")
+//!     .command("grasp", |_ctx: RemoteCtx, force: f64| async move {
+//!         Ok::<_, RemoteFailure>(force > 0.0)
+//!     })
+//!     .start(tcm_zenoh::config::loopback_connect(port)?)
+//!     .await?;
+//! exec.wait_for("arm", Some("grasp"), std::time::Duration::from_secs(5)).await?;
+//! let report = tcm::Runtime::new().run(exec.remote(At::agent("arm"), "grasp", 2.0).task()).await?;
+//! assert_eq!(report.outcome, tcm::RunOutcome::Completed);
+//! # Ok(())
+//! # }
+//! ```
+#![warn(missing_docs)]
+
+mod agent;
+mod body;
+pub mod config;
+mod executive;
+mod failure;
+mod remote;
+mod wire;
+
+pub use agent::{Agent, AgentBuilder, AgentStats};
+pub use body::{Child, ChildId, RemoteCtx, RemoteSpawn};
+pub use executive::{Executive, Placement};
+pub use failure::{AgentLost, RemoteError, RemoteFailure, RemoteTimeout, TimeoutKind, caught};
+pub use remote::{At, Remote, RemoteOptions};
+pub use wire::{ChildEnded, ChildRef, Json, Kind};
+
+/// Errors of the distribution layer's API (a remote task's own failures are `tcm` failures).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// Zenoh refused: a bad configuration, a session that cannot open, a declaration that failed.
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    /// A system, agent or task name that cannot be one chunk of a key expression (use ASCII
+    /// letters, digits, `_`, `-`, `.`).
+    #[error("bad name {0:?}: use ASCII letters, digits, `_`, `-` and `.`")]
+    BadName(String),
+    /// Something awaited did not happen in time.
+    #[error("timed out: {0}")]
+    Timeout(String),
+}
+
+impl Error {
+    pub(crate) fn zenoh(e: impl std::fmt::Display) -> Error {
+        Error::Zenoh(e.to_string())
+    }
+}
+
+/// The counters of an executive.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Remote tasks placed on an agent (a start sent).
+    pub placed: u64,
+    /// Remote tasks whose body returned a value.
+    pub succeeded: u64,
+    /// Remote tasks whose body failed.
+    pub failed: u64,
+    /// Cancels sent to agents (a node terminated, or its action dropped).
+    pub cancels: u64,
+    /// Cancels the agent confirmed.
+    pub cancelled: u64,
+    /// Remote tasks failed with `AgentLost`.
+    pub agent_lost: u64,
+    /// Remote tasks failed with `RemoteTimeout`.
+    pub timeouts: u64,
+    /// Messages received twice, ignored.
+    pub duplicates: u64,
+    /// Messages of a task that had ended (or that this executive never had), ignored.
+    pub late: u64,
+    /// Messages that could not be read, ignored.
+    pub malformed: u64,
+}

@@ -1,0 +1,12 @@
+//! Integration tests of distributed task trees: an executive and its agents on 127.0.0.1 (peer
+//! mode, multicast scouting off), in one process with a zenoh session each, or with an agent in a
+//! process of its own. Every test is bounded in time, and every run's trace is checked.
+
+mod agent_loss;
+mod exactly_once;
+mod exceptions;
+mod goals;
+mod remote_command;
+mod termination;
+mod timeouts;
+mod util;
