@@ -514,3 +514,21 @@ async fn trace(State(shared): State<Arc<Shared>>, Path(id): Path<usize>) -> Resp
     }
     ([(header::CONTENT_TYPE, "application/x-ndjson")], out).into_response()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_an_address_beyond_loopback_is_warned_about() {
+        let warn = |a: &str| exposure_warning(&a.parse().expect("an address"));
+        assert_eq!(warn("127.0.0.1:7878"), None);
+        assert_eq!(warn("[::1]:7878"), None);
+        let w = warn("0.0.0.0:7878").expect("a warning");
+        assert!(
+            w.contains("0.0.0.0:7878") && w.contains("no authentication"),
+            "{w}"
+        );
+        assert!(warn("192.168.1.5:80").is_some());
+    }
+}

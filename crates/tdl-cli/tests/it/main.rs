@@ -7,6 +7,7 @@ use std::process::Command;
 mod doc;
 mod export;
 mod graph;
+mod view;
 
 fn tdl(args: &[&str]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_tdl"))
