@@ -138,10 +138,13 @@ impl Cancels {
             let shared = shared.clone();
             // A tokio sleep: on the paused clock of a virtual-time run, the period passes in
             // virtual time, deterministically.
+            let queued = shared.queued.clone();
             let task = async move {
                 tokio::time::sleep(grace).await;
                 expire(&shared, node, grace);
             };
+            // Its wake-ups are counted (`pump.rs`); a new task is queued.
+            let task = crate::pump::Tracked::new(Box::pin(task), &queued, true);
             match rt {
                 Some(rt) => rt.spawn(task),
                 None => tokio::spawn(task),

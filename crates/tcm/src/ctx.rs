@@ -205,7 +205,8 @@ impl Ctx {
             token,
             armed: self.job.is_some(),
         };
-        let res = rx.await;
+        // Its wake-up is counted, so that the pump knows the waiting task is queued (`pump.rs`).
+        let res = crate::pump::Tracked::new(rx, &self.shared.queued, false).await;
         // Answered: the notification already unparked it.
         unpark.armed = unpark.armed && res.is_err();
         res.map_err(|_| Error::RunEnded)

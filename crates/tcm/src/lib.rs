@@ -30,6 +30,7 @@ mod ctx;
 mod host;
 mod invoke;
 pub mod patterns;
+mod pump;
 mod query;
 mod resource;
 mod runtime;
