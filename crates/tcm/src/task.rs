@@ -325,6 +325,38 @@ impl Task {
         Task::new(NodeKind::Command, name, f)
     }
 
+    /// A task whose action blocks or computes (a planner, a blocking driver call): `f` runs on
+    /// one of tokio's blocking threads, off the async workers, so it never stalls the tree or its
+    /// timers (see [`Ctx::blocking`], which this is, for termination and virtual time). Its value
+    /// is the node's value. TDL's `blocking command`.
+    ///
+    /// ```
+    /// # tcm::block_on_virtual(async {
+    /// use tcm::{NodeKind, Runtime, RunOutcome, Task};
+    /// let plan = Task::blocking(NodeKind::Command, "plan", |ctx| {
+    ///     let mut cost = 0u64;
+    ///     for step in 0..1_000u64 {
+    ///         if ctx.is_cancelled() {
+    ///             break; // terminated: stop early, the node is terminated once this returns
+    ///         }
+    ///         cost += step;
+    ///     }
+    ///     Ok(cost)
+    /// });
+    /// let report = Runtime::new().run(plan).await?;
+    /// assert_eq!(report.outcome, RunOutcome::Completed);
+    /// # Ok::<(), tcm::Error>(())
+    /// # })?;
+    /// # Ok::<(), tcm::Error>(())
+    /// ```
+    pub fn blocking<F, T>(kind: NodeKind, name: impl Into<Name>, f: F) -> Task
+    where
+        F: FnOnce(Ctx) -> Result<T, Failure> + Send + 'static,
+        T: Any + Send,
+    {
+        Task::new(kind, name, move |ctx: Ctx| ctx.blocking(f))
+    }
+
     /// A monitor: `body` runs once per activation, as a child command node. In the body,
     /// [`Ctx::trigger`] counts a trigger and [`Ctx::activation`] tells the counts.
     pub fn monitor<F, Fut, T>(name: impl Into<Name>, params: Monitor, body: F) -> Task
