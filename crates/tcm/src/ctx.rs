@@ -7,6 +7,7 @@ use crate::host::{Shared, lock};
 use crate::task::{Action, AnyArgs, Factory, Handler, Kept, Task, Value};
 use std::any::Any;
 use std::future::Future;
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 use tcm_core::{
@@ -140,10 +141,15 @@ impl Ctx {
                 ));
             }
             let rt = lock(&ctx.shared)?.spawner.clone();
+            let nice = ctx.shared.blocking_nice.load(Ordering::Relaxed);
             let body = ctx.clone();
+            let run = move || {
+                let _nice = crate::niced::Niced::enter(nice);
+                f(body)
+            };
             let handle = match rt {
-                Some(rt) => rt.spawn_blocking(move || f(body)),
-                None => tokio::task::spawn_blocking(move || f(body)),
+                Some(rt) => rt.spawn_blocking(run),
+                None => tokio::task::spawn_blocking(run),
             };
             match handle.await {
                 Ok(res) => res,

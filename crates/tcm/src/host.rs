@@ -21,7 +21,7 @@ use std::fmt;
 use std::future::Future;
 use std::panic::AssertUnwindSafe;
 use std::pin::Pin;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 use tcm_core::{
     Driver, Engine, EngineError, Event, Failure, Job, Name, NodeId, Purpose, Shell, Spawn, Time,
@@ -429,6 +429,8 @@ pub(crate) struct Shared {
     pub(crate) inline: AtomicBool,
     // How many of the run's tracked futures are queued, woken and not yet polled (`pump.rs`).
     pub(crate) queued: Arc<AtomicUsize>,
+    // The nice value blocking bodies run at (`Runtime::blocking_nice`); 0 leaves it alone.
+    pub(crate) blocking_nice: AtomicI32,
 }
 
 impl Shared {

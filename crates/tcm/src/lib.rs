@@ -32,6 +32,7 @@ mod clock;
 mod ctx;
 mod host;
 mod invoke;
+mod niced;
 pub mod patterns;
 mod pump;
 mod query;

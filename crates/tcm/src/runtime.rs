@@ -20,7 +20,7 @@ use crate::sink::TraceSink;
 use crate::task::Task;
 use std::any::Any;
 use std::future::Future;
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tcm_core::{
@@ -241,6 +241,7 @@ impl Runtime {
                 status: watch::Sender::new(Status::default()),
                 inline: AtomicBool::new(false),
                 queued: Arc::default(),
+                blocking_nice: AtomicI32::new(0),
             }),
             sinks: Vec::new(),
             precise: false,
@@ -282,6 +283,21 @@ impl Runtime {
     #[cfg(test)]
     pub(crate) fn without_pump(mut self) -> Runtime {
         self.pump = false;
+        self
+    }
+
+    /// Runs blocking bodies ([`Task::blocking`], [`crate::Ctx::blocking`]) at the nice value
+    /// `nice` (Linux; from 1, lowest priority of all, to 19, the lowest of the normal ones), so
+    /// that on a CPU they keep busy, the tree's timers, monitors and other actions come first:
+    /// a body raises the nice value of its thread when it starts and puts it back when it ends.
+    /// Putting it back needs the right to raise a priority (root, `CAP_SYS_NICE`, or an
+    /// `RLIMIT_NICE` that allows it); without it, the tokio blocking thread keeps the lower
+    /// priority for whatever it runs next. Default 0: bodies run at their thread's priority
+    /// (docs/semantics.md, "Blocking actions").
+    pub fn blocking_nice(self, nice: i32) -> Runtime {
+        self.shared
+            .blocking_nice
+            .store(nice.clamp(0, 19), Ordering::Relaxed);
         self
     }
 

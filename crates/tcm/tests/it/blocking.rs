@@ -2,7 +2,8 @@
 //! ends the node with its value, failure or panic; a terminated one is signalled, never dropped,
 //! and its node is terminated once the body returned; one terminated before its body started never
 //! runs it. On real time, a blocking body does not hold back a monitor polling beside it, where
-//! the same body as a plain async action does.
+//! the same body as a plain async action does. `Runtime::blocking_nice` runs bodies at a lower
+//! priority (Linux).
 
 use crate::util::{only, run_checked, story};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
@@ -222,4 +223,34 @@ fn on_real_time_a_blocking_action_does_not_hold_back_a_monitor_beside_it() {
     let (during, outcome) = activations_during_a_spin(false);
     assert_eq!(outcome, RunOutcome::Completed);
     assert!(during <= 1, "{during} activations during an async spin");
+}
+
+/// The nice value of the calling thread, from `/proc/thread-self/stat` (Linux).
+#[cfg(target_os = "linux")]
+fn thread_nice() -> Option<i32> {
+    let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
+    // Fields after the command name (in parentheses) start at the third, `state`; `nice` is the
+    // nineteenth.
+    let after = stat.rsplit_once(')')?.1;
+    after.split_whitespace().nth(16)?.parse().ok()
+}
+
+#[cfg(target_os = "linux")]
+#[tokio::test(start_paused = true)]
+async fn blocking_nice_runs_bodies_at_a_lower_priority() {
+    let task = |name: &'static str| {
+        Task::blocking(NodeKind::Command, name, |_| {
+            thread_nice()
+                .ok_or_else(|| Failure::new("NoProc", "cannot read the thread's nice value"))
+        })
+    };
+    let checked = Task::goal("g", move |ctx| async move {
+        let nice: i32 = ctx.spawn(task("read")).wait_value().await?;
+        if nice != 19 {
+            return Err(Failure::new("Nice", format!("the body ran at nice {nice}")));
+        }
+        Ok(())
+    });
+    let (report, _) = run_checked(Runtime::new().blocking_nice(19), checked).await;
+    assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
 }
