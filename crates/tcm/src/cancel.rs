@@ -157,7 +157,9 @@ impl Cancels {
             // virtual time, deterministically.
             let queued = shared.queued.clone();
             let task = async move {
-                tokio::time::sleep(grace).await;
+                // The run's time (scaled, if the run's clock is).
+                let end = shared.clock.instant(shared.now() + grace);
+                tokio::time::sleep_until(end).await;
                 expire(&shared, node, grace);
             };
             // Its wake-ups are counted (`pump.rs`); a new task is queued.

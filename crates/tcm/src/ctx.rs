@@ -44,6 +44,14 @@ impl Ctx {
         self.shared.now().since_start()
     }
 
+    /// Sleeps `d` of the run's time: on a scaled clock ([`crate::Runtime::time_scale`]), `d`
+    /// divided by the scale of tokio's time; otherwise the same as `tokio::time::sleep(d)`
+    /// (virtual on tokio's paused clock).
+    pub async fn sleep(&self, d: Duration) {
+        let at = self.shared.now() + d;
+        tokio::time::sleep_until(self.shared.clock.instant(at)).await;
+    }
+
     /// The engine time of today's occurrence of a time of day (`secs` since midnight, UTC), for
     /// `disable until` / `terminate at` an absolute time (docs/semantics.md, "Time": resolved against the
     /// wall clock now; a time already past today is due at once).

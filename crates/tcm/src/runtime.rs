@@ -278,6 +278,16 @@ impl Runtime {
         self
     }
 
+    /// Runs the run's clock `scale` times as fast as tokio's (a finite number above 0; default 1):
+    /// on the real clock, a simulation that runs faster than real time, as a demo paced for
+    /// watching does. Every time of the run is on it: constraint timers, monitor periods, grace
+    /// periods, [`crate::Ctx::now`], [`crate::Ctx::sleep`] and the report's `elapsed`. An action
+    /// that sleeps with tokio's own `sleep` sleeps tokio's time, unscaled: use `Ctx::sleep`.
+    pub fn time_scale(self, scale: f64) -> Runtime {
+        self.shared.clock.set_scale(scale);
+        self
+    }
+
     /// Spawns every action as a tokio task, as on a multi-thread runtime: for tests that compare
     /// the two ways (`pump.rs`).
     #[cfg(test)]
