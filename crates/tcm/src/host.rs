@@ -444,6 +444,7 @@ impl Shared {
         Ok(Access {
             guard: lock(self)?,
             shared: self,
+            settled: false,
         })
     }
 }
@@ -461,6 +462,8 @@ pub(crate) fn lock(shared: &Shared) -> Result<MutexGuard<'_, Inner>, Error> {
 pub(crate) struct Access<'a> {
     guard: MutexGuard<'a, Inner>,
     shared: &'a Arc<Shared>,
+    // The effects were carried out and nothing changed since (`Access::carry_out`).
+    settled: bool,
 }
 
 impl std::ops::Deref for Access<'_> {
@@ -472,6 +475,7 @@ impl std::ops::Deref for Access<'_> {
 
 impl std::ops::DerefMut for Access<'_> {
     fn deref_mut(&mut self) -> &mut Inner {
+        self.settled = false;
         &mut self.guard
     }
 }
@@ -479,6 +483,7 @@ impl std::ops::DerefMut for Access<'_> {
 impl Access<'_> {
     /// Carries out the engine's effects now, rather than when the access ends.
     pub(crate) fn carry_out(&mut self) {
+        self.settled = true;
         match self.guard.effects(self.shared) {
             Wake::No => {}
             // Taking trace records changes nothing of the engine: while this thread pumps, the
@@ -491,7 +496,9 @@ impl Access<'_> {
 
 impl Drop for Access<'_> {
     fn drop(&mut self) {
-        self.carry_out();
+        if !self.settled {
+            self.carry_out();
+        }
     }
 }
 
@@ -683,6 +690,18 @@ pub(crate) enum Ended {
     Returned(Job, Result<Result<Value, Failure>, Box<dyn Any + Send>>),
     /// It was dropped unfinished after its cancellation.
     Dropped(Job),
+}
+
+impl Access<'_> {
+    /// Carries out the effects, then takes the jobs the pump is to poll (`Inner::take_launches`);
+    /// taking them changes nothing of the engine, so the access ends without another look.
+    pub(crate) fn settle_and_take_launches(&mut self) -> LaunchBatch {
+        self.carry_out();
+        if self.guard.ended {
+            return (Vec::new(), std::mem::take(&mut self.guard.launches));
+        }
+        self.guard.take_launches()
+    }
 }
 
 /// A job's task ended: report it to the engine (under the lock); the access carries out what

@@ -165,16 +165,9 @@ impl Guard {
         let mut cx = Context::from_waker(waker);
         // Each future is polled as a task would be: with no budget taken from the task that ended.
         loop {
-            let (batch, dropped) = {
-                let Ok(mut inner) = shared.enter() else {
-                    return;
-                };
-                inner.carry_out();
-                if inner.ended {
-                    (Vec::new(), std::mem::take(&mut inner.launches))
-                } else {
-                    inner.take_launches()
-                }
+            let (batch, dropped) = match shared.enter() {
+                Ok(mut inner) => inner.settle_and_take_launches(),
+                Err(_) => return,
             };
             // Cancelled before their poll: dropped unpolled, outside the lock, and reported stopped.
             for (job, fut) in dropped {
