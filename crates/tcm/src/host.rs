@@ -841,10 +841,11 @@ pub(crate) enum Running {
 }
 
 /// The running actions, by the node's storage slot (dense, so a vector beats a map on the path
-/// every action takes).
+/// every action takes). A slot holds the node and, for a task, its abort handle (none: the pump
+/// holds it); 24 bytes, as many as a slot with only the abort handle.
 #[derive(Default)]
 pub(crate) struct Aborts {
-    slots: Vec<Option<(NodeId, Running)>>,
+    slots: Vec<(Option<NodeId>, Option<AbortHandle>)>,
     len: usize,
 }
 
@@ -852,29 +853,38 @@ impl Aborts {
     fn insert(&mut self, node: NodeId, r: Running) {
         let i = node.slot() as usize;
         if self.slots.len() <= i {
-            self.slots.resize_with(i + 1, || None);
+            self.slots.resize_with(i + 1, || (None, None));
         }
-        if self.slots[i].replace((node, r)).is_none() {
+        let handle = match r {
+            Running::Inline => None,
+            Running::Task(h) => Some(h),
+        };
+        if std::mem::replace(&mut self.slots[i], (Some(node), handle))
+            .0
+            .is_none()
+        {
             self.len += 1;
         }
     }
 
     fn remove(&mut self, node: &NodeId) -> Option<Running> {
         let slot = self.slots.get_mut(node.slot() as usize)?;
-        match slot {
-            Some((id, _)) if id == node => {
-                self.len -= 1;
-                slot.take().map(|(_, r)| r)
-            }
-            _ => None,
+        if slot.0 != Some(*node) {
+            return None;
         }
+        self.len -= 1;
+        let (_, handle) = std::mem::take(slot);
+        Some(match handle {
+            Some(h) => Running::Task(h),
+            None => Running::Inline,
+        })
     }
 
     /// The action the pump held became a task; false if it is no longer running (cancelled).
     fn set_task(&mut self, node: NodeId, h: AbortHandle) -> bool {
         match self.slots.get_mut(node.slot() as usize) {
-            Some(Some((id, r))) if *id == node => {
-                *r = Running::Task(h);
+            Some(slot) if slot.0 == Some(node) => {
+                slot.1 = Some(h);
                 true
             }
             _ => false,
@@ -882,16 +892,17 @@ impl Aborts {
     }
 
     pub(crate) fn contains(&self, node: NodeId) -> bool {
-        matches!(self.slots.get(node.slot() as usize), Some(Some((id, _))) if *id == node)
+        self.slots
+            .get(node.slot() as usize)
+            .is_some_and(|s| s.0 == Some(node))
     }
 
     /// Takes every running task's abort handle (those the pump holds, it drops itself).
     pub(crate) fn drain(&mut self) -> impl Iterator<Item = AbortHandle> + '_ {
         self.len = 0;
-        self.slots.iter_mut().filter_map(|s| match s.take() {
-            Some((_, Running::Task(h))) => Some(h),
-            _ => None,
-        })
+        self.slots
+            .iter_mut()
+            .filter_map(|s| std::mem::take(s).1)
     }
 }
 
