@@ -36,7 +36,7 @@
 
 use crate::host::{CatchUnwind, Ended, Inner, Shared};
 use crate::task::ActionFuture;
-use std::cell::{Cell, RefCell};
+use std::cell::RefCell;
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
@@ -53,12 +53,12 @@ pub(crate) struct PumpState {
     pending: Vec<(Job, ActionFuture)>,
     // Futures to drop outside the lock (their drop may run code that takes it).
     to_drop: Vec<ActionFuture>,
+    // The driver has trace records to take: woken when the pump ends.
+    wake_driver: bool,
 }
 
 thread_local! {
     static PUMP: RefCell<Option<PumpState>> = const { RefCell::new(None) };
-    // The driver has trace records to take: woken when the pump of this thread ends.
-    static WAKE_DRIVER: Cell<bool> = const { Cell::new(false) };
 }
 
 /// Whether an action that starts now is left to the pump of this thread: it pumps for `shared`,
@@ -78,11 +78,18 @@ pub(crate) fn pumps(shared: &Shared) -> bool {
 /// While the pump of this thread runs for `shared`, the driver is woken for its trace records
 /// when the pump ends, not now; returns whether it took the wake-up.
 pub(crate) fn defer_wake(shared: &Shared) -> bool {
-    let deferred = pumps(shared);
-    if deferred {
-        WAKE_DRIVER.with(|w| w.set(true));
-    }
-    deferred
+    PUMP.with(|p| {
+        let Ok(mut p) = p.try_borrow_mut() else {
+            return false;
+        };
+        match p.as_mut().filter(|st| same(&st.shared, shared)) {
+            Some(st) => {
+                st.wake_driver = true;
+                true
+            }
+            None => false,
+        }
+    })
 }
 
 fn same(a: &Arc<Shared>, b: &Shared) -> bool {
@@ -144,6 +151,7 @@ impl Guard {
                 done: Vec::new(),
                 pending: Vec::new(),
                 to_drop: Vec::new(),
+                wake_driver: false,
             });
             Guard { saved, owner: true }
         })
@@ -163,7 +171,6 @@ impl Guard {
         };
         let waker = Waker::noop();
         let mut cx = Context::from_waker(waker);
-        // Each future is polled as a task would be: with no budget taken from the task that ended.
         loop {
             let (batch, dropped) = match shared.enter() {
                 Ok(mut inner) => inner.settle_and_take_launches(),
@@ -181,6 +188,7 @@ impl Guard {
                 continue;
             }
             for (job, mut fut) in batch {
+                // Polled as a task would be: with no budget taken from the task that ended.
                 let once = tokio::task::unconstrained(CatchUnwind(fut.as_mut()));
                 match std::pin::pin!(once).poll(&mut cx) {
                     Poll::Ready(res) => push(|st| st.done.push(Ended::Returned(job, res))),
@@ -232,10 +240,8 @@ impl Drop for Guard {
             Ok(mut p) => std::mem::replace(&mut *p, self.saved.take()),
             Err(_) => None,
         });
-        if WAKE_DRIVER.with(|w| w.replace(false)) {
-            if let Some(st) = &left {
-                st.shared.wake.notify_one();
-            }
+        if let Some(st) = left.as_ref().filter(|st| st.wake_driver) {
+            st.shared.wake.notify_one();
         }
         // Normally empty: the pump reported everything before it stopped. A pump cut short (the
         // lock poisoned) drops what it held here, outside the lock.
