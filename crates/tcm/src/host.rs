@@ -900,9 +900,7 @@ impl Aborts {
     /// Takes every running task's abort handle (those the pump holds, it drops itself).
     pub(crate) fn drain(&mut self) -> impl Iterator<Item = AbortHandle> + '_ {
         self.len = 0;
-        self.slots
-            .iter_mut()
-            .filter_map(|s| std::mem::take(s).1)
+        self.slots.iter_mut().filter_map(|s| std::mem::take(s).1)
     }
 }
 
