@@ -12,14 +12,17 @@
 //! previous one; W5 N commands each disabled until the previous one's execution completed and each
 //! with a `terminate in` timer that never fires; W4 a monitor polling every 1 ms for 2 s on real time, its lateness against the
 //! ideal schedule beside a thread sleeping to the same deadlines; W6 N commands failing with an
-//! exception handled three levels up. W1 also runs at 10k, 100k and 1M to show the per-node cost
-//! does not grow.
+//! exception handled three levels up; W7 1,000 blocking 1 ms actions on 1 and 2 blocking
+//! threads, and a 1 kHz monitor beside them (see `w7.rs`). W1 also runs at 10k, 100k and 1M to
+//! show the per-node cost does not grow.
 //!
-//! `--workload W1|W2|W3|W4|W6|W1-scale`, `--layer core|shell`, `--n N` and `--depth D` run one
+//! `--workload W1|W2|W3|W4|W5|W6|W7|W1-scale`, `--layer core|shell`, `--n N` and `--depth D` run one
 //! workload, one layer, one size (W1-scale then runs only that size); `--hold` makes the core
 //! layer's W1-scale spawn every command before any runs (layer `core-hold`), so all N are alive at
 //! once as in the shell. `bench/compare` runs each workload in a process of its own with these, to
 //! read its peak RSS and to match the sizes the other systems can handle.
+
+mod w7;
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
@@ -463,7 +466,7 @@ fn report(
 struct Options {
     json: bool,
     quick: bool,
-    /// Only this workload (`W1`, `W2`, `W3`, `W4`, `W6` or `W1-scale`).
+    /// Only this workload (`W1` … `W7` or `W1-scale`).
     workload: Option<String>,
     /// Only this layer (`core` or `shell`).
     layer: Option<String>,
@@ -475,7 +478,7 @@ struct Options {
     depth: Option<usize>,
 }
 
-const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W5|W6|W1-scale] \
+const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W5|W6|W7|W1-scale] \
 [--layer core|shell] [--n N] [--depth D] [--hold]";
 
 fn parse_args() -> Result<Options, String> {
@@ -506,7 +509,7 @@ fn parse_args() -> Result<Options, String> {
                 let w = value("--workload")?;
                 if !matches!(
                     w.as_str(),
-                    "W1" | "W2" | "W3" | "W4" | "W5" | "W6" | "W1-scale"
+                    "W1" | "W2" | "W3" | "W4" | "W5" | "W6" | "W7" | "W1-scale"
                 ) {
                     return Err(format!("unknown workload {w:?}"));
                 }
@@ -595,6 +598,9 @@ fn main() {
     }
     if on("W4") && shell {
         w4(json);
+    }
+    if on("W7") && shell {
+        w7::run(json);
     }
     if on("W1-scale") {
         let default: &[usize] = if quick {

@@ -69,7 +69,7 @@ impl Driver {
                 Effect::Start { node, action } => shell.start(engine, node, action),
                 Effect::Invoke { job, body, purpose } => shell.invoke(engine, job, body, purpose),
                 Effect::Cancel { node } => shell.cancel(node),
-                Effect::Notify { token, outcome } => shell.notify(engine, token, outcome),
+                Effect::Notify { token, outcome } => shell.notify(engine, token, *outcome),
             }
         }
     }

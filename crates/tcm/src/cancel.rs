@@ -11,7 +11,7 @@
 //! channel latches the value, so a look after the cancellation still sees it.
 
 use crate::host::Shared;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::NodeId;
@@ -46,6 +46,10 @@ pub(crate) struct Cancels {
     // The jobs signalled and running in their grace period. Invariant: each has an entry in
     // `signals` (only a job that looked is given a period).
     cancelling: BTreeMap<NodeId, Cancelling>,
+    // The jobs that run a blocking body (`Ctx::blocking`): no thread can be stopped from outside,
+    // so a cancelled one is only signalled, and runs until it returns. Invariant: each has an
+    // entry in `signals`.
+    pinned: BTreeSet<NodeId>,
     // Grace periods of nodes whose task set one (`Task::grace`), and of the activations of such a
     // monitor; kept after the job ends (a retry inherits it), swept once the node is gone.
     graces: BTreeMap<NodeId, Duration>,
@@ -59,6 +63,7 @@ impl Default for Cancels {
         Cancels {
             signals: BTreeMap::new(),
             cancelling: BTreeMap::new(),
+            pinned: BTreeSet::new(),
             graces: BTreeMap::new(),
             sweep_at: SWEEP_MIN,
             default: DEFAULT_GRACE,
@@ -87,6 +92,14 @@ impl Cancels {
         }
         // The job is over: a signal that will never change (its sender is dropped at once).
         watch::channel(terminated()).1
+    }
+
+    /// `node`'s job runs a blocking body: from now on a cancellation only signals it (`signal`
+    /// made it its signal), and it runs until it returns.
+    pub(crate) fn pin(&mut self, node: NodeId) {
+        if self.signals.contains_key(&node) {
+            self.pinned.insert(node);
+        }
     }
 
     /// Keeps the grace period a node's task set; drops those of nodes that are gone (`live` tells
@@ -129,6 +142,10 @@ impl Cancels {
         // Fired even when the action is dropped at once: other tasks that hold a clone of its
         // context (and awaited the signal) learn of the cancellation too.
         tx.send_replace(true);
+        if self.pinned.contains(&node) {
+            // A blocking body cannot be dropped: its node is terminated once it returns.
+            return;
+        }
         if grace.is_zero() {
             self.signals.remove(&node);
             action.abort();
@@ -138,10 +155,15 @@ impl Cancels {
             let shared = shared.clone();
             // A tokio sleep: on the paused clock of a virtual-time run, the period passes in
             // virtual time, deterministically.
+            let queued = shared.queued.clone();
             let task = async move {
-                tokio::time::sleep(grace).await;
+                // The run's time (scaled, if the run's clock is).
+                let end = shared.clock.instant(shared.now() + grace);
+                tokio::time::sleep_until(end).await;
                 expire(&shared, node, grace);
             };
+            // Its wake-ups are counted (`pump.rs`); a new task is queued.
+            let task = crate::pump::Tracked::new(Box::pin(task), &queued, true);
             match rt {
                 Some(rt) => rt.spawn(task),
                 None => tokio::spawn(task),
@@ -165,6 +187,7 @@ impl Cancels {
             return;
         }
         self.signals.remove(&node);
+        self.pinned.remove(&node);
         if let Some(c) = self.cancelling.remove(&node) {
             c.timer.abort();
         }
@@ -180,6 +203,7 @@ impl Cancels {
         for (_, tx) in std::mem::take(&mut self.signals) {
             tx.send_replace(true);
         }
+        self.pinned.clear();
     }
 }
 

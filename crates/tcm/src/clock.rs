@@ -1,7 +1,9 @@
 //! The runtime's one source of time: tokio's clock (paused in tests, for virtual time) read as the
-//! engine's [`Time`] since the run's start, and back.
+//! engine's [`Time`] since the run's start, and back; optionally scaled, so that a simulation runs
+//! faster than real time on the real clock (`Runtime::time_scale`).
 
 use std::sync::OnceLock;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, SystemTime};
 use tcm_core::Time;
 use tokio::time::Instant;
@@ -15,6 +17,9 @@ use tokio::time::Instant;
 pub(crate) struct Clock {
     // Tokio's instant and the wall clock at time zero (the wall clock for times of day).
     origin: OnceLock<(Instant, SystemTime)>,
+    // The run's time per unit of tokio's time (an `f64`'s bits; 1 unless `Runtime::time_scale`
+    // set it before the run started).
+    scale: AtomicU64,
 }
 
 impl Clock {
@@ -22,7 +27,19 @@ impl Clock {
     pub(crate) fn new() -> Clock {
         Clock {
             origin: OnceLock::new(),
+            scale: AtomicU64::new(1f64.to_bits()),
         }
+    }
+
+    /// Runs the clock `scale` times as fast as tokio's (a finite, positive number).
+    pub(crate) fn set_scale(&self, scale: f64) {
+        if scale.is_finite() && scale > 0.0 {
+            self.scale.store(scale.to_bits(), Ordering::Relaxed);
+        }
+    }
+
+    fn scale(&self) -> f64 {
+        f64::from_bits(self.scale.load(Ordering::Relaxed))
     }
 
     fn origin(&self) -> (Instant, SystemTime) {
@@ -39,25 +56,32 @@ impl Clock {
     /// The engine's time now.
     pub(crate) fn now(&self) -> Time {
         let d = Instant::now().saturating_duration_since(self.origin().0);
+        let scale = self.scale();
+        let d = if scale == 1.0 { d } else { d.mul_f64(scale) };
         Time::from_nanos(u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
     }
 
     /// The instant of the engine's time `t`, for tokio's timers.
     pub(crate) fn instant(&self, t: Time) -> Instant {
-        self.origin().0 + t.since_start()
+        let scale = self.scale();
+        let d = t.since_start();
+        let d = if scale == 1.0 { d } else { d.div_f64(scale) };
+        self.origin().0 + d
     }
 
     /// The engine's time of the next `secs` seconds after midnight (UTC) on the wall clock: today's,
     /// or now if that moment has passed (see [`crate::Ctx::time_of_day`]).
     pub(crate) fn time_of_day(&self, secs: f64) -> Time {
         const DAY: f64 = 86_400.0;
+        let (origin, wall_origin) = self.origin();
         let now = self.now();
-        let wall = self.origin().1 + now.since_start();
+        let wall = wall_origin + Instant::now().saturating_duration_since(origin);
         let since_epoch = wall
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0.0, |d| d.as_secs_f64());
         let today = since_epoch - since_epoch.rem_euclid(DAY);
         let ahead = (today + secs.clamp(0.0, DAY) - since_epoch).max(0.0);
-        now + Duration::from_secs_f64(ahead)
+        // Seconds of the wall clock, in the run's time.
+        now + Duration::from_secs_f64(ahead * self.scale())
     }
 }

@@ -7,6 +7,7 @@ use crate::host::{Shared, lock};
 use crate::task::{Action, AnyArgs, Factory, Handler, Kept, Task, Value};
 use std::any::Any;
 use std::future::Future;
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 use tcm_core::{
@@ -41,6 +42,14 @@ impl Ctx {
     /// Virtual time since the run started.
     pub fn now(&self) -> Duration {
         self.shared.now().since_start()
+    }
+
+    /// Sleeps `d` of the run's time: on a scaled clock ([`crate::Runtime::time_scale`]), `d`
+    /// divided by the scale of tokio's time; otherwise the same as `tokio::time::sleep(d)`
+    /// (virtual on tokio's paused clock).
+    pub async fn sleep(&self, d: Duration) {
+        let at = self.shared.now() + d;
+        tokio::time::sleep_until(self.shared.clock.instant(at)).await;
     }
 
     /// The engine time of today's occurrence of a time of day (`secs` since midnight, UTC), for
@@ -104,6 +113,77 @@ impl Ctx {
     /// only read the signal's latched value. Like [`Ctx::cancelled`], calling it gives the action its grace period.
     pub fn is_cancelled(&self) -> bool {
         self.signal().is_some_and(|rx| *rx.borrow())
+    }
+
+    /// Runs `f`, code that blocks or computes (a planner, a blocking driver call), on one of
+    /// tokio's blocking threads (`spawn_blocking`), so it never stalls the tree, its timers or the
+    /// other actions; the future ends with what `f` returns. [`Task::blocking`] is an action that
+    /// is only this. `f` gets a clone of this context: it may spawn, constrain, raise events, and
+    /// check [`Ctx::is_cancelled`] (a read of a latched flag once made) between its steps.
+    ///
+    /// No thread can be stopped from outside, so from the moment `f` starts, the action is never
+    /// dropped: when its node is terminated, it is signalled, and its node stays terminating until
+    /// the action returns (docs/semantics.md, "Termination"); a body that checks
+    /// [`Ctx::is_cancelled`] returns early, one that never does runs to its end. If the node was
+    /// terminated before `f` could start, `f` never runs. A panic in `f` fails the node as a
+    /// panicking action does. Bound how many bodies run at once with the tokio runtime's
+    /// `max_blocking_threads` (or a resource, docs/semantics.md, "Resources").
+    ///
+    /// On virtual time (tokio's paused clock) the clock stands still while `f` runs: blocking work
+    /// takes no virtual time, and two bodies that run side by side end in the order they end on
+    /// the real clock.
+    pub fn blocking<F, T>(
+        &self,
+        f: F,
+    ) -> impl Future<Output = Result<T, Failure>> + Send + use<F, T>
+    where
+        F: FnOnce(Ctx) -> Result<T, Failure> + Send + 'static,
+        T: Send + 'static,
+    {
+        let ctx = self.clone();
+        async move {
+            if !ctx.pin() {
+                return Err(Failure::new(
+                    "Terminated",
+                    "terminated before its blocking body started",
+                ));
+            }
+            let rt = lock(&ctx.shared)?.spawner.clone();
+            let nice = ctx.shared.blocking_nice.load(Ordering::Relaxed);
+            let body = ctx.clone();
+            let run = move || {
+                let _nice = crate::niced::Niced::enter(nice);
+                f(body)
+            };
+            let handle = match rt {
+                Some(rt) => rt.spawn_blocking(run),
+                None => tokio::task::spawn_blocking(run),
+            };
+            match handle.await {
+                Ok(res) => res,
+                // Reported as the action's own panic (`host.rs`).
+                Err(e) if e.is_panic() => std::panic::resume_unwind(e.into_panic()),
+                Err(e) => Err(Failure::new("BlockingCancelled", e.to_string())),
+            }
+        }
+    }
+
+    /// Before a blocking body starts: looks at the job's signal and pins the job, so that a
+    /// cancellation only signals it (`cancel.rs`). False if the job no longer runs (its node was
+    /// terminated meanwhile): the body must not start.
+    fn pin(&self) -> bool {
+        let Some(job) = self.job.filter(Job::cancellable) else {
+            return true;
+        };
+        let _ = self.signal();
+        let Ok(mut inner) = lock(&self.shared) else {
+            return false;
+        };
+        if !inner.aborts.contains(job.node()) {
+            return false;
+        }
+        inner.cancels.pin(job.node());
+        true
     }
 
     /// The job's cancellation signal, taken from the host on the first look; `None` for a context
@@ -205,7 +285,8 @@ impl Ctx {
             token,
             armed: self.job.is_some(),
         };
-        let res = rx.await;
+        // Its wake-up is counted, so that the pump knows the waiting task is queued (`pump.rs`).
+        let res = crate::pump::Tracked::new(rx, &self.shared.queued, false).await;
         // Answered: the notification already unparked it.
         unpark.armed = unpark.armed && res.is_err();
         res.map_err(|_| Error::RunEnded)

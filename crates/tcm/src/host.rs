@@ -14,14 +14,14 @@ use crate::Error;
 use crate::cancel::Cancels;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
-use crate::task::{Action, AnyArgs, Factory, Kept, Value};
+use crate::task::{Action, ActionFuture, AnyArgs, Factory, Kept, Value};
 use std::any::Any;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::future::Future;
 use std::panic::AssertUnwindSafe;
 use std::pin::Pin;
-use std::sync::atomic::AtomicUsize;
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 use tcm_core::{
     Driver, Engine, EngineError, Event, Failure, Job, Name, NodeId, Purpose, Shell, Spawn, Time,
@@ -152,6 +152,10 @@ pub(crate) struct Inner {
     pub(crate) values: BTreeMap<NodeId, Option<Value>>,
     // Running actions, to abort on cancellation.
     pub(crate) aborts: Aborts,
+    // Jobs started while the pump of this thread runs (`pump.rs`), for it to poll, in start order.
+    pub(crate) launches: Vec<(Job, ActionFuture)>,
+    // Jobs cancelled while the pump holds them (started, not yet a task): rare, so a vector.
+    inline_cancelled: Vec<NodeId>,
     // Cancellation signals, grace periods and the actions running in theirs (`cancel.rs`).
     pub(crate) cancels: Cancels,
     // Running wiretap checks (not cancellable, so not in `aborts`).
@@ -194,6 +198,8 @@ impl Inner {
             watchers: BTreeMap::new(),
             values: BTreeMap::new(),
             aborts: Aborts::default(),
+            launches: Vec::new(),
+            inline_cancelled: Vec::new(),
             cancels: Cancels::default(),
             checks: BTreeSet::new(),
             parking: Parking::default(),
@@ -240,6 +246,8 @@ impl Inner {
         let host = Host {
             shared,
             aborts: &mut self.aborts,
+            launches: &mut self.launches,
+            inline_cancelled: &mut self.inline_cancelled,
             cancels: &mut self.cancels,
             checks: &mut self.checks,
             parking: &mut self.parking,
@@ -257,19 +265,22 @@ impl Inner {
     }
 
     /// Carries out the engine's effects; returns whether the driver must wake (only for what only
-    /// it can do: hand trace records to the sinks, re-arm the timer, run a due callback, see that a
-    /// top-level task ended or that the run is quiet).
-    pub(crate) fn effects(&mut self, shared: &Arc<Shared>) -> bool {
+    /// it can do: re-arm the timer, run a due callback, see that a top-level task ended or that the
+    /// run is quiet), or only to hand trace records to the sinks.
+    pub(crate) fn effects(&mut self, shared: &Arc<Shared>) -> Wake {
         let (engine, mut host) = self.split(shared);
         Driver::effects(engine, &mut host);
-        let mut wake = self.roots_changed
-            || !self.due.is_empty()
-            || self.engine.fatal().is_some()
-            || self.engine.has_trace();
+        let mut wake = self.roots_changed || !self.due.is_empty() || self.engine.fatal().is_some();
         if let Some(t) = self.engine.poll_timeout() {
             wake = wake || self.armed.is_none_or(|a| t < a);
         }
-        wake || self.quiet()
+        if wake || self.quiet() {
+            Wake::Now
+        } else if self.engine.has_trace() {
+            Wake::Trace
+        } else {
+            Wake::No
+        }
     }
 
     /// Whether nothing can happen on its own any more (docs/semantics.md, "Run outcome"): nothing
@@ -382,6 +393,15 @@ impl Inner {
     }
 }
 
+/// Whether the driver must be woken after an access (`Inner::effects`).
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Wake {
+    No,
+    // Only to hand trace records to the sinks.
+    Trace,
+    Now,
+}
+
 /// The status the driver publishes after each turn, for [`crate::Session::quiescent`].
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Status {
@@ -403,6 +423,14 @@ pub(crate) struct Shared {
     pub(crate) stopped: Mutex<mpsc::Sender<Job>>,
     // Published by the driver under the engine's lock.
     pub(crate) status: watch::Sender<Status>,
+    // Whether the end of a job's task pumps what it released (`pump.rs`): on a current-thread
+    // runtime only, where tasks run one at a time anyway; on a multi-thread runtime each action is
+    // a task of its own, so that actions run in parallel on its workers.
+    pub(crate) inline: AtomicBool,
+    // How many of the run's tracked futures are queued, woken and not yet polled (`pump.rs`).
+    pub(crate) queued: Arc<AtomicUsize>,
+    // The nice value blocking bodies run at (`Runtime::blocking_nice`); 0 leaves it alone.
+    pub(crate) blocking_nice: AtomicI32,
 }
 
 impl Shared {
@@ -416,12 +444,17 @@ impl Shared {
         Ok(Access {
             guard: lock(self)?,
             shared: self,
+            settled: false,
         })
     }
 }
 
+/// The engine's lock. On a thread whose pump runs for this run, the ends it keeps are reported
+/// first (`pump.rs`): whatever looks at the engine sees them.
 pub(crate) fn lock(shared: &Shared) -> Result<MutexGuard<'_, Inner>, Error> {
-    shared.inner.lock().map_err(|_| Error::Poisoned)
+    let mut inner = shared.inner.lock().map_err(|_| Error::Poisoned)?;
+    crate::pump::flush(&mut inner, shared);
+    Ok(inner)
 }
 
 /// Exclusive access to the engine. When it ends, the engine's effects are carried out at once, by
@@ -429,6 +462,8 @@ pub(crate) fn lock(shared: &Shared) -> Result<MutexGuard<'_, Inner>, Error> {
 pub(crate) struct Access<'a> {
     guard: MutexGuard<'a, Inner>,
     shared: &'a Arc<Shared>,
+    // The effects were carried out and nothing changed since (`Access::carry_out`).
+    settled: bool,
 }
 
 impl std::ops::Deref for Access<'_> {
@@ -440,14 +475,29 @@ impl std::ops::Deref for Access<'_> {
 
 impl std::ops::DerefMut for Access<'_> {
     fn deref_mut(&mut self) -> &mut Inner {
+        self.settled = false;
         &mut self.guard
+    }
+}
+
+impl Access<'_> {
+    /// Carries out the engine's effects now, rather than when the access ends.
+    pub(crate) fn carry_out(&mut self) {
+        self.settled = true;
+        match self.guard.effects(self.shared) {
+            Wake::No => {}
+            // Taking trace records changes nothing of the engine: while this thread pumps, the
+            // driver takes them when the pump ends (`pump.rs`).
+            Wake::Trace if crate::pump::defer_wake(self.shared) => {}
+            Wake::Trace | Wake::Now => self.shared.wake.notify_one(),
+        }
     }
 }
 
 impl Drop for Access<'_> {
     fn drop(&mut self) {
-        if self.guard.effects(self.shared) {
-            self.shared.wake.notify_one();
+        if !self.settled {
+            self.carry_out();
         }
     }
 }
@@ -475,6 +525,8 @@ impl Drop for Unpark<'_> {
 pub(crate) struct Host<'a> {
     shared: &'a Arc<Shared>,
     aborts: &'a mut Aborts,
+    launches: &'a mut Vec<(Job, ActionFuture)>,
+    inline_cancelled: &'a mut Vec<NodeId>,
     cancels: &'a mut Cancels,
     checks: &'a mut BTreeSet<Job>,
     parking: &'a mut Parking,
@@ -489,13 +541,66 @@ pub(crate) struct Host<'a> {
     trace: &'a mut Vec<TraceEvent>,
 }
 
+impl Host<'_> {
+    /// Runs a job's future: left to the pump of this thread if it runs for this run (`pump.rs`),
+    /// else spawned as a tokio task, under the lock (the task's own end takes the lock, so its
+    /// abort handle is recorded before it can finish).
+    fn run(&mut self, job: Job, fut: ActionFuture) {
+        let running = if crate::pump::takes(self.shared) {
+            self.launches.push((job, fut));
+            Running::Inline
+        } else {
+            let h = spawn_task(self.shared, self.spawner, job, fut);
+            Running::Task(h.abort_handle())
+        };
+        if job.cancellable() {
+            self.aborts.insert(job.node(), running);
+        } else {
+            self.checks.insert(job);
+        }
+    }
+}
+
+/// Spawns a job's future as a tokio task that reports its end (or its panic, or its drop).
+fn spawn_task(
+    shared: &Arc<Shared>,
+    rt: Option<&tokio::runtime::Handle>,
+    job: Job,
+    fut: ActionFuture,
+) -> tokio::task::JoinHandle<()> {
+    let reporter = Reporter::new(shared.clone(), job);
+    if shared.inline.load(Ordering::Relaxed) {
+        // Its wake-ups are counted, so that the pump knows whether it is queued (`pump.rs`).
+        let fut = crate::pump::Tracked::new(fut, &shared.queued, true);
+        spawn_reporting(rt, fut, reporter)
+    } else {
+        spawn_reporting(rt, fut, reporter)
+    }
+}
+
+fn spawn_reporting<F>(
+    rt: Option<&tokio::runtime::Handle>,
+    fut: F,
+    reporter: Reporter,
+) -> tokio::task::JoinHandle<()>
+where
+    F: Future<Output = Result<Value, Failure>> + Send + Unpin + 'static,
+{
+    let task = async move {
+        let res = CatchUnwind(fut).await;
+        reporter.finish(res);
+    };
+    match rt {
+        Some(rt) => rt.spawn(task),
+        None => tokio::spawn(task),
+    }
+}
+
 impl Shell<Action, Factory> for Host<'_> {
     fn start(&mut self, _: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
         // The engine already holds the action's children (`Engine::hold_by_default`, set by
         // `Runtime::new`): a hand-written action holds them until it returns or waits, as
         // generated TDL does (docs/semantics.md, "Bodies and children").
-        // Spawned under the lock: the task's own end takes the lock, so its abort handle is
-        // recorded before it can finish.
         let ctx = Ctx {
             shared: self.shared.clone(),
             node,
@@ -504,11 +609,8 @@ impl Shell<Action, Factory> for Host<'_> {
             args: self.args.get(&node).cloned(),
             signal: Default::default(),
         };
-        let h = (action.0)(Launch {
-            ctx,
-            rt: self.spawner,
-        });
-        self.aborts.insert(node, h.abort_handle());
+        let fut = (action.0)(ctx);
+        self.run(Job::from(node), fut);
     }
 
     fn invoke(
@@ -538,27 +640,17 @@ impl Shell<Action, Factory> for Host<'_> {
             signal: Default::default(),
         };
         let fut = body(ctx);
-        let reporter = Reporter::new(self.shared.clone(), job);
-        let task = async move {
-            let res = CatchUnwind(fut).await;
-            reporter.finish(res);
-        };
-        let h = match self.spawner {
-            Some(rt) => rt.spawn(task),
-            None => tokio::spawn(task),
-        };
-        if job.cancellable() {
-            self.aborts.insert(job.node(), h.abort_handle());
-        } else {
-            self.checks.insert(job);
-        }
+        self.run(job, fut);
     }
 
     fn cancel(&mut self, node: NodeId) {
         // Removed from the running actions either way: an action in its grace period is never
         // parked again, so it keeps the run busy, not stuck, until it stops.
-        if let Some(h) = self.aborts.remove(&node) {
-            self.cancels.cancel(self.shared, self.spawner, node, h);
+        match self.aborts.remove(&node) {
+            Some(Running::Task(h)) => self.cancels.cancel(self.shared, self.spawner, node, h),
+            // The pump holds it: it drops it unpolled, or cancels the task it becomes.
+            Some(Running::Inline) => self.inline_cancelled.push(node),
+            None => {}
         }
         self.parking.forget_job(Job::from(node));
         self.activation_data.remove(&node);
@@ -592,6 +684,26 @@ impl Shell<Action, Factory> for Host<'_> {
     }
 }
 
+/// How a job ended, for [`Inner::ended_job`].
+pub(crate) enum Ended {
+    /// It returned (or panicked).
+    Returned(Job, Result<Result<Value, Failure>, Box<dyn Any + Send>>),
+    /// It was dropped unfinished after its cancellation.
+    Dropped(Job),
+}
+
+impl Access<'_> {
+    /// Carries out the effects, then takes the jobs the pump is to poll (`Inner::take_launches`);
+    /// taking them changes nothing of the engine, so the access ends without another look.
+    pub(crate) fn settle_and_take_launches(&mut self) -> LaunchBatch {
+        self.carry_out();
+        if self.guard.ended {
+            return (Vec::new(), std::mem::take(&mut self.guard.launches));
+        }
+        self.guard.take_launches()
+    }
+}
+
 /// A job's task ended: report it to the engine (under the lock); the access carries out what
 /// follows.
 fn finish(
@@ -599,41 +711,105 @@ fn finish(
     job: Job,
     res: Result<Result<Value, Failure>, Box<dyn Any + Send>>,
 ) {
-    let (result, panic) = match res {
-        Ok(r) => (r, None),
-        Err(panic) => {
-            let message = panic_message(panic.as_ref());
-            (
-                Err(Failure::new("ActionPanicked", message.clone())),
-                Some(message),
-            )
-        }
-    };
     let Ok(mut inner) = shared.enter() else {
         return;
     };
-    let node = job.node();
-    if let Some(message) = panic {
-        let record = panicked(&inner.engine, Some(node), String::new(), false, message);
-        inner.panics.push(record);
-    }
-    if job.cancellable() {
-        inner.aborts.remove(&node);
-        inner.activation_data.remove(&node);
-        inner.cancels.finished(node);
-    } else {
-        inner.checks.remove(&job);
-    }
-    inner.parking.forget_job(job);
-    let result = result.map(|value| {
-        if let Some(slot) = inner.values.get_mut(&node) {
-            *slot = Some(value);
-        }
-    });
-    // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
     let now = shared.now();
-    let _ = inner.engine.handle_action_finished(now, job, result);
+    inner.ended_job(now, Ended::Returned(job, res));
 }
+
+impl Inner {
+    /// Reports a job's end to the engine.
+    pub(crate) fn ended_job(&mut self, now: Time, ended: Ended) {
+        let (job, res) = match ended {
+            Ended::Returned(job, res) => (job, res),
+            Ended::Dropped(job) => {
+                self.engine.handle_action_stopped(now, job);
+                return;
+            }
+        };
+        let (result, panic) = match res {
+            Ok(r) => (r, None),
+            Err(panic) => {
+                let message = panic_message(panic.as_ref());
+                (
+                    Err(Failure::new("ActionPanicked", message.clone())),
+                    Some(message),
+                )
+            }
+        };
+        let node = job.node();
+        if let Some(message) = panic {
+            let record = panicked(&self.engine, Some(node), String::new(), false, message);
+            self.panics.push(record);
+        }
+        if job.cancellable() {
+            self.aborts.remove(&node);
+            self.activation_data.remove(&node);
+            self.cancels.finished(node);
+            if !self.inline_cancelled.is_empty() {
+                self.inline_cancelled.retain(|n| *n != node);
+            }
+        } else {
+            self.checks.remove(&job);
+        }
+        self.parking.forget_job(job);
+        let result = result.map(|value| {
+            if let Some(slot) = self.values.get_mut(&node) {
+                *slot = Some(value);
+            }
+        });
+        // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
+        let _ = self.engine.handle_action_finished(now, job, result);
+    }
+
+    /// The jobs the pump is to poll, and those cancelled before it could (to drop unpolled).
+    pub(crate) fn take_launches(&mut self) -> LaunchBatch {
+        let launches = std::mem::take(&mut self.launches);
+        if self.inline_cancelled.is_empty() {
+            return (launches, Vec::new());
+        }
+        let cancelled = &mut self.inline_cancelled;
+        launches.into_iter().partition(|(job, _)| {
+            let node = job.node();
+            match cancelled.iter().position(|n| *n == node) {
+                Some(i) if job.cancellable() => {
+                    cancelled.swap_remove(i);
+                    false
+                }
+                _ => true,
+            }
+        })
+    }
+
+    /// Spawns, as a tokio task, a job the pump polled once and left pending; if it was cancelled
+    /// meanwhile, the task is cancelled at once (signalled with its grace period, or aborted).
+    /// Gives the future back when the run ended, for the caller to drop outside the lock.
+    pub(crate) fn spawn_job(
+        &mut self,
+        shared: &Arc<Shared>,
+        job: Job,
+        fut: ActionFuture,
+    ) -> Option<ActionFuture> {
+        if self.ended {
+            return Some(fut);
+        }
+        let h = spawn_task(shared, self.spawner.as_ref(), job, fut).abort_handle();
+        let node = job.node();
+        if !job.cancellable() || self.aborts.set_task(node, h.clone()) {
+            return None;
+        }
+        if let Some(i) = self.inline_cancelled.iter().position(|n| *n == node) {
+            self.inline_cancelled.swap_remove(i);
+            let rt = self.spawner.clone();
+            self.cancels.cancel(shared, rt.as_ref(), node, h);
+        }
+        None
+    }
+}
+
+/// What [`Inner::take_launches`] gives the pump.
+pub(crate) type LaunchBatch = (Vec<(Job, ActionFuture)>, Vec<(Job, ActionFuture)>);
 
 /// The record of a panic in the action (or callback) of `node`.
 pub(crate) fn panicked(
@@ -658,87 +834,73 @@ pub(crate) fn panicked(
     }
 }
 
-/// The abort handles of running actions, by the node's storage slot (dense, so a vector beats a
-/// map on the path every action takes).
+/// How a running action runs: held by the pump that polls it (`pump.rs`), or as a tokio task.
+pub(crate) enum Running {
+    Inline,
+    Task(AbortHandle),
+}
+
+/// The running actions, by the node's storage slot (dense, so a vector beats a map on the path
+/// every action takes). A slot holds the node and, for a task, its abort handle (none: the pump
+/// holds it); 24 bytes, as many as a slot with only the abort handle.
 #[derive(Default)]
 pub(crate) struct Aborts {
-    slots: Vec<Option<(NodeId, AbortHandle)>>,
+    slots: Vec<(Option<NodeId>, Option<AbortHandle>)>,
     len: usize,
 }
 
 impl Aborts {
-    fn insert(&mut self, node: NodeId, h: AbortHandle) {
+    fn insert(&mut self, node: NodeId, r: Running) {
         let i = node.slot() as usize;
         if self.slots.len() <= i {
-            self.slots.resize_with(i + 1, || None);
+            self.slots.resize_with(i + 1, || (None, None));
         }
-        if self.slots[i].replace((node, h)).is_none() {
+        let handle = match r {
+            Running::Inline => None,
+            Running::Task(h) => Some(h),
+        };
+        if std::mem::replace(&mut self.slots[i], (Some(node), handle))
+            .0
+            .is_none()
+        {
             self.len += 1;
         }
     }
 
-    fn remove(&mut self, node: &NodeId) -> Option<AbortHandle> {
+    fn remove(&mut self, node: &NodeId) -> Option<Running> {
         let slot = self.slots.get_mut(node.slot() as usize)?;
-        match slot {
-            Some((id, _)) if id == node => {
-                self.len -= 1;
-                slot.take().map(|(_, h)| h)
+        if slot.0 != Some(*node) {
+            return None;
+        }
+        self.len -= 1;
+        let (_, handle) = std::mem::take(slot);
+        Some(match handle {
+            Some(h) => Running::Task(h),
+            None => Running::Inline,
+        })
+    }
+
+    /// The action the pump held became a task; false if it is no longer running (cancelled).
+    fn set_task(&mut self, node: NodeId, h: AbortHandle) -> bool {
+        match self.slots.get_mut(node.slot() as usize) {
+            Some(slot) if slot.0 == Some(node) => {
+                slot.1 = Some(h);
+                true
             }
-            _ => None,
+            _ => false,
         }
     }
 
     pub(crate) fn contains(&self, node: NodeId) -> bool {
-        matches!(self.slots.get(node.slot() as usize), Some(Some((id, _))) if *id == node)
+        self.slots
+            .get(node.slot() as usize)
+            .is_some_and(|s| s.0 == Some(node))
     }
 
+    /// Takes every running task's abort handle (those the pump holds, it drops itself).
     pub(crate) fn drain(&mut self) -> impl Iterator<Item = AbortHandle> + '_ {
         self.len = 0;
-        self.slots
-            .iter_mut()
-            .filter_map(|s| s.take().map(|(_, h)| h))
-    }
-}
-
-/// What an [`Action`] needs to start: its context and where to spawn.
-pub(crate) struct Launch<'a> {
-    pub(crate) ctx: Ctx,
-    pub(crate) rt: Option<&'a tokio::runtime::Handle>,
-}
-
-impl Launch<'_> {
-    /// Spawns `f(ctx)` as a tokio task that reports its end (or its panic) to the engine; its
-    /// value is kept for whoever waits for it.
-    pub(crate) fn spawn<F, Fut, T>(self, f: F) -> tokio::task::JoinHandle<()>
-    where
-        F: FnOnce(Ctx) -> Fut,
-        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
-        T: Any + Send,
-    {
-        self.spawn_value(move |ctx| {
-            let fut = f(ctx);
-            async move { fut.await.map(|v| Box::new(v) as Value) }
-        })
-    }
-
-    /// As [`Launch::spawn`], for a future whose value is already erased.
-    pub(crate) fn spawn_value<F, Fut>(self, f: F) -> tokio::task::JoinHandle<()>
-    where
-        F: FnOnce(Ctx) -> Fut,
-        Fut: Future<Output = Result<Value, Failure>> + Send + 'static,
-    {
-        let Launch { ctx, rt } = self;
-        let reporter = Reporter::new(ctx.shared.clone(), Job::from(ctx.node));
-        let fut = f(ctx);
-        let task = async move {
-            let fut = std::pin::pin!(fut);
-            let res = CatchUnwind(fut).await;
-            reporter.finish(res);
-        };
-        match rt {
-            Some(rt) => rt.spawn(task),
-            None => tokio::spawn(task),
-        }
+        self.slots.iter_mut().filter_map(|s| std::mem::take(s).1)
     }
 }
 
@@ -761,9 +923,16 @@ impl Reporter {
         }
     }
 
+    /// Reports the end, then pumps what it released (`pump.rs`).
     fn finish(mut self, res: Result<Result<Value, Failure>, Box<dyn Any + Send>>) {
         self.done = true;
+        if !self.shared.inline.load(Ordering::Relaxed) {
+            finish(&self.shared, self.job, res);
+            return;
+        }
+        let pump = crate::pump::Guard::enter(&self.shared);
         finish(&self.shared, self.job, res);
+        pump.pump();
     }
 }
 
@@ -780,7 +949,7 @@ impl Drop for Reporter {
 }
 
 /// Polls a future, turning a panic into an error (a panicking action fails its node).
-struct CatchUnwind<F>(F);
+pub(crate) struct CatchUnwind<F>(pub(crate) F);
 
 impl<F: Future + Unpin> Future for CatchUnwind<F> {
     type Output = Result<F::Output, Box<dyn Any + Send>>;

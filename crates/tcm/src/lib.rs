@@ -14,7 +14,10 @@
 //! bounded grace period ([`Task::grace`], [`Runtime::default_grace`]) to cancel it before its node
 //! is terminated.
 //!
-//! Actions run truly concurrently on tokio's workers. Under tokio's paused clock
+//! Actions run truly concurrently on tokio's workers; code that blocks or computes runs as a
+//! blocking body on tokio's blocking threads ([`Task::blocking`], [`Ctx::blocking`]), so it never
+//! stalls the tree or its timers. On a current-thread runtime an action released by another's end
+//! is polled at once on that task, and becomes a task of its own only if it awaits. Under tokio's paused clock
 //! (`#[tokio::test(start_paused = true)]`, or [`block_on_virtual`]) time is virtual: a 30 s timeout
 //! passes instantly, and the same program yields the same trace on every run.
 //!
@@ -29,7 +32,9 @@ mod clock;
 mod ctx;
 mod host;
 mod invoke;
+mod niced;
 pub mod patterns;
+mod pump;
 mod query;
 mod resource;
 mod runtime;

@@ -20,7 +20,7 @@ use crate::sink::TraceSink;
 use crate::task::Task;
 use std::any::Any;
 use std::future::Future;
-use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use tcm_core::{
@@ -213,6 +213,8 @@ pub struct Runtime {
     shared: Arc<Shared>,
     sinks: Vec<Box<dyn TraceSink>>,
     precise: bool,
+    // Whether released actions may run inline on a current-thread runtime (`pump.rs`).
+    pump: bool,
     // A declaration the builder could not make (`Runtime::declare`), returned when the run starts.
     setup: Option<tcm_core::EngineError>,
 }
@@ -237,9 +239,13 @@ impl Runtime {
                 clock: Clock::new(),
                 handles: AtomicUsize::new(0),
                 status: watch::Sender::new(Status::default()),
+                inline: AtomicBool::new(false),
+                queued: Arc::default(),
+                blocking_nice: AtomicI32::new(0),
             }),
             sinks: Vec::new(),
             precise: false,
+            pump: true,
             setup: None,
         }
     }
@@ -269,6 +275,39 @@ impl Runtime {
     /// tokio's paused clock, leave it off.
     pub fn precise_timer(mut self) -> Runtime {
         self.precise = true;
+        self
+    }
+
+    /// Runs the run's clock `scale` times as fast as tokio's (a finite number above 0; default 1):
+    /// on the real clock, a simulation that runs faster than real time, as a demo paced for
+    /// watching does. Every time of the run is on it: constraint timers, monitor periods, grace
+    /// periods, [`crate::Ctx::now`], [`crate::Ctx::sleep`] and the report's `elapsed`. An action
+    /// that sleeps with tokio's own `sleep` sleeps tokio's time, unscaled: use `Ctx::sleep`.
+    pub fn time_scale(self, scale: f64) -> Runtime {
+        self.shared.clock.set_scale(scale);
+        self
+    }
+
+    /// Spawns every action as a tokio task, as on a multi-thread runtime: for tests that compare
+    /// the two ways (`pump.rs`).
+    #[cfg(test)]
+    pub(crate) fn without_pump(mut self) -> Runtime {
+        self.pump = false;
+        self
+    }
+
+    /// Runs blocking bodies ([`Task::blocking`], [`crate::Ctx::blocking`]) at the nice value
+    /// `nice` (Linux; from 1, lowest priority of all, to 19, the lowest of the normal ones), so
+    /// that on a CPU they keep busy, the tree's timers, monitors and other actions come first:
+    /// a body raises the nice value of its thread when it starts and puts it back when it ends.
+    /// Putting it back needs the right to raise a priority (root, `CAP_SYS_NICE`, or an
+    /// `RLIMIT_NICE` that allows it); without it, the tokio blocking thread keeps the lower
+    /// priority for whatever it runs next. Default 0: bodies run at their thread's priority
+    /// (docs/semantics.md, "Blocking actions").
+    pub fn blocking_nice(self, nice: i32) -> Runtime {
+        self.shared
+            .blocking_nice
+            .store(nice.clamp(0, 19), Ordering::Relaxed);
         self
     }
 
@@ -393,9 +432,10 @@ impl Runtime {
             inner.spawn_root(now, task.into_spawn(root), kept)?;
         }
         let timer = self.timer()?;
-        let outcome = RunLoop::new(shared.clone(), timer)
-            .drive(&mut self.sinks)
-            .await;
+        let driver = RunLoop::new(shared.clone(), timer);
+        // Its wake-ups are counted when it runs in a task (`pump.rs`); the caller runs now.
+        let drive = Box::pin(driver.drive(&mut self.sinks));
+        let outcome = crate::pump::Tracked::new(drive, &shared.queued, false).await;
         for s in &mut self.sinks {
             s.flush();
         }
@@ -437,8 +477,11 @@ impl Runtime {
         let timer = self.timer()?;
         let mut sinks = std::mem::take(&mut self.sinks);
         let driver = RunLoop::new(shared.clone(), timer);
+        let queued = shared.queued.clone();
         let driver = handle.spawn(async move {
-            let outcome = driver.drive(&mut sinks).await;
+            // Its wake-ups are counted (`pump.rs`); a new task is queued.
+            let drive = Box::pin(driver.drive(&mut sinks));
+            let outcome = crate::pump::Tracked::new(drive, &queued, true).await;
             for s in &mut sinks {
                 s.flush();
             }
@@ -454,6 +497,11 @@ impl Runtime {
         }
         // Time zero, on the clock of the tokio runtime that drives the run.
         self.shared.clock.start();
+        let flavor = rt.runtime_flavor();
+        self.shared.inline.store(
+            flavor == tokio::runtime::RuntimeFlavor::CurrentThread && self.pump,
+            Ordering::Relaxed,
+        );
         let mut inner = lock(&self.shared)?;
         inner.spawner = Some(rt);
         // Nobody reads the trace: do not build it, but for its warnings, which are logged.
@@ -647,17 +695,21 @@ impl RunLoop {
 /// The run is over: whatever still runs belongs to a run that is over, no callback will run, and
 /// whoever waits is told.
 pub(crate) fn end_run(shared: &Shared) {
+    let mut launches = Vec::new();
     if let Ok(mut inner) = lock(shared) {
         inner.ended = true;
         for h in inner.aborts.drain() {
             h.abort();
         }
+        launches = std::mem::take(&mut inner.launches);
         inner.cancels.end();
         inner.callbacks.clear();
         inner.due.clear();
         inner.watchers.clear();
         shared.status.send_modify(|s| s.ended = true);
     }
+    // Started but never polled: dropped outside the lock (a drop may take it).
+    drop(launches);
 }
 
 async fn sleep_until(at: Option<tokio::time::Instant>) {

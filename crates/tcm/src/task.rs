@@ -34,14 +34,13 @@ pub type Value = Box<dyn Any + Send>;
 /// The future of a running action.
 pub type ActionFuture = Pin<Box<dyn Future<Output = Result<Value, Failure>> + Send>>;
 
-/// An action: called once when its node starts, it spawns the action's future as a tokio task.
-/// The future's type is erased only there, so starting an action costs one allocation (the
-/// task), not two.
+/// An action: called once when its node starts, it makes the action's future, which the host
+/// polls once where the node started and spawns as a tokio task only if it is not done then
+/// (`pump.rs`): an action that ends without awaiting costs one allocation (its future), no task.
 pub struct Action(pub(crate) Box<Launcher>);
 
-/// The erased start of an action: spawn the task, return its handle.
-pub(crate) type Launcher =
-    dyn for<'a> FnOnce(crate::host::Launch<'a>) -> tokio::task::JoinHandle<()> + Send;
+/// The erased start of an action: make its future.
+pub(crate) type Launcher = dyn FnOnce(Ctx) -> ActionFuture + Send;
 
 impl Action {
     fn new<F, Fut, T>(f: F) -> Action
@@ -50,10 +49,17 @@ impl Action {
         Fut: Future<Output = Result<T, Failure>> + Send + 'static,
         T: Any + Send,
     {
-        Action(Box::new(move |launch: crate::host::Launch<'_>| {
-            launch.spawn(f)
-        }))
+        Action(Box::new(move |ctx: Ctx| erase(f(ctx))))
     }
+}
+
+/// A future of any value, erased.
+fn erase<Fut, T>(fut: Fut) -> ActionFuture
+where
+    Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+    T: Any + Send,
+{
+    Box::pin(async move { fut.await.map(|v| Box::new(v) as Value) })
 }
 
 /// A reusable action: a monitor's body (once per activation), a handler (once per use), a retryable
@@ -67,10 +73,7 @@ where
     Fut: Future<Output = Result<T, Failure>> + Send + 'static,
     T: Any + Send,
 {
-    Arc::new(move |ctx| {
-        let fut = f(ctx);
-        Box::pin(async move { fut.await.map(|v| Box::new(v) as Value) })
-    })
+    Arc::new(move |ctx| erase(f(ctx)))
 }
 
 /// An exception type (TDL's `exception` declarations): a Rust error with an optional chain of
@@ -246,9 +249,7 @@ impl Task {
         let mut task = Task::bare(
             kind,
             name.into(),
-            Some(Action(Box::new(move |launch: crate::host::Launch<'_>| {
-                launch.spawn_value(move |ctx| first(ctx))
-            }))),
+            Some(Action(Box::new(move |ctx: Ctx| first(ctx)))),
         );
         task.retry = Some(fac);
         task
@@ -296,8 +297,8 @@ impl Task {
         let mut task = Task::bare(
             kind,
             name,
-            Some(Action(Box::new(move |launch: crate::host::Launch<'_>| {
-                launch.spawn(move |ctx| first(ctx, first_args))
+            Some(Action(Box::new(move |ctx: Ctx| {
+                erase(first(ctx, first_args))
             }))),
         );
         task.retry = Some(fac);
@@ -322,6 +323,38 @@ impl Task {
         T: Any + Send,
     {
         Task::new(NodeKind::Command, name, f)
+    }
+
+    /// A task whose action blocks or computes (a planner, a blocking driver call): `f` runs on
+    /// one of tokio's blocking threads, off the async workers, so it never stalls the tree or its
+    /// timers (see [`Ctx::blocking`], which this is, for termination and virtual time). Its value
+    /// is the node's value. TDL's `blocking command`.
+    ///
+    /// ```
+    /// # tcm::block_on_virtual(async {
+    /// use tcm::{NodeKind, Runtime, RunOutcome, Task};
+    /// let plan = Task::blocking(NodeKind::Command, "plan", |ctx| {
+    ///     let mut cost = 0u64;
+    ///     for step in 0..1_000u64 {
+    ///         if ctx.is_cancelled() {
+    ///             break; // terminated: stop early, the node is terminated once this returns
+    ///         }
+    ///         cost += step;
+    ///     }
+    ///     Ok(cost)
+    /// });
+    /// let report = Runtime::new().run(plan).await?;
+    /// assert_eq!(report.outcome, RunOutcome::Completed);
+    /// # Ok::<(), tcm::Error>(())
+    /// # })?;
+    /// # Ok::<(), tcm::Error>(())
+    /// ```
+    pub fn blocking<F, T>(kind: NodeKind, name: impl Into<Name>, f: F) -> Task
+    where
+        F: FnOnce(Ctx) -> Result<T, Failure> + Send + 'static,
+        T: Any + Send,
+    {
+        Task::new(kind, name, move |ctx: Ctx| ctx.blocking(f))
     }
 
     /// A monitor: `body` runs once per activation, as a child command node. In the body,

@@ -59,7 +59,7 @@ impl TaskKind {
     }
 }
 
-/// A task definition: `[pub] [persistent] goal name(args) [-> T] [with constraints] { body }`.
+/// A task definition: `[pub] [persistent] [blocking] goal name(args) [-> T] [with constraints] { body }`.
 #[derive(Clone, Debug)]
 pub struct Task {
     /// Outer attributes, including doc comments.
@@ -68,6 +68,9 @@ pub struct Task {
     pub vis: syn::Visibility,
     /// The `persistent` qualifier: the node is kept after completion.
     pub persistent: bool,
+    /// The `blocking` qualifier (its span), on a command: its body is plain Rust that runs on a
+    /// blocking thread (`tcm::Ctx::blocking`; docs/semantics.md, "Blocking actions").
+    pub blocking: Option<Span>,
     /// Goal, command, monitor or handler.
     pub kind: TaskKind,
     /// Task name.

@@ -491,7 +491,14 @@ fn task_items(
     }
     let action = body::task_body(file, task, source, diags);
     let name_str = task.name.to_string();
-    let code = action.code;
+    let code = if task.blocking.is_some() {
+        // A `blocking command`: the body runs on a blocking thread (its `?`, `return` and value
+        // are the closure's), and the action waits for it.
+        let code = action.code;
+        quote!(ctx.blocking(move |ctx| { #code }).await)
+    } else {
+        action.code
+    };
     let names: Vec<&Ident> = task.args.iter().map(|it| &it.name).collect();
     let pats: Vec<TokenStream> = task.args.iter().map(arg_pat).collect();
     // Monitor and handler bodies run once per activation: their arguments and persistent

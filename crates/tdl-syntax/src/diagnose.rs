@@ -573,6 +573,26 @@ impl<'a> Body<'_, 'a> {
 
     fn constraint(&self, constraint: &Constraint, site: Site<'a>, diags: &mut Vec<Diagnostic>) {
         let span = constraint.span;
+        if let (Some(blocking), ConstraintKind::Wait | ConstraintKind::Outcome) =
+            (self.task.blocking, &constraint.kind)
+        {
+            let what = if matches!(constraint.kind, ConstraintKind::Wait) {
+                "`wait`"
+            } else {
+                "`outcome`"
+            };
+            diags.push(
+                Diagnostic::error(span, format!("{what} in a `blocking` command"))
+                    .with_label(
+                        blocking,
+                        "its body runs on a blocking thread, and cannot wait",
+                    )
+                    .with_hint(
+                        "spawn without waiting from the blocking command, or wait in a goal that \
+                         spawns it: `let v = spawn plan(args) with wait;`",
+                    ),
+            );
+        }
         if let ConstraintKind::Trigger {
             when: When::External(ExternalName::Lit(name)),
             ..

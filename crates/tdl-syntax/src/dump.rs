@@ -73,6 +73,11 @@ fn dump_task(out: &mut String, task: &Task) {
         })
         .collect();
     let persistent = if task.persistent { "persistent " } else { "" };
+    let blocking = if task.blocking.is_some() {
+        "blocking "
+    } else {
+        ""
+    };
     let vis = match task.vis {
         syn::Visibility::Inherited => String::new(),
         ref vis => format!("{} ", tokens(vis)),
@@ -97,7 +102,7 @@ fn dump_task(out: &mut String, task: &Task) {
         .unwrap_or_default();
     let _ = writeln!(
         out,
-        "{vis}{persistent}{} {}({}){result}{handles}{for_task}",
+        "{vis}{persistent}{blocking}{} {}({}){result}{handles}{for_task}",
         task.kind.as_str(),
         task.name,
         args.join(", ")

@@ -219,13 +219,13 @@ fn tdl_item_keyword(input: ParseStream) -> Option<String> {
     let fork = input.fork();
     let _ = fork.call(syn::Attribute::parse_outer);
     let _ = fork.parse::<syn::Visibility>();
-    let ident = fork.call(Ident::parse_any).ok()?;
-    let word = ident.to_string();
-    let word = if word == "persistent" {
-        fork.call(Ident::parse_any).ok()?.to_string()
-    } else {
-        word
-    };
+    let mut word = fork.call(Ident::parse_any).ok()?.to_string();
+    // The qualifiers, in any order.
+    for _ in 0..2 {
+        if word == "persistent" || word == "blocking" {
+            word = fork.call(Ident::parse_any).ok()?.to_string();
+        }
+    }
     // `resource NAME(…)` declares a resource; `resource!(…)` stays a Rust macro call.
     if word == "resource" {
         return fork.peek(syn::Ident).then_some(word);
@@ -261,20 +261,51 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
     let attrs = input.call(syn::Attribute::parse_outer)?;
     let vis: syn::Visibility = input.parse()?;
     let mut persistent = false;
+    let mut blocking = None;
     let mut keyword = input.call(Ident::parse_any)?;
-    if keyword == "persistent" {
-        persistent = true;
-        keyword = input.call(Ident::parse_any)?;
+    // The qualifiers, in any order.
+    for _ in 0..2 {
+        if keyword == "persistent" && !persistent {
+            persistent = true;
+            keyword = input.call(Ident::parse_any)?;
+        } else if keyword == "blocking" && blocking.is_none() {
+            blocking = Some(keyword.span());
+            keyword = input.call(Ident::parse_any)?;
+        }
     }
     let kind = match keyword.to_string().as_str() {
         "goal" => TaskKind::Goal,
         "command" => TaskKind::Command,
         "monitor" => TaskKind::Monitor,
         "handler" => TaskKind::Handler,
-        "resource" => return resource(input, attrs, persistent, keyword.span(), cx),
-        _ => return exception(input, attrs, vis, persistent, keyword.span(), cx),
+        other => {
+            if let Some(span) = blocking {
+                let what = if other == "resource" {
+                    "a resource"
+                } else {
+                    "an exception"
+                };
+                cx.diags.push(not_blocking(span, what));
+            }
+            return match other {
+                "resource" => resource(input, attrs, persistent, keyword.span(), cx),
+                _ => exception(input, attrs, vis, persistent, keyword.span(), cx),
+            };
+        }
     };
-    task(input, cx, attrs, vis, persistent, kind)
+    if let (Some(span), false) = (blocking, kind == TaskKind::Command) {
+        cx.diags
+            .push(not_blocking(span, &format!("a {}", kind.as_str())));
+    }
+    task(input, cx, attrs, vis, persistent, blocking, kind)
+}
+
+/// `blocking` on what is not a command.
+fn not_blocking(span: Span, what: &str) -> Diagnostic {
+    Diagnostic::error(span, format!("{what} cannot be `blocking`")).with_hint(
+        "only a command can be `blocking` (its body is plain Rust run on a blocking thread); \
+         a goal that must compute spawns a `blocking command`",
+    )
 }
 
 /// `resource name(capacity) [pending N];` (docs/semantics.md, "Resources").
@@ -379,6 +410,7 @@ fn task(
     attrs: Vec<syn::Attribute>,
     vis: syn::Visibility,
     persistent: bool,
+    blocking: Option<Span>,
     kind: TaskKind,
 ) -> syn::Result<Item> {
     let name: Ident = input.parse()?;
@@ -444,6 +476,7 @@ fn task(
         attrs,
         vis,
         persistent,
+        blocking: blocking.filter(|_| kind == TaskKind::Command),
         kind,
         name,
         args,

@@ -6,7 +6,8 @@
 //! then on every command first advances the world to tokio's now (in [`TICK`] steps), then acts.
 //! A motion polls every [`TICK`]. Since all commands advance the same clock to the same "now",
 //! commands running side by side (a move and a mail-gone monitor) never count time twice, and under
-//! tokio's paused clock the world's times are the same on every run.
+//! tokio's paused clock the world's times are the same on every run. A world made with
+//! [`SharedWorld::scaled`] runs faster than tokio's clock, as a run with `Runtime::time_scale` does.
 
 use crate::error::RobotError;
 use crate::floor::Waypoint;
@@ -37,6 +38,8 @@ pub fn speech_duration(text: &str) -> Duration {
 #[derive(Clone, Debug)]
 pub struct SharedWorld {
     inner: Arc<Mutex<Inner>>,
+    // World time per unit of tokio's time (1, unless `scaled`).
+    scale: f64,
 }
 
 #[derive(Debug)]
@@ -49,11 +52,32 @@ struct Inner {
 impl SharedWorld {
     /// Shares `world` between commands.
     pub fn new(world: World) -> SharedWorld {
+        SharedWorld::scaled(world, 1.0)
+    }
+
+    /// Shares `world` between commands, its time running `scale` times as fast as tokio's clock
+    /// (a finite number above 0; else 1): for a run whose clock is scaled the same
+    /// (`tcm::Runtime::time_scale`).
+    pub fn scaled(world: World, scale: f64) -> SharedWorld {
         SharedWorld {
             inner: Arc::new(Mutex::new(Inner {
                 world,
                 pinned: None,
             })),
+            scale: if scale.is_finite() && scale > 0.0 {
+                scale
+            } else {
+                1.0
+            },
+        }
+    }
+
+    /// `d` of world time in tokio's time.
+    fn tokio_time(&self, d: Duration) -> Duration {
+        if self.scale == 1.0 {
+            d
+        } else {
+            d.div_f64(self.scale)
         }
     }
 
@@ -69,7 +93,12 @@ impl SharedWorld {
         let now = Instant::now();
         let clock = inner.world.clock();
         let (base, at) = *inner.pinned.get_or_insert((now, clock));
-        let target = at + now.saturating_duration_since(base);
+        let elapsed = now.saturating_duration_since(base);
+        let target = if self.scale == 1.0 {
+            at + elapsed
+        } else {
+            at + elapsed.mul_f64(self.scale)
+        };
         inner.world.advance_to(target);
         f(&mut inner.world)
     }
@@ -93,7 +122,7 @@ impl SharedWorld {
     /// world time to tokio's clock when it starts, not when it ends).
     async fn take_time(&self, d: Duration) {
         self.synced(|_| ());
-        tokio::time::sleep(d).await;
+        tokio::time::sleep(self.tokio_time(d)).await;
         self.synced(|_| ());
     }
 
@@ -109,7 +138,7 @@ impl SharedWorld {
             if let Some(res) = self.synced(|w| w.take_motion_result(id)) {
                 return res;
             }
-            tokio::time::sleep(TICK).await;
+            tokio::time::sleep(self.tokio_time(TICK)).await;
         }
     }
 

@@ -76,7 +76,19 @@ pub async fn run_in(
     mission: Mission,
     sinks: Vec<Box<dyn TraceSink>>,
 ) -> Result<Done, tdl::Error> {
-    let mut rt = Runtime::new();
+    run_scaled(setup, mission, sinks, 1.0).await
+}
+
+/// Like [`run_in`], on a run clock `scale` times as fast as tokio's (`Runtime::time_scale`): on
+/// the real clock, a simulation faster than real time; the mission's world must be made with the
+/// same scale (`SharedWorld::scaled`).
+pub async fn run_scaled(
+    setup: &Setup,
+    mission: Mission,
+    sinks: Vec<Box<dyn TraceSink>>,
+    scale: f64,
+) -> Result<Done, tdl::Error> {
+    let mut rt = Runtime::new().time_scale(scale);
     for sink in sinks {
         rt = rt.with_sink(BoxedSink(sink));
     }

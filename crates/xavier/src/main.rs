@@ -1,6 +1,7 @@
 //! `xavier`: the TDL paper's mail-delivery robot on a simulated office floor. Runs the mission of
-//! `src/mission.tdl` on virtual time (or real time), shows the live task tree (or, when stdout is
-//! not a terminal, a plain event log), then a summary of the run.
+//! `src/mission.tdl` and shows the live task tree, on a multi-threaded runtime with the real clock
+//! scaled by `--speed` (or unscaled with `--real-time`); when stdout is not a terminal and no
+//! viewer watches, on virtual time as fast as it goes, with a plain event log. Then a summary.
 
 use anyhow::Context as _;
 use clap::{Parser, ValueEnum};
@@ -10,10 +11,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 use tdl::{JsonLines, Recorder, TextLogSink, TraceSink};
-use xavier::display::{EventLog, LiveTree, Pace};
+use xavier::display::{EventLog, LiveTree};
 use xavier::mission::Mission;
 use xavier::summary::Summary;
-use xavier::{Setup, run_in};
+use xavier::{Setup, run_scaled};
 use xavier_world::{Scenario, SharedWorld, World};
 
 /// Xavier, the mail-delivery robot of the TDL paper (Simmons & Apfelbaum 1998), on a simulated
@@ -45,13 +46,15 @@ struct Cli {
     #[arg(long, value_enum, default_value_t = ScenarioArg::Nominal)]
     scenario: ScenarioArg,
 
-    /// Run on the real clock (a multi-threaded tokio runtime) instead of virtual time: the run
-    /// then takes as long as it simulates, about two minutes for the default round.
+    /// Run on the real clock, unscaled: the run then takes as long as it simulates, about two
+    /// minutes for the default round.
     #[arg(long)]
     real_time: bool,
 
-    /// On virtual time, pace the live tree at this many simulated seconds per wall second (0: as
-    /// fast as possible). Ignored with --real-time and when stdout is not a terminal.
+    /// On a terminal or with --view: run on the real clock scaled to this many simulated seconds
+    /// per wall second, actions on a multi-threaded runtime (0: on virtual time, as fast as
+    /// possible). Ignored with --real-time. When stdout is not a terminal and no viewer watches,
+    /// the run is on virtual time, single-threaded and the same on every run, as fast as possible.
     #[arg(long, default_value_t = 40.0)]
     speed: f64,
 
@@ -60,8 +63,8 @@ struct Cli {
     trace: Option<PathBuf>,
 
     /// Serve the task-tree viewer while the mission runs (and after it, until Ctrl-C): prints the
-    /// page's address (http://127.0.0.1:7878/, or a free port if that one is taken). On virtual
-    /// time the run is paced at --speed so it can be watched.
+    /// page's address (http://127.0.0.1:7878/, or a free port if that one is taken). The run is
+    /// paced at --speed so it can be watched.
     #[arg(long)]
     view: bool,
 
@@ -94,6 +97,15 @@ impl From<ScenarioArg> for Scenario {
     }
 }
 
+/// The clock a run is on.
+#[derive(Clone, Copy, Debug)]
+enum Clock {
+    /// Tokio's real clock, the run's time this many times as fast.
+    Real(f64),
+    /// Tokio's paused clock: virtual time, single-threaded.
+    Virtual,
+}
+
 fn create(path: &PathBuf) -> anyhow::Result<BufWriter<File>> {
     let file = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     Ok(BufWriter::new(file))
@@ -118,7 +130,22 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         scenario: cli.scenario.into(),
         rooms: cli.rooms,
     };
-    let world = SharedWorld::new(World::new(setup.seed, setup.scenario));
+    let stdout = std::io::stdout();
+    // Watched runs (a terminal, the viewer) go at --speed on the real clock, with real
+    // concurrency; the others on virtual time (docs/semantics.md, "Time").
+    let watched = stdout.is_terminal() || cli.view;
+    let clock = if cli.real_time {
+        Clock::Real(1.0)
+    } else if watched && cli.speed > 0.0 {
+        Clock::Real(cli.speed)
+    } else {
+        Clock::Virtual
+    };
+    let scale = match clock {
+        Clock::Real(scale) => scale,
+        Clock::Virtual => 1.0,
+    };
+    let world = SharedWorld::scaled(World::new(setup.seed, setup.scenario), scale);
     let mission = Mission::new(world.clone());
     let recorder = Recorder::new();
     let mut sinks: Vec<Box<dyn TraceSink>> = vec![Box::new(recorder.clone())];
@@ -128,13 +155,18 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     if let Some(path) = &cli.log {
         sinks.push(Box::new(TextLogSink::new(create(path)?)));
     }
-    let clock = if cli.real_time {
-        "real time"
-    } else {
-        "virtual time"
+    let clock_name = match clock {
+        Clock::Real(scale) => {
+            if scale == 1.0 {
+                "real time".to_owned()
+            } else {
+                format!("real time ×{scale}")
+            }
+        }
+        Clock::Virtual => "virtual time".to_owned(),
     };
     let title = format!(
-        "Xavier delivers mail: seed {}, scenario {}, rooms {:?}, {clock}",
+        "Xavier delivers mail: seed {}, scenario {}, rooms {:?}, {clock_name}",
         setup.seed, setup.scenario, setup.rooms
     );
     let viewer = if cli.view {
@@ -148,19 +180,14 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     } else {
         None
     };
-    let stdout = std::io::stdout();
-    let paced = !cli.real_time && cli.speed > 0.0;
-    if viewer.is_some() && paced && !stdout.is_terminal() {
-        sinks.push(Box::new(Pace::new(cli.speed)));
-    }
     if stdout.is_terminal() {
-        let pace = (!cli.real_time && cli.speed > 0.0).then_some(cli.speed);
+        // The clock paces the run: the tree need not.
         sinks.push(Box::new(LiveTree::new(
             stdout,
             title,
             world,
             setup.rooms.clone(),
-            pace,
+            None,
         )));
     } else {
         println!("{title}");
@@ -168,15 +195,14 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     }
 
     let wall = Instant::now();
-    let future = run_in(&setup, mission, sinks);
-    let done = if cli.real_time {
-        tokio::runtime::Builder::new_multi_thread()
+    let future = run_scaled(&setup, mission, sinks, scale);
+    let done = match clock {
+        Clock::Real(_) => tokio::runtime::Builder::new_multi_thread()
             .enable_all()
             .build()
             .context("cannot start the tokio runtime")?
-            .block_on(future)
-    } else {
-        tdl::block_on_virtual(future)
+            .block_on(future),
+        Clock::Virtual => tdl::block_on_virtual(future),
     }
     .context("the runtime failed")?;
     let wall = wall.elapsed();

@@ -43,8 +43,9 @@ pub enum Effect<A, F = ()> {
     Notify {
         /// The token given to `watch`.
         token: WatchToken,
-        /// How the node got there.
-        outcome: WatchOutcome,
+        /// How the node got there (boxed: a failure is large, and effects are queued by the
+        /// thousand when a goal releases its children).
+        outcome: Box<WatchOutcome>,
     },
 }
 

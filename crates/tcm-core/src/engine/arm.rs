@@ -324,7 +324,10 @@ impl<A, F: Clone> Engine<A, F> {
                     Fate::Terminated => WatchOutcome::Terminated,
                     Fate::Dead => WatchOutcome::Dead,
                 };
-                self.effects.push_back(Effect::Notify { token, outcome });
+                self.effects.push_back(Effect::Notify {
+                    token,
+                    outcome: Box::new(outcome),
+                });
             }
             Lookup::Live => {
                 // The shell is told how the node ended (`WatchOutcome`): no outcome filter.
@@ -711,7 +714,10 @@ impl<A, F: Clone> Engine<A, F> {
             } else {
                 WatchOutcome::Reached
             };
-            self.effects.push_back(Effect::Notify { token, outcome });
+            self.effects.push_back(Effect::Notify {
+                token,
+                outcome: Box::new(outcome),
+            });
         } else {
             self.fire(kind, terminating);
         }

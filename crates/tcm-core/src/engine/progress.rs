@@ -164,7 +164,7 @@ impl<A, F: Clone> Engine<A, F> {
                 TimerKind::Poll { monitor, k } => self.poll(monitor, k),
                 TimerKind::Notify { token } => self.effects.push_back(Effect::Notify {
                     token,
-                    outcome: WatchOutcome::Reached,
+                    outcome: Box::new(WatchOutcome::Reached),
                 }),
             }
             self.settle();
@@ -512,7 +512,7 @@ impl<A, F: Clone> Engine<A, F> {
                 match w.kind {
                     WaitKind::Watch { token } => self.effects.push_back(Effect::Notify {
                         token,
-                        outcome: WatchOutcome::Dead,
+                        outcome: Box::new(WatchOutcome::Dead),
                     }),
                     // A dead event fires termination at once and drops the `after` part's event.
                     other => self.fire(other, false),

@@ -385,16 +385,16 @@ fn timer_callbacks_notify_their_token_and_a_timed_one_is_a_pending_timer() {
         e.poll_effect(),
         Some(Effect::Notify {
             token: WatchToken(8),
-            outcome: WatchOutcome::Reached
-        })
+            outcome,
+        }) if *outcome == WatchOutcome::Reached
     ));
     e.handle_timeout(at);
     assert!(matches!(
         e.poll_effect(),
         Some(Effect::Notify {
             token: WatchToken(7),
-            outcome: WatchOutcome::Reached
-        })
+            outcome,
+        }) if *outcome == WatchOutcome::Reached
     ));
     e.callback_ran(WatchToken(7), "later");
     assert!(e.is_settled() && e.is_idle());

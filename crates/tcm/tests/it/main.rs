@@ -5,6 +5,7 @@
 mod fig4;
 
 mod activation_data;
+mod blocking;
 mod callbacks;
 mod cancel;
 mod determinism;

@@ -595,3 +595,75 @@ fn many_actions_on_real_worker_threads_neither_deadlock_nor_break_the_trace() {
     assert!(trace.len() > 5_000, "{} records", trace.len());
     tcm::testing::assert_checked(&trace);
 }
+
+/// A goal whose child sleeps 3 s of the run's time while a sibling, held back 1 s by a constraint,
+/// records when it started.
+fn scaled_program(started: Arc<std::sync::Mutex<Option<Duration>>>) -> Task {
+    Task::goal("g", move |ctx| async move {
+        ctx.spawn(Task::command("nap", |ctx| async move {
+            ctx.sleep(Duration::from_secs(3)).await;
+            Ok(())
+        }))
+        .start()?;
+        ctx.spawn(Task::command("late", move |ctx| async move {
+            if let Ok(mut s) = started.lock() {
+                *s = Some(ctx.now());
+            }
+            Ok(())
+        }))
+        .disable_for(tcm::Facet::Handling, Duration::from_secs(1))
+        .start()?;
+        Ok(())
+    })
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_scaled_clock_runs_constraints_and_sleeps_in_the_runs_time() {
+    let started = Arc::new(std::sync::Mutex::new(None));
+    let t0 = tokio::time::Instant::now();
+    let (report, _) = run_checked(
+        Runtime::new().time_scale(10.0),
+        scaled_program(started.clone()),
+    )
+    .await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(report.elapsed, Duration::from_secs(3), "the run's time");
+    assert_eq!(t0.elapsed(), Duration::from_millis(300), "tokio's time");
+    let late = started.lock().ok().and_then(|s| *s);
+    assert_eq!(late, Some(Duration::from_secs(1)));
+}
+
+#[test]
+fn on_the_real_clock_a_scaled_run_takes_a_fraction_of_its_time() {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_time()
+        .build()
+        .expect("runtime");
+    let started = Arc::new(std::sync::Mutex::new(None));
+    let wall = std::time::Instant::now();
+    let report = rt
+        .block_on(
+            Runtime::new()
+                .time_scale(100.0)
+                .run(scaled_program(started.clone())),
+        )
+        .expect("run");
+    let wall = wall.elapsed();
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    // 3 s of the run's time is 30 ms of the real clock; generous bounds for a loaded machine.
+    assert!(
+        report.elapsed >= Duration::from_secs(3),
+        "{:?}",
+        report.elapsed
+    );
+    assert!(
+        wall < Duration::from_secs(2),
+        "took {wall:?} of the real clock"
+    );
+    let late = started.lock().ok().and_then(|s| *s).expect("late ran");
+    assert!(
+        late >= Duration::from_secs(1) && late < Duration::from_secs(3),
+        "{late:?}"
+    );
+}

@@ -552,3 +552,18 @@ fn resource_misuse_is_an_error() {
         ["asks for 3 of `arm`, whose capacity is 2"]
     );
 }
+
+#[test]
+fn a_blocking_command_runs_its_body_on_a_blocking_thread() {
+    let out = expand("blocking command plan(n: u32) -> u32 { n + 1 } goal g() { spawn plan(1); }");
+    assert!(has(&out, "ctx.blocking(move |ctx| {"), "{out}");
+    assert!(
+        has(&out, "::core::result::Result::Ok(tdl_result)}).await"),
+        "{out}"
+    );
+    assert_eq!(
+        out.matches("ctx.blocking(").count(),
+        1,
+        "the goal is async: {out}"
+    );
+}

@@ -5,3 +5,4 @@ mod binary;
 mod scenarios;
 mod util;
 mod viewer;
+mod watched;
