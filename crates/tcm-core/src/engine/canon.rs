@@ -12,8 +12,13 @@
 //! - the clock: every time is hashed relative to now (a timer due in 1 s is the same timer at 3 s
 //!   and at 10 s), so a loop in time (a monitor polling forever) comes back to the same state;
 //! - counters of the past: trace sequence numbers, failures and warnings counted, the list of
-//!   unhandled failures (its length is hashed, not its content), watch tokens (the shell routes
-//!   them; it hashes what it waits for itself, with [`Canonical::index`]).
+//!   unhandled failures, watch tokens (the shell routes them; it hashes what it waits for itself,
+//!   with [`Canonical::index`]);
+//! - counts no maximum limits: a monitor's activations and triggers, a handler's uses, and an
+//!   activation's number are hashed only up to their maximum, if they have one. The engine's
+//!   behaviour does not depend on them otherwise; only a shell whose actions read them
+//!   (`Ctx::activation`) would see a difference, and it must hash what it reads itself. Without
+//!   this, a monitor polling forever would never come back to a state seen before.
 //!
 //! The shell's action and factory types are hashed with their own `Hash`: they must not hold node
 //! handles (or must hash them canonically themselves). Hashing reads the engine only.
@@ -23,6 +28,7 @@ use super::exception::{HandlerCtx, HandlerEntry};
 use super::node::{Node, Payload, Purpose, WaitKind, Waiter};
 use super::timers::TimerKind;
 use super::{Engine, Work};
+use crate::Name;
 use crate::arena::{Fate, Lookup};
 use crate::constraint::{Constraint, Event, NodeRef, Then, When};
 use crate::failure::Failure;
@@ -73,8 +79,31 @@ fn rel(t: Time, now: Time, h: &mut impl Hasher) {
     (i128::from(t.as_nanos()) - i128::from(now.as_nanos())).hash(h);
 }
 
+/// A name: a borrowed one (a `&'static str`, as shells that name many nodes use) by its address
+/// and length, which is cheaper than its text and as faithful (the same address and length is
+/// the same text); an owned one by its text. The same text once borrowed and once owned hashes
+/// apart, which only costs a merge.
+fn name(n: &Name, h: &mut impl Hasher) {
+    match n {
+        std::borrow::Cow::Borrowed(s) => {
+            0u8.hash(h);
+            (s.as_ptr() as usize).hash(h);
+            s.len().hash(h);
+        }
+        std::borrow::Cow::Owned(s) => {
+            1u8.hash(h);
+            s.hash(h);
+        }
+    }
+}
+
+/// A count as far as a maximum makes it matter: none without one, else up to the maximum.
+fn limited(n: u32, max: Option<u32>) -> Option<u32> {
+    max.map(|m| n.min(m))
+}
+
 fn failure(f: &Failure, h: &mut impl Hasher) {
-    f.exception.hash(h);
+    name(&f.exception, h);
     f.message.hash(h);
     f.ancestry.hash(h);
 }
@@ -127,9 +156,11 @@ impl<A: Hash, F: Hash + Clone> Engine<A, F> {
             }
         }
         // External events by name (ids are numbered in the order names were first used).
+        self.externals.len().hash(h);
         let mut externals: Vec<&External> = self.externals.iter().collect();
-        externals.sort_by(|a, b| a.name.cmp(&b.name));
-        externals.len().hash(h);
+        if externals.len() > 1 {
+            externals.sort_by(|a, b| a.name.cmp(&b.name));
+        }
         for ext in externals {
             ext.name.hash(h);
             ext.raised.hash(h);
@@ -162,8 +193,17 @@ impl<A: Hash, F: Hash + Clone> Engine<A, F> {
         }
         self.running.hash(h);
         self.fatal.is_some().hash(h);
-        self.unhandled.len().hash(h);
         canon
+    }
+
+    /// Hashes a reference the shell holds to a node as [`Engine::canonical_hash`] hashes the
+    /// engine's own: its number in `canon`, or how it ended if it is gone.
+    pub fn hash_node_ref<H: Hasher>(&self, canon: &Canonical, id: NodeId, h: &mut H) {
+        Hashing {
+            engine: self,
+            canon,
+        }
+        .node_ref(id, h);
     }
 
     /// Numbers `root`'s subtree: each node, then its children in spawn order, then its open
@@ -175,11 +215,18 @@ impl<A: Hash, F: Hash + Clone> Engine<A, F> {
                 continue;
             };
             canon.number(id);
-            let mut next: Vec<NodeId> = self.children(id);
+            // Pushed in reverse so that they come off in order: reservations last, then
+            // children from the last to the first.
             if let Some(cold) = n.cold.as_ref() {
-                next.extend(cold.reservations.iter().copied());
+                stack.extend(cold.reservations.iter().rev().copied());
             }
-            stack.extend(next.into_iter().rev());
+            let mark = stack.len();
+            let mut c = self.first_child(id);
+            while let Some(ch) = c {
+                stack.push(ch);
+                c = self.next_sibling(ch);
+            }
+            stack[mark..].reverse();
         }
     }
 }
@@ -353,11 +400,11 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
     }
 
     fn handler(&self, e: &HandlerEntry<F>, h: &mut impl Hasher) {
-        e.spec.name.hash(h);
-        e.spec.exception.hash(h);
+        name(&e.spec.name, h);
+        name(&e.spec.exception, h);
         e.spec.max_activations.hash(h);
         e.spec.body.hash(h);
-        e.uses.hash(h);
+        limited(e.uses, e.spec.max_activations).hash(h);
     }
 
     fn handler_ctx(&self, c: &HandlerCtx, h: &mut impl Hasher) {
@@ -377,8 +424,15 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
             } => {
                 0u8.hash(h);
                 self.node_ref(*monitor, h);
-                number.hash(h);
-                triggers.hash(h);
+                let spec = self
+                    .engine
+                    .nodes
+                    .get(*monitor)
+                    .and_then(Node::monitor)
+                    .map(|m| (m.spec.max_activations, m.spec.max_triggers));
+                let (max_a, max_t) = spec.unwrap_or((None, None));
+                limited(*number, max_a).hash(h);
+                limited(*triggers, max_t).hash(h);
             }
             Purpose::Handler {
                 failure: f,
@@ -416,7 +470,7 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
     fn node(&self, n: &Node<A, F>, h: &mut impl Hasher) {
         let now = self.engine.now;
         n.kind.hash(h);
-        n.name.hash(h);
+        name(&n.name, h);
         self.opt_ref(n.parent, h);
         self.opt_ref(n.last_spawned, h);
         n.states.hash(h);
@@ -441,9 +495,8 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
             n.live_children,
         )
             .hash(h);
-        let waiters: Vec<&Waiter> = n.waiters.iter().collect();
-        waiters.len().hash(h);
-        for w in waiters {
+        n.waiters.iter().len().hash(h);
+        for w in n.waiters.iter() {
             self.waiter(w, h);
         }
         match &n.action {
@@ -470,7 +523,7 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
         cold.on_terminate.len().hash(h);
         for ot in &cold.on_terminate {
             ot.kind.hash(h);
-            ot.name.hash(h);
+            name(&ot.name, h);
             ot.action.hash(h);
             self.opt_ref(ot.fulfils, h);
         }
@@ -496,9 +549,14 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
                     e.delay_expansion,
                 )
                     .hash(h);
-                m.spec.activation_name.hash(h);
-                m.activations.hash(h);
-                m.triggers.hash(h);
+                m.spec
+                    .activation_name
+                    .as_ref()
+                    .map(|n| name(n, h))
+                    .is_some()
+                    .hash(h);
+                limited(m.activations, m.spec.max_activations).hash(h);
+                limited(m.triggers, m.spec.max_triggers).hash(h);
                 self.opt_ref(m.last, h);
                 // The schedule: when the armed poll is due, relative to now (as `poll_due`).
                 match m.spec.period {
@@ -540,7 +598,7 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
         for g in &cold.deferred_groups {
             self.group(g, h);
         }
-        cold.task.hash(h);
+        cold.task.as_ref().map(|n| name(n, h)).is_some().hash(h);
         cold.class_handlers.len().hash(h);
         for e in &cold.class_handlers {
             self.handler(e, h);

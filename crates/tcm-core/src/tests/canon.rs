@@ -137,3 +137,49 @@ fn handler_uses_are_part_of_the_state() {
     };
     assert_ne!(hash(&run(1)), hash(&run(2)));
 }
+
+#[test]
+fn a_monitor_polling_forever_comes_back_to_the_same_state() {
+    let mut e: E = Engine::new(1);
+    let root = e.root();
+    let mut spec = MonitorSpec::new(7);
+    spec.period = Some(Duration::from_secs(1));
+    let _m = e
+        .spawn(t(0), Spawn::monitor(root, "watch", spec))
+        .expect("spawn the monitor");
+    // Each activation ends at once; the hash after each poll is the same (counts no maximum
+    // limits are not part of the state, times are relative).
+    let mut hashes = Vec::new();
+    for k in 0..4 {
+        e.handle_timeout(t(k));
+        while let Some(effect) = e.poll_effect() {
+            if let Effect::Invoke { job, .. } = effect {
+                e.handle_action_finished(t(k), job, Ok(()))
+                    .expect("the activation ends");
+            }
+        }
+        hashes.push(hash(&e));
+    }
+    assert_eq!(hashes[1], hashes[2]);
+    assert_eq!(hashes[2], hashes[3]);
+    // With a maximum, the count matters.
+    let mut f: E = Engine::new(1);
+    let root = f.root();
+    let mut spec = MonitorSpec::new(7);
+    spec.period = Some(Duration::from_secs(1));
+    spec.max_activations = Some(10);
+    f.spawn(t(0), Spawn::monitor(root, "watch", spec))
+        .expect("spawn the monitor");
+    let mut limited = Vec::new();
+    for k in 0..3 {
+        f.handle_timeout(t(k));
+        while let Some(effect) = f.poll_effect() {
+            if let Effect::Invoke { job, .. } = effect {
+                f.handle_action_finished(t(k), job, Ok(()))
+                    .expect("the activation ends");
+            }
+        }
+        limited.push(hash(&f));
+    }
+    assert_ne!(limited[1], limited[2]);
+}
