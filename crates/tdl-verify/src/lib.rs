@@ -88,8 +88,9 @@ pub struct Options {
     /// Commands written in Rust may also fail with an exception no one declares
     /// ([`UNKNOWN_EXCEPTION`]).
     pub unknown_exception: bool,
-    /// How many runs that end are replayed through the trace checker, besides every
-    /// counterexample (and the deepest state reached).
+    /// How many paths are replayed through the trace checker besides every counterexample: as
+    /// many runs that ended (the first found), as many paths to states spread evenly over the
+    /// order of discovery, and the path to the deepest state.
     pub samples: usize,
 }
 

@@ -305,8 +305,19 @@ pub(crate) fn run(
             }
         }
     }
-    if out.samples.len() < cx.opts.samples + 1 && deepest != 0 {
+    // Besides runs that ended: the deepest state, and states spread over the whole search.
+    if deepest != 0 {
         out.samples.push(deepest);
+    }
+    let n = seen.len() as u32;
+    let spread = cx.opts.samples as u32;
+    if spread > 0 && n > 1 {
+        for k in 1..=spread {
+            let id = (u64::from(n - 1) * u64::from(k) / u64::from(spread)) as u32;
+            if id != 0 && !out.samples.contains(&id) {
+                out.samples.push(id);
+            }
+        }
     }
     // Runs that never end: cycles of the state graph (meaningful only on the whole graph).
     if complete {
