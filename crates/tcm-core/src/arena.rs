@@ -18,6 +18,7 @@ pub(crate) enum Fate {
     Dead,
 }
 
+#[derive(Clone)]
 struct Slot<A, F> {
     generation: u32,
     node: Option<Node<A, F>>,
@@ -38,6 +39,7 @@ pub(crate) enum Lookup {
 const CHUNK_BITS: u32 = 10;
 const CHUNK: usize = 1 << CHUNK_BITS;
 
+#[derive(Clone)]
 pub(crate) struct Arena<A, F> {
     run: u32,
     // Invariant: every chunk but the last is full (CHUNK slots); each has capacity CHUNK.

@@ -46,7 +46,7 @@ mod tests;
 pub use constraint::{Constraint, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{
-    Blocked, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorInfo,
+    Blocked, Canonical, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorInfo,
     MonitorSpec, NodeInfo, OnTerminate, Purpose, ResourceDenied, ResourceDropped, ResourceInfo,
     Spawn, Stats, Uses, WatchOutcome,
 };

@@ -17,6 +17,7 @@
 //! - `api`: the engine's inputs, outputs and errors without the simulator, and memory.
 
 mod api;
+mod canon;
 mod constraints;
 mod exceptions;
 mod monitor_limits;

@@ -16,6 +16,8 @@
 //!   `tdl trace export --mcap OUT.mcap TRACE.jsonl` writes it as MCAP (`export.rs`).
 //!
 //! - `tdl view TRACE.jsonl...` serves the task-tree viewer on the files (`serve.rs`).
+//! - `tdl verify FILE.tdl...` / `tdl verify -p CRATE` explores every behaviour of a program within
+//!   bounds and checks its properties (`verify.rs`, over the `tdl-verify` crate).
 //!
 //! Exit codes (after ripgrep): 0 ok (warnings only or nothing), 1 errors found, 2 usage or I/O
 //! error. The front end is `tdl-syntax`.
@@ -32,6 +34,7 @@ mod export;
 mod graph;
 mod model;
 mod serve;
+mod verify;
 mod view;
 
 #[derive(Parser)]
@@ -95,6 +98,10 @@ enum Command {
         #[arg(short, long, value_name = "DIR")]
         out: PathBuf,
     },
+    /// Explore every behaviour of a program within bounds and check its properties (no stuck
+    /// state, no unhandled exception, every run ends, the trace checker, and `--property`);
+    /// counterexamples are written as trace files (docs/verification.md).
+    Verify(verify::Args),
     /// Read a trace file (JSON lines, as written by `--trace` or `tcm::JsonLines`).
     Trace {
         #[command(subcommand)]
@@ -237,6 +244,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             Ok(true)
         }
         Command::Trace { what } => trace(what, &mut out),
+        Command::Verify(args) => verify::run(args, &mut out),
         Command::View { files, listen } => serve::view(&files, listen),
         Command::Expand { file } => {
             let (name, src) = read(&file)?;

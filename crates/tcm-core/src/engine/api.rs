@@ -12,7 +12,7 @@ use crate::{Name, NodeKind};
 use tcm_trace::Facet;
 
 /// An output of the engine for the shell to carry out.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub enum Effect<A, F = ()> {
     /// Run this node's action. Report its end with [`Engine::handle_action_finished`].
     Start {

@@ -32,6 +32,7 @@ use tcm_trace::{
 };
 
 /// A named external event (or manual signal gate).
+#[derive(Clone)]
 pub(super) struct External {
     pub(super) name: String,
     pub(super) raised: bool,
@@ -42,22 +43,24 @@ pub(super) struct External {
 }
 
 /// A group trigger as given ([`Engine::trigger_group`]), kept on a reservation until its spawn.
+#[derive(Clone)]
 pub(crate) struct GroupTrigger {
-    members: Vec<NodeId>,
-    facet: Facet,
-    point: Point,
-    delay: Option<Duration>,
-    then: Then,
+    pub(super) members: Vec<NodeId>,
+    pub(super) facet: Facet,
+    pub(super) point: Point,
+    pub(super) delay: Option<Duration>,
+    pub(super) then: Then,
 }
 
 /// A trigger on a whole group: it fires once `remaining` members reached their event.
+#[derive(Clone)]
 pub(super) struct Join {
-    target: NodeId,
-    then: Then,
-    delay: Option<Duration>,
-    remaining: u32,
+    pub(super) target: NodeId,
+    pub(super) then: Then,
+    pub(super) delay: Option<Duration>,
+    pub(super) remaining: u32,
     // A member reached its event because it was terminating: a termination never fires.
-    never: bool,
+    pub(super) never: bool,
 }
 
 impl Then {

@@ -43,12 +43,14 @@ pub struct HandlerSpec<F> {
     pub body: F,
 }
 
+#[derive(Clone)]
 pub(crate) struct HandlerEntry<F> {
     pub(crate) spec: HandlerSpec<F>,
     pub(crate) uses: u32,
 }
 
 /// What a handler node handles, for bypass and retry.
+#[derive(Clone)]
 pub(crate) struct HandlerCtx {
     pub(crate) failure: Failure,
     pub(crate) failing: NodeId,

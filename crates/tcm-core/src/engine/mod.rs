@@ -80,6 +80,7 @@ macro_rules! emit {
 mod api;
 mod arm;
 mod callback;
+mod canon;
 mod exception;
 mod monitor;
 pub(crate) mod node;
@@ -98,6 +99,7 @@ use crate::time::Time;
 use crate::{Name, NodeKind};
 pub use api::{Effect, EngineError, Job, Spawn, Stats, WatchOutcome};
 use arm::{External, Join};
+pub use canon::Canonical;
 pub use exception::HandlerSpec;
 pub use monitor::{EachActivation, MonitorSpec};
 use node::Node;
@@ -123,6 +125,7 @@ enum Work {
 /// The deterministic task-tree engine. `A` is the shell's action type; the engine only stores it and
 /// hands it back in [`Effect::Start`]. `F` is a reusable factory (monitor bodies, handlers,
 /// retries, wiretap checks), handed out in [`Effect::Invoke`].
+#[derive(Clone)]
 pub struct Engine<A, F = ()> {
     run: u32,
     now: Time,

@@ -99,6 +99,7 @@ impl<F> MonitorSpec<F> {
     }
 }
 
+#[derive(Clone)]
 pub(crate) struct Monitor<F> {
     pub(crate) spec: MonitorSpec<F>,
     pub(crate) activations: u32,

@@ -98,6 +98,7 @@ pub enum Purpose {
 }
 
 /// What a node runs when it starts.
+#[derive(Clone)]
 pub(crate) enum Payload<A, F> {
     /// The shell's one-shot action.
     Action(A),
@@ -107,7 +108,7 @@ pub(crate) enum Payload<A, F> {
 
 /// The waiters of one node: most nodes have none or one (the next sibling's `sequential`), so one
 /// is kept inline and only more allocate.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(crate) enum Waiters {
     #[default]
     None,
@@ -185,6 +186,7 @@ impl Iterator for WaitersIter {
 }
 
 /// A task to insert as a child if the node is terminated while its action runs.
+#[derive(Clone)]
 pub struct OnTerminate<A> {
     /// Kind of the cleanup node.
     pub kind: NodeKind,
@@ -198,6 +200,7 @@ pub struct OnTerminate<A> {
     pub fulfils: Option<NodeId>,
 }
 
+#[derive(Clone)]
 pub(crate) struct Node<A, F> {
     pub(crate) display: u64,
     pub(crate) kind: NodeKind,
@@ -241,10 +244,11 @@ pub(crate) struct Node<A, F> {
     // While the action runs, its new children do not start (TDL: a body ends before its children run).
     pub(crate) holding: bool,
     // Everything most nodes never use, in one box: nodes are the engine's bulk.
-    cold: Option<Box<Cold<A, F>>>,
+    pub(crate) cold: Option<Box<Cold<A, F>>>,
 }
 
 /// The rarely used part of a node.
+#[derive(Clone)]
 pub(crate) struct Cold<A, F> {
     pub(crate) failure: Option<Failure>,
     pub(crate) on_terminate: Vec<OnTerminate<A>>,
@@ -293,7 +297,7 @@ pub(crate) struct Cold<A, F> {
 }
 
 /// Where a node's failure goes when no handler on the node takes it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub(crate) enum Propagate {
     /// Up the tree: the handlers of its ancestors are searched (TDL's rule).
     #[default]

@@ -96,6 +96,7 @@ pub struct ResourceInfo {
 }
 
 /// One declared resource.
+#[derive(Clone)]
 pub(crate) struct Resource {
     pub(crate) name: Name,
     pub(crate) capacity: u32,
@@ -128,7 +129,7 @@ pub(crate) enum Grant {
 }
 
 /// The run's resources and waiting requests.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(crate) struct Resources {
     pub(crate) list: Vec<Resource>,
     names: BTreeMap<Name, u32>,

@@ -44,7 +44,7 @@ impl PartialOrd for Entry {
 /// measured at the last compaction: the amortised cost per timer stays O(log n).
 const COMPACT_MIN: usize = 4096;
 
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(crate) struct Timers {
     heap: BinaryHeap<Reverse<Entry>>,
     seq: u64,
@@ -93,6 +93,13 @@ impl Timers {
                 TimerKind::Poll { .. } | TimerKind::Notify { .. } => None,
             })
             .collect()
+    }
+
+    /// Every timer still queued, live or not, in the order they would fire.
+    pub(crate) fn pending(&self) -> Vec<(Time, TimerKind)> {
+        let mut entries: Vec<Entry> = self.heap.iter().map(|Reverse(e)| *e).collect();
+        entries.sort();
+        entries.into_iter().map(|e| (e.at, e.kind)).collect()
     }
 
     /// The earliest deadline among live timers; stale timers on top are dropped.

@@ -19,6 +19,7 @@ use crate::ids::{NodeId, TapWhen, WiretapId};
 use tcm_trace::TraceKind;
 
 /// A registered wiretap.
+#[derive(Clone)]
 pub(crate) struct Wiretap<F> {
     pub(crate) task: Name,
     // Match the instance name instead of the task name.

@@ -1,12 +1,14 @@
 //! The one integration-test binary of the `tdl` CLI: runs the built binary on files in
 //! `tests/data` and checks output and exit codes. `tdl graph` and `tdl doc` have their own
-//! modules (`graph.rs`, `doc.rs`), as has `tdl trace export` (`export.rs`).
+//! modules (`graph.rs`, `doc.rs`), as have `tdl trace export` (`export.rs`) and `tdl verify`
+//! (`verify.rs`).
 
 use std::process::Command;
 
 mod doc;
 mod export;
 mod graph;
+mod verify;
 mod view;
 
 fn tdl(args: &[&str]) -> (i32, String, String) {

@@ -1,0 +1,430 @@
+//! `tdl verify`: explores every behaviour of a TDL program within bounds and checks properties
+//! (the `tdl-verify` crate; docs/verification.md).
+//!
+//! The program is a set of `.tdl` files, given by name or as a crate of the workspace
+//! (`-p CRATE`: its `src/**/*.tdl`, found with `cargo metadata`, else under `crates/CRATE`). The
+//! task verified is `--task`, else the only goal no task of the program spawns. Progress goes to
+//! standard error: a spinner on a terminal (`indicatif`), a plain line every second otherwise.
+//! Ctrl-C stops the search and prints what was found so far (a second one exits at once).
+//! Each counterexample is written as a trace file (JSON lines) under `--out`, which
+//! `tdl trace story FILE` replays; its story is printed too. Exit status: 0 when every property
+//! holds (or is undecided), 1 when one is broken, the program has errors or the search was
+//! interrupted, 2 on usage or I/O errors.
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use tdl_verify::{Control, Options, Program, Property, Report, Verdict};
+
+/// Options of `tdl verify`.
+#[derive(clap::Args)]
+pub(crate) struct Args {
+    /// The `.tdl` files of the program, checked as one program.
+    #[arg(required_unless_present = "package", conflicts_with = "package")]
+    files: Vec<PathBuf>,
+    /// Verify the TDL program of this crate of the workspace (its `src/**/*.tdl`).
+    #[arg(short = 'p', long = "package", value_name = "CRATE")]
+    package: Option<String>,
+    /// The task to start from (default: the only goal no task of the program spawns).
+    #[arg(long)]
+    task: Option<String>,
+    /// A loop over a collection the checker cannot see runs 0 to this many times [default: 2].
+    #[arg(long, value_name = "K")]
+    loops: Option<u32>,
+    /// Instances of one task nested on a branch of the tree; one more is a command of the
+    /// checker's choice, and the path ends beyond that [default: 1].
+    #[arg(long, value_name = "R")]
+    recursion: Option<u32>,
+    /// Deadlines a running command may outlast [default: 1].
+    #[arg(long, value_name = "N")]
+    ticks: Option<u32>,
+    /// Times each external event may be raised [default: 1].
+    #[arg(long, value_name = "N")]
+    events: Option<u32>,
+    /// Commands per run that may be left running until terminated [default: 1].
+    #[arg(long, value_name = "N")]
+    hangs: Option<u32>,
+    /// The longest run explored, in transitions [default: 10000].
+    #[arg(long, value_name = "N")]
+    depth: Option<u32>,
+    /// Stop after this many distinct states [default: 20000000].
+    #[arg(long, value_name = "N")]
+    max_states: Option<u64>,
+    /// An exception allowed to go unhandled (repeat, or separate with commas).
+    #[arg(long = "allow", value_name = "EXCEPTION", value_delimiter = ',')]
+    allow: Vec<String>,
+    /// Commands written in Rust may also fail with an exception nobody declares.
+    #[arg(long)]
+    unknown_exception: bool,
+    /// A property to check besides the built-in ones (repeat), e.g.
+    /// `never active(turn) and active(guarded_move)`, `completed(plan) before active(move)`.
+    #[arg(short = 'P', long = "property", value_name = "PROPERTY")]
+    property: Vec<String>,
+    /// A file of properties, one per line (`#` comments).
+    #[arg(long = "properties", value_name = "FILE")]
+    properties: Option<PathBuf>,
+    /// Where counterexample traces are written.
+    #[arg(long, value_name = "DIR", default_value = "target/tdl-verify")]
+    out: PathBuf,
+}
+
+/// Runs `tdl verify`; Ok(true) when nothing is broken.
+pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
+    let files = match &args.package {
+        Some(name) => package_files(name)?,
+        None => args.files.clone(),
+    };
+    let mut sources = Vec::new();
+    for f in &files {
+        let src =
+            std::fs::read_to_string(f).with_context(|| format!("cannot read {}", f.display()))?;
+        sources.push((f.display().to_string(), src));
+    }
+    let program = match Program::load(&sources) {
+        Ok(p) => p,
+        Err(tdl_verify::LoadError::Invalid(rendered)) => {
+            out.write_all(rendered.as_bytes())?;
+            writeln!(out, "tdl verify: the program has errors (see `tdl check`)")?;
+            return Ok(false);
+        }
+        Err(e) => return Err(e.into()),
+    };
+    let task = program.root_task(args.task.as_deref())?;
+    let mut properties = Vec::new();
+    for p in &args.property {
+        properties.push(Property::parse(p)?);
+    }
+    if let Some(f) = &args.properties {
+        let text =
+            std::fs::read_to_string(f).with_context(|| format!("cannot read {}", f.display()))?;
+        properties.extend(
+            Property::parse_file(&f.display().to_string(), &text).map_err(anyhow::Error::msg)?,
+        );
+    }
+    let options = options(&args);
+    writeln!(
+        out,
+        "verifying `{task}` of {} (loops {}, recursion {}, ticks {}, events {}, hangs {}, depth {})",
+        files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        options.loops,
+        options.recursion,
+        options.ticks,
+        options.events,
+        options.hangs,
+        options.depth
+    )?;
+    out.flush()?;
+    let control = Arc::new(Control::default());
+    {
+        let control = Arc::clone(&control);
+        // The first Ctrl-C stops the search (its report follows); a second exits at once.
+        let _ = ctrlc::set_handler(move || {
+            if control
+                .stop
+                .swap(true, std::sync::atomic::Ordering::Relaxed)
+            {
+                std::process::exit(130);
+            }
+        });
+    }
+    let report = {
+        let mut display = Display::new();
+        tdl_verify::verify_with_progress(
+            &program,
+            &task,
+            &options,
+            &properties,
+            None,
+            &control,
+            &mut |p| {
+                display.update(p);
+            },
+        )
+    };
+    print_report(&report, &args.out, out)?;
+    Ok(report.ok() && !report.interrupted)
+}
+
+fn options(args: &Args) -> Options {
+    let d = Options::default();
+    Options {
+        loops: args.loops.unwrap_or(d.loops),
+        recursion: args.recursion.unwrap_or(d.recursion),
+        depth: args.depth.unwrap_or(d.depth),
+        max_states: args.max_states.unwrap_or(d.max_states),
+        ticks: args.ticks.unwrap_or(d.ticks),
+        events: args.events.unwrap_or(d.events),
+        hangs: args.hangs.unwrap_or(d.hangs),
+        allowed: args.allow.clone(),
+        unknown_exception: args.unknown_exception,
+        samples: d.samples,
+    }
+}
+
+/// Progress on standard error: a spinner on a terminal, a line a second otherwise.
+struct Display {
+    bar: Option<indicatif::ProgressBar>,
+    last: Instant,
+}
+
+impl Display {
+    fn new() -> Display {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.enable_steady_tick(Duration::from_millis(120));
+            bar
+        });
+        Display {
+            bar,
+            last: Instant::now(),
+        }
+    }
+
+    fn update(&mut self, p: &tdl_verify::Progress) {
+        let rate = p.explored as f64 / p.elapsed.as_secs_f64().max(1e-9);
+        let line = format!(
+            "{} states explored, {} distinct, depth {}, {} waiting, {:.0} states/s, {} violation(s), {:.0} s (Ctrl-C stops)",
+            p.explored,
+            p.unique,
+            p.depth,
+            p.frontier,
+            rate,
+            p.violations,
+            p.elapsed.as_secs_f64()
+        );
+        match &self.bar {
+            Some(bar) => bar.set_message(line),
+            None => {
+                if self.last.elapsed() >= Duration::from_secs(1) {
+                    self.last = Instant::now();
+                    eprintln!("tdl verify: {line}");
+                }
+            }
+        }
+    }
+}
+
+impl Drop for Display {
+    fn drop(&mut self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+/// A file name for a property's counterexample.
+fn slug(task: &str, property: &str) -> String {
+    let mut s = String::new();
+    for ch in format!("{task}-{property}").chars() {
+        if ch.is_ascii_alphanumeric() || ch == '_' {
+            s.push(ch);
+        } else if !s.ends_with('-') {
+            s.push('-');
+        }
+    }
+    format!("{}.jsonl", s.trim_end_matches('-'))
+}
+
+fn print_report(report: &Report, dir: &Path, out: &mut impl Write) -> anyhow::Result<()> {
+    writeln!(
+        out,
+        "{} states explored ({} distinct), depth {}, {:.2} s, {:.0} states/s",
+        report.explored,
+        report.unique,
+        report.depth,
+        report.elapsed.as_secs_f64(),
+        report.rate()
+    )?;
+    if report.interrupted {
+        writeln!(out, "interrupted: what was found so far")?;
+    } else if report.complete {
+        writeln!(out, "every state within the bounds was explored")?;
+    } else {
+        writeln!(
+            out,
+            "the search stopped before the end (--max-states or --depth)"
+        )?;
+    }
+    if report.cut > 0 {
+        writeln!(
+            out,
+            "{} paths ended at a bound{}",
+            report.cut,
+            report
+                .cut_example
+                .as_ref()
+                .map(|c| format!(", e.g. {c}"))
+                .unwrap_or_default()
+        )?;
+    }
+    writeln!(
+        out,
+        "{} traces replayed through the trace checker",
+        report.traces_checked
+    )?;
+    for r in &report.results {
+        match &r.verdict {
+            Verdict::Holds => writeln!(out, "  ok         {}", r.property)?,
+            Verdict::Unknown(why) => writeln!(out, "  undecided  {}: {why}", r.property)?,
+            Verdict::Violated(c) => {
+                writeln!(out, "  VIOLATED   {}: {}", r.property, c.summary)?;
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("cannot create {}", dir.display()))?;
+                let file = dir.join(slug(&report.task, &r.property));
+                let mut w = std::io::BufWriter::new(
+                    std::fs::File::create(&file)
+                        .with_context(|| format!("cannot write {}", file.display()))?,
+                );
+                c.write_trace(&mut w)?;
+                w.flush()?;
+                let repeats = match c.repeats_from {
+                    Some(from) => format!(", the last {} repeating forever", c.len() - from),
+                    None => String::new(),
+                };
+                writeln!(
+                    out,
+                    "             a path of {} transitions{repeats}; trace: {} (`tdl trace story {}`)",
+                    c.len(),
+                    file.display(),
+                    file.display()
+                )?;
+                if c.depends_on_conditions {
+                    writeln!(
+                        out,
+                        "             it takes branches of conditions the checker does not evaluate: check they can go that way"
+                    )?;
+                }
+                for h in &c.hung {
+                    writeln!(
+                        out,
+                        "             {h} is left running until it is terminated"
+                    )?;
+                }
+                for (i, s) in c.steps.iter().enumerate() {
+                    let mark = if c.repeats_from == Some(i) {
+                        "↻"
+                    } else {
+                        " "
+                    };
+                    writeln!(out, "           {mark}{:>3}. {s}", i + 1)?;
+                }
+                for d in &c.details {
+                    writeln!(out, "             {d}")?;
+                }
+                for v in &c.trace_violations {
+                    writeln!(out, "             trace checker: {v}")?;
+                }
+                writeln!(out, "             story:")?;
+                for line in crate::view::story(&c.trace, &crate::view::Filter::default()) {
+                    writeln!(out, "               {line}")?;
+                }
+            }
+        }
+    }
+    for e in &report.errors {
+        writeln!(out, "checker error (please report): {e}")?;
+    }
+    if !report.notes.is_empty() {
+        writeln!(out, "what the checker abstracts here:")?;
+        for n in &report.notes {
+            writeln!(out, "  {n}")?;
+        }
+    }
+    Ok(())
+}
+
+/// The `.tdl` files of a crate of the workspace: its `src/**/*.tdl`, in path order.
+fn package_files(name: &str) -> anyhow::Result<Vec<PathBuf>> {
+    let dir = package_dir(name)?;
+    let mut files = Vec::new();
+    collect_tdl(&dir.join("src"), &mut files);
+    files.sort();
+    if files.is_empty() {
+        anyhow::bail!(
+            "crate `{name}` has no .tdl file under {}",
+            dir.join("src").display()
+        );
+    }
+    Ok(files)
+}
+
+fn collect_tdl(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            collect_tdl(&p, out);
+        } else if p.extension().is_some_and(|x| x == "tdl") {
+            out.push(p);
+        }
+    }
+}
+
+/// The directory of the crate `name`: from `cargo metadata`, else `crates/NAME` in this
+/// directory or one above.
+fn package_dir(name: &str) -> anyhow::Result<PathBuf> {
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let meta = std::process::Command::new(cargo)
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--no-deps",
+            "--offline",
+        ])
+        .stderr(std::process::Stdio::null())
+        .output();
+    if let Ok(meta) = meta {
+        if meta.status.success() {
+            let v: serde_json::Value = serde_json::from_slice(&meta.stdout)
+                .context("cannot read the output of `cargo metadata`")?;
+            let found = v["packages"].as_array().and_then(|ps| {
+                ps.iter()
+                    .find(|p| p["name"].as_str() == Some(name))
+                    .and_then(|p| {
+                        p["manifest_path"]
+                            .as_str()
+                            .and_then(|m| Path::new(m).parent().map(Path::to_path_buf))
+                    })
+            });
+            if let Some(dir) = found {
+                return Ok(dir);
+            }
+        }
+    }
+    let mut here = std::env::current_dir()?;
+    loop {
+        let dir = here.join("crates").join(name);
+        if dir.join("Cargo.toml").is_file() {
+            return Ok(dir);
+        }
+        if !here.pop() {
+            anyhow::bail!(
+                "no crate `{name}` in this workspace (looked with `cargo metadata` and under crates/)"
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counterexample_files_are_named_after_the_property() {
+        assert_eq!(
+            slug("deliver_all", "never active(turn) and active(guarded_move)"),
+            "deliver_all-never-active-turn-and-active-guarded_move.jsonl"
+        );
+        assert_eq!(slug("t", "no stuck state"), "t-no-stuck-state.jsonl");
+    }
+}
