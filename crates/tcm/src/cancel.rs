@@ -155,7 +155,7 @@ impl Cancels {
             let shared = shared.clone();
             // A tokio sleep: on the paused clock of a virtual-time run, the period passes in
             // virtual time, deterministically.
-            let queued = shared.queued.clone();
+            let tracking = shared.clone();
             let task = async move {
                 // The run's time (scaled, if the run's clock is).
                 let end = shared.clock.instant(shared.now() + grace);
@@ -163,7 +163,7 @@ impl Cancels {
                 expire(&shared, node, grace);
             };
             // Its wake-ups are counted (`pump.rs`); a new task is queued.
-            let task = crate::pump::Tracked::new(Box::pin(task), &queued, true);
+            let task = crate::pump::MaybeTracked::new(&tracking, Box::pin(task), true);
             match rt {
                 Some(rt) => rt.spawn(task),
                 None => tokio::spawn(task),

@@ -286,7 +286,7 @@ impl Ctx {
             armed: self.job.is_some(),
         };
         // Its wake-up is counted, so that the pump knows the waiting task is queued (`pump.rs`).
-        let res = crate::pump::Tracked::new(rx, &self.shared.queued, false).await;
+        let res = crate::pump::MaybeTracked::new(&self.shared, rx, false).await;
         // Answered: the notification already unparked it.
         unpark.armed = unpark.armed && res.is_err();
         res.map_err(|_| Error::RunEnded)

@@ -335,6 +335,35 @@ impl<F: Future + Unpin> Future for Tracked<F> {
     }
 }
 
+/// A future tracked only where the pump runs (a current-thread runtime): elsewhere nothing reads
+/// the count, so the future is polled as it is.
+pub(crate) enum MaybeTracked<F> {
+    Plain(F),
+    Tracked(Tracked<F>),
+}
+
+impl<F> MaybeTracked<F> {
+    /// `fut`, tracked if the run pumps (`Shared::inline`); see [`Tracked::new`].
+    pub(crate) fn new(shared: &Shared, fut: F, queued: bool) -> MaybeTracked<F> {
+        if shared.inline.load(Ordering::Relaxed) {
+            MaybeTracked::Tracked(Tracked::new(fut, &shared.queued, queued))
+        } else {
+            MaybeTracked::Plain(fut)
+        }
+    }
+}
+
+impl<F: Future + Unpin> Future for MaybeTracked<F> {
+    type Output = F::Output;
+
+    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<F::Output> {
+        match &mut *self {
+            MaybeTracked::Plain(f) => Pin::new(f).poll(cx),
+            MaybeTracked::Tracked(f) => Pin::new(f).poll(cx),
+        }
+    }
+}
+
 impl<F> Drop for Tracked<F> {
     fn drop(&mut self) {
         if self.track.state.swap(DROPPED, Ordering::SeqCst) == QUEUED {

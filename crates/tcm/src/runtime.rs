@@ -435,7 +435,7 @@ impl Runtime {
         let driver = RunLoop::new(shared.clone(), timer);
         // Its wake-ups are counted when it runs in a task (`pump.rs`); the caller runs now.
         let drive = Box::pin(driver.drive(&mut self.sinks));
-        let outcome = crate::pump::Tracked::new(drive, &shared.queued, false).await;
+        let outcome = crate::pump::MaybeTracked::new(&shared, drive, false).await;
         for s in &mut self.sinks {
             s.flush();
         }
@@ -477,11 +477,11 @@ impl Runtime {
         let timer = self.timer()?;
         let mut sinks = std::mem::take(&mut self.sinks);
         let driver = RunLoop::new(shared.clone(), timer);
-        let queued = shared.queued.clone();
+        let tracking = shared.clone();
         let driver = handle.spawn(async move {
             // Its wake-ups are counted (`pump.rs`); a new task is queued.
             let drive = Box::pin(driver.drive(&mut sinks));
-            let outcome = crate::pump::Tracked::new(drive, &queued, true).await;
+            let outcome = crate::pump::MaybeTracked::new(&tracking, drive, true).await;
             for s in &mut sinks {
                 s.flush();
             }
