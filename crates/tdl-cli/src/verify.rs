@@ -419,6 +419,24 @@ fn package_dir(name: &str) -> anyhow::Result<PathBuf> {
 mod tests {
     use super::*;
 
+    /// The help text writes the defaults out; they must be the library's.
+    #[test]
+    fn the_defaults_in_the_help_are_the_librarys() {
+        let d = Options::default();
+        assert_eq!(
+            (
+                d.loops,
+                d.recursion,
+                d.ticks,
+                d.events,
+                d.hangs,
+                d.depth,
+                d.max_states
+            ),
+            (2, 1, 1, 1, 1, 10_000, 20_000_000)
+        );
+    }
+
     #[test]
     fn counterexample_files_are_named_after_the_property() {
         assert_eq!(
