@@ -346,6 +346,14 @@ fn package_files(name: &str) -> anyhow::Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     collect_tdl(&dir.join("src"), &mut files);
     files.sort();
+    // Relative to where the command runs, when below it: shorter messages.
+    if let Ok(here) = std::env::current_dir() {
+        for f in &mut files {
+            if let Ok(rel) = f.strip_prefix(&here) {
+                *f = rel.to_path_buf();
+            }
+        }
+    }
     if files.is_empty() {
         anyhow::bail!(
             "crate `{name}` has no .tdl file under {}",
