@@ -346,6 +346,14 @@ fn package_files(name: &str) -> anyhow::Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     collect_tdl(&dir.join("src"), &mut files);
     files.sort();
+    // Relative to where the command runs, when below it: shorter messages.
+    if let Ok(here) = std::env::current_dir() {
+        for f in &mut files {
+            if let Ok(rel) = f.strip_prefix(&here) {
+                *f = rel.to_path_buf();
+            }
+        }
+    }
     if files.is_empty() {
         anyhow::bail!(
             "crate `{name}` has no .tdl file under {}",
@@ -418,6 +426,24 @@ fn package_dir(name: &str) -> anyhow::Result<PathBuf> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The help text writes the defaults out; they must be the library's.
+    #[test]
+    fn the_defaults_in_the_help_are_the_librarys() {
+        let d = Options::default();
+        assert_eq!(
+            (
+                d.loops,
+                d.recursion,
+                d.ticks,
+                d.events,
+                d.hangs,
+                d.depth,
+                d.max_states
+            ),
+            (2, 1, 1, 1, 1, 10_000, 20_000_000)
+        );
+    }
 
     #[test]
     fn counterexample_files_are_named_after_the_property() {

@@ -191,6 +191,8 @@ pub(crate) struct State {
     pub(crate) broken: Option<usize>,
     /// The trace records of the last transition, when tracing.
     pub(crate) records: Vec<TraceEvent>,
+    /// The root task's execution completed.
+    done: bool,
 }
 
 /// What a state knows of the program and the options.
@@ -290,6 +292,7 @@ impl State {
             watch: (!cx.props.is_empty()).then(Watch::default),
             broken: None,
             records: Vec::new(),
+            done: false,
         };
         let callee = match prog.by_name.get(task) {
             Some(id) => Callee::Task(*id),
@@ -309,6 +312,7 @@ impl State {
         }
         s.settle(cx);
         s.observe(cx);
+        s.done = s.compute_finished();
         s
     }
 
@@ -331,8 +335,12 @@ impl State {
         self.cmds.iter().all(|c| c.hung)
     }
 
-    /// Whether the root task's execution completed.
+    /// Whether the root task's execution completed (as of the last transition).
     pub(crate) fn finished(&self) -> bool {
+        self.done
+    }
+
+    fn compute_finished(&self) -> bool {
         match self.root {
             Some(r) => self
                 .engine
@@ -546,6 +554,7 @@ impl State {
         }
         s.settle(cx);
         s.observe(cx);
+        s.done = s.compute_finished();
         let unhandled = s.engine.unhandled();
         if unhandled.len() > before && s.fault.is_none() {
             for f in &unhandled[before..] {

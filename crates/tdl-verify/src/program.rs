@@ -1041,6 +1041,14 @@ impl<'b> BodyCompiler<'b> {
     /// A Rust statement: what it assigns the checker can follow, what it may change, and the ways
     /// out of the body or loop it may take.
     fn rust(&mut self, tokens: &TokenStream, line: u32) {
+        if mentions(tokens, "ctx") {
+            self.note(line, "Rust code that uses `ctx` is not run: what it does to the tree, and its failures, are not explored");
+        } else if has_question_mark(tokens) {
+            self.note(
+                line,
+                "a `?` in Rust code is not run: the failure it may raise is not explored",
+            );
+        }
         let block: Option<syn::Block> = syn::parse2(quote_block(tokens)).ok();
         if let Some(block) = &block {
             for st in &block.stmts {
@@ -1424,6 +1432,23 @@ fn leak(s: &str) -> &'static str {
 fn quote_block(tokens: &TokenStream) -> TokenStream {
     let group = proc_macro2::Group::new(Delimiter::Brace, tokens.clone());
     TokenStream::from(TokenTree::Group(group))
+}
+
+/// Whether the tokens name `word` as an identifier.
+fn mentions(tokens: &TokenStream, word: &str) -> bool {
+    tokens.clone().into_iter().any(|tt| match tt {
+        TokenTree::Ident(i) => i == word,
+        TokenTree::Group(g) => mentions(&g.stream(), word),
+        _ => false,
+    })
+}
+
+fn has_question_mark(tokens: &TokenStream) -> bool {
+    tokens.clone().into_iter().any(|tt| match tt {
+        TokenTree::Punct(p) => p.as_char() == '?',
+        TokenTree::Group(g) => has_question_mark(&g.stream()),
+        _ => false,
+    })
 }
 
 /// Identifiers in a pattern or place (the variables it binds or assigns).

@@ -35,6 +35,7 @@ use crate::failure::Failure;
 use crate::ids::NodeId;
 use crate::time::Time;
 use std::hash::{Hash, Hasher};
+use tcm_trace::{State, Termination};
 
 /// The canonical numbering of the live nodes computed by [`Engine::canonical_hash`], for the
 /// shell to hash its own references to nodes the same way.
@@ -469,14 +470,8 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
 
     fn node(&self, n: &Node<A, F>, h: &mut impl Hasher) {
         let now = self.engine.now;
-        n.kind.hash(h);
-        name(&n.name, h);
-        self.opt_ref(n.parent, h);
-        self.opt_ref(n.last_spawned, h);
-        n.states.hash(h);
-        n.termination.hash(h);
-        n.blocks.hash(h);
-        (
+        // The small fields packed into a few words: hashing is a fifth of a search's time.
+        let flags = [
             n.expand_first,
             n.delay_expansion,
             n.suspended,
@@ -486,15 +481,30 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
             n.immune,
             n.stopping,
             n.holding,
-        )
-            .hash(h);
-        (
-            n.open_expansions,
-            n.open_executions,
-            n.terminating_children,
-            n.live_children,
-        )
-            .hash(h);
+        ]
+        .iter()
+        .fold(0u64, |acc, f| (acc << 1) | u64::from(*f));
+        let state = |s: State| s as u64;
+        let termination = match n.termination {
+            Termination::Alive => 0u64,
+            Termination::Terminating => 1,
+            Termination::Terminated => 2,
+        };
+        let word = flags
+            | (n.kind as u64) << 16
+            | state(n.states[0]) << 24
+            | state(n.states[1]) << 28
+            | state(n.states[2]) << 32
+            | termination << 36;
+        word.hash(h);
+        let packed = |a: u32, b: u32| (u64::from(a) << 32) | u64::from(b);
+        packed(n.blocks[0], n.blocks[1]).hash(h);
+        packed(n.blocks[2], n.open_expansions).hash(h);
+        packed(n.open_executions, n.terminating_children).hash(h);
+        n.live_children.hash(h);
+        name(&n.name, h);
+        self.opt_ref(n.parent, h);
+        self.opt_ref(n.last_spawned, h);
         n.waiters.iter().len().hash(h);
         for w in n.waiters.iter() {
             self.waiter(w, h);

@@ -61,6 +61,14 @@ fn the_xavier_crate_passes() {
     for p in ["no stuck state", "no unhandled exception", "every run ends"] {
         assert!(out.contains(&format!("  ok         {p}")), "{out}");
     }
+    // The handlers' Rust (`stop_the_rest(&ctx)?`, `give_up(&ctx, …)?`) is not run, and the
+    // report says so.
+    assert!(
+        out.lines().any(|l| l.contains("mission.tdl:")
+            && l.contains("Rust code that uses `ctx` is not run")
+            && l.contains("(in `detour`)")),
+        "{out}"
+    );
     let stats = out.lines().nth(1).unwrap_or_default();
     assert!(
         stats.contains("states explored (") && stats.ends_with("states/s"),

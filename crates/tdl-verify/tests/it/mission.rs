@@ -222,3 +222,55 @@ fn a_stop_gives_what_was_found_so_far() {
         Some(Verdict::Unknown(why)) if why.contains("interrupted")
     ));
 }
+
+#[test]
+fn event_properties_are_followed_along_each_path() {
+    let parse = |p: &str| Property::parse(p).expect("parses");
+    let planned_first = parse("completed(plan_path) before active(guarded_move)");
+    let delivered_first = parse("completed(deliver_mail) before active(plan_path)");
+    let some_delivery = parse("eventually completed(deliver_mail)");
+    let props = [
+        planned_first.clone(),
+        delivered_first.clone(),
+        some_delivery.clone(),
+    ];
+    let report = verify(&mission(), &small(), &props, None);
+    holds(&report, planned_first.text());
+    // The first planner starts before any delivery ended.
+    let c = violated(&report, delivered_first.text());
+    assert_eq!(c.len(), 1, "{:#?}", c.steps);
+    // With no room to deliver to, the round ends without a delivery.
+    let c = violated(&report, some_delivery.text());
+    assert_eq!(c.len(), 1, "{:#?}", c.steps);
+    assert!(
+        c.steps[0].starts_with("deliver_all leaves the loop at "),
+        "{:?}",
+        c.steps
+    );
+}
+
+#[test]
+fn liveness_is_refused_on_a_graph_with_a_cycle() {
+    // Every run that ends saw the round start, but with the monitor polling forever some runs
+    // never end, and on those `eventually` cannot be decided.
+    let started = Property::parse("always eventually active(deliver_all)").expect("parses");
+    let report = verify(
+        &data("missing_terminate.tdl"),
+        &small(),
+        std::slice::from_ref(&started),
+        None,
+    );
+    violated(&report, RUNS_END);
+    match report.result(started.text()).map(|r| &r.verdict) {
+        Some(Verdict::Unknown(why)) => {
+            assert!(
+                why.starts_with("refused: the state graph has a cycle"),
+                "{why}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    // Without the cycle it is decided.
+    let report = verify(&mission(), &small(), std::slice::from_ref(&started), None);
+    holds(&report, started.text());
+}
