@@ -1,5 +1,6 @@
 //! Hand-made traces for the unit tests of this crate: a builder that numbers records and keeps time.
 
+use crate::check::{Rule, check};
 use crate::event::{TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent, TraceEventRef, TraceKind};
 use crate::state::{Facet, NodeKind, Point, State};
 
@@ -127,6 +128,30 @@ impl Tb {
         Tb {
             evs: self.evs.clone(),
             t: self.t,
+        }
+    }
+}
+
+/// The rules a trace breaks, in order; empty when the checker accepts it.
+pub(crate) fn rules(trace: &[TraceEvent]) -> Vec<Rule> {
+    match check(trace) {
+        Ok(_) => Vec::new(),
+        Err(vs) => vs.iter().map(|v| v.rule).collect(),
+    }
+}
+
+/// Asserts that the checker catches `rule` in `trace`.
+#[track_caller]
+pub(crate) fn caught(trace: &[TraceEvent], rule: Rule) {
+    match check(trace) {
+        Ok(_) => panic!("expected a {rule} violation, the trace passed"),
+        Err(vs) => {
+            let text: Vec<String> = vs.iter().map(|v| v.to_string()).collect();
+            assert!(
+                vs.iter().any(|v| v.rule == rule),
+                "expected {rule}, got:\n{}",
+                text.join("\n")
+            );
         }
     }
 }

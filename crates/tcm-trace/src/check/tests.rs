@@ -5,28 +5,6 @@ use crate::event::{TraceConstraint, TraceEvent, TraceKind, TraceThen, TraceWhen}
 use crate::state::{NodeKind, Point};
 use crate::test_util::*;
 
-fn rules(trace: &[TraceEvent]) -> Vec<Rule> {
-    match check(trace) {
-        Ok(_) => Vec::new(),
-        Err(vs) => vs.iter().map(|v| v.rule).collect(),
-    }
-}
-
-#[track_caller]
-fn caught(trace: &[TraceEvent], rule: Rule) {
-    match check(trace) {
-        Ok(_) => panic!("expected a {rule} violation, the trace passed"),
-        Err(vs) => {
-            let text: Vec<String> = vs.iter().map(|v| v.to_string()).collect();
-            assert!(
-                vs.iter().any(|v| v.rule == rule),
-                "expected {rule}, got:\n{}",
-                text.join("\n")
-            );
-        }
-    }
-}
-
 #[track_caller]
 fn passes(trace: &[TraceEvent]) -> super::CheckReport {
     match check(trace) {

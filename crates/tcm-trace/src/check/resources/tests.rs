@@ -2,30 +2,8 @@
 //! pass, and one that over-grants, one that leaks a grant, and each other misuse are caught.
 
 use crate::check::{Rule, check, check_prefix};
-use crate::event::{ResourceUse, TraceEvent, TraceKind};
+use crate::event::{ResourceUse, TraceKind};
 use crate::test_util::*;
-
-fn rules(trace: &[TraceEvent]) -> Vec<Rule> {
-    match check(trace) {
-        Ok(_) => Vec::new(),
-        Err(vs) => vs.iter().map(|v| v.rule).collect(),
-    }
-}
-
-#[track_caller]
-fn caught(trace: &[TraceEvent], rule: Rule) {
-    match check(trace) {
-        Ok(_) => panic!("expected a {rule} violation, the trace passed"),
-        Err(vs) => {
-            let text: Vec<String> = vs.iter().map(|v| v.to_string()).collect();
-            assert!(
-                vs.iter().any(|v| v.rule == rule),
-                "expected {rule}, got:\n{}",
-                text.join("\n")
-            );
-        }
-    }
-}
 
 fn arm(n: u32) -> Vec<ResourceUse> {
     vec![ResourceUse::new("arm", n)]
