@@ -9,7 +9,7 @@ use crate::state::{Facet, NodeKind, Outcome, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 5;
+pub const TRACE_FORMAT_VERSION: u32 = 6;
 
 /// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
 pub const OLDEST_READABLE_VERSION: u32 = 1;
@@ -520,6 +520,14 @@ pub enum TraceKind {
         /// The resource.
         resource: String,
     },
+    /// The node's action runs on another process of a distributed system, the agent `agent`
+    /// (docs/distributed.md); what it does there comes back as this trace's records of the node.
+    Placed {
+        /// The node.
+        node: u64,
+        /// The agent's name.
+        agent: String,
+    },
     /// Something worth a person's attention; the run goes on.
     Warning {
         /// Node concerned, if any.
@@ -553,6 +561,7 @@ impl TraceKind {
             | TraceKind::Failed { node, .. }
             | TraceKind::Dead { node }
             | TraceKind::Reclaimed { node }
+            | TraceKind::Placed { node, .. }
             | TraceKind::MonitorParams { node, .. }
             | TraceKind::Activated { node, .. }
             | TraceKind::HandlerChosen { node, .. }

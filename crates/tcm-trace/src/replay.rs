@@ -128,6 +128,8 @@ pub struct ReplayNode {
     request: Option<Vec<ResourceUse>>,
     grant: Option<Vec<ResourceUse>>,
     requested: bool,
+    // The agent its action runs on (a `placed` record), if it runs on one.
+    agent: Option<String>,
 }
 
 /// What the trace says of a monitor: its parameters and counts.
@@ -189,6 +191,7 @@ impl ReplayNode {
             request: None,
             grant: None,
             requested: false,
+            agent: None,
         }
     }
 
@@ -218,6 +221,10 @@ impl ReplayNode {
     /// Parent's display number (`None` for the root).
     pub fn parent(&self) -> Option<u64> {
         self.parent
+    }
+    /// The agent its action runs on, for a node placed on one (a `placed` record).
+    pub fn agent(&self) -> Option<&str> {
+        self.agent.as_deref()
     }
     /// Children, in spawn order (reclaimed ones included).
     pub fn children(&self) -> &[u64] {
@@ -491,6 +498,9 @@ impl Replay {
             | TraceKind::ResourceUnreserved { .. }
             | TraceKind::ResourceLocked { .. }
             | TraceKind::ResourceUnlocked { .. } => self.apply_resource(&ev.kind)?,
+            TraceKind::Placed { node, agent } => {
+                self.node_mut(*node)?.agent = Some(agent.clone());
+            }
             TraceKind::External { .. }
             | TraceKind::Warning { .. }
             | TraceKind::Tapped { .. }

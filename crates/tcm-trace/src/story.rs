@@ -61,6 +61,9 @@ pub fn story(trace: &[TraceEvent]) -> Vec<String> {
             TraceKind::ResourceUnreserved { resource } => format!("{resource} unreserved"),
             TraceKind::ResourceLocked { resource } => format!("{resource} locked"),
             TraceKind::ResourceUnlocked { resource } => format!("{resource} unlocked"),
+            TraceKind::Placed { node, agent } => {
+                format!("{} runs on agent {agent}", name(&names, node))
+            }
             _ => continue,
         };
         out.push(format!("{} {line}", ev.t as f64 / 1e9));

@@ -248,6 +248,18 @@ impl TextLog {
             (TraceKind::Reclaimed { .. }, Some(n)) if trace => {
                 lines.push(format!("Deleting {}", n.name()));
             }
+            (
+                TraceKind::Placed {
+                    node: number,
+                    agent,
+                },
+                Some(n),
+            ) if trace => {
+                lines.push(format!(
+                    "Placing {} {{{number}}} on agent {agent}",
+                    n.name()
+                ));
+            }
             (TraceKind::Warning { message, .. }, _) => lines.push(format!("WARNING: {message}")),
             (kind, node) => {
                 if let Some(line) = self.resource_line(kind, node) {

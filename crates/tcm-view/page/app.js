@@ -48,7 +48,7 @@ function loadSnapshot(s) {
   S.nodes = [];
   for (const r of s.nodes) {
     const m = r.slice(4, 4 + MARKS);
-    S.nodes[r[0]] = { n: r[0], p: r[1], k: r[2], name: r[3], m, kids: [] };
+    S.nodes[r[0]] = { n: r[0], p: r[1], k: r[2], name: r[3], m, kids: [], agent: r[4 + MARKS] || null };
   }
   for (const node of S.nodes) if (node && node.p >= 0 && S.nodes[node.p]) S.nodes[node.p].kids.push(node.n);
   S.times = s.times; S.records = s.records; S.finished = s.finished; S.problem = s.problem;
@@ -93,6 +93,7 @@ function apply(r) {
     case 'reclaimed': mark(ensure(n), M_RECLAIMED, r.seq); break;
     case 'dead': mark(ensure(n), M_DEAD, r.seq); break;
     case 'failed': mark(ensure(n), M_FAILED, r.seq); break;
+    case 'placed': ensure(n).agent = r.agent; break;
   }
   const tl = S.times.length;
   if (tl === 0 || S.times[tl - 1] !== r.t) S.times.push(r.seq, r.t);
@@ -208,6 +209,7 @@ function render() {
       ...states.map((s, f) => el('span', { class: 'sq s-' + (failed && f === 0 && s === 'completed' ? 'failed' : s), title: FACETS[f] + ': ' + s })),
       el('span', { class: 'name' }, node.name),
       el('span', { class: 'num' }, '{' + n + '}'),
+      ...(node.agent ? [el('span', { class: 'agent', title: 'runs on agent ' + node.agent }, '@' + node.agent)] : []),
     );
   }
   drawBars(first, count, shift);
@@ -408,6 +410,7 @@ async function showNode() {
   if (v.parent !== null) add('parent', nodeLink(v.parent));
   if (v.handles) add('handles', el('span', {}, v.handles[1] + ' for ', nodeLink(v.handles[0])));
   if (v.retry_of !== null) add('retry of', nodeLink(v.retry_of));
+  add('runs on agent', v.agent);
   if (v.queued_ns !== null) add('enabled → active', secs(v.queued_ns));
   if (v.ran_ns !== null) add('action ran', secs(v.ran_ns));
   if (v.kind === 'monitor') add('activations · triggers', v.activations + ' · ' + v.triggers_count);

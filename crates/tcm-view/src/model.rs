@@ -101,6 +101,8 @@ pub struct Row {
     pub released: Option<Mark>,
     /// When the request ended without a grant (withdrawn, denied, dropped), and how.
     pub refused: Option<(Mark, &'static str)>,
+    /// The agent its action runs on, for a node placed on one (a `placed` record).
+    pub agent: Option<String>,
 }
 
 impl Row {
@@ -120,6 +122,7 @@ impl Row {
             activation_of: None,
             handles: None,
             retry_of: None,
+            agent: None,
             request: None,
             granted: None,
             released: None,
@@ -591,6 +594,7 @@ impl RunModel {
                     r.until = Some(at);
                 }
             }
+            K::Placed { node, agent } => self.row(*node).agent = Some(agent.clone()),
             K::Warning {
                 node: Some(node),
                 message,

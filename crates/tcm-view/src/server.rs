@@ -368,6 +368,9 @@ pub fn snapshot_json(id: usize, m: &RunModel) -> String {
                 None => out.push_str(",-1"),
             }
         }
+        if let Some(agent) = &r.agent {
+            let _ = write!(out, ",{}", serde_json::Value::from(agent.as_str()));
+        }
         out.push(']');
     }
     out.push_str("]}");

@@ -51,6 +51,8 @@ pub struct NodeView {
     pub handles: Option<(u64, String)>,
     /// For a retry: the node it runs again.
     pub retry_of: Option<u64>,
+    /// The agent its action runs on, if it was placed on one.
+    pub agent: Option<String>,
     /// Children, by number.
     pub children: Vec<u64>,
 }
@@ -189,6 +191,7 @@ impl RunModel {
             triggers_count: row.triggers,
             handles: row.handles.clone(),
             retry_of: row.retry_of,
+            agent: row.agent.clone(),
             children: row.children.clone(),
         })
     }

@@ -197,6 +197,44 @@ async fn a_node_waiting_for_a_resource_names_it_and_its_holder() {
     assert!(v.waits.is_empty(), "{:?}", v.waits);
 }
 
+/// A node placed on an agent (what `tcm-zenoh` records) carries the agent's name in the model,
+/// the node's view and the snapshot the page loads.
+#[tokio::test(start_paused = true)]
+async fn a_node_placed_on_an_agent_shows_the_agent() {
+    let task = Task::goal("mission", |ctx| async move {
+        ctx.spawn(Task::command("grasp", |ctx| async move {
+            ctx.placed("arm")?;
+            tokio::time::sleep(secs(1)).await;
+            Ok(())
+        }))
+        .start()?;
+        ctx.spawn(Task::command("look", |_| async { Ok(()) }))
+            .start()?;
+        Ok(())
+    });
+    let trace = run_checked(Runtime::new(), task).await.1;
+    let m = model_of(&trace);
+    let (grasp, look) = (number(&m, "grasp"), number(&m, "look"));
+    let row = |n: u64| m.rows().iter().find(|r| r.number == n).expect("a row");
+    assert_eq!(row(grasp).agent.as_deref(), Some("arm"));
+    assert_eq!(row(look).agent, None);
+    let v = m.node_view(grasp, m.seq_at(1_000_000_000)).expect("grasp");
+    assert_eq!(v.agent.as_deref(), Some("arm"));
+    let snapshot: serde_json::Value =
+        serde_json::from_str(&tcm_view::snapshot_json(0, &m)).expect("the snapshot is JSON");
+    let nodes = snapshot["nodes"].as_array().expect("nodes");
+    let entry = |n: u64| {
+        nodes
+            .iter()
+            .find(|e| e[0] == n)
+            .and_then(|e| e.as_array())
+            .expect("an entry")
+    };
+    assert_eq!(entry(grasp).len(), 4 + tcm_view::MARKS + 1);
+    assert_eq!(entry(grasp)[4 + tcm_view::MARKS], "arm");
+    assert_eq!(entry(look).len(), 4 + tcm_view::MARKS);
+}
+
 #[test]
 fn a_bad_line_is_named_with_its_file_and_line_and_what_came_before_is_kept() {
     let good = [

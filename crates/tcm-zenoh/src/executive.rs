@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 use std::time::Duration;
-use tcm::{Failure, NodeId, Task};
+use tcm::{Ctx, Failure, NodeId, Task};
 use tokio::sync::{mpsc, watch};
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
@@ -37,6 +37,8 @@ struct Pending {
     agent: String,
     last_seq: u64,
     tx: mpsc::UnboundedSender<Incoming>,
+    // The node's context, for warnings in the trace about its messages.
+    ctx: Ctx,
 }
 
 /// Where a node ran: its display number and its agent.
@@ -56,8 +58,9 @@ struct State {
     // Task → the agents whose offer token is live (an agent's offers go when its token does).
     offers: BTreeMap<String, BTreeSet<String>>,
     pending: BTreeMap<u64, Pending>,
-    // Ended remote tasks and the sequence number of their last message, oldest ids first.
-    ended: BTreeMap<u64, u64>,
+    // Ended remote tasks: the sequence number of their last message and their node's context
+    // (for a warning in the trace when a message of theirs comes again), oldest ids first.
+    ended: BTreeMap<u64, (u64, Ctx)>,
     placed: BTreeMap<NodeId, Placement>,
     // `Executive::close` was called.
     closed: bool,
@@ -67,8 +70,9 @@ struct State {
 
 impl State {
     fn end(&mut self, task: u64, seq: u64) {
-        self.pending.remove(&task);
-        self.ended.insert(task, seq);
+        if let Some(p) = self.pending.remove(&task) {
+            self.ended.insert(task, (seq, p.ctx));
+        }
         while self.ended.len() > ENDED_KEPT {
             self.ended.pop_first();
         }
@@ -381,7 +385,9 @@ impl Inner {
         };
         let mut s = self.lock();
         let Some(p) = s.pending.get_mut(&msg.task) else {
-            let dup = s.ended.get(&msg.task).is_some_and(|last| msg.seq <= *last);
+            let ended = s.ended.get(&msg.task);
+            let dup = ended.is_some_and(|(last, _)| msg.seq <= *last);
+            let ctx = ended.map(|(_, ctx)| ctx.clone());
             if dup {
                 s.stats.duplicates += 1;
             } else {
@@ -389,15 +395,31 @@ impl Inner {
             }
             drop(s);
             let what = if dup { "duplicate" } else { "late" };
-            tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq,
-                "{what} message of an ended remote task ignored");
+            let text = format!(
+                "{what} message {} of ended remote task {} ignored ({})",
+                msg.seq,
+                msg.task,
+                msg.body.name()
+            );
+            tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq, "{text}");
+            if let Some(ctx) = ctx {
+                // A run already over has no trace to write to.
+                let _ = ctx.warn(text);
+            }
             return;
         };
         if msg.seq <= p.last_seq {
+            let ctx = p.ctx.clone();
             s.stats.duplicates += 1;
             drop(s);
-            tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq,
-                "duplicate message ignored");
+            let text = format!(
+                "duplicate message {} of remote task {} ignored ({})",
+                msg.seq,
+                msg.task,
+                msg.body.name()
+            );
+            tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq, "{text}");
+            let _ = ctx.warn(text);
             return;
         }
         p.last_seq = msg.seq;
@@ -456,10 +478,11 @@ impl Inner {
         agent: Option<&str>,
         name: &str,
         task: u64,
-        node: NodeId,
+        ctx: &Ctx,
         display: u64,
         tx: mpsc::UnboundedSender<Incoming>,
     ) -> Option<String> {
+        let node = ctx.node();
         let mut rx = self.changed.subscribe();
         loop {
             {
@@ -478,6 +501,7 @@ impl Inner {
                             agent: chosen.clone(),
                             last_seq: 0,
                             tx,
+                            ctx: ctx.clone(),
                         },
                     );
                     s.placed.insert(

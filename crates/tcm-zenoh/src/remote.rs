@@ -314,7 +314,7 @@ async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
         )));
     }
     let agent = tokio::select! {
-        a = exec.place(named, &spec.name, task, node, display, tx) => match a {
+        a = exec.place(named, &spec.name, task, &ctx, display, tx) => match a {
             Some(a) => a,
             None => return Err(RemoteError::failure("the executive was closed")),
         },
@@ -323,6 +323,9 @@ async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
         }
         () = &mut cancelled => return Ok(Json::Null),
     };
+    // The trace says where the action runs (a `placed` record) before anything comes back.
+    ctx.placed(&agent)
+        .map_err(|e| RemoteError::failure(e.to_string()))?;
     let mut link = Link {
         exec: exec.clone(),
         task,

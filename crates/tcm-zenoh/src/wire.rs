@@ -114,6 +114,19 @@ pub(crate) enum ToExec {
     Call { call: u64, op: Op },
 }
 
+impl ToExec {
+    /// What the message is, for people (a warning about it).
+    pub(crate) fn name(&self) -> &'static str {
+        match self {
+            ToExec::Started => "started",
+            ToExec::Heartbeat => "heartbeat",
+            ToExec::Done { .. } => "done",
+            ToExec::Cancelled => "cancelled",
+            ToExec::Call { .. } => "call",
+        }
+    }
+}
+
 /// A child a remote body names: an offered or registered task, its arguments, and where it runs.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub(crate) struct ChildSpec {

@@ -354,6 +354,27 @@ impl Ctx {
         })
     }
 
+    /// Says that this node's action runs on another process, the agent `agent` (a `placed` trace
+    /// record; docs/distributed.md). For distribution layers such as `tcm-zenoh`, which call it
+    /// when they send the action there.
+    pub fn placed(&self, agent: &str) -> Result<(), Error> {
+        let node = self.node;
+        self.with_engine(|e, now| e.note_placed(now, node, agent))
+    }
+
+    /// Adds a `warning` record about this node (about the run once the node has left the tree):
+    /// something worth a person's attention that the tree cannot see itself (a message from an
+    /// agent that arrived twice, say). The run goes on; it is counted with the run's other
+    /// warnings and logged as they are.
+    pub fn warn(&self, message: impl Into<String>) -> Result<(), Error> {
+        let node = self.node;
+        let message = message.into();
+        self.with_engine(|e, now| {
+            e.warn(now, Some(node), message);
+            Ok(())
+        })
+    }
+
     // ---- Monitors.
 
     /// In a monitor activation: this activation's number (from 1) and the triggers counted when it

@@ -197,6 +197,10 @@ pub(crate) fn schema(ev: &str) -> Option<Value> {
             "A completed or terminated node was freed; no later record names it.",
             vec![("node", node())],
         ),
+        "placed" => (
+            "The node's action runs on another process of a distributed system, the agent named.",
+            vec![("node", node()), ("agent", string())],
+        ),
         "warning" => (
             "Something worth a person's attention; the run goes on.",
             vec![("node", maybe_node()), ("message", string())],
@@ -575,7 +579,7 @@ mod tests {
                 _ => {}
             }
         }
-        assert_eq!(kinds.len(), 35, "{kinds:?}");
+        assert_eq!(kinds.len(), 36, "{kinds:?}");
         for file in ["run.jsonl", "handled_run.jsonl"] {
             let path = format!("{}/tests/data/{file}", env!("CARGO_MANIFEST_DIR"));
             let text = std::fs::read_to_string(&path).expect("a test trace");

@@ -70,7 +70,7 @@ fn line(out: &mut String, node: &ReplayNode, depth: usize) {
 pub(crate) enum Kind {
     /// Facet transitions.
     Transition,
-    /// Spawns, reservations, dead reservations, reclamation.
+    /// Spawns, reservations, dead reservations, reclamation, placement on an agent.
     Spawn,
     /// Constraints applied and void constraints (left out unless asked for).
     Constraint,
@@ -369,6 +369,9 @@ fn describe(
         }
         TraceKind::ResourceUnlocked { resource } => {
             (Kind::Resource, None, format!("{resource} unlocked"))
+        }
+        TraceKind::Placed { node, agent } => {
+            (Kind::Spawn, Some(*node), format!("runs on agent {agent}"))
         }
         TraceKind::Warning { node, message } => {
             (Kind::Warning, *node, format!("warning: {message}"))

@@ -313,6 +313,33 @@ impl<A, F: Clone> Engine<A, F> {
         self.settle();
     }
 
+    /// Input: `node`'s action runs on another process of a distributed system, the agent
+    /// `agent` (the shell's distribution layer says so when it sends the action there). Changes
+    /// nothing but the trace: a `placed` record.
+    pub fn note_placed(&mut self, now: Time, node: NodeId, agent: &str) -> Result<(), EngineError> {
+        self.advance(now);
+        let node = self.live(node)?.display;
+        emit!(
+            self,
+            TraceKind::Placed {
+                node,
+                agent: agent.to_string(),
+            }
+        );
+        Ok(())
+    }
+
+    /// Input: something worth a person's attention that the engine cannot see (a message from an
+    /// agent that arrived twice, say), about `node` while it is in the tree (else about the run:
+    /// a reclaimed node is named by no later record). A `warning` record, counted as the engine's
+    /// own.
+    pub fn warn(&mut self, now: Time, node: Option<NodeId>, message: impl Into<String>) {
+        self.advance(now);
+        let node = node.and_then(|id| self.query(id)).map(|n| n.display);
+        let message = message.into();
+        emit!(self, TraceKind::Warning { node, message });
+    }
+
     /// Asks to be told (by [`Effect::Notify`] with `token`) when `event` happens. If it already
     /// happened, the notification is queued at once.
     pub fn watch(&mut self, now: Time, event: Event, token: WatchToken) -> Result<(), EngineError> {

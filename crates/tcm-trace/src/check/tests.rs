@@ -119,6 +119,28 @@ fn shape_rules() {
     let mut b = Tb::new();
     b.tr(0, H, A, C);
     caught(&b.build(), Rule::RootRecord);
+    // A `placed` record names a node in the tree, as every record about a node does.
+    let placed = |node| TraceKind::Placed {
+        node,
+        agent: "arm".into(),
+    };
+    let mut b = Tb::new();
+    b.push(placed(3));
+    caught(&b.build(), Rule::BeforeSpawn);
+    let mut t = small_run();
+    let n = t.len() as u64;
+    t.push(TraceEvent {
+        seq: n,
+        t: 2 * S,
+        kind: placed(2),
+    });
+    caught(&t, Rule::AfterReclaim);
+    let mut b = Tb::new();
+    b.command(1, 0, "grasp")
+        .push(placed(1))
+        .start_command(1)
+        .finish_command(1);
+    assert_eq!(rules(&b.build()), []);
 }
 
 #[test]

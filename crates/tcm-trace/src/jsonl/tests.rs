@@ -10,7 +10,7 @@ fn lines_serialise_flat_with_tags() {
     let t = small_run();
     assert_eq!(
         to_line(&t[0]),
-        r#"{"seq":0,"t":0,"ev":"run_started","version":5,"run":0}"#
+        r#"{"seq":0,"t":0,"ev":"run_started","version":6,"run":0}"#
     );
     assert_eq!(
         to_line(&t[1]),
@@ -19,6 +19,22 @@ fn lines_serialise_flat_with_tags() {
     assert_eq!(
         to_line(&t[2]),
         r#"{"seq":2,"t":0,"ev":"transition","node":1,"facet":"expansion","from":"disabled","to":"enabled"}"#
+    );
+    let placed = TraceEvent {
+        seq: 9,
+        t: S,
+        kind: TraceKind::Placed {
+            node: 4,
+            agent: "robot".into(),
+        },
+    };
+    assert_eq!(
+        to_line(&placed),
+        r#"{"seq":9,"t":1000000000,"ev":"placed","node":4,"agent":"robot"}"#
+    );
+    assert_eq!(
+        super::parse_line(&to_line(&placed), 1).expect("reads back"),
+        placed
     );
     let c = TraceEvent {
         seq: 3,
@@ -174,7 +190,7 @@ fn errors_name_the_line_and_the_problem() {
     let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":9,\"run\":0}");
     assert_eq!(
         e,
-        "line 1: the trace has format version 9, but this reader reads versions 1 to 5"
+        "line 1: the trace has format version 9, but this reader reads versions 1 to 6"
     );
     assert!(matches!(
         read_jsonl(&b"\xff\n"[..]),
@@ -215,7 +231,7 @@ fn documented_examples_are_exact() {
             thens.insert(key(&value["constraint"]["then"]));
         }
     }
-    assert_eq!(kinds.len(), 35, "{kinds:?}");
+    assert_eq!(kinds.len(), 36, "{kinds:?}");
     assert_eq!(forms.len(), 3, "{forms:?}");
     // Every kind of "when" with every kind of "then" is shown (the empty string is not a trigger).
     assert_eq!(whens.len(), 6, "{whens:?}");

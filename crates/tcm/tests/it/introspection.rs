@@ -202,3 +202,45 @@ async fn a_monitor_body_reads_its_counts_and_parameters() {
     );
     assert_order(&story(&trace), &["4 watch handling completed"]);
 }
+
+#[tokio::test(start_paused = true)]
+async fn an_action_says_where_it_runs_and_warns_in_the_trace() {
+    // What a distribution layer does: `placed` when the action is sent to an agent, a warning
+    // for a message that came twice. Both are records of the node, in order, through the checker.
+    let task = Task::goal("g", |ctx| async move {
+        ctx.spawn(Task::command("far", |ctx| async move {
+            ctx.placed("arm")?;
+            tokio::time::sleep(secs(1)).await;
+            ctx.warn("a completion from agent arm came twice; ignored")?;
+            Ok(())
+        }))
+        .wait()
+        .await?;
+        Ok(())
+    });
+    let (report, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    let far = trace
+        .iter()
+        .find_map(|ev| match &ev.kind {
+            tcm::TraceKind::Spawned { node, name, .. } if name == "far" => Some(*node),
+            _ => None,
+        })
+        .expect("far spawned");
+    let placed: Vec<_> = trace
+        .iter()
+        .filter_map(|ev| match &ev.kind {
+            tcm::TraceKind::Placed { node, agent } => Some((*node, agent.clone(), ev.t)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(placed, [(far, "arm".to_string(), 0)]);
+    let warned = trace.iter().find_map(|ev| match &ev.kind {
+        tcm::TraceKind::Warning { node, message } if message.contains("came twice") => {
+            Some((*node, ev.t))
+        }
+        _ => None,
+    });
+    assert_eq!(warned, Some((Some(far), 1_000_000_000)));
+    assert_eq!(report.warnings, 1);
+}
