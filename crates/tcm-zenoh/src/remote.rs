@@ -107,6 +107,31 @@ impl Executive {
     }
 }
 
+/// The executive places the tasks a run puts `on` an agent (TDL's `spawn t(args) with on
+/// "arm"`, [`tcm::Ctx::remote_task`]): give it to the run with `tcm::Runtime::placer`. The agent
+/// name `*` is any live agent that offers the task.
+impl tcm::Placer for Executive {
+    fn place(
+        &self,
+        agent: &str,
+        name: &str,
+        kind: NodeKind,
+        args: Json,
+    ) -> Result<Task, tcm::Error> {
+        let at = if agent == "*" {
+            At::Any
+        } else {
+            At::agent(agent)
+        };
+        let remote = self.remote(at, name, args);
+        Ok(match kind {
+            NodeKind::Goal => remote.goal(),
+            _ => remote,
+        }
+        .task())
+    }
+}
+
 impl Remote {
     /// A goal: its body may spawn children through the executive.
     pub fn goal(mut self) -> Remote {

@@ -431,9 +431,19 @@ pub(crate) struct Shared {
     pub(crate) queued: Arc<AtomicUsize>,
     // The nice value blocking bodies run at (`Runtime::blocking_nice`); 0 leaves it alone.
     pub(crate) blocking_nice: AtomicI32,
+    // What makes the tasks placed on other processes (`Runtime::placer`), if anything.
+    pub(crate) placer: Mutex<Option<Arc<dyn crate::Placer>>>,
 }
 
 impl Shared {
+    /// The run's placer, if it has one.
+    pub(crate) fn placer(&self) -> Option<Arc<dyn crate::Placer>> {
+        self.placer
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone()
+    }
+
     /// The engine's time now (see [`Clock`]).
     pub(crate) fn now(&self) -> Time {
         self.clock.now()

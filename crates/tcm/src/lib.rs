@@ -34,6 +34,7 @@ mod host;
 mod invoke;
 mod niced;
 pub mod patterns;
+mod place;
 mod pump;
 mod query;
 mod resource;
@@ -47,6 +48,7 @@ mod timer;
 pub use cancel::DEFAULT_GRACE;
 pub use ctx::{Ctx, Ended, Spawner};
 pub use host::Panicked;
+pub use place::{Json, Placer, remote_args, remote_value};
 pub use resource::{Resource, ResourceDenied, ResourceDropped, ResourceRef};
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use session::Session;
@@ -101,6 +103,32 @@ pub enum Error {
     /// [`block_on_virtual`] could not build its tokio runtime.
     #[error("cannot start the tokio runtime: {0}")]
     Runtime(#[from] std::io::Error),
+    /// A task was placed on an agent (TDL's `on AGENT`), but the run has no distribution layer.
+    #[error(
+        "task `{task}` is placed on agent `{agent}`, but this run has no distribution layer: give the runtime one with `Runtime::placer` (a `tcm_zenoh::Executive`), or remove `on {agent}`"
+    )]
+    NoPlacer {
+        /// The task.
+        task: String,
+        /// The agent it was placed on.
+        agent: String,
+    },
+    /// The value a task placed on an agent returned is not of the type the program expects.
+    #[error("the value `{task}` returned from its agent is not of the expected type: {reason}")]
+    RemoteValue {
+        /// The task.
+        task: String,
+        /// Why.
+        reason: String,
+    },
+    /// The arguments of a task placed on an agent cannot be sent as JSON.
+    #[error("the arguments of `{task}` cannot be sent to an agent: {reason}")]
+    Args {
+        /// The task.
+        task: String,
+        /// Why.
+        reason: String,
+    },
 }
 
 /// The tokio this crate runs on, for programs that depend on `tcm` (or `tdl`) alone:

@@ -242,12 +242,24 @@ impl Runtime {
                 inline: AtomicBool::new(false),
                 queued: Arc::default(),
                 blocking_nice: AtomicI32::new(0),
+                placer: Mutex::new(None),
             }),
             sinks: Vec::new(),
             precise: false,
             pump: true,
             setup: None,
         }
+    }
+
+    /// Sets what makes the tasks this run places on other processes (TDL's `on AGENT`,
+    /// [`Ctx::remote_task`]): a distribution layer such as `tcm_zenoh::Executive`.
+    pub fn placer(self, placer: impl crate::Placer) -> Runtime {
+        *self
+            .shared
+            .placer
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(Arc::new(placer));
+        self
     }
 
     /// Declares a resource of `capacity` units (docs/semantics.md, "Resources"): a robot's base,

@@ -364,6 +364,27 @@ impl<'a> Body<'_, 'a> {
 
     fn spawn(&self, spawn: &'a Spawn, diags: &mut Vec<Diagnostic>) {
         self.constraint_list(&spawn.constraints, Site::Spawn(&spawn.task), diags);
+        let on = spawn
+            .constraints
+            .iter()
+            .find(|it| matches!(it.kind, ConstraintKind::OnAgent(_)));
+        let outcome = spawn
+            .constraints
+            .iter()
+            .find(|it| matches!(it.kind, ConstraintKind::Outcome));
+        if let (Some(on), Some(outcome)) = (on, outcome) {
+            diags.push(
+                Diagnostic::error(
+                    outcome.span,
+                    "`outcome` of a task placed on an agent is not supported yet",
+                )
+                .with_label(on.span, "placed on an agent here")
+                .with_hint(
+                    "wait for its value (`let v: T = spawn t(..) with on \"arm\", wait;`) and \
+                     handle its failures with an exception handler",
+                ),
+            );
+        }
         let waits = spawn
             .constraints
             .iter()
@@ -627,17 +648,15 @@ impl<'a> Body<'_, 'a> {
                     .with_hint("put `on terminate` on a spawn or on the task definition"),
             ),
             (ConstraintKind::Outcome, _) if matches!(site, Site::With) => diags.push(
-                Diagnostic::error(span, "`outcome` is not allowed in `with (...)`")
-                    .with_hint("bind each spawn's outcome: `let o = spawn task(args) with outcome;`"),
+                Diagnostic::error(span, "`outcome` is not allowed in `with (...)`").with_hint(
+                    "bind each spawn's outcome: `let o = spawn task(args) with outcome;`",
+                ),
             ),
             (ConstraintKind::Parent(_), _) if matches!(site, Site::With) => diags.push(
                 Diagnostic::error(span, "`parent` is not allowed in `with (...)`")
                     .with_hint("put `parent` on each spawn that goes under another node"),
             ),
-            (ConstraintKind::OnAgent(_), _) => diags.push(
-                Diagnostic::error(span, "distributed agents are not supported yet")
-                    .with_hint("remove `on ...`: every task runs in this process until distributed agents exist"),
-            ),
+            (ConstraintKind::OnAgent(_), _) => self.on_agent(span, site, diags),
             (ConstraintKind::Wait, _) => {
                 if let Some((tag, named)) = self.forward(site) {
                     diags.push(
@@ -703,6 +722,38 @@ impl<'a> Body<'_, 'a> {
             );
         }
         self.tag(tag, diags);
+    }
+
+    /// `on AGENT` places a task when it is spawned: on a spawn (or a `with` group of spawns) of
+    /// a goal or command.
+    fn on_agent(&self, span: Span, site: Site<'a>, diags: &mut Vec<Diagnostic>) {
+        match site {
+            Site::Stmt(..) => diags.push(
+                Diagnostic::error(span, "`on` places a task when it is spawned").with_hint(
+                    "put it on the spawn: `spawn arm_move(1.0) with on \"arm\";` (a node \
+                         runs where it was spawned)",
+                ),
+            ),
+            Site::Spawn(task) => {
+                let kind = self.file.kind_of(&task.to_string());
+                if let Some(kind @ (TaskKind::Monitor | TaskKind::Handler)) = kind {
+                    let what = if kind == TaskKind::Monitor {
+                        "monitor"
+                    } else {
+                        "handler"
+                    };
+                    diags.push(
+                        Diagnostic::error(span, format!("a {what} cannot be placed on an agent"))
+                            .with_label(task.span(), format!("`{task}` is a {what}"))
+                            .with_hint(
+                                "place the commands it spawns instead: `spawn read_sensor() \
+                                 with on \"robot\", wait;`",
+                            ),
+                    );
+                }
+            }
+            Site::With => {}
+        }
     }
 
     fn monitor_only(&self, constraint: &Constraint, site: Site<'a>, diags: &mut Vec<Diagnostic>) {

@@ -12,7 +12,7 @@ use super::lower::{Low, Lowered, Nodes, duration};
 use super::{count_expr, handler_expr, priority_expr, uses_expr};
 use crate::ast::{
     Bind, BindTarget, Binding, Constraint, ConstraintKind, ConstraintStmt, OnTerminate, Spawn,
-    TagKind, Then, When, WithGroup,
+    TagKind, TaskKind, Then, When, WithGroup,
 };
 use crate::diagnostic::Diagnostic;
 use crate::resolve::{LoopId, uses_previous};
@@ -41,6 +41,8 @@ struct Parts {
     outcome: bool,
     /// `name "…"`.
     name: Option<syn::Expr>,
+    /// `on AGENT`: the task runs on that agent.
+    on: Option<syn::Expr>,
 }
 
 /// A `with` group being generated.
@@ -67,8 +69,25 @@ impl<'a> Gen<'_, 'a> {
             wait,
             outcome,
             name,
+            on,
         } = self.spawn_parts(spawn, &loops);
-        let mut task = quote!(#task_name(#(#args),*));
+        let mut task = match &on {
+            None => quote!(#task_name(#(#args),*)),
+            // `on AGENT`: the run's placer makes the task (docs/distributed.md, "TDL").
+            Some(agent) => {
+                let name = task_name.to_string();
+                let kind = match self.file.task(&name).map(|t| t.kind) {
+                    Some(TaskKind::Goal) => quote!(::tdl::NodeKind::Goal),
+                    _ => quote!(::tdl::NodeKind::Command),
+                };
+                quote!(ctx.remote_task(
+                    ::core::convert::AsRef::<str>::as_ref(&(#agent)),
+                    #name,
+                    #kind,
+                    ::tdl::remote_args(#name, &(#(#args),*))?,
+                )?)
+            }
+        };
         if let Some(name) = name {
             // `name (expr)`: the parentheses are TDL's; as a call argument they would warn.
             let mut name = &name;
@@ -130,12 +149,27 @@ impl<'a> Gen<'_, 'a> {
                         };
                         out.extend(quote!(let #pat: #ty = #chain.wait_outcome().await?;));
                     }
+                    BindTarget::Let(pat) if on.is_some() => {
+                        let ty = self.value_type(spawn, binding);
+                        let name = task_name.to_string();
+                        out.extend(quote!(let #pat: #ty = ::tdl::remote_value::<#ty>(
+                            #name,
+                            #chain.wait_value::<::tdl::Json>().await?,
+                        )?;));
+                    }
                     BindTarget::Let(pat) => {
                         let ty = self.value_type(spawn, binding);
                         out.extend(quote!(let #pat: #ty = #chain.wait_value::<#ty>().await?;));
                     }
                     BindTarget::Assign(place) if outcome => {
                         out.extend(quote!(#place = #chain.wait_outcome().await?;));
+                    }
+                    BindTarget::Assign(place) if on.is_some() => {
+                        let name = task_name.to_string();
+                        out.extend(quote!(#place = ::tdl::remote_value(
+                            #name,
+                            #chain.wait_value::<::tdl::Json>().await?,
+                        )?;));
                     }
                     // The place's type tells the value's when the callee is not in the program.
                     BindTarget::Assign(place) => {
@@ -204,6 +238,10 @@ impl<'a> Gen<'_, 'a> {
                         continue;
                     }
                     ConstraintKind::Parent(expr) => quote!(.under(#expr)),
+                    ConstraintKind::OnAgent(expr) => {
+                        parts.on = Some(expr.clone());
+                        continue;
+                    }
                     ConstraintKind::OnTerminate(it) => self.on_terminate(it, loops),
                     ConstraintKind::ExceptionHandler(it) => {
                         let h = handler_expr(it, c.span, self.diags);

@@ -9,12 +9,12 @@ use tdl_syntax::{
 
 #[test]
 fn renders_as_rustc_with_location_source_caret_and_hint() {
-    let src = "goal g() {\n    spawn a() with on robot2;\n}\n";
+    let src = "goal g() {\n    spawn a();\n    a   on robot2;\n}\n";
     let parse = tdl_syntax::parse_str("robot.tdl", src);
     let text = parse.render("robot.tdl", Some(src));
     assert_eq!(
         text,
-        "error: distributed agents are not supported yet\n --> robot.tdl:2:20\n  |\n2 |     spawn a() with on robot2;\n  |                    ^^\n  |\n  = help: remove `on ...`: every task runs in this process until distributed agents exist\n"
+        "error: `on` places a task when it is spawned\n --> robot.tdl:3:9\n  |\n3 |     a   on robot2;\n  |         ^^\n  |\n  = help: put it on the spawn: `spawn arm_move(1.0) with on \"arm\";` (a node runs where it was spawned)\n"
     );
     // Issue 12, point 14: the same through annotate-snippets' styled renderer carries the ANSI
     // colours rustc uses; the plain one none.
@@ -23,12 +23,12 @@ fn renders_as_rustc_with_location_source_caret_and_hint() {
     assert!(!text.contains('\u{1b}'), "{text:?}");
     // Without the source (the macro's case) the location and the hint remain.
     let bare = parse.diagnostics[0].render("robot.tdl", None);
-    assert!(bare.contains("--> robot.tdl:2:20"), "{bare}");
-    assert!(bare.contains("= help: remove `on ...`"), "{bare}");
+    assert!(bare.contains("--> robot.tdl:3:9"), "{bare}");
+    assert!(bare.contains("= help: put it on the spawn"), "{bare}");
     let diag = &parse.diagnostics[0];
     assert_eq!(
         (diag.line(), diag.column(), diag.severity()),
-        (2, 20, Severity::Error)
+        (3, 9, Severity::Error)
     );
 }
 

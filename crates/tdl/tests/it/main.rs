@@ -17,6 +17,7 @@ mod on_terminate;
 mod outcomes;
 mod paper;
 mod patterns;
+mod placement;
 mod porting;
 mod propagation;
 mod refs;
