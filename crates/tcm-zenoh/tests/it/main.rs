@@ -7,6 +7,7 @@ mod exactly_once;
 mod exceptions;
 mod goals;
 mod remote_command;
+mod suspension;
 mod tdl;
 mod termination;
 mod timeouts;
