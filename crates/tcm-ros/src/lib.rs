@@ -20,7 +20,7 @@
 //! let fib = tcm_ros::ActionClient::<Goal, Done, Partial>::new(
 //!     node,
 //!     "/fibonacci",
-//!     &ActionTypeName::new("example_interfaces", "Fibonacci"),
+//!     &ActionTypeName::new("action_tutorials_interfaces", "Fibonacci"),
 //! )?;
 //! let task: tcm::Task = fib
 //!     .goal(Goal { order: 5 })

@@ -172,9 +172,9 @@ where
                     changed = true;
                 }
             }
-            () = tokio::time::sleep(POLL), if !stopping => {
+            () = tokio::time::sleep(POLL) => {
                 while let Some((request, goal, message)) = shared.server.try_receive_goal() {
-                    let ok = !goals.contains_key(&goal) && accept(&message);
+                    let ok = !stopping && !goals.contains_key(&goal) && accept(&message);
                     if let Err(e) = shared.server.respond_goal(request, ok) {
                         tracing::warn!(target: "tcm_ros", action = %shared.action, "respond_goal: {e}");
                     }
@@ -209,21 +209,7 @@ where
                 }
             }
         }
-        // Answer the result requests of ended (or unknown) goals.
-        waiting.retain(|(request, goal)| {
-            let (status, result) = match goals.get(goal) {
-                Some(Entry {
-                    state: State::Ended(status, result),
-                    ..
-                }) => (*status as i8, result.clone()),
-                Some(_) => return true,
-                None => (GoalStatusEnum::Unknown as i8, R::default()),
-            };
-            if let Err(e) = shared.server.respond_result(*request, status, result) {
-                tracing::warn!(target: "tcm_ros", action = %shared.action, "respond_result: {e}");
-            }
-            false
-        });
+        answer_results(&shared, &goals, &mut waiting);
         if changed {
             let list = goals
                 .iter()
@@ -244,9 +230,40 @@ where
             }
         }
         if stopping && running.is_empty() {
+            // Result requests that came meanwhile are answered before the server goes.
+            while let Some(request) = shared.server.try_receive_result_request() {
+                waiting.push(request);
+            }
+            answer_results(&shared, &goals, &mut waiting);
             return Ok(());
         }
     }
+}
+
+/// Answers the result requests of ended (or unknown) goals.
+fn answer_results<G, R, F>(
+    shared: &Shared<G, R, F>,
+    goals: &BTreeMap<GoalId, Entry<R>>,
+    waiting: &mut Vec<(RmwRequestId, GoalId)>,
+) where
+    G: DeserializeOwned,
+    R: Serialize + Clone + Default,
+    F: Serialize,
+{
+    waiting.retain(|(request, goal)| {
+        let (status, result) = match goals.get(goal) {
+            Some(Entry {
+                state: State::Ended(status, result),
+                ..
+            }) => (*status as i8, result.clone()),
+            Some(_) => return true,
+            None => (GoalStatusEnum::Unknown as i8, R::default()),
+        };
+        if let Err(e) = shared.server.respond_result(*request, status, result) {
+            tracing::warn!(target: "tcm_ros", action = %shared.action, "respond_result: {e}");
+        }
+        false
+    });
 }
 
 /// Records a goal's end: its status and result, from how its task ended.

@@ -33,11 +33,9 @@ fn fib_task(goal: FibGoal, feedback: Feedback<FibFeedback>) -> Task {
         let step = Duration::from_millis(if goal.order == 30 { 1000 } else { 10 });
         let seq = fibonacci(goal.order);
         for n in 1..=seq.len() {
-            feedback
-                .send(FibFeedback {
-                    sequence: seq[..n].to_vec(),
-                })
-                .map_err(|e| tcm::Failure::new("FeedbackFailed", e.to_string()))?;
+            feedback.send(FibFeedback {
+                sequence: seq[..n].to_vec(),
+            })?;
             ctx.sleep(step).await;
         }
         Ok(FibResult { sequence: seq })
@@ -200,15 +198,42 @@ async fn a_task_offered_as_an_action_serves_ros2_clients_goals() {
                 Some(GoalStatusEnum::Aborted)
             ]
         );
+        // A goal running when the serving node is terminated ends canceled, and a result
+        // request waiting for it is answered.
+        let c = client.clone();
+        let (running, result) = tokio::task::spawn_blocking(move || {
+            let (goal, accepted) = send(&c, FibGoal { order: 30 });
+            assert!(accepted);
+            feedback_until(&c, goal, &mut Vec::new(), |s| !s.is_empty());
+            let (tx, rx) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                let _ = tx.send(c.get_result(goal));
+            });
+            // Time for the request to reach the server (well under a millisecond on loopback):
+            // one sent after the server went would find nobody.
+            std::thread::sleep(Duration::from_millis(200));
+            (goal, rx)
+        })
+        .await
+        .expect("a fourth goal runs");
         session.terminate(serving).expect("terminate the server");
+        let (status, _) = tokio::task::spawn_blocking(move || {
+            result
+                .recv_timeout(Duration::from_secs(20))
+                .expect("the result request is answered")
+                .expect("a result")
+        })
+        .await
+        .expect("the fourth goal's result");
+        assert_eq!(status, GoalStatusEnum::Canceled as i8, "goal {running:?}");
         let report = session.finish().await.expect("the run ends");
         let trace = rec.events();
         assert_no_panics(&report, &trace);
         assert_checked(&trace);
         assert_eq!(report.outcome, RunOutcome::Terminated, "{report}");
         let lines = story(&trace);
-        // Three goals ran as children of the serving node; the canceled one was terminated by
-        // its cancel event.
+        // Four goals ran as children of the serving node; the canceled one was terminated by
+        // its cancel event, the last one with the serving node.
         let of_goals = |what: &str| {
             lines
                 .iter()
@@ -218,8 +243,8 @@ async fn a_task_offered_as_an_action_serves_ros2_clients_goals() {
                 })
                 .count()
         };
-        assert_eq!(of_goals("handling active"), 3, "{lines:#?}");
-        assert_eq!(of_goals("terminated"), 1, "{lines:#?}");
+        assert_eq!(of_goals("handling active"), 4, "{lines:#?}");
+        assert_eq!(of_goals("terminated"), 2, "{lines:#?}");
         assert_eq!(of_goals("failed TooLong"), 1, "{lines:#?}");
     })
     .await;

@@ -27,7 +27,10 @@ pub(crate) async fn bounded<T>(test: impl Future<Output = T>) -> T {
         .expect("the test did not end within its bound")
 }
 
-// ---- Messages (the shapes of example_interfaces' Fibonacci and AddTwoInts).
+// ---- Messages: the shapes of action_tutorials_interfaces/Fibonacci and
+// example_interfaces/AddTwoInts, two of the types whose ROS 2 type hash ros2-client knows, so
+// the key expressions are those a ROS 2 Jazzy node would use (CDR is positional: the fields
+// need only the right types and order).
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub(crate) struct FibGoal {
@@ -61,7 +64,7 @@ pub(crate) struct AddResponse {
 impl Message for AddResponse {}
 
 pub(crate) fn fib_type() -> ActionTypeName {
-    ActionTypeName::new("example_interfaces", "Fibonacci")
+    ActionTypeName::new("action_tutorials_interfaces", "Fibonacci")
 }
 
 pub(crate) fn add_type() -> ServiceTypeName {
