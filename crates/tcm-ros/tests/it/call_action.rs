@@ -242,3 +242,57 @@ async fn a_goal_with_no_server_fails_with_a_timeout_never_a_silent_hang() {
     })
     .await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_server_that_goes_away_during_the_goal_fails_it_with_a_timeout() {
+    bounded(async {
+        let pair = Pair::new().await;
+        let server = FibServer::start(
+            &pair.server,
+            "/fib_goes",
+            Script::Endless {
+                step: Duration::from_millis(10),
+            },
+        );
+        let fib = client(&pair, "/fib_goes");
+        let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
+        let task = fib
+            .goal(FibGoal { order: 3 })
+            .server_timeout(Duration::from_millis(300))
+            .on_feedback(move |_| {
+                let _ = tx.send(());
+            })
+            .task();
+        let log = Log::default();
+        let l = log.clone();
+        let on_timeout = Handler::on::<RosTimeout, _, _, _>("on_timeout", move |ctx| {
+            let l = l.clone();
+            async move {
+                let e = ctx.caught::<RosTimeout>().expect("a RosTimeout");
+                l.push(format!("{:?} {}", e.waited, e.after_ms));
+                Ok(())
+            }
+        });
+        let main = Task::goal("main", move |ctx| async move {
+            ctx.spawn(task).handler(on_timeout).wait().await?;
+            Ok(())
+        });
+        // The server goes once the goal runs (its first feedback came).
+        let stop = tokio::spawn(async move {
+            rx.recv().await.expect("feedback");
+            drop(server);
+            Instant::now()
+        });
+        let (report, trace) = run_checked(Runtime::new(), main).await;
+        let gone = stop.await.expect("the server was dropped");
+        assert!(
+            gone.elapsed() < Duration::from_secs(5),
+            "{:?}",
+            gone.elapsed()
+        );
+        assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
+        assert_eq!(handler_choices(&trace), ["on_timeout<-RosTimeout"]);
+        assert_eq!(log.entries(), ["Server 300"]);
+    })
+    .await;
+}
