@@ -6,6 +6,7 @@ mod agent_loss;
 mod exactly_once;
 mod exceptions;
 mod goals;
+mod python;
 mod remote_command;
 mod termination;
 mod timeouts;
