@@ -10,4 +10,5 @@ mod python;
 mod remote_command;
 mod termination;
 mod timeouts;
+mod typed;
 mod util;
