@@ -325,6 +325,12 @@ class Agent:
         self._keep.clear()
         session.close()
 
+    @property
+    def session(self) -> Optional[zenoh.Session]:
+        """The agent's zenoh session (``None`` before :meth:`start` and after :meth:`close`),
+        for a program's own traffic: a body's queries, say."""
+        return self._session
+
     def running(self) -> int:
         """How many bodies run now."""
         return len(self._running)
