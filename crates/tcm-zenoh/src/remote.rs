@@ -213,6 +213,67 @@ impl Remote {
     }
 }
 
+impl Remote {
+    /// As [`Remote::task`], with the node's value read from the body's JSON as a `T`, so the
+    /// tree waits for it as for a local task's value (`wait_value::<T>()`); a value that does not
+    /// read as a `T` fails the node with [`RemoteError`].
+    pub fn typed_task<T>(self) -> Task
+    where
+        T: serde::de::DeserializeOwned + Send + 'static,
+    {
+        self.task_map(|v| serde_json::from_value::<T>(v).map_err(|e| e.to_string()))
+    }
+
+    /// As [`Remote::task`], with the node's value made from the body's JSON by `read`, for a
+    /// value type that is not `Deserialize`; an `Err` of `read` fails the node with
+    /// [`RemoteError`].
+    pub fn task_map<T, F>(self, read: F) -> Task
+    where
+        T: Send + 'static,
+        F: Fn(Json) -> Result<T, String> + Send + Sync + 'static,
+    {
+        let kind = match self.kind {
+            Kind::Command => NodeKind::Command,
+            Kind::Goal => NodeKind::Goal,
+        };
+        let name = self.name.clone();
+        let args = match self.args {
+            Ok(a) => a,
+            Err(e) => {
+                let message = format!("arguments of remote task {name} do not serialise: {e}");
+                return Task::new(kind, name, move |_| async move {
+                    Err::<T, _>(RemoteError::failure(message))
+                });
+            }
+        };
+        let spec = Arc::new(Spec {
+            exec: self.exec,
+            at: self.at,
+            name: self.name.clone(),
+            kind: self.kind,
+            options: self.options,
+        });
+        let grace = spec.options.grace;
+        let read = Arc::new(read);
+        let task = Task::retryable_with(kind, self.name, args, move |ctx, args| {
+            let (spec, read) = (spec.clone(), read.clone());
+            async move {
+                let name = spec.name.clone();
+                let value = run(spec, ctx, args).await?;
+                read(value).map_err(|e| {
+                    RemoteError::failure(format!(
+                        "the value of remote task {name} does not read: {e}"
+                    ))
+                })
+            }
+        });
+        match grace {
+            Some(g) => task.grace(g),
+            None => task,
+        }
+    }
+}
+
 impl From<Remote> for Task {
     fn from(r: Remote) -> Task {
         r.task()

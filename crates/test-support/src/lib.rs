@@ -61,7 +61,8 @@ pub fn ensure_tool(tool: &str, debian_package: &str) -> Result<PathBuf, String> 
 
 /// The Python interpreter of the workspace's test venv (`target/test-venv`, or
 /// `$CARGO_TARGET_DIR/test-venv`), created with `python3 -m venv` if it does not exist yet, with
-/// `packages` (names as `pip` knows them) installed if they are not yet.
+/// `packages` (names as `pip` knows them, or `name==version` for an exact version) installed if
+/// they are not yet.
 ///
 /// When Debian's `python3` cannot make a venv (the package `python3-venv` is missing) and the
 /// tests run as root, that package is installed first. Errors say why; when `python3` itself is
@@ -114,12 +115,11 @@ fn target_dir() -> PathBuf {
 fn make_venv(dir: &Path, packages: &[&str]) -> Result<(), String> {
     // A venv whose pip does not run (made by a python3 without ensurepip) is made again.
     let script = r#"set -e
-dir="$1"; shift
+dir="$1"; check="$2"; shift 2
 if ! "$dir/bin/python3" -m pip --version >/dev/null 2>&1; then
     python3 -m venv --clear "$dir"
 fi
-if [ "$#" -gt 0 ] && ! "$dir/bin/python3" -c 'import importlib.metadata as m, sys
-for p in sys.argv[1:]: m.version(p)' "$@" >/dev/null 2>&1; then
+if [ "$#" -gt 0 ] && ! "$dir/bin/python3" -c "$check" "$@" >/dev/null 2>&1; then
     "$dir/bin/python3" -m pip install --disable-pip-version-check --quiet "$@"
 fi
 "#;
@@ -129,6 +129,7 @@ fi
         script.into(),
         "sh".into(),
         dir.display().to_string(),
+        HAS_PACKAGES.into(),
     ];
     args.extend(packages.iter().map(|p| (*p).to_string()));
     let out = locked(&args)?;
@@ -152,14 +153,20 @@ fn debian_venv_works() -> bool {
         .is_ok_and(|out| out.status.success())
 }
 
-/// Whether `python` runs and every distribution of `packages` is installed in it.
+/// A Python program that fails unless every distribution named in its arguments is installed;
+/// `name==version` asks for that exact version.
+const HAS_PACKAGES: &str = "import importlib.metadata as m, sys
+for p in sys.argv[1:]:
+    name, _, version = p.partition('==')
+    if version and m.version(name) != version: sys.exit(1)
+    m.version(name)";
+
+/// Whether `python` runs and every distribution of `packages` is installed in it (a package
+/// given as `name==version` in that version).
 fn has_packages(python: &Path, packages: &[&str]) -> bool {
     python.exists()
         && Command::new(python)
-            .args([
-                "-c",
-                "import importlib.metadata as m, sys\nfor p in sys.argv[1:]: m.version(p)",
-            ])
+            .args(["-c", HAS_PACKAGES])
             .args(packages)
             .output()
             .is_ok_and(|out| out.status.success())

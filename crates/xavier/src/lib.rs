@@ -4,6 +4,8 @@
 //!
 //! - [`mission`]: the mission in TDL (`src/mission.tdl`: goals, commands, the two monitors and the
 //!   exception handlers) and the state its tasks share.
+//! - [`robot`]: the robot the mission commands: the world in this process, or a robot agent's in
+//!   another (`xavier --distributed`, docs/distributed.md), with the robot agent's side.
 //! - [`run`]: one mission on a fresh world, with any trace sinks; [`Setup`] says which.
 //! - [`display`]: the live tree (redrawn in place on a terminal) and the plain event log.
 //! - [`summary`]: rooms delivered, rooms given up and why, exceptions and how each was handled.
@@ -23,6 +25,7 @@
 
 pub mod display;
 pub mod mission;
+pub mod robot;
 pub mod summary;
 
 use mission::Mission;

@@ -2,6 +2,11 @@
 //! `src/mission.tdl` and shows the live task tree, on a multi-threaded runtime with the real clock
 //! scaled by `--speed` (or unscaled with `--real-time`); when stdout is not a terminal and no
 //! viewer watches, on virtual time as fast as it goes, with a plain event log. Then a summary.
+//! With `--distributed`, the robot's commands run in agent processes over zenoh (`distributed.rs`);
+//! `xavier robot-agent ...` is the robot agent those runs start (`robot_agent.rs`).
+
+mod distributed;
+mod robot_agent;
 
 use anyhow::Context as _;
 use clap::{Parser, ValueEnum};
@@ -75,6 +80,16 @@ struct Cli {
     /// Write TCM's text log of the run to FILE.
     #[arg(long, value_name = "FILE")]
     log: Option<PathBuf>,
+
+    /// Run the robot's commands in a separate agent process over zenoh on 127.0.0.1 (started and
+    /// stopped by this run), and `speak` in the Python agent when a Python with eclipse-zenoh is
+    /// found (docs/distributed.md). Always on the real clock, scaled by --speed.
+    #[arg(long)]
+    distributed: bool,
+
+    /// With --distributed: serve `speak` from the robot agent, not from Python.
+    #[arg(long, requires = "distributed")]
+    no_python: bool,
 }
 
 /// The scenarios, as the command line spells them.
@@ -112,6 +127,13 @@ fn create(path: &PathBuf) -> anyhow::Result<BufWriter<File>> {
 }
 
 fn main() -> ExitCode {
+    let mut args = std::env::args_os();
+    if std::env::args_os()
+        .nth(1)
+        .is_some_and(|a| a == "robot-agent")
+    {
+        return robot_agent::main(args.by_ref().skip(2));
+    }
     let cli = Cli::parse();
     match run(cli) {
         Ok(true) => ExitCode::SUCCESS,
@@ -134,9 +156,12 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     // Watched runs (a terminal, the viewer) go at --speed on the real clock, with real
     // concurrency; the others on virtual time (docs/semantics.md, "Time").
     let watched = stdout.is_terminal() || cli.view;
+    if cli.distributed && !cli.real_time && cli.speed <= 0.0 {
+        anyhow::bail!("--distributed runs on the real clock: give --speed above 0");
+    }
     let clock = if cli.real_time {
         Clock::Real(1.0)
-    } else if watched && cli.speed > 0.0 {
+    } else if (watched || cli.distributed) && cli.speed > 0.0 {
         Clock::Real(cli.speed)
     } else {
         Clock::Virtual
@@ -145,8 +170,24 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         Clock::Real(scale) => scale,
         Clock::Virtual => 1.0,
     };
+    let rt = match clock {
+        Clock::Real(_) => Some(
+            tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()
+                .context("cannot start the tokio runtime")?,
+        ),
+        Clock::Virtual => None,
+    };
     let world = SharedWorld::scaled(World::new(setup.seed, setup.scenario), scale);
-    let mission = Mission::new(world.clone());
+    let dist = match (&rt, cli.distributed) {
+        (Some(rt), true) => Some(rt.block_on(distributed::start(&setup, scale, !cli.no_python))?),
+        _ => None,
+    };
+    let mission = match &dist {
+        Some(d) => Mission::with_robot(d.robot.clone()),
+        None => Mission::new(world.clone()),
+    };
     let recorder = Recorder::new();
     let mut sinks: Vec<Box<dyn TraceSink>> = vec![Box::new(recorder.clone())];
     if let Some(path) = &cli.trace {
@@ -165,10 +206,13 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         }
         Clock::Virtual => "virtual time".to_owned(),
     };
-    let title = format!(
+    let mut title = format!(
         "Xavier delivers mail: seed {}, scenario {}, rooms {:?}, {clock_name}",
         setup.seed, setup.scenario, setup.rooms
     );
+    if let Some(d) = &dist {
+        title.push_str(&format!(", distributed: {}", d.voice));
+    }
     let viewer = if cli.view {
         if let Some(warning) = cli.listen.as_ref().and_then(tcm_view::exposure_warning) {
             eprintln!("xavier: {warning}");
@@ -180,8 +224,9 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     } else {
         None
     };
-    if stdout.is_terminal() {
-        // The clock paces the run: the tree need not.
+    if stdout.is_terminal() && dist.is_none() {
+        // The clock paces the run: the tree need not. (A distributed run's world is in the
+        // robot agent: it gets the event log.)
         sinks.push(Box::new(LiveTree::new(
             stdout,
             title,
@@ -196,16 +241,24 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
 
     let wall = Instant::now();
     let future = run_scaled(&setup, mission, sinks, scale);
-    let done = match clock {
-        Clock::Real(_) => tokio::runtime::Builder::new_multi_thread()
-            .enable_all()
-            .build()
-            .context("cannot start the tokio runtime")?
-            .block_on(future),
-        Clock::Virtual => tdl::block_on_virtual(future),
+    let done = match &rt {
+        Some(rt) => rt.block_on(async {
+            let done = future.await?;
+            if let Some(d) = &dist {
+                // The world is the robot agent's: what it achieved is read from there.
+                if let Err(e) = done.mission.robot.fetch_summary().await {
+                    eprintln!("xavier: cannot read the robot's summary: {e}");
+                }
+                d.exec.close().await;
+            }
+            Ok::<_, tdl::Error>(done)
+        }),
+        None => tdl::block_on_virtual(future),
     }
     .context("the runtime failed")?;
     let wall = wall.elapsed();
+    // The agent processes are stopped.
+    drop(dist);
 
     let summary = Summary::new(&setup, &done, &recorder.events());
     let mut out = std::io::stdout().lock();

@@ -16,13 +16,13 @@
 //!   the running stretch finishes and the next one waits, enabled, for the base; below
 //!   [`MOTOR_COOL_C`] it gives the reservation up (docs/semantics.md, "Resources").
 
+use crate::robot::{
+    Robot, guarded_move, look_for_door, mail_gone, motor_temperature, plan_path, speak, turn,
+};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Duration;
 use tdl::{Ctx, Failure};
-use xavier_world::{
-    CENTRING_STEP, MOTOR_COOL_C, OVERHEAT_WARNING_C, SharedWorld, Waypoint, guarded_move, legs,
-    look_for_door, mail_gone, motor_temperature, plan_path, speak, turn,
-};
+use xavier_world::{CENTRING_STEP, MOTOR_COOL_C, OVERHEAT_WARNING_C, SharedWorld, Waypoint, legs};
 
 /// The code `tdl-build` generated from `src/mission.tdl`: per task an argument struct and a
 /// constructor function returning a [`Task`].
@@ -74,19 +74,24 @@ struct Log {
     notified: Vec<u32>,
 }
 
-/// What the mission's tasks share: the simulated world and the mission's own log. Cheap to clone.
+/// What the mission's tasks share: the robot and the mission's own log. Cheap to clone.
 #[derive(Clone, Debug)]
 pub struct Mission {
-    /// The simulated floor and robot.
-    pub world: SharedWorld,
+    /// The robot: the simulated floor in this process, or a robot agent's.
+    pub robot: Robot,
     log: Arc<Mutex<Log>>,
 }
 
 impl Mission {
-    /// A mission in `world`.
+    /// A mission in `world`, in this process.
     pub fn new(world: SharedWorld) -> Mission {
+        Mission::with_robot(Robot::Local(world))
+    }
+
+    /// A mission commanding `robot`.
+    pub fn with_robot(robot: Robot) -> Mission {
         Mission {
-            world,
+            robot,
             log: Arc::default(),
         }
     }

@@ -97,7 +97,7 @@ pub struct Summary {
 impl Summary {
     /// The summary of `done`, a run of `setup` whose trace is `trace`.
     pub fn new(setup: &Setup, done: &Done, trace: &[TraceEvent]) -> Summary {
-        let world = done.mission.world.summary();
+        let world = done.mission.robot.summary();
         let delivered: Vec<u32> = world
             .delivered
             .iter()

@@ -2,6 +2,7 @@
 //! virtual time, asserted on the trace, and the `xavier` binary.
 
 mod binary;
+mod distributed;
 mod scenarios;
 mod util;
 mod viewer;

@@ -1,0 +1,92 @@
+//! `xavier robot-agent`: the robot agent of `xavier --distributed` (docs/distributed.md, "The
+//! distributed Xavier"), the same binary in another mode, so the demo always finds it. It holds the simulated world of a seed and scenario, joins the system on
+//! 127.0.0.1 as the agent `robot`, offers the robot's commands and answers the mission's queries
+//! (`xavier::robot::serve`, `serve_queries`). It prints `ready` once it serves, and exits when its
+//! standard input closes (the demo that started it ended, however it ended).
+
+use clap::Parser;
+use std::io::{Read, Write};
+use std::process::ExitCode;
+use tcm_zenoh::Agent;
+use xavier_world::{Scenario, SharedWorld, World};
+
+/// The robot agent of `xavier --distributed`: the simulated world, served over zenoh on
+/// 127.0.0.1.
+#[derive(Parser, Debug)]
+#[command(name = "xavier robot-agent", version)]
+pub(crate) struct Cli {
+    /// The system to join.
+    #[arg(long)]
+    system: String,
+    /// The agent's name.
+    #[arg(long, default_value = "robot")]
+    name: String,
+    /// The executive's port on 127.0.0.1.
+    #[arg(long)]
+    port: u16,
+    /// A port on 127.0.0.1 to listen on, for agents that query the world (the voice).
+    #[arg(long)]
+    listen: Option<u16>,
+    /// The world's seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// The world's scenario (nominal, blocked-corridor, no-path, overheat).
+    #[arg(long, default_value = "nominal")]
+    scenario: Scenario,
+    /// World seconds per second of the real clock (the executive's time scale).
+    #[arg(long, default_value_t = 1.0)]
+    speed: f64,
+}
+
+/// Runs the robot agent with the command line `args` (after `robot-agent`).
+pub(crate) fn main(args: impl Iterator<Item = std::ffi::OsString>) -> ExitCode {
+    let cli = Cli::parse_from(std::iter::once("xavier robot-agent".into()).chain(args));
+    let rt = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("xavier robot-agent: cannot start the tokio runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match rt.block_on(serve(cli)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xavier robot-agent: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+async fn serve(cli: Cli) -> Result<(), String> {
+    let world = SharedWorld::scaled(World::new(cli.seed, cli.scenario), cli.speed);
+    use tcm_zenoh::config::endpoint;
+    let listen: Vec<String> = cli.listen.map(endpoint).into_iter().collect();
+    let config =
+        tcm_zenoh::config::peer(&listen, &[endpoint(cli.port)]).map_err(|e| e.to_string())?;
+    let builder = xavier::robot::serve(&world, Agent::builder(cli.system.clone(), cli.name));
+    let agent = builder.start(config).await.map_err(|e| e.to_string())?;
+    let _queries = xavier::robot::serve_queries(agent.session(), &cli.system, &world, cli.speed)
+        .await
+        .map_err(|e| e.to_string())?;
+    {
+        let mut out = std::io::stdout().lock();
+        // The demo reading this may be gone: it then closes our stdin too.
+        let _ = writeln!(out, "ready");
+        let _ = out.flush();
+    }
+    // Until stdin closes: the demo holds its end for as long as it runs.
+    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    std::thread::spawn(move || {
+        let mut sink = [0u8; 64];
+        let mut stdin = std::io::stdin();
+        while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
+        let _ = tx.send(());
+    });
+    let _ = rx.await;
+    agent.close().await;
+    Ok(())
+}

@@ -1,0 +1,529 @@
+"""A Python agent of a TDL distributed system.
+
+An agent joins a system (a name shared by an executive and its agents) over zenoh and offers tasks
+by name; the executive (the Rust crate ``tcm-zenoh``) places remote nodes of its task tree on it.
+This module speaks the wire of ``crates/tcm-zenoh`` (docs/distributed.md): the liveliness tokens
+``tdl/<system>/agents/<agent>`` and ``tdl/<system>/offers/<task>/<agent>``, the ``start``,
+``cancel``, ``started``, ``done`` and ``cancelled`` messages with their task ids and sequence
+numbers, JSON payloads, and typed failures.
+
+    import tdl_agent
+
+    class NoVoice(tdl_agent.TaskFailure):
+        '''The speaker is off (a handler of ``NoVoice`` or ``HardwareFailure`` takes it).'''
+        def __init__(self, text: str) -> None:
+            super().__init__(f"cannot say {text!r}")
+            self.text = text
+
+    agent = tdl_agent.Agent("robot", "voice")
+
+    @agent.command("speak")
+    async def speak(ctx: tdl_agent.TaskContext, text: str) -> int:
+        await asyncio.sleep(0.1)
+        return len(text)
+
+    agent.start(tdl_agent.loopback_config(7447))
+    agent.run()          # until close(), SIGINT or SIGTERM
+
+What a Python agent offers:
+
+* **commands** and **goals that only run** (no children: a goal's calls to the tree are not
+  supported here), with a body ``body(ctx, args)``: ``args`` is the JSON the executive sent,
+  decoded; the returned value travels back as JSON (the node's value).
+* A body is a coroutine function (run on the agent's asyncio loop, one thread; cancelling it
+  raises :class:`asyncio.CancelledError` at its current ``await``) or a plain function (run in a
+  worker thread; it cannot be interrupted, so it should look at ``ctx.cancelled`` when it runs
+  long; its result is ignored once it was cancelled).
+* **Typed failures**: raising a :class:`TaskFailure` subclass fails the node with an exception of
+  the class's name, the names of its :class:`TaskFailure` base classes as ancestry (nearest
+  first), and its public attributes as its value, so a handler in the tree catches it by name and
+  reads its value (``tcm_zenoh::caught::<E>``). Any other exception fails the node with
+  ``RemoteError``.
+* **Cleanup**: ``on_terminate`` gives a task a cleanup ``cleanup(args)`` (sync or async), run when
+  the node is terminated while its body runs (after the body is cancelled, before the
+  cancellation is confirmed), and when the executive that started it goes away.
+
+Messages are applied once, in order: a duplicated or late message is counted
+(:class:`AgentStats`) and logged (logger ``tdl_agent``), never applied twice.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import functools
+import inspect
+import logging
+import signal
+import threading
+from dataclasses import dataclass, field
+from typing import Any, Awaitable, Callable, Dict, List, Optional, Sequence, Tuple, Union
+
+import zenoh
+
+from . import wire
+from .wire import Failure, Json
+
+__all__ = [
+    "Agent",
+    "AgentStats",
+    "TaskContext",
+    "TaskFailure",
+    "Failure",
+    "loopback_config",
+    "peer_config",
+    "client_config",
+]
+
+log = logging.getLogger("tdl_agent")
+
+#: How many ended tasks an agent remembers, to tell a duplicate message from a late one.
+ENDED_KEPT = 65_536
+
+Body = Callable[["TaskContext", Json], Union[Json, Awaitable[Json]]]
+Cleanup = Callable[[Json], Union[None, Awaitable[None]]]
+
+
+class TaskFailure(Exception):
+    """The base of the typed exceptions a body raises to fail its node.
+
+    A subclass ``E`` fails the node with the exception named ``E`` (or ``E.tdl_name`` when the
+    class sets it), whose ancestry is the names of ``E``'s base classes up to
+    :class:`TaskFailure` (nearest first), so a handler of any of them takes it, and whose value
+    is :meth:`data`: by default the instance's public attributes, as a JSON object.
+    """
+
+    #: The exception's name in the tree, when it is not the class's name.
+    tdl_name: Optional[str] = None
+
+    @classmethod
+    def exception_name(cls) -> str:
+        """The exception's name in the tree."""
+        return cls.__dict__.get("tdl_name") or cls.__name__
+
+    @classmethod
+    def ancestry(cls) -> List[str]:
+        """The names of the exception's ancestors, nearest first (not :class:`TaskFailure`)."""
+        names: List[str] = []
+        for c in cls.__mro__[1:]:
+            if c is TaskFailure:
+                break
+            if isinstance(c, type) and issubclass(c, TaskFailure):
+                names.append(c.exception_name())
+        return names
+
+    def data(self) -> Json:
+        """The exception's value: its public attributes (``None`` when it has none)."""
+        fields = {k: v for k, v in vars(self).items() if not k.startswith("_")}
+        return fields or None
+
+    def to_failure(self) -> Failure:
+        """The failure as it travels."""
+        return Failure(type(self).exception_name(), str(self), type(self).ancestry(), self.data())
+
+
+def loopback_config(port: int) -> zenoh.Config:
+    """The configuration of an agent on the executive's machine: peer mode, multicast scouting
+    off, connecting to ``tcp/127.0.0.1:<port>``, listening nowhere."""
+    return peer_config([], [f"tcp/127.0.0.1:{port}"])
+
+
+def peer_config(listen: Sequence[str], connect: Sequence[str]) -> zenoh.Config:
+    """A peer-mode configuration with multicast scouting off, listening on ``listen`` and
+    connecting to ``connect`` (endpoints such as ``tcp/127.0.0.1:7447``)."""
+    return _config("peer", listen, connect)
+
+
+def client_config(routers: Sequence[str]) -> zenoh.Config:
+    """A client-mode configuration with multicast scouting off, connecting to the ``zenohd``
+    routers ``routers`` (docs/distributed.md, "Several machines")."""
+    return _config("client", [], routers)
+
+
+def _config(mode: str, listen: Sequence[str], connect: Sequence[str]) -> zenoh.Config:
+    import json
+
+    c = zenoh.Config()
+    c.insert_json5("mode", json.dumps(mode))
+    c.insert_json5("scouting/multicast/enabled", "false")
+    c.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    c.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    return c
+
+
+@dataclass
+class AgentStats:
+    """The counters of an agent (as Rust's ``AgentStats``)."""
+
+    started: int = 0
+    ended: int = 0
+    cancelled: int = 0
+    orphaned: int = 0
+    duplicates: int = 0
+    late: int = 0
+    malformed: int = 0
+
+
+@dataclass
+class _Offer:
+    kind: str
+    body: Body
+    cleanup: Optional[Cleanup] = None
+
+
+class TaskContext:
+    """What a body sees: its task, its node, whether it was cancelled, and a heartbeat."""
+
+    def __init__(self, agent: "Agent", executive: str, task_id: int, node: int, name: str) -> None:
+        self._agent = agent
+        self._key = (executive, task_id)
+        #: The node's display number in the executive's tree (for logs).
+        self.node = node
+        #: The offered task's name.
+        self.task = name
+        #: Set when the node is terminated (or its executive went): a plain-function body that
+        #: runs long should look at it and return.
+        self.cancelled = threading.Event()
+
+    def heartbeat(self) -> None:
+        """Tells the executive the body is alive (resets its heartbeat timeout). Safe from any
+        thread."""
+        self._agent._from_any_thread(self._agent._heartbeat, self._key)
+
+
+@dataclass
+class _Running:
+    offer: _Offer
+    args: Json
+    ctx: TaskContext
+    last_seq: int
+    out_seq: int = 0
+    task: Optional["asyncio.Task[None]"] = None
+
+
+class Agent:
+    """An agent named ``name`` of system ``system``; offer tasks, then :meth:`start` it."""
+
+    def __init__(self, system: str, name: str) -> None:
+        for n in (system, name):
+            if not wire.valid_name(n):
+                raise ValueError(f"bad name {n!r}: use ASCII letters, digits, `_`, `-` and `.`")
+        self.system = system
+        self.name = name
+        self.stats = AgentStats()
+        self._offers: Dict[str, _Offer] = {}
+        self._running: Dict[Tuple[str, int], _Running] = {}
+        self._ended: "collections.OrderedDict[Tuple[str, int], int]" = collections.OrderedDict()
+        self._publishers: Dict[str, Any] = {}
+        self._keep: List[Any] = []
+        self._tasks: "set[asyncio.Task[None]]" = set()
+        self._session: Optional[zenoh.Session] = None
+        self._loop: Optional[asyncio.AbstractEventLoop] = None
+        self._thread: Optional[threading.Thread] = None
+        self._closed = threading.Event()
+
+    # --- offering -----------------------------------------------------------------------------
+
+    def command(
+        self, name: str, body: Optional[Body] = None, *, on_terminate: Optional[Cleanup] = None
+    ) -> Any:
+        """Offers the command ``name`` with ``body(ctx, args)``; usable as a decorator
+        (``@agent.command("speak")``)."""
+        return self._offer(wire.COMMAND, name, body, on_terminate)
+
+    def goal(
+        self, name: str, body: Optional[Body] = None, *, on_terminate: Optional[Cleanup] = None
+    ) -> Any:
+        """Offers the goal ``name``: as :meth:`command`, for a node the tree treats as a goal
+        (its body spawns no children from Python)."""
+        return self._offer(wire.GOAL, name, body, on_terminate)
+
+    def on_terminate(self, name: str, cleanup: Cleanup) -> None:
+        """Sets the cleanup of the offered task ``name``: ``cleanup(args)`` runs when a body of it
+        is cancelled, before the cancellation is confirmed."""
+        self._offers[name].cleanup = cleanup
+
+    def _offer(self, kind: str, name: str, body: Optional[Body], cleanup: Optional[Cleanup]) -> Any:
+        if not wire.valid_name(name):
+            raise ValueError(f"bad task name {name!r}: use ASCII letters, digits, `_`, `-` and `.`")
+        if self._session is not None:
+            raise RuntimeError("offer tasks before the agent starts")
+
+        def register(f: Body) -> Body:
+            self._offers[name] = _Offer(kind, f, cleanup)
+            return f
+
+        return register if body is None else register(body)
+
+    # --- life ---------------------------------------------------------------------------------
+
+    def start(self, config: zenoh.Config) -> None:
+        """Joins the system with a zenoh session opened from ``config``
+        (:func:`loopback_config`, :func:`client_config`) and starts serving, on a thread of its
+        own: offer tokens first, then the agent's token, so an executive that sees the agent sees
+        what it offers."""
+        if self._session is not None:
+            raise RuntimeError("the agent already started")
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(
+            target=self._loop.run_forever, name=f"tdl-agent-{self.name}", daemon=True
+        )
+        self._thread.start()
+        session = zenoh.open(config)
+        self._session = session
+        self._keep.append(
+            session.declare_subscriber(
+                wire.agent_inboxes(self.system, self.name), self._on_message
+            )
+        )
+        self._keep.append(
+            session.liveliness().declare_subscriber(
+                wire.executives(self.system), self._on_executive, history=True
+            )
+        )
+        for task in self._offers:
+            self._keep.append(
+                session.liveliness().declare_token(wire.offer_token(self.system, task, self.name))
+            )
+        self._keep.append(session.liveliness().declare_token(wire.agent_token(self.system, self.name)))
+
+    def run(self) -> None:
+        """Blocks until :meth:`close` is called, or (from the main thread) until SIGINT or
+        SIGTERM, which close the agent."""
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, lambda *_: self._closed.set())
+        while not self._closed.wait(0.2):
+            pass
+        self.close()
+
+    def close(self) -> None:
+        """Withdraws the agent: its tokens go (executives fail the tasks it ran with
+        ``AgentLost``), its bodies are cancelled without cleanup, its session closes."""
+        self._closed.set()
+        loop, session = self._loop, self._session
+        if loop is None or session is None:
+            return
+        self._session = None
+
+        def stop() -> None:
+            for r in self._running.values():
+                r.ctx.cancelled.set()
+                if r.task is not None:
+                    r.task.cancel()
+            self._running.clear()
+            loop.stop()
+
+        loop.call_soon_threadsafe(stop)
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        for k in reversed(self._keep):
+            try:
+                k.undeclare()
+            except Exception as e:  # the session may be closing under it
+                log.debug("undeclaring: %s", e)
+        self._keep.clear()
+        session.close()
+
+    @property
+    def session(self) -> Optional[zenoh.Session]:
+        """The agent's zenoh session (``None`` before :meth:`start` and after :meth:`close`),
+        for a program's own traffic: a body's queries, say."""
+        return self._session
+
+    def running(self) -> int:
+        """How many bodies run now."""
+        return len(self._running)
+
+    # --- zenoh callbacks (zenoh's threads) ----------------------------------------------------
+
+    def _from_any_thread(self, f: Callable[..., None], *args: Any) -> None:
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            try:
+                loop.call_soon_threadsafe(f, *args)
+            except RuntimeError:  # the loop closed meanwhile
+                pass
+
+    def _on_message(self, sample: zenoh.Sample) -> None:
+        executive = str(sample.key_expr).rsplit("/", 1)[-1]
+        self._from_any_thread(self._receive, executive, sample.payload.to_bytes())
+
+    def _on_executive(self, sample: zenoh.Sample) -> None:
+        executive = str(sample.key_expr).rsplit("/", 1)[-1]
+        if sample.kind == zenoh.SampleKind.DELETE:
+            self._from_any_thread(self._executive_gone, executive)
+        else:
+            self._from_any_thread(self._publisher, executive)
+
+    # --- the agent's loop ---------------------------------------------------------------------
+
+    def _publisher(self, executive: str) -> Any:
+        p = self._publishers.get(executive)
+        if p is None and self._session is not None:
+            p = self._session.declare_publisher(
+                wire.executive_inbox(self.system, executive),
+                congestion_control=zenoh.CongestionControl.BLOCK,
+            )
+            self._publishers[executive] = p
+        return p
+
+    def _send(self, key: Tuple[str, int], r: _Running, body: Dict[str, Json]) -> None:
+        r.out_seq += 1
+        try:
+            data = wire.encode(key[1], r.out_seq, body)
+        except (TypeError, ValueError) as e:
+            data = wire.encode(
+                key[1],
+                r.out_seq,
+                wire.failed(wire.remote_error(f"the value of {r.ctx.task} is not JSON: {e}")),
+            )
+        try:
+            p = self._publisher(key[0])
+            if p is not None:
+                p.put(data)
+        except Exception as e:
+            log.warning("agent %s cannot reach executive %s: %s", self.name, key[0], e)
+
+    def _receive(self, executive: str, data: bytes) -> None:
+        try:
+            msg = wire.decode(data)
+        except wire.MalformedMessage as e:
+            self.stats.malformed += 1
+            log.warning("agent %s: malformed message ignored: %s", self.name, e)
+            return
+        key = (executive, msg.task)
+        if msg.kind == "start":
+            try:
+                node, name, kind, args = wire.start_fields(msg)
+            except wire.MalformedMessage as e:
+                self.stats.malformed += 1
+                log.warning("agent %s: malformed start ignored: %s", self.name, e)
+                return
+            self._start(key, msg.seq, node, name, kind, args)
+            return
+        r = self._running.get(key)
+        if r is None:
+            last = self._ended.get(key)
+            if last is not None and msg.seq <= last:
+                self.stats.duplicates += 1
+                log.warning("agent %s: duplicate %s of task %d ignored", self.name, msg.kind, msg.task)
+            else:
+                self.stats.late += 1
+                log.warning("agent %s: late %s of task %d ignored", self.name, msg.kind, msg.task)
+            return
+        if msg.seq <= r.last_seq:
+            self.stats.duplicates += 1
+            log.warning("agent %s: duplicate %s of task %d ignored", self.name, msg.kind, msg.task)
+            return
+        r.last_seq = msg.seq
+        if msg.kind == "cancel":
+            self._end(key)
+            self.stats.cancelled += 1
+            r.ctx.cancelled.set()
+            if r.task is not None:
+                r.task.cancel()
+            self._spawn(self._clean_up(key, r, confirm=True))
+        # A `reply` answers a call; a Python body makes none.
+
+    def _start(
+        self, key: Tuple[str, int], seq: int, node: int, name: str, kind: str, args: Json
+    ) -> None:
+        if key in self._running or key in self._ended:
+            self.stats.duplicates += 1
+            log.warning("agent %s: duplicate start of task %d ignored", self.name, key[1])
+            return
+        ctx = TaskContext(self, key[0], key[1], node, name)
+        offer = self._offers.get(name)
+        if offer is None or offer.kind != kind:
+            why = (
+                f"agent {self.name} does not offer {name}"
+                if offer is None
+                else f"agent {self.name} offers {name} as another kind of task"
+            )
+            r = _Running(_Offer(kind, lambda c, a: None), args, ctx, seq)
+            self._remember_ended(key, seq)
+            self._send(key, r, wire.failed(wire.remote_error(why)))
+            return
+        r = _Running(offer, args, ctx, seq)
+        self._running[key] = r
+        self.stats.started += 1
+        self._send(key, r, wire.started())
+        r.task = self._spawn(self._run_body(key, r))
+
+    def _spawn(self, coro: Awaitable[None]) -> "asyncio.Task[None]":
+        assert self._loop is not None
+        task = self._loop.create_task(coro)  # type: ignore[arg-type]
+        # The loop keeps only a weak reference to its tasks.
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+        return task
+
+    async def _run_body(self, key: Tuple[str, int], r: _Running) -> None:
+        body = r.offer.body
+        try:
+            if inspect.iscoroutinefunction(body):
+                value = await body(r.ctx, r.args)
+            else:
+                assert self._loop is not None
+                value = await self._loop.run_in_executor(None, functools.partial(body, r.ctx, r.args))
+                if inspect.isawaitable(value):
+                    value = await value
+            result = wire.done(value)
+        except asyncio.CancelledError:
+            raise
+        except TaskFailure as e:
+            result = wire.failed(e.to_failure())
+        except Exception as e:
+            result = wire.failed(wire.remote_error(f"{r.ctx.task} raised {type(e).__name__}: {e}"))
+        if self._running.get(key) is r:
+            self._end(key)
+            self.stats.ended += 1
+            self._send(key, r, result)
+
+    async def _clean_up(self, key: Tuple[str, int], r: _Running, confirm: bool) -> None:
+        cleanup = r.offer.cleanup
+        if cleanup is not None:
+            try:
+                if inspect.iscoroutinefunction(cleanup):
+                    await cleanup(r.args)
+                else:
+                    assert self._loop is not None
+                    out = await self._loop.run_in_executor(None, cleanup, r.args)
+                    if inspect.isawaitable(out):
+                        await out
+            except Exception as e:
+                log.warning("agent %s: the cleanup of %s raised %r", self.name, r.ctx.task, e)
+        if confirm:
+            self._send(key, r, wire.cancelled())
+
+    def _heartbeat(self, key: Tuple[str, int]) -> None:
+        r = self._running.get(key)
+        if r is not None:
+            self._send(key, r, wire.heartbeat())
+
+    def _end(self, key: Tuple[str, int]) -> None:
+        r = self._running.pop(key, None)
+        if r is not None:
+            self._remember_ended(key, r.last_seq)
+
+    def _remember_ended(self, key: Tuple[str, int], last_seq: int) -> None:
+        self._ended[key] = last_seq
+        while len(self._ended) > ENDED_KEPT:
+            self._ended.popitem(last=False)
+
+    def _executive_gone(self, executive: str) -> None:
+        for key in [k for k in self._running if k[0] == executive]:
+            r = self._running[key]
+            self._end(key)
+            self.stats.orphaned += 1
+            r.ctx.cancelled.set()
+            if r.task is not None:
+                r.task.cancel()
+            self._spawn(self._clean_up(key, r, confirm=False))
+        p = self._publishers.pop(executive, None)
+        if p is not None:
+            try:
+                p.undeclare()
+            except Exception as e:
+                log.debug("undeclaring the publisher to %s: %s", executive, e)

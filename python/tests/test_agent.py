@@ -1,0 +1,190 @@
+"""Unit tests of tdl_agent without a network: the messages' encoding as the Rust side writes and
+reads them (crates/tcm-zenoh/src/wire.rs), typed failures, and the agent's exactly-once handling
+of messages, driven on an asyncio loop with a publisher that records what it is given.
+
+Run with ``python -m unittest discover -s python/tests`` (the package ``eclipse-zenoh`` must be
+installed: ``tdl_agent`` imports it); crates/tcm-zenoh/tests/it/python.rs runs them in its venv.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import sys
+import unittest
+from typing import Any, List
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+import tdl_agent  # noqa: E402
+from tdl_agent import wire  # noqa: E402
+
+
+class HardwareFailure(tdl_agent.TaskFailure):
+    pass
+
+
+class ArmFailure(HardwareFailure):
+    pass
+
+
+class NoGrasp(ArmFailure):
+    def __init__(self, x: int) -> None:
+        super().__init__(f"no grasp at {x}")
+        self.x = x
+
+
+class Renamed(tdl_agent.TaskFailure):
+    tdl_name = "SpeechFailed"
+
+
+class Encoding(unittest.TestCase):
+    def test_bodies_are_encoded_as_serde_writes_them(self) -> None:
+        # As serde_json writes Msg<ToExec> (internally tagged `kind`, Result as {"Ok"}/{"Err"}).
+        self.assertEqual(wire.encode(7, 1, wire.started()), b'{"task":7,"seq":1,"body":{"kind":"started"}}')
+        self.assertEqual(
+            wire.encode(7, 2, wire.done({"a": [1, 2.5, None]})),
+            b'{"task":7,"seq":2,"body":{"kind":"done","result":{"Ok":{"a":[1,2.5,null]}}}}',
+        )
+        self.assertEqual(
+            wire.encode(7, 3, wire.failed(NoGrasp(3).to_failure())),
+            b'{"task":7,"seq":3,"body":{"kind":"done","result":{"Err":{"exception":"NoGrasp",'
+            b'"message":"no grasp at 3","ancestry":["ArmFailure","HardwareFailure"],"data":{"x":3}}}}}',
+        )
+        self.assertEqual(wire.encode(1, 4, wire.cancelled()), b'{"task":1,"seq":4,"body":{"kind":"cancelled"}}')
+        self.assertEqual(wire.encode(1, 5, wire.heartbeat()), b'{"task":1,"seq":5,"body":{"kind":"heartbeat"}}')
+
+    def test_values_json_cannot_say_are_refused(self) -> None:
+        with self.assertRaises(ValueError):
+            wire.encode(1, 1, wire.done(float("nan")))
+        with self.assertRaises(TypeError):
+            wire.encode(1, 1, wire.done(object()))
+
+    def test_a_start_written_by_the_executive_reads(self) -> None:
+        m = wire.decode(
+            b'{"task":3,"seq":1,"body":{"kind":"start","node":12,"name":"speak",'
+            b'"task_kind":"command","args":"hello"}}'
+        )
+        self.assertEqual((m.task, m.seq, m.kind), (3, 1, "start"))
+        self.assertEqual(wire.start_fields(m), (12, "speak", "command", "hello"))
+        self.assertEqual(wire.decode(b'{"task":3,"seq":2,"body":{"kind":"cancel"}}').kind, "cancel")
+
+    def test_malformed_messages_are_refused(self) -> None:
+        for bad in [b"", b"[]", b"{", b'{"task":-1,"seq":1,"body":{"kind":"cancel"}}',
+                    b'{"task":1,"seq":true,"body":{"kind":"cancel"}}', b'{"task":1,"seq":1,"body":{}}',
+                    b"\xff"]:
+            with self.assertRaises(wire.MalformedMessage, msg=repr(bad)):
+                wire.decode(bad)
+        with self.assertRaises(wire.MalformedMessage):
+            wire.start_fields(wire.decode(b'{"task":1,"seq":1,"body":{"kind":"start","name":"x"}}'))
+
+    def test_keys_and_names(self) -> None:
+        self.assertEqual(wire.agent_token("robot", "voice"), "tdl/robot/agents/voice")
+        self.assertEqual(wire.offer_token("robot", "speak", "voice"), "tdl/robot/offers/speak/voice")
+        self.assertEqual(wire.agent_inboxes("robot", "voice"), "tdl/robot/to-agent/voice/*")
+        self.assertEqual(wire.executive_inbox("robot", "abc"), "tdl/robot/to-exec/abc")
+        self.assertTrue(wire.valid_name("arm-1.left_2"))
+        for bad in ["", "a/b", "a*", "$x", "a b", "a?", "a#", "é"]:
+            self.assertFalse(wire.valid_name(bad), bad)
+
+
+class Failures(unittest.TestCase):
+    def test_a_task_failure_keeps_its_name_ancestry_and_value(self) -> None:
+        f = NoGrasp(4).to_failure()
+        self.assertEqual((f.exception, f.message, f.ancestry, f.data),
+                         ("NoGrasp", "no grasp at 4", ["ArmFailure", "HardwareFailure"], {"x": 4}))
+        r = Renamed("mute").to_failure()
+        self.assertEqual((r.exception, r.ancestry, r.data), ("SpeechFailed", [], None))
+
+    def test_a_remote_error_has_the_rust_shape(self) -> None:
+        self.assertEqual(wire.remote_error("oops").to_json(),
+                         {"exception": "RemoteError", "message": "oops", "ancestry": [], "data": {"message": "oops"}})
+
+
+class Recorder:
+    """A publisher that keeps what it is given, decoded."""
+
+    def __init__(self) -> None:
+        self.sent: List[Any] = []
+
+    def put(self, data: bytes) -> None:
+        m = json.loads(data)
+        self.sent.append((m["task"], m["seq"], m["body"]))
+
+
+class ExactlyOnce(unittest.TestCase):
+    def setUp(self) -> None:
+        self.loop = asyncio.new_event_loop()
+        self.agent = tdl_agent.Agent("sys", "py")
+        self.out = Recorder()
+        self.cleanups: List[Any] = []
+        self.runs = 0
+
+        async def slow(ctx: tdl_agent.TaskContext, ms: int) -> int:
+            self.runs += 1
+            await asyncio.sleep(ms / 1000)
+            return ms
+
+        async def cleanup(ms: int) -> None:
+            self.cleanups.append(ms)
+
+        self.agent.command("slow", slow, on_terminate=cleanup)
+        self.agent.goal("fail", lambda ctx, x: (_ for _ in ()).throw(NoGrasp(x)))
+        self.agent._loop = self.loop
+        self.agent._publisher = lambda executive: self.out  # type: ignore[method-assign]
+
+    def tearDown(self) -> None:
+        self.loop.close()
+
+    def deliver(self, task: int, seq: int, body: Any) -> None:
+        self.agent._receive("exec1", wire.encode(task, seq, body))
+
+    def settle(self) -> None:
+        self.loop.run_until_complete(asyncio.sleep(0.05))
+
+    def test_a_duplicated_start_runs_the_body_once(self) -> None:
+        self.deliver(1, 1, wire.start(5, "slow", "command", 1))
+        self.deliver(1, 1, wire.start(5, "slow", "command", 1))
+        self.settle()
+        self.assertEqual(self.runs, 1)
+        self.assertEqual(self.out.sent, [(1, 1, {"kind": "started"}),
+                                         (1, 2, {"kind": "done", "result": {"Ok": 1}})])
+        self.assertEqual(self.agent.stats.duplicates, 1)
+        # A cancel after the end is late (its number is above the last one applied).
+        self.deliver(1, 2, wire.cancel())
+        self.assertEqual((self.agent.stats.late, self.cleanups), (1, []))
+
+    def test_a_cancel_aborts_runs_the_cleanup_and_confirms_once(self) -> None:
+        self.deliver(2, 1, wire.start(6, "slow", "command", 10_000))
+        self.settle()
+        self.deliver(2, 2, wire.cancel())
+        self.deliver(2, 2, wire.cancel())
+        self.settle()
+        self.assertEqual(self.cleanups, [10_000])
+        self.assertEqual(self.out.sent, [(2, 1, {"kind": "started"}), (2, 2, {"kind": "cancelled"})])
+        self.assertEqual((self.agent.stats.cancelled, self.agent.stats.duplicates), (1, 1))
+        self.assertEqual(self.agent.running(), 0)
+
+    def test_a_typed_failure_an_unknown_task_and_a_wrong_kind_come_back_as_failures(self) -> None:
+        self.deliver(3, 1, wire.start(7, "fail", "goal", 9))
+        self.deliver(4, 1, wire.start(8, "nothing", "command", None))
+        self.deliver(5, 1, wire.start(9, "slow", "goal", 1))
+        self.settle()
+        errs = {t: b["result"]["Err"] for (t, _, b) in self.out.sent if b["kind"] == "done"}
+        self.assertEqual((errs[3]["exception"], errs[3]["data"]), ("NoGrasp", {"x": 9}))
+        self.assertEqual(errs[4]["exception"], "RemoteError")
+        self.assertIn("does not offer nothing", errs[4]["message"])
+        self.assertIn("another kind", errs[5]["message"])
+
+    def test_an_executive_that_goes_orphans_its_bodies_with_cleanup(self) -> None:
+        self.deliver(6, 1, wire.start(10, "slow", "command", 20_000))
+        self.settle()
+        self.agent._executive_gone("exec1")
+        self.settle()
+        self.assertEqual((self.agent.stats.orphaned, self.cleanups), (1, [20_000]))
+        self.assertEqual(self.out.sent, [(6, 1, {"kind": "started"})])
+
+
+if __name__ == "__main__":
+    unittest.main()
