@@ -103,7 +103,7 @@ fn renumber(
 }
 
 /// The tree of a trace: per node, in order of creation, its path of names and its records
-/// without times, sequence numbers or agents, node ids renumbered in order of creation; the
+/// without times, sequence numbers or agents (`placed` records left out), node ids renumbered in order of creation; the
 /// periodic monitor's activations and their subtrees are left out, and counted.
 fn tree(trace: &[Value]) -> (Vec<(String, Vec<String>)>, usize) {
     let mut path: BTreeMap<u64, String> = BTreeMap::new();
@@ -132,7 +132,8 @@ fn tree(trace: &[Value]) -> (Vec<(String, Vec<String>)>, usize) {
         let Some(node) = r["node"].as_u64() else {
             continue;
         };
-        if !num.contains_key(&node) {
+        // Where a node ran is the one thing a single process cannot say.
+        if !num.contains_key(&node) || r["ev"] == "placed" {
             continue;
         }
         let mut r = r.clone();
@@ -222,6 +223,47 @@ fn the_distributed_run_matches_the_single_process_run_of_the_same_seed() {
     if let Err(vs) = tcm_trace::check(&events) {
         panic!("the trace checker refuses the distributed trace: {vs:?}");
     }
+    // Each of the robot's commands ran on the robot agent, `speak` on the voice when Python
+    // serves it, and the trace says so: a `placed` record per remote node, nothing else placed.
+    let mut names = BTreeMap::new();
+    let mut placed = BTreeMap::new();
+    for r in &t2 {
+        match (r["ev"].as_str(), r["node"].as_u64()) {
+            (Some("spawned"), Some(n)) => {
+                names.insert(n, r["name"].as_str().unwrap_or_default().to_string());
+            }
+            (Some("placed"), Some(n)) => {
+                placed.insert(n, r["agent"].as_str().unwrap_or_default().to_string());
+            }
+            _ => {}
+        }
+    }
+    let robot = [
+        "planPath",
+        "turn",
+        "guardedMove",
+        "lookForDoor",
+        "mailGone",
+        "motorTemperature",
+    ];
+    let mut by_agent: BTreeMap<&str, usize> = BTreeMap::new();
+    for (n, name) in &names {
+        let want = if robot.contains(&name.as_str()) {
+            Some("robot")
+        } else if name == "speak" {
+            Some(if python { "voice" } else { "robot" })
+        } else {
+            None
+        };
+        assert_eq!(placed.get(n).map(String::as_str), want, "{name} {{{n}}}");
+        if let Some(agent) = want {
+            *by_agent.entry(agent).or_default() += 1;
+        }
+    }
+    assert!(
+        by_agent.get("robot").is_some_and(|n| *n > 20),
+        "{by_agent:?}"
+    );
     assert_eq!(agents_of(pid), Vec::<String>::new(), "agents left behind");
 }
 
