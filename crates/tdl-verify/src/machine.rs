@@ -163,6 +163,18 @@ enum Modelled {
     Decided(Time, Ending),
 }
 
+/// A command waiting for the seeded simulation to draw its ending ([`State::undrawn`]).
+pub(crate) struct Undrawn<'p> {
+    pub(crate) node: NodeId,
+    /// The exceptions it may fail with.
+    pub(crate) raises: Vec<&'p str>,
+    /// It may be left running until it is terminated (something may terminate it, and the bound
+    /// of such commands is not reached).
+    pub(crate) may_hang: bool,
+    /// The endings its model gives, if it has one.
+    pub(crate) endings: Option<Vec<Ending>>,
+}
+
 /// A state of the run.
 #[derive(Clone)]
 pub(crate) struct State {
@@ -428,7 +440,7 @@ impl State {
     }
 
     /// The next time something is due: a timer of the engine or a modelled command's end.
-    fn next_tick(&mut self) -> Option<Time> {
+    pub(crate) fn next_tick(&mut self) -> Option<Time> {
         let mut e = self.engine.poll_timeout();
         for c in &self.cmds {
             if let Some(Modelled::Decided(at, _)) = &c.model {
@@ -458,6 +470,45 @@ impl State {
             out.push(crate::UNKNOWN_EXCEPTION);
         }
         out
+    }
+
+    /// The commands started and not yet given their ending by the seeded simulation (`sim.rs`),
+    /// in the order they started.
+    pub(crate) fn undrawn<'p>(&self, cx: &'p Ctx<'_>) -> Vec<Undrawn<'p>> {
+        let mut out = Vec::new();
+        for c in &self.cmds {
+            if c.hung {
+                continue;
+            }
+            let endings = match &c.model {
+                Some(Modelled::Decided(..)) => continue,
+                Some(Modelled::Undecided(e)) => Some(e.clone()),
+                None => None,
+            };
+            out.push(Undrawn {
+                node: c.node,
+                raises: self.raises(cx, c.callee, c.abstracted),
+                may_hang: u32::from(self.hangs) < cx.opts.hangs && self.is_terminable(c.node),
+                endings,
+            });
+        }
+        out
+    }
+
+    /// Gives a command its ending, as the seeded simulation drew it: it ends (succeeds or fails)
+    /// once its duration has passed since it started, or runs until it is terminated.
+    pub(crate) fn draw(&mut self, node: NodeId, ending: Ending) {
+        let Some(c) = self.cmds.iter_mut().find(|c| c.node == node) else {
+            return;
+        };
+        match ending {
+            Ending::Never => {
+                c.hung = true;
+                c.model = None;
+                self.hangs = self.hangs.saturating_add(1);
+            }
+            e => c.model = Some(Modelled::Decided(time_plus(c.start, e.after()), e)),
+        }
     }
 
     fn is_terminable(&self, node: NodeId) -> bool {
@@ -1846,8 +1897,14 @@ impl State {
                 let Some(cmd) = self.cmds.iter().find(|c| c.node == *node) else {
                     return format!("{path} ends");
                 };
-                if matches!(cmd.model, Some(Modelled::Decided(..))) {
-                    return format!("{path} ends as its model decided");
+                match &cmd.model {
+                    Some(Modelled::Decided(_, Ending::Succeeds(_))) => {
+                        return format!("{path} succeeds");
+                    }
+                    Some(Modelled::Decided(_, Ending::Fails(e, _))) => {
+                        return format!("{path} fails with {e}");
+                    }
+                    _ => {}
                 }
                 if *outcome == 0 {
                     format!("{path} succeeds")

@@ -1,13 +1,14 @@
 //! The one integration-test binary of the `tdl` CLI: runs the built binary on files in
 //! `tests/data` and checks output and exit codes. `tdl graph` and `tdl doc` have their own
-//! modules (`graph.rs`, `doc.rs`), as have `tdl trace export` (`export.rs`) and `tdl verify`
-//! (`verify.rs`).
+//! modules (`graph.rs`, `doc.rs`), as have `tdl trace export` (`export.rs`), `tdl verify`
+//! (`verify.rs`) and `tdl sim` (`sim.rs`).
 
 use std::process::Command;
 
 mod doc;
 mod export;
 mod graph;
+mod sim;
 mod verify;
 mod view;
 
