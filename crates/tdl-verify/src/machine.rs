@@ -32,8 +32,8 @@ use tdl_syntax::ast::TaskKind;
 
 use crate::Options;
 use crate::ir::{
-    Body, CIr, Callee, EventIr, GroupId, IndexIr, Iter, LoopId, Op, StmtOp, TagKind, TagRef,
-    TaskId, TimeIr, Wait, WhenIr,
+    Body, CIr, Callee, EventIr, GroupId, IndexIr, Iter, LoopId, Op, ResOp, StmtOp, TagKind, TagRef,
+    TaskId, TimeIr, UsesIr, Wait, WhenIr,
 };
 use crate::model::{CommandModel, Ending};
 use crate::program::{Program, TaskDef, duration};
@@ -268,6 +268,14 @@ impl State {
         engine.set_tracing(tracing);
         engine.hold_by_default(true);
         let prog = cx.prog;
+        // The declared resources (the generated code declares each on its first use; declared
+        // first here, in order, they behave the same).
+        let mut error = None;
+        for r in &prog.resources {
+            if let Err(e) = engine.declare_resource(r.name, r.capacity, r.pending) {
+                error = Some(format!("cannot declare resource `{}`: {e}", r.name));
+            }
+        }
         // Handlers declared `for T` are attached to T on the run.
         for (i, t) in prog.tasks.iter().enumerate() {
             if let (Some(target), Some(exc)) = (&t.for_task, &t.handles) {
@@ -300,7 +308,7 @@ impl State {
             terminable: Vec::new(),
             cut: None,
             fault: None,
-            error: None,
+            error,
             watch: (!cx.props.is_empty()).then(Watch::default),
             broken: None,
             records: Vec::new(),
@@ -841,6 +849,7 @@ impl State {
                     spec.constraints.push(Constraint::DelayExpansion);
                 }
                 spec.persistent = def.persistent;
+                add_uses(&self.engine, prog, &mut spec, &def.uses, &env);
                 for h in &def.handlers {
                     spec.handlers.push(handler_spec(prog, h, &env));
                 }
@@ -1226,6 +1235,24 @@ impl State {
                     }
                 },
                 Op::Jump(pc) => c.pc = *pc,
+                Op::Resource(op, r) => {
+                    c.pc += 1;
+                    let name = prog.resources.get(*r as usize).map_or("", |d| d.name);
+                    let res = match self.engine.resource_id(name) {
+                        Some(id) => match op {
+                            ResOp::Lock => self.engine.lock_resource(now, id),
+                            ResOp::Unlock => self.engine.unlock_resource(now, id),
+                            ResOp::Reserve => self.engine.reserve_resource(now, id, c.node),
+                            ResOp::Unreserve => self.engine.unreserve_resource(now, id),
+                        },
+                        None => Ok(()),
+                    };
+                    if let Err(e) = res {
+                        self.conts.push(c);
+                        self.finish(cx, node, Err(error_failure(&e)));
+                        return;
+                    }
+                }
                 Op::LoopStart { id, iter } => {
                     let l = &mut c.loops[*id as usize];
                     *l = LoopState {
@@ -1579,6 +1606,15 @@ impl State {
                     m.period = Some(time_or_second(t, &c.env));
                 }
             }
+        }
+        // Resources: the groups', then its own (amounts add up, the last priority given wins).
+        for u in sp
+            .groups
+            .iter()
+            .map(|g| &body.groups[*g as usize].uses)
+            .chain([&sp.uses])
+        {
+            add_uses(&self.engine, prog, &mut spec, u, &c.env);
         }
         for h in &sp.handlers {
             spec.handlers.push(handler_spec(prog, h, &c.env));
@@ -2009,6 +2045,34 @@ fn handler_spec(prog: &Program, h: &crate::ir::HandlerUse, env: &Env) -> Handler
         max_activations: max,
         body: Fac::Handler(h.handler, args),
     }
+}
+
+/// Adds `u` (evaluated in `env`) to what the spawn `spec` asks of the resources, as the generated
+/// `.uses(r, n)`, `.priority(p)` and `.deny_if_busy()` do: amounts add up, a priority replaces the
+/// one before, `deny if busy` stays. An amount or priority the checker cannot evaluate is 1 or 0.
+fn add_uses(engine: &Eng, prog: &Program, spec: &mut Spawn<Act, Fac>, u: &UsesIr, env: &Env) {
+    if u.is_empty() {
+        return;
+    }
+    let req = spec.uses.get_or_insert_with(Box::default);
+    for (r, amount) in &u.amounts {
+        let Some(id) = prog
+            .resources
+            .get(*r as usize)
+            .and_then(|d| engine.resource_id(d.name))
+        else {
+            continue;
+        };
+        req.amounts
+            .push((id, count(&amount.eval(env)).unwrap_or(1)));
+    }
+    if let Some(p) = &u.priority {
+        req.priority = match p.eval(env) {
+            Value::Int(i) => i32::try_from(i).unwrap_or(if i < 0 { i32::MIN } else { i32::MAX }),
+            _ => 0,
+        };
+    }
+    req.deny_if_busy |= u.deny_if_busy;
 }
 
 fn event(e: &EventIr, n: NodeRef) -> Event {
