@@ -110,3 +110,25 @@ fn bad_probabilities_are_usage_errors() {
     assert_eq!(code, 2);
     assert!(err.contains("--fail: 1.5 is not a probability"), "{err}");
 }
+
+/// Ctrl-C, as a real SIGINT: the runs stop after the current one, the report gives the runs made,
+/// and the exit status is 1.
+#[cfg(unix)]
+#[test]
+fn sigint_stops_the_runs_with_what_was_found() {
+    let dir = out_dir("sigint");
+    let (code, out, took) =
+        super::interrupted(&["sim", "-p", "xavier", "--seeds", "100000000", "--out", &dir]);
+    assert_eq!(code, 1, "{out}");
+    assert!(took < std::time::Duration::from_secs(20), "{took:?}");
+    assert!(out.contains("interrupted: what was found so far"), "{out}");
+    let runs: u64 = out
+        .lines()
+        .nth(1)
+        .and_then(|l| l.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .expect("the runs made");
+    assert!(runs > 0 && runs < 100_000_000, "{out}");
+    assert!(out.contains("  ok         no stuck state"), "{out}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
