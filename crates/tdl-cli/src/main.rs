@@ -38,6 +38,11 @@ mod model;
 mod serve;
 mod sim;
 mod verify;
+
+/// mimalloc: `tdl verify` allocates and frees an engine's nodes per transition, which the system
+/// allocator made a third of its time (docs/verification.md, "Speed").
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 mod view;
 
 #[derive(Parser)]

@@ -106,3 +106,46 @@ fn a_timing_bug_is_found_on_some_seeds_and_reproduced_from_its_seed() {
         assert!(again(good).violation.is_none(), "seed {good}");
     }
 }
+
+/// External events: a run waits for one until it is raised, at a drawn time or, when nothing
+/// else can happen, at once; a run where no raise is left is stuck.
+#[test]
+fn external_events_are_raised_at_drawn_times() {
+    let src = "goal g() { spawn drive() with disable until external \"go\"; }";
+    let program = Program::load(&[("go.tdl".into(), src.into())]).expect("loads");
+    let run = |options: &SimOptions, seed| {
+        tdl_verify::simulate_seed(&program, "g", options, &[], None, seed).expect("runs")
+    };
+    let options = SimOptions {
+        max_duration: std::time::Duration::ZERO,
+        fail: 0.0,
+        ..SimOptions::default()
+    };
+    let mut times = std::collections::BTreeSet::new();
+    for seed in 0..20 {
+        let r = run(&options, seed);
+        assert!(r.finished && r.violation.is_none(), "seed {seed}: {r:?}");
+        times.insert(r.end_time);
+    }
+    // Raised within the window on some seeds, at once (time 0) on those that drew no raise.
+    assert!(times.len() > 2, "{times:?}");
+    assert!(
+        times.iter().all(|t| *t <= options.event_window),
+        "{times:?}"
+    );
+    let never = SimOptions {
+        bounds: tdl_verify::Options {
+            events: 0,
+            ..tdl_verify::Options::default()
+        },
+        ..options
+    };
+    let r = run(&never, 0);
+    let (property, c) = r.violation.as_ref().expect("stuck");
+    assert_eq!(property, NO_STUCK);
+    assert!(
+        c.details.iter().any(|d| d.contains("go")),
+        "the stuck report names the event: {:?}",
+        c.details
+    );
+}
