@@ -323,6 +323,7 @@ pub fn verify_with_progress(
         opts: options,
         model,
         props: &props,
+        sim: false,
     };
     let out = search::run(&cx, task, &control.stop, progress);
     let mut results: Vec<PropertyResult> = Vec::new();

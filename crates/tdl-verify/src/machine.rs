@@ -213,6 +213,8 @@ pub(crate) struct Ctx<'a> {
     pub(crate) opts: &'a Options,
     pub(crate) model: Option<&'a dyn CommandModel>,
     pub(crate) props: &'a Props,
+    /// A seeded simulation (`sim.rs`) draws the commands' endings: its traces say so.
+    pub(crate) sim: bool,
 }
 
 fn failure(prog: &Program, exception: &str, message: impl Into<String>) -> Failure {
@@ -551,9 +553,15 @@ impl State {
                     let cmd = s.cmds.remove(pos);
                     let result = match &cmd.model {
                         Some(Modelled::Decided(_, Ending::Succeeds(_))) => Ok(()),
-                        Some(Modelled::Decided(_, Ending::Fails(e, _))) => {
-                            Err(failure(cx.prog, e, "chosen by the command's model"))
-                        }
+                        Some(Modelled::Decided(_, Ending::Fails(e, _))) => Err(failure(
+                            cx.prog,
+                            e,
+                            if cx.sim {
+                                "drawn by tdl sim"
+                            } else {
+                                "chosen by the command's model"
+                            },
+                        )),
                         _ if *outcome == 0 => Ok(()),
                         _ => {
                             let raises = s.raises(cx, cmd.callee, cmd.abstracted);

@@ -211,6 +211,7 @@ pub fn simulate(
         opts: &options.bounds,
         model,
         props: &props,
+        sim: true,
     };
     let mut names: Vec<String> = [NO_STUCK, NO_UNHANDLED, RUNS_END, TRACES_CHECK]
         .iter()
@@ -309,6 +310,7 @@ pub fn simulate_seed(
         opts: &options.bounds,
         model,
         props: &props,
+        sim: true,
     };
     Ok(walk(&cx, task, options, seed, true, &Control::default()))
 }
