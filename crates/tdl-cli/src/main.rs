@@ -18,6 +18,8 @@
 //! - `tdl view TRACE.jsonl...` serves the task-tree viewer on the files (`serve.rs`).
 //! - `tdl verify FILE.tdl...` / `tdl verify -p CRATE` explores every behaviour of a program within
 //!   bounds and checks its properties (`verify.rs`, over the `tdl-verify` crate).
+//! - `tdl sim FILE.tdl...` / `tdl sim -p CRATE` runs a program once per seed on virtual time with
+//!   random durations, outcomes and events, and checks every run (`sim.rs`).
 //!
 //! Exit codes (after ripgrep): 0 ok (warnings only or nothing), 1 errors found, 2 usage or I/O
 //! error. The front end is `tdl-syntax`.
@@ -34,7 +36,13 @@ mod export;
 mod graph;
 mod model;
 mod serve;
+mod sim;
 mod verify;
+
+/// mimalloc: `tdl verify` allocates and frees an engine's nodes per transition, which the system
+/// allocator made a third of its time (docs/verification.md, "Speed").
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 mod view;
 
 #[derive(Parser)]
@@ -102,6 +110,10 @@ enum Command {
     /// state, no unhandled exception, every run ends, the trace checker, and `--property`);
     /// counterexamples are written as trace files (docs/verification.md).
     Verify(verify::Args),
+    /// Run a program many times on virtual time, one seeded random run per seed (durations,
+    /// outcomes, failures, external events), and check every run; a failing run is written as a
+    /// trace file with the command line that runs its seed again (docs/verification.md).
+    Sim(sim::Args),
     /// Read a trace file (JSON lines, as written by `--trace` or `tcm::JsonLines`).
     Trace {
         #[command(subcommand)]
@@ -245,6 +257,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         }
         Command::Trace { what } => trace(what, &mut out),
         Command::Verify(args) => verify::run(args, &mut out),
+        Command::Sim(args) => sim::run(args, &mut out),
         Command::View { files, listen } => serve::view(&files, listen),
         Command::Expand { file } => {
             let (name, src) = read(&file)?;

@@ -17,7 +17,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use tdl_verify::{Control, Options, Program, Property, Report, Verdict};
+use tdl_verify::{Control, Counterexample, Options, Program, Property, Report, Verdict};
 
 /// Options of `tdl verify`.
 #[derive(clap::Args)]
@@ -73,37 +73,11 @@ pub(crate) struct Args {
 
 /// Runs `tdl verify`; Ok(true) when nothing is broken.
 pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
-    let files = match &args.package {
-        Some(name) => package_files(name)?,
-        None => args.files.clone(),
-    };
-    let mut sources = Vec::new();
-    for f in &files {
-        let src =
-            std::fs::read_to_string(f).with_context(|| format!("cannot read {}", f.display()))?;
-        sources.push((f.display().to_string(), src));
-    }
-    let program = match Program::load(&sources) {
-        Ok(p) => p,
-        Err(tdl_verify::LoadError::Invalid(rendered)) => {
-            out.write_all(rendered.as_bytes())?;
-            writeln!(out, "tdl verify: the program has errors (see `tdl check`)")?;
-            return Ok(false);
-        }
-        Err(e) => return Err(e.into()),
+    let Some((files, program)) = load_program(&args.files, args.package.as_deref(), out)? else {
+        return Ok(false);
     };
     let task = program.root_task(args.task.as_deref())?;
-    let mut properties = Vec::new();
-    for p in &args.property {
-        properties.push(Property::parse(p)?);
-    }
-    if let Some(f) = &args.properties {
-        let text =
-            std::fs::read_to_string(f).with_context(|| format!("cannot read {}", f.display()))?;
-        properties.extend(
-            Property::parse_file(&f.display().to_string(), &text).map_err(anyhow::Error::msg)?,
-        );
-    }
+    let properties = load_properties(&args.property, args.properties.as_deref())?;
     let options = options(&args);
     writeln!(
         out,
@@ -122,18 +96,7 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
     )?;
     out.flush()?;
     let control = Arc::new(Control::default());
-    {
-        let control = Arc::clone(&control);
-        // The first Ctrl-C stops the search (its report follows); a second exits at once.
-        let _ = ctrlc::set_handler(move || {
-            if control
-                .stop
-                .swap(true, std::sync::atomic::Ordering::Relaxed)
-            {
-                std::process::exit(130);
-            }
-        });
-    }
+    stop_on_ctrl_c(&control);
     let report = {
         let mut display = Display::new();
         tdl_verify::verify_with_progress(
@@ -150,6 +113,66 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
     };
     print_report(&report, &args.out, out)?;
     Ok(report.ok() && !report.interrupted)
+}
+
+/// The program of `tdl verify` and `tdl sim`: the files given, or a crate's; None (after
+/// printing the diagnostics) when it has errors.
+pub(crate) fn load_program(
+    files: &[PathBuf],
+    package: Option<&str>,
+    out: &mut impl Write,
+) -> anyhow::Result<Option<(Vec<PathBuf>, Program)>> {
+    let files = match package {
+        Some(name) => package_files(name)?,
+        None => files.to_vec(),
+    };
+    let mut sources = Vec::new();
+    for f in &files {
+        let src =
+            std::fs::read_to_string(f).with_context(|| format!("cannot read {}", f.display()))?;
+        sources.push((f.display().to_string(), src));
+    }
+    match Program::load(&sources) {
+        Ok(p) => Ok(Some((files, p))),
+        Err(tdl_verify::LoadError::Invalid(rendered)) => {
+            out.write_all(rendered.as_bytes())?;
+            writeln!(out, "the program has errors (see `tdl check`)")?;
+            Ok(None)
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// The `--property` and `--properties FILE` properties.
+pub(crate) fn load_properties(
+    texts: &[String],
+    file: Option<&Path>,
+) -> anyhow::Result<Vec<Property>> {
+    let mut properties = Vec::new();
+    for p in texts {
+        properties.push(Property::parse(p)?);
+    }
+    if let Some(f) = file {
+        let text =
+            std::fs::read_to_string(f).with_context(|| format!("cannot read {}", f.display()))?;
+        properties.extend(
+            Property::parse_file(&f.display().to_string(), &text).map_err(anyhow::Error::msg)?,
+        );
+    }
+    Ok(properties)
+}
+
+/// The first Ctrl-C sets `control.stop` (the report follows); a second exits at once.
+pub(crate) fn stop_on_ctrl_c(control: &Arc<Control>) {
+    let control = Arc::clone(control);
+    let _ = ctrlc::set_handler(move || {
+        if control
+            .stop
+            .swap(true, std::sync::atomic::Ordering::Relaxed)
+        {
+            std::process::exit(130);
+        }
+    });
 }
 
 fn options(args: &Args) -> Options {
@@ -220,7 +243,7 @@ impl Drop for Display {
 }
 
 /// A file name for a property's counterexample.
-fn slug(task: &str, property: &str) -> String {
+pub(crate) fn slug(task: &str, property: &str) -> String {
     let mut s = String::new();
     for ch in format!("{task}-{property}").chars() {
         if ch.is_ascii_alphanumeric() || ch == '_' {
@@ -275,56 +298,9 @@ fn print_report(report: &Report, dir: &Path, out: &mut impl Write) -> anyhow::Re
             Verdict::Unknown(why) => writeln!(out, "  undecided  {}: {why}", r.property)?,
             Verdict::Violated(c) => {
                 writeln!(out, "  VIOLATED   {}: {}", r.property, c.summary)?;
-                std::fs::create_dir_all(dir)
-                    .with_context(|| format!("cannot create {}", dir.display()))?;
                 let file = dir.join(slug(&report.task, &r.property));
-                let mut w = std::io::BufWriter::new(
-                    std::fs::File::create(&file)
-                        .with_context(|| format!("cannot write {}", file.display()))?,
-                );
-                c.write_trace(&mut w)?;
-                w.flush()?;
-                let repeats = match c.repeats_from {
-                    Some(from) => format!(", the last {} repeating forever", c.len() - from),
-                    None => String::new(),
-                };
-                writeln!(
-                    out,
-                    "             a path of {} transitions{repeats}; trace: {} (`tdl trace story {}`)",
-                    c.len(),
-                    file.display(),
-                    file.display()
-                )?;
-                if c.depends_on_conditions {
-                    writeln!(
-                        out,
-                        "             it takes branches of conditions the checker does not evaluate: check they can go that way"
-                    )?;
-                }
-                for h in &c.hung {
-                    writeln!(
-                        out,
-                        "             {h} is left running until it is terminated"
-                    )?;
-                }
-                for (i, s) in c.steps.iter().enumerate() {
-                    let mark = if c.repeats_from == Some(i) {
-                        "↻"
-                    } else {
-                        " "
-                    };
-                    writeln!(out, "           {mark}{:>3}. {s}", i + 1)?;
-                }
-                for d in &c.details {
-                    writeln!(out, "             {d}")?;
-                }
-                for v in &c.trace_violations {
-                    writeln!(out, "             trace checker: {v}")?;
-                }
-                writeln!(out, "             story:")?;
-                for line in crate::view::story(&c.trace, &crate::view::Filter::default()) {
-                    writeln!(out, "               {line}")?;
-                }
+                write_trace(c, &file)?;
+                print_counterexample(c, &file, out)?;
             }
         }
     }
@@ -340,8 +316,72 @@ fn print_report(report: &Report, dir: &Path, out: &mut impl Write) -> anyhow::Re
     Ok(())
 }
 
+/// Writes a counterexample's trace to `file` (its directory created if needed).
+pub(crate) fn write_trace(c: &Counterexample, file: &Path) -> anyhow::Result<()> {
+    if let Some(dir) = file.parent() {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let mut w = std::io::BufWriter::new(
+        std::fs::File::create(file).with_context(|| format!("cannot write {}", file.display()))?,
+    );
+    c.write_trace(&mut w)?;
+    w.flush()?;
+    Ok(())
+}
+
+/// A counterexample in words: its length, its trace file, the transitions, the details, and the
+/// story of its trace.
+pub(crate) fn print_counterexample(
+    c: &Counterexample,
+    file: &Path,
+    out: &mut impl Write,
+) -> anyhow::Result<()> {
+    let repeats = match c.repeats_from {
+        Some(from) => format!(", the last {} repeating forever", c.len() - from),
+        None => String::new(),
+    };
+    writeln!(
+        out,
+        "             a path of {} transitions{repeats}; trace: {} (`tdl trace story {}`)",
+        c.len(),
+        file.display(),
+        file.display()
+    )?;
+    if c.depends_on_conditions {
+        writeln!(
+            out,
+            "             it takes branches of conditions the checker does not evaluate: check they can go that way"
+        )?;
+    }
+    for h in &c.hung {
+        writeln!(
+            out,
+            "             {h} is left running until it is terminated"
+        )?;
+    }
+    for (i, s) in c.steps.iter().enumerate() {
+        let mark = if c.repeats_from == Some(i) {
+            "↻"
+        } else {
+            " "
+        };
+        writeln!(out, "           {mark}{:>3}. {s}", i + 1)?;
+    }
+    for d in &c.details {
+        writeln!(out, "             {d}")?;
+    }
+    for v in &c.trace_violations {
+        writeln!(out, "             trace checker: {v}")?;
+    }
+    writeln!(out, "             story:")?;
+    for line in crate::view::story(&c.trace, &crate::view::Filter::default()) {
+        writeln!(out, "               {line}")?;
+    }
+    Ok(())
+}
+
 /// The `.tdl` files of a crate of the workspace: its `src/**/*.tdl`, in path order.
-fn package_files(name: &str) -> anyhow::Result<Vec<PathBuf>> {
+pub(crate) fn package_files(name: &str) -> anyhow::Result<Vec<PathBuf>> {
     let dir = package_dir(name)?;
     let mut files = Vec::new();
     collect_tdl(&dir.join("src"), &mut files);

@@ -7,6 +7,11 @@
 
 use std::path::Path;
 
+/// The allocator of the `tdl` binary (crates/tdl-cli/src/main.rs), so that the figure is the one
+/// `tdl verify` reaches.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> anyhow::Result<()> {
     let runs: usize = std::env::args()
         .nth(1)

@@ -73,7 +73,35 @@ pub(crate) enum Op {
     },
     GroupStart(GroupId),
     GroupEnd(GroupId),
+    /// `lock r;`, `unlock r;`, `reserve r;` (for the body's own node), `unreserve r;`, on the
+    /// resource declared `r` (its number in [`crate::Program`]'s resources).
+    Resource(ResOp, u16),
     End,
+}
+
+/// What a resource statement does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum ResOp {
+    Lock,
+    Unlock,
+    Reserve,
+    Unreserve,
+}
+
+/// The resources a node uses (a task's `uses` and `priority`, a spawn's or its groups' `uses`,
+/// `priority` and `deny if busy`), as the generated code asks for them.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct UsesIr {
+    /// Each declared resource (by number) and the amount.
+    pub(crate) amounts: Vec<(u16, VExpr)>,
+    pub(crate) priority: Option<VExpr>,
+    pub(crate) deny_if_busy: bool,
+}
+
+impl UsesIr {
+    pub(crate) fn is_empty(&self) -> bool {
+        self.amounts.is_empty() && self.priority.is_none() && !self.deny_if_busy
+    }
 }
 
 /// The ways out a Rust statement may take.
@@ -133,6 +161,8 @@ pub(crate) struct SpawnIr {
     pub(crate) handlers: Vec<HandlerUse>,
     pub(crate) on_terminate: Vec<(Call, Option<TagId>)>,
     pub(crate) monitor: MonitorOverride,
+    /// Its `uses`, `priority`, `deny if busy`.
+    pub(crate) uses: UsesIr,
     /// A termination constraint (on it or on its group) or a `terminate` statement names it: a
     /// command under it may be left running forever (docs/verification.md, "Commands").
     pub(crate) terminable: bool,
@@ -160,6 +190,8 @@ pub(crate) struct HandlerUse {
 pub(crate) struct GroupIr {
     pub(crate) cons: Vec<CIr>,
     pub(crate) monitor: MonitorOverride,
+    /// Resources every member uses (`uses`, `priority`, `deny if busy` on the group).
+    pub(crate) uses: UsesIr,
     pub(crate) wait: bool,
     pub(crate) propagate: bool,
     pub(crate) terminable: bool,

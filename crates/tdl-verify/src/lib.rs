@@ -29,7 +29,10 @@
 //!   a condition the checker cannot evaluate, an external event, time passing);
 //! - the search (`search.rs`): breadth-first, each canonical state once, then the cycles of the
 //!   state graph (runs that never end);
-//! - counterexamples rebuilt by replay with tracing on, checked by `tcm_trace::check` (here).
+//! - counterexamples rebuilt by replay with tracing on, checked by `tcm_trace::check` (here);
+//! - the seeded simulation (`sim.rs`, [`simulate`], `tdl sim`): instead of the search, one walk
+//!   through the machine per seed, each choice drawn from the seed's random stream, commands given
+//!   random durations and outcomes, every run's trace checked.
 
 #![warn(missing_docs)]
 
@@ -39,6 +42,7 @@ mod model;
 mod program;
 mod property;
 mod search;
+mod sim;
 #[cfg(test)]
 mod tests;
 mod value;
@@ -51,6 +55,7 @@ pub use model::{Arg, CommandModel, Ending};
 pub use program::{LoadError, Program};
 pub use property::{Property, PropertyError};
 pub use search::Progress;
+pub use sim::{SimOptions, SimProgress, SimReport, SimResult, SimRun, simulate, simulate_seed};
 use tcm_trace::TraceEvent;
 
 use machine::{Action, Ctx, State};
@@ -318,6 +323,7 @@ pub fn verify_with_progress(
         opts: options,
         model,
         props: &props,
+        sim: false,
     };
     let out = search::run(&cx, task, &control.stop, progress);
     let mut results: Vec<PropertyResult> = Vec::new();

@@ -32,8 +32,8 @@ use tdl_syntax::ast::TaskKind;
 
 use crate::Options;
 use crate::ir::{
-    Body, CIr, Callee, EventIr, GroupId, IndexIr, Iter, LoopId, Op, StmtOp, TagKind, TagRef,
-    TaskId, TimeIr, Wait, WhenIr,
+    Body, CIr, Callee, EventIr, GroupId, IndexIr, Iter, LoopId, Op, ResOp, StmtOp, TagKind, TagRef,
+    TaskId, TimeIr, UsesIr, Wait, WhenIr,
 };
 use crate::model::{CommandModel, Ending};
 use crate::program::{Program, TaskDef, duration};
@@ -163,6 +163,18 @@ enum Modelled {
     Decided(Time, Ending),
 }
 
+/// A command waiting for the seeded simulation to draw its ending ([`State::undrawn`]).
+pub(crate) struct Undrawn<'p> {
+    pub(crate) node: NodeId,
+    /// The exceptions it may fail with.
+    pub(crate) raises: Vec<&'p str>,
+    /// It may be left running until it is terminated (something may terminate it, and the bound
+    /// of such commands is not reached).
+    pub(crate) may_hang: bool,
+    /// The endings its model gives, if it has one.
+    pub(crate) endings: Option<Vec<Ending>>,
+}
+
 /// A state of the run.
 #[derive(Clone)]
 pub(crate) struct State {
@@ -201,6 +213,8 @@ pub(crate) struct Ctx<'a> {
     pub(crate) opts: &'a Options,
     pub(crate) model: Option<&'a dyn CommandModel>,
     pub(crate) props: &'a Props,
+    /// A seeded simulation (`sim.rs`) draws the commands' endings: its traces say so.
+    pub(crate) sim: bool,
 }
 
 fn failure(prog: &Program, exception: &str, message: impl Into<String>) -> Failure {
@@ -256,6 +270,14 @@ impl State {
         engine.set_tracing(tracing);
         engine.hold_by_default(true);
         let prog = cx.prog;
+        // The declared resources (the generated code declares each on its first use; declared
+        // first here, in order, they behave the same).
+        let mut error = None;
+        for r in &prog.resources {
+            if let Err(e) = engine.declare_resource(r.name, r.capacity, r.pending) {
+                error = Some(format!("cannot declare resource `{}`: {e}", r.name));
+            }
+        }
         // Handlers declared `for T` are attached to T on the run.
         for (i, t) in prog.tasks.iter().enumerate() {
             if let (Some(target), Some(exc)) = (&t.for_task, &t.handles) {
@@ -288,7 +310,7 @@ impl State {
             terminable: Vec::new(),
             cut: None,
             fault: None,
-            error: None,
+            error,
             watch: (!cx.props.is_empty()).then(Watch::default),
             broken: None,
             records: Vec::new(),
@@ -428,7 +450,7 @@ impl State {
     }
 
     /// The next time something is due: a timer of the engine or a modelled command's end.
-    fn next_tick(&mut self) -> Option<Time> {
+    pub(crate) fn next_tick(&mut self) -> Option<Time> {
         let mut e = self.engine.poll_timeout();
         for c in &self.cmds {
             if let Some(Modelled::Decided(at, _)) = &c.model {
@@ -458,6 +480,45 @@ impl State {
             out.push(crate::UNKNOWN_EXCEPTION);
         }
         out
+    }
+
+    /// The commands started and not yet given their ending by the seeded simulation (`sim.rs`),
+    /// in the order they started.
+    pub(crate) fn undrawn<'p>(&self, cx: &'p Ctx<'_>) -> Vec<Undrawn<'p>> {
+        let mut out = Vec::new();
+        for c in &self.cmds {
+            if c.hung {
+                continue;
+            }
+            let endings = match &c.model {
+                Some(Modelled::Decided(..)) => continue,
+                Some(Modelled::Undecided(e)) => Some(e.clone()),
+                None => None,
+            };
+            out.push(Undrawn {
+                node: c.node,
+                raises: self.raises(cx, c.callee, c.abstracted),
+                may_hang: u32::from(self.hangs) < cx.opts.hangs && self.is_terminable(c.node),
+                endings,
+            });
+        }
+        out
+    }
+
+    /// Gives a command its ending, as the seeded simulation drew it: it ends (succeeds or fails)
+    /// once its duration has passed since it started, or runs until it is terminated.
+    pub(crate) fn draw(&mut self, node: NodeId, ending: Ending) {
+        let Some(c) = self.cmds.iter_mut().find(|c| c.node == node) else {
+            return;
+        };
+        match ending {
+            Ending::Never => {
+                c.hung = true;
+                c.model = None;
+                self.hangs = self.hangs.saturating_add(1);
+            }
+            e => c.model = Some(Modelled::Decided(time_plus(c.start, e.after()), e)),
+        }
     }
 
     fn is_terminable(&self, node: NodeId) -> bool {
@@ -492,9 +553,15 @@ impl State {
                     let cmd = s.cmds.remove(pos);
                     let result = match &cmd.model {
                         Some(Modelled::Decided(_, Ending::Succeeds(_))) => Ok(()),
-                        Some(Modelled::Decided(_, Ending::Fails(e, _))) => {
-                            Err(failure(cx.prog, e, "chosen by the command's model"))
-                        }
+                        Some(Modelled::Decided(_, Ending::Fails(e, _))) => Err(failure(
+                            cx.prog,
+                            e,
+                            if cx.sim {
+                                "drawn by tdl sim"
+                            } else {
+                                "chosen by the command's model"
+                            },
+                        )),
                         _ if *outcome == 0 => Ok(()),
                         _ => {
                             let raises = s.raises(cx, cmd.callee, cmd.abstracted);
@@ -790,6 +857,7 @@ impl State {
                     spec.constraints.push(Constraint::DelayExpansion);
                 }
                 spec.persistent = def.persistent;
+                add_uses(&self.engine, prog, &mut spec, &def.uses, &env);
                 for h in &def.handlers {
                     spec.handlers.push(handler_spec(prog, h, &env));
                 }
@@ -1175,6 +1243,24 @@ impl State {
                     }
                 },
                 Op::Jump(pc) => c.pc = *pc,
+                Op::Resource(op, r) => {
+                    c.pc += 1;
+                    let name = prog.resources.get(*r as usize).map_or("", |d| d.name);
+                    let res = match self.engine.resource_id(name) {
+                        Some(id) => match op {
+                            ResOp::Lock => self.engine.lock_resource(now, id),
+                            ResOp::Unlock => self.engine.unlock_resource(now, id),
+                            ResOp::Reserve => self.engine.reserve_resource(now, id, c.node),
+                            ResOp::Unreserve => self.engine.unreserve_resource(now, id),
+                        },
+                        None => Ok(()),
+                    };
+                    if let Err(e) = res {
+                        self.conts.push(c);
+                        self.finish(cx, node, Err(error_failure(&e)));
+                        return;
+                    }
+                }
                 Op::LoopStart { id, iter } => {
                     let l = &mut c.loops[*id as usize];
                     *l = LoopState {
@@ -1529,6 +1615,15 @@ impl State {
                 }
             }
         }
+        // Resources: the groups', then its own (amounts add up, the last priority given wins).
+        for u in sp
+            .groups
+            .iter()
+            .map(|g| &body.groups[*g as usize].uses)
+            .chain([&sp.uses])
+        {
+            add_uses(&self.engine, prog, &mut spec, u, &c.env);
+        }
         for h in &sp.handlers {
             spec.handlers.push(handler_spec(prog, h, &c.env));
         }
@@ -1846,8 +1941,14 @@ impl State {
                 let Some(cmd) = self.cmds.iter().find(|c| c.node == *node) else {
                     return format!("{path} ends");
                 };
-                if matches!(cmd.model, Some(Modelled::Decided(..))) {
-                    return format!("{path} ends as its model decided");
+                match &cmd.model {
+                    Some(Modelled::Decided(_, Ending::Succeeds(_))) => {
+                        return format!("{path} succeeds");
+                    }
+                    Some(Modelled::Decided(_, Ending::Fails(e, _))) => {
+                        return format!("{path} fails with {e}");
+                    }
+                    _ => {}
                 }
                 if *outcome == 0 {
                     format!("{path} succeeds")
@@ -1952,6 +2053,34 @@ fn handler_spec(prog: &Program, h: &crate::ir::HandlerUse, env: &Env) -> Handler
         max_activations: max,
         body: Fac::Handler(h.handler, args),
     }
+}
+
+/// Adds `u` (evaluated in `env`) to what the spawn `spec` asks of the resources, as the generated
+/// `.uses(r, n)`, `.priority(p)` and `.deny_if_busy()` do: amounts add up, a priority replaces the
+/// one before, `deny if busy` stays. An amount or priority the checker cannot evaluate is 1 or 0.
+fn add_uses(engine: &Eng, prog: &Program, spec: &mut Spawn<Act, Fac>, u: &UsesIr, env: &Env) {
+    if u.is_empty() {
+        return;
+    }
+    let req = spec.uses.get_or_insert_with(Box::default);
+    for (r, amount) in &u.amounts {
+        let Some(id) = prog
+            .resources
+            .get(*r as usize)
+            .and_then(|d| engine.resource_id(d.name))
+        else {
+            continue;
+        };
+        req.amounts
+            .push((id, count(&amount.eval(env)).unwrap_or(1)));
+    }
+    if let Some(p) = &u.priority {
+        req.priority = match p.eval(env) {
+            Value::Int(i) => i32::try_from(i).unwrap_or(if i < 0 { i32::MIN } else { i32::MAX }),
+            _ => 0,
+        };
+    }
+    req.deny_if_busy |= u.deny_if_busy;
 }
 
 fn event(e: &EventIr, n: NodeRef) -> Event {

@@ -11,8 +11,8 @@ use tdl_syntax::ast;
 
 use crate::ir::{
     Body, CIr, Call, Callee, EventIr, Exits, GroupId, GroupIr, HandlerUse, IndexIr, Iter, LoopId,
-    MonitorOverride, Op, SpawnIr, StmtIr, StmtOp, TagDef, TagId, TagKind, TagRef, TaskId, TimeIr,
-    Wait, WhenIr,
+    MonitorOverride, Op, ResOp, SpawnIr, StmtIr, StmtOp, TagDef, TagId, TagKind, TagRef, TaskId,
+    TimeIr, UsesIr, Wait, WhenIr,
 };
 use crate::value::{Sym, VExpr, lower};
 
@@ -62,7 +62,17 @@ pub(crate) struct TaskDef {
     pub(crate) for_task: Option<String>,
     /// The exceptions its body raises with `fail` (a bare `fail` is `Fail`).
     pub(crate) raises: BTreeSet<String>,
+    /// Its task-level `uses` and `priority`.
+    pub(crate) uses: UsesIr,
     pub(crate) file: usize,
+}
+
+/// A resource the program declares: `resource name(capacity) [pending N];`.
+#[derive(Clone, Debug)]
+pub(crate) struct ResourceDef {
+    pub(crate) name: &'static str,
+    pub(crate) capacity: u32,
+    pub(crate) pending: Option<u32>,
 }
 
 /// A TDL program, ready to be verified.
@@ -79,6 +89,8 @@ pub struct Program {
     pub(crate) raisable: Vec<&'static str>,
     /// The external events named by literal (and computed names, as a placeholder each).
     pub(crate) external_events: Vec<String>,
+    /// The resources it declares, in order.
+    pub(crate) resources: Vec<ResourceDef>,
     pub(crate) symbols: Vec<String>,
     pub(crate) files: Vec<String>,
     /// What the checker abstracts that a reader should know of, with its place.
@@ -127,8 +139,17 @@ impl Program {
                         b.parents
                             .insert(e.name.to_string(), e.parent.as_ref().map(|p| p.to_string()));
                     }
-                    // Resources are not modelled yet: their uses are left out, with a note.
-                    ast::Item::Resource(_) | ast::Item::Rust(_) => {}
+                    ast::Item::Resource(r) => {
+                        let name = r.name.to_string();
+                        if !b.prog.resources.iter().any(|d| d.name == name) {
+                            b.prog.resources.push(ResourceDef {
+                                name: leak(&name),
+                                capacity: r.capacity.base10_parse().unwrap_or(1),
+                                pending: r.pending.as_ref().and_then(|p| p.base10_parse().ok()),
+                            });
+                        }
+                    }
+                    ast::Item::Rust(_) => {}
                 }
             }
         }
@@ -325,6 +346,31 @@ impl Builder {
         }
     }
 
+    /// A declared resource and its amount; `None` for a resource the program does not declare.
+    fn resource_amount(&mut self, it: &ast::ResourceAmount) -> Option<(u16, VExpr)> {
+        let r = self.resource(&it.name.to_string())?;
+        let amount = match &it.amount {
+            Some(c) => self.count(c),
+            None => VExpr::Lit(crate::value::Value::Int(1)),
+        };
+        Some((r, amount))
+    }
+
+    fn resource(&self, name: &str) -> Option<u16> {
+        self.prog
+            .resources
+            .iter()
+            .position(|d| d.name == name)
+            .and_then(|i| u16::try_from(i).ok())
+    }
+
+    fn priority(&mut self, p: &ast::Priority) -> VExpr {
+        match p {
+            ast::Priority::Const(n) => VExpr::Lit(crate::value::Value::Int(*n)),
+            ast::Priority::Expr(e) => self.lower(e),
+        }
+    }
+
     fn handler_use(
         &mut self,
         h: &ast::HandlerRef,
@@ -370,6 +416,7 @@ impl Builder {
             handles: t.handles.as_ref().map(|h| leak(&h.to_string())),
             for_task: t.for_task.as_ref().map(|h| h.to_string()),
             raises: BTreeSet::new(),
+            uses: UsesIr::default(),
             file,
         };
         def.params = t
@@ -396,15 +443,24 @@ impl Builder {
                     def.on_terminate.push(call);
                 }
                 ast::TaskConstraintKind::Persistent(_) => {}
-                ast::TaskConstraintKind::Uses(_) | ast::TaskConstraintKind::Priority(_) => {
-                    let n = format!(
-                        "{}:{cline}: `uses`/`priority` of `{}` left out: resources are not \
-                         modelled yet (more interleavings are explored than the resources allow)",
-                        b_files_name(&self.prog.files, file),
-                        t.name
-                    );
-                    self.prog.notes.push(n);
+                ast::TaskConstraintKind::Uses(list) => {
+                    for it in list {
+                        match self.resource_amount(it) {
+                            Some(u) => def.uses.amounts.push(u),
+                            None => {
+                                let n = format!(
+                                    "{}:{cline}: `uses {}` of `{}` left out: the program does not \
+                                     declare the resource",
+                                    b_files_name(&self.prog.files, file),
+                                    it.name,
+                                    t.name
+                                );
+                                self.prog.notes.push(n);
+                            }
+                        }
+                    }
                 }
+                ast::TaskConstraintKind::Priority(p) => def.uses.priority = Some(self.priority(p)),
                 ast::TaskConstraintKind::MaximumActivate(n) => {
                     def.max_activations = Some(self.count(n));
                 }
@@ -791,6 +847,29 @@ impl<'b> BodyCompiler<'b> {
     }
 
     /// A constraint that waits or triggers, as the checker applies it; `None` for the others.
+    /// A spawn's or a group's `uses`, `priority` or `deny if busy`, into `uses`.
+    fn uses(&mut self, uses: &mut UsesIr, c: &ast::Constraint) {
+        match &c.kind {
+            ast::ConstraintKind::Uses(list) => {
+                for it in list {
+                    match self.b.resource_amount(it) {
+                        Some(u) => uses.amounts.push(u),
+                        None => self.note(
+                            line_of(c.span),
+                            format!(
+                                "`uses {}` left out: the program does not declare the resource",
+                                it.name
+                            ),
+                        ),
+                    }
+                }
+            }
+            ast::ConstraintKind::Priority(p) => uses.priority = Some(self.b.priority(p)),
+            ast::ConstraintKind::DenyIfBusy => uses.deny_if_busy = true,
+            _ => {}
+        }
+    }
+
     fn constraint(&mut self, c: &ast::Constraint) -> Option<CIr> {
         let line = line_of(c.span);
         Some(match &c.kind {
@@ -819,8 +898,7 @@ impl<'b> BodyCompiler<'b> {
             | ast::ConstraintKind::DenyIfBusy => {
                 self.note(
                     line,
-                    "a resource constraint left out: resources are not modelled yet (more \
-                     interleavings are explored than the resources allow)",
+                    "a resource constraint given as a statement is left out",
                 );
                 return None;
             }
@@ -886,14 +964,28 @@ impl<'b> BodyCompiler<'b> {
             ast::Stmt::Succeed(span) => {
                 self.emit(Op::Succeed, line_of(*span));
             }
-            ast::Stmt::Resource(r) => self.note(
-                line_of(r.span),
-                format!(
-                    "`{} {}` left out: resources are not modelled yet",
-                    r.op.as_str(),
-                    r.name
-                ),
-            ),
+            ast::Stmt::Resource(r) => {
+                let line = line_of(r.span);
+                match self.b.resource(&r.name.to_string()) {
+                    Some(i) => {
+                        let op = match r.op {
+                            ast::ResourceOp::Lock => ResOp::Lock,
+                            ast::ResourceOp::Unlock => ResOp::Unlock,
+                            ast::ResourceOp::Reserve => ResOp::Reserve,
+                            ast::ResourceOp::Unreserve => ResOp::Unreserve,
+                        };
+                        self.emit(Op::Resource(op, i), line);
+                    }
+                    None => self.note(
+                        line,
+                        format!(
+                            "`{} {}` left out: the program does not declare the resource",
+                            r.op.as_str(),
+                            r.name
+                        ),
+                    ),
+                }
+            }
             ast::Stmt::Fail(f) => {
                 let e = f.exception.as_ref().map(|e| e.to_string());
                 self.raises
@@ -1165,6 +1257,7 @@ impl<'b> BodyCompiler<'b> {
             handlers: Vec::new(),
             on_terminate: Vec::new(),
             monitor: MonitorOverride::default(),
+            uses: UsesIr::default(),
             terminable: false,
             line,
         };
@@ -1205,6 +1298,9 @@ impl<'b> BodyCompiler<'b> {
                     ot += 1;
                     ir.on_terminate.push((call, tag));
                 }
+                ast::ConstraintKind::Uses(_)
+                | ast::ConstraintKind::Priority(_)
+                | ast::ConstraintKind::DenyIfBusy => self.uses(&mut ir.uses, c),
                 _ => {
                     if let Some(ci) = self.constraint(c) {
                         ir.terminable |= ci.terminates();
@@ -1283,6 +1379,7 @@ impl<'b> BodyCompiler<'b> {
         let mut ir = GroupIr {
             cons: Vec::new(),
             monitor: MonitorOverride::default(),
+            uses: UsesIr::default(),
             wait: false,
             propagate: false,
             terminable: false,
@@ -1297,6 +1394,9 @@ impl<'b> BodyCompiler<'b> {
                 ast::ConstraintKind::Wait => ir.wait = true,
                 ast::ConstraintKind::Propagate => ir.propagate = true,
                 ast::ConstraintKind::Parallel | ast::ConstraintKind::Name(_) => {}
+                ast::ConstraintKind::Uses(_)
+                | ast::ConstraintKind::Priority(_)
+                | ast::ConstraintKind::DenyIfBusy => self.uses(&mut ir.uses, c),
                 _ => {
                     if let Some(ci) = self.constraint(c) {
                         ir.terminable |= ci.terminates();

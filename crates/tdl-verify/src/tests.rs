@@ -62,6 +62,7 @@ fn shortest(
         opts: options,
         model,
         props,
+        sim: false,
     };
     let mut init = State::init(&cx, "deliver_all", !props.is_empty());
     assert!(

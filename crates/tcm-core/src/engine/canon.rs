@@ -4,7 +4,8 @@
 //! Two engines get the same hash when they will behave alike from now on, whatever history led
 //! each there: the hash covers everything that decides the future (every live node with its
 //! states, blocks, waiters, monitor counts, handler uses and deferred constraints; the live timers;
-//! the external events) and leaves out what only records the past:
+//! the external events; the resources, their grants, reservations, locks and waiting requests)
+//! and leaves out what only records the past:
 //!
 //! - node handles and display numbers: nodes are numbered in a canonical order instead (a walk
 //!   from the root through children in spawn order, each node's reservations after its children),
@@ -194,6 +195,7 @@ impl<A: Hash, F: Hash + Clone> Engine<A, F> {
         }
         self.running.hash(h);
         self.fatal.is_some().hash(h);
+        c.resources(h);
         canon
     }
 
@@ -620,5 +622,46 @@ impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
             self.constraint(c, h);
         }
         cold.propagate.hash(h);
+        // The resources it uses and where it stands with them.
+        match &cold.uses {
+            None => 0u8.hash(h),
+            Some(u) => {
+                1u8.hash(h);
+                u.amounts.len().hash(h);
+                for (r, n) in &u.amounts {
+                    r.idx.hash(h);
+                    n.hash(h);
+                }
+                u.priority.hash(h);
+                u.deny_if_busy.hash(h);
+            }
+        }
+        (cold.grant as u8).hash(h);
+    }
+
+    /// The run's resources: what each has granted, to whom, its reservation and lock, and the
+    /// waiting requests in grant order (their order numbers only record when they were made).
+    fn resources(&self, h: &mut impl Hasher) {
+        let res = &self.engine.res;
+        res.list.len().hash(h);
+        for r in &res.list {
+            name(&r.name, h);
+            r.capacity.hash(h);
+            r.pending_limit.hash(h);
+            r.in_use.hash(h);
+            r.holders.len().hash(h);
+            for (node, n) in &r.holders {
+                self.node_ref(*node, h);
+                n.hash(h);
+            }
+            self.opt_ref(r.reserved_for, h);
+            r.locked.hash(h);
+        }
+        res.waiting.len().hash(h);
+        for q in &res.waiting {
+            self.node_ref(q.node, h);
+            q.priority.hash(h);
+        }
+        res.dirty.hash(h);
     }
 }

@@ -183,3 +183,51 @@ fn a_monitor_polling_forever_comes_back_to_the_same_state() {
     }
     assert_ne!(limited[1], limited[2]);
 }
+
+#[test]
+fn resource_tables_are_part_of_the_state() {
+    // Two commands use one base: the second waits for it. Then it is locked, and reserved.
+    let mut e: E = Engine::new(1);
+    let base = e.declare_resource("base", 1, None).expect("declared");
+    let root = e.root();
+    let a = e
+        .spawn(
+            t(0),
+            Spawn::new(root, NodeKind::Command, "a", 1).using(base, 1),
+        )
+        .expect("spawn a");
+    let only_a = hash(&e);
+    let _b = e
+        .spawn(
+            t(0),
+            Spawn::new(root, NodeKind::Command, "b", 1).using(base, 1),
+        )
+        .expect("spawn b");
+    assert_eq!(started(&mut e), vec![a]);
+    let waiting = hash(&e);
+    assert_ne!(only_a, waiting);
+    let mut locked = e.clone();
+    locked.lock_resource(t(0), base).expect("locks");
+    assert_ne!(hash(&locked), waiting, "a lock");
+    let mut reserved = e.clone();
+    reserved.reserve_resource(t(0), base, a).expect("reserves");
+    assert_ne!(hash(&reserved), waiting, "a reservation");
+    // The same request order reached through another history hashes alike.
+    let mut again: E = Engine::new(1);
+    let base2 = again.declare_resource("base", 1, None).expect("declared");
+    let root2 = again.root();
+    let a2 = again
+        .spawn(
+            t(3),
+            Spawn::new(root2, NodeKind::Command, "a", 1).using(base2, 1),
+        )
+        .expect("spawn a");
+    let _ = again
+        .spawn(
+            t(3),
+            Spawn::new(root2, NodeKind::Command, "b", 1).using(base2, 1),
+        )
+        .expect("spawn b");
+    assert_eq!(started(&mut again), vec![a2]);
+    assert_eq!(hash(&again), waiting);
+}

@@ -1,15 +1,72 @@
 //! The one integration-test binary of the `tdl` CLI: runs the built binary on files in
 //! `tests/data` and checks output and exit codes. `tdl graph` and `tdl doc` have their own
-//! modules (`graph.rs`, `doc.rs`), as have `tdl trace export` (`export.rs`) and `tdl verify`
-//! (`verify.rs`).
+//! modules (`graph.rs`, `doc.rs`), as have `tdl trace export` (`export.rs`), `tdl verify`
+//! (`verify.rs`) and `tdl sim` (`sim.rs`).
 
 use std::process::Command;
 
 mod doc;
 mod export;
 mod graph;
+mod sim;
 mod verify;
 mod view;
+
+/// Starts `tdl ARGS`, waits for its first progress line on standard error (the search is under
+/// way), sends it a real SIGINT (`kill -INT`), and returns its exit code, its standard output and
+/// how long it took to exit after the signal.
+#[cfg(unix)]
+fn interrupted(args: &[&str]) -> (i32, String, std::time::Duration) {
+    use std::io::{BufRead, Read};
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tdl"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run tdl");
+    let stderr = child.stderr.take().expect("piped");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
+            let _ = tx.send(line);
+        }
+    });
+    // Progress lines come once a second when standard error is not a terminal.
+    let first = rx.recv_timeout(Duration::from_secs(120));
+    let pid = child.id().to_string();
+    let killed = Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .expect("run kill");
+    assert!(killed.success(), "kill -INT {pid}");
+    let sent = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            break status;
+        }
+        if sent.elapsed() > Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("tdl did not stop within a minute of SIGINT");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let took = sent.elapsed();
+    let mut out = String::new();
+    child
+        .stdout
+        .take()
+        .expect("piped")
+        .read_to_string(&mut out)
+        .expect("reads");
+    assert!(first.is_ok(), "no progress line before the signal:\n{out}");
+    (status.code().unwrap_or(-1), out, took)
+}
 
 fn tdl(args: &[&str]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_tdl"))

@@ -7,3 +7,4 @@
 //! seconds in a debug build; `docs/verification.md` has the run with the default bounds.
 
 mod mission;
+mod sim;

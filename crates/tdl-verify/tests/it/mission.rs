@@ -208,6 +208,46 @@ fn two_motion_commands_together_break_a_user_property() {
     holds(&report, motion.text());
 }
 
+/// Resources are modelled: the base (capacity 1) that every motion uses keeps a turn that lost
+/// its ordering from running with a move; without the base, it runs with one.
+#[test]
+fn the_base_resource_keeps_two_motions_apart() {
+    let motion = Property::parse("never active(turn) and active(guarded_move)").expect("parses");
+    let options = Options {
+        loops: 2,
+        ..small()
+    };
+    let path = data("unordered_motion.tdl");
+    let report = verify(
+        &path,
+        &options,
+        std::slice::from_ref(&motion),
+        Some(&AllSucceed),
+    );
+    holds(&report, motion.text());
+    holds(&report, NO_STUCK);
+    assert!(report.complete);
+    // The same program without the turn's use of the base.
+    let src = std::fs::read_to_string(&path).expect("reads");
+    let old = "spawn turn(&m.world, leg.turn) with uses base;";
+    assert_eq!(src.matches(old).count(), 1);
+    let without = src.replace(old, "spawn turn(&m.world, leg.turn);");
+    let program = Program::load(&[("without_base.tdl".into(), without)]).expect("loads");
+    let report = tdl_verify::verify(
+        &program,
+        "deliver_all",
+        &options,
+        std::slice::from_ref(&motion),
+        Some(&AllSucceed),
+        &Control::default(),
+    );
+    let c = violated(&report, motion.text());
+    trace_replays(c);
+    // No resource constraint is left out any more.
+    let notes = load(&path).notes().to_vec();
+    assert!(notes.iter().all(|n| !n.contains("resource")), "{notes:?}");
+}
+
 #[test]
 fn a_stop_gives_what_was_found_so_far() {
     let program = load(&mission());
