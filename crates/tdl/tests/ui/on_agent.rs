@@ -1,6 +1,7 @@
 tdl::tdl! {
     goal g() {
-        spawn a() with on "robot2";
+        spawn a();
+        a on "robot2";
     }
     command a() {}
 }
