@@ -166,6 +166,9 @@ pub(crate) struct SpawnIr {
     /// A termination constraint (on it or on its group) or a `terminate` statement names it: a
     /// command under it may be left running forever (docs/verification.md, "Commands").
     pub(crate) terminable: bool,
+    /// `on AGENT` (on it or on its group): a command of the checker's choice that may also fail
+    /// with `AgentLost`.
+    pub(crate) remote: bool,
     pub(crate) line: u32,
 }
 
@@ -195,6 +198,8 @@ pub(crate) struct GroupIr {
     pub(crate) wait: bool,
     pub(crate) propagate: bool,
     pub(crate) terminable: bool,
+    /// `on AGENT`: every member runs on an agent.
+    pub(crate) remote: bool,
     /// Its constraints name `previous`: a nested group then sees the entity before it.
     pub(crate) uses_previous: bool,
     /// Its label's tag, when something names it.

@@ -66,6 +66,10 @@ use search::{Found, path_to};
 /// [`Options::unknown_exception`].
 pub const UNKNOWN_EXCEPTION: &str = "UnknownException";
 
+/// The exception a task placed on an agent (`on`) may also fail with: its agent was lost while it
+/// ran the task (`tcm_zenoh::AgentLost`).
+pub const AGENT_LOST: &str = "AgentLost";
+
 /// The bounds and choices of a verification (docs/verification.md, "Bounds").
 #[derive(Clone, Debug)]
 pub struct Options {

@@ -48,6 +48,8 @@ pub(crate) struct Act {
     pub(crate) args: Arc<[Value]>,
     /// Nested beyond the recursion bound: run as a command of the checker's choice.
     pub(crate) abstracted: bool,
+    /// Placed on an agent (`on`): a command of the checker's choice that may lose its agent.
+    pub(crate) remote: bool,
 }
 
 /// What the engine runs again and again: monitor activations, handlers, retries.
@@ -148,6 +150,8 @@ struct Cmd {
     callee: Callee,
     /// A task nested beyond the recursion bound, run as a command.
     abstracted: bool,
+    /// Placed on an agent: it may also fail with `AgentLost`.
+    remote: bool,
     args: Arc<[Value]>,
     start: Time,
     /// Deadlines it outlasted.
@@ -326,7 +330,7 @@ impl State {
         };
         let args: Arc<[Value]> = vec![Value::Unknown; n_params].into();
         let root = s.engine.root();
-        let spec = s.task_spec(cx, root, callee, args, None, false);
+        let spec = s.task_spec(cx, root, callee, args, None, false, false);
         let now = s.engine.now();
         match s.engine.spawn(now, spec) {
             Ok(id) => s.root = Some(id),
@@ -416,7 +420,9 @@ impl State {
                     }
                 }
                 None => {
-                    let n = 1 + self.raises(cx, cmd.callee, cmd.abstracted).len();
+                    let n = 1 + self
+                        .raises(cx, cmd.callee, cmd.abstracted, cmd.remote)
+                        .len();
                     for k in 0..n {
                         out.push(Action::End {
                             node: cmd.node,
@@ -469,8 +475,9 @@ impl State {
         cx: &'p Ctx<'_>,
         callee: Callee,
         abstracted: bool,
+        remote: bool,
     ) -> Vec<&'p str> {
-        let mut out: Vec<&str> = match (callee, abstracted) {
+        let mut out: Vec<&str> = match (callee, abstracted || remote) {
             (Callee::Task(id), false) => {
                 cx.prog.task(id).raises.iter().map(String::as_str).collect()
             }
@@ -478,6 +485,10 @@ impl State {
         };
         if cx.opts.unknown_exception && (abstracted || matches!(callee, Callee::Extern(_))) {
             out.push(crate::UNKNOWN_EXCEPTION);
+        }
+        // Placed on an agent: the agent may be lost while it runs the task.
+        if remote {
+            out.push(crate::AGENT_LOST);
         }
         out
     }
@@ -497,7 +508,7 @@ impl State {
             };
             out.push(Undrawn {
                 node: c.node,
-                raises: self.raises(cx, c.callee, c.abstracted),
+                raises: self.raises(cx, c.callee, c.abstracted, c.remote),
                 may_hang: u32::from(self.hangs) < cx.opts.hangs && self.is_terminable(c.node),
                 endings,
             });
@@ -564,7 +575,7 @@ impl State {
                         )),
                         _ if *outcome == 0 => Ok(()),
                         _ => {
-                            let raises = s.raises(cx, cmd.callee, cmd.abstracted);
+                            let raises = s.raises(cx, cmd.callee, cmd.abstracted, cmd.remote);
                             let e = raises
                                 .get(*outcome as usize - 1)
                                 .copied()
@@ -697,7 +708,7 @@ impl State {
     }
 
     fn start_action(&mut self, cx: &Ctx<'_>, node: NodeId, act: Act) {
-        if let (Callee::Task(id), false) = (act.callee, act.abstracted) {
+        if let (Callee::Task(id), false) = (act.callee, act.abstracted || act.remote) {
             let def = cx.prog.task(id);
             if matches!(
                 def.kind,
@@ -715,6 +726,7 @@ impl State {
             node,
             callee: act.callee,
             abstracted: act.abstracted,
+            remote: act.remote,
             args: act.args,
             start: self.engine.now(),
             ticks: 0,
@@ -794,6 +806,7 @@ impl State {
         args: Arc<[Value]>,
         name: Option<String>,
         abstracted: bool,
+        remote: bool,
     ) -> Spawn<Act, Fac> {
         let prog = cx.prog;
         let task_name = prog.callee_name(callee);
@@ -801,8 +814,10 @@ impl State {
             callee,
             args: args.clone(),
             abstracted,
+            remote,
         };
-        if abstracted {
+        // A task placed on an agent runs there, not its body here: a command, as below.
+        if abstracted || (remote && matches!(callee, Callee::Task(_))) {
             // Nested beyond the recursion bound: a command of the checker's choice, with the
             // task's name and none of its own handlers (its failures go up as the subtree's
             // would; docs/verification.md, "Bounds").
@@ -870,6 +885,7 @@ impl State {
                             callee: c.callee,
                             args: a,
                             abstracted: false,
+                            remote: false,
                         },
                         fulfils: None,
                     });
@@ -1579,7 +1595,15 @@ impl State {
             Value::Str(s) => Some(s.to_string()),
             _ => None,
         });
-        let mut spec = self.task_spec(cx, c.node, sp.call.callee, args, instance, abstracted);
+        let mut spec = self.task_spec(
+            cx,
+            c.node,
+            sp.call.callee,
+            args,
+            instance,
+            abstracted,
+            sp.remote,
+        );
         let mut armed: Vec<Lowered> = Vec::new();
         // The groups' constraints (outermost first, each with its own `previous`), then its own.
         let mut lists: Vec<(&[CIr], Option<Vec<NodeId>>)> = Vec::new();
@@ -1648,6 +1672,7 @@ impl State {
                     callee: call.callee,
                     args: a,
                     abstracted: false,
+                    remote: false,
                 },
                 fulfils,
             });
@@ -1818,6 +1843,7 @@ impl State {
             i.hash(h);
             c.callee.hash(h);
             c.abstracted.hash(h);
+            c.remote.hash(h);
             c.args.hash(h);
             c.hung.hash(h);
             // How many deadlines it outlasted (it may outlast `Options::ticks`).
@@ -1953,7 +1979,7 @@ impl State {
                 if *outcome == 0 {
                     format!("{path} succeeds")
                 } else {
-                    let raises = self.raises(cx, cmd.callee, cmd.abstracted);
+                    let raises = self.raises(cx, cmd.callee, cmd.abstracted, cmd.remote);
                     format!(
                         "{path} fails with {}",
                         raises.get(*outcome as usize - 1).copied().unwrap_or("?")

@@ -1259,6 +1259,7 @@ impl<'b> BodyCompiler<'b> {
             monitor: MonitorOverride::default(),
             uses: UsesIr::default(),
             terminable: false,
+            remote: false,
             line,
         };
         // Its own tag, if some reference names it (a label or its task, spawned once).
@@ -1285,9 +1286,9 @@ impl<'b> BodyCompiler<'b> {
                 ast::ConstraintKind::Parent(_) => {
                     return Err(self.unsupported(cline, "`parent` (a spawn under another node)"));
                 }
-                ast::ConstraintKind::OnAgent(_) => {
-                    return Err(self.unsupported(cline, "`on` (a distributed task)"));
-                }
+                // Runs on an agent: a command of the checker's choice, which may also lose its
+                // agent (docs/verification.md, "Commands").
+                ast::ConstraintKind::OnAgent(_) => ir.remote = true,
                 ast::ConstraintKind::ExceptionHandler(h) => {
                     let u = self.b.handler_use(h, self.file, cline)?;
                     ir.handlers.push(u);
@@ -1322,6 +1323,7 @@ impl<'b> BodyCompiler<'b> {
                 ir.wait = Wait::Plain;
             }
             ir.propagate |= gi.propagate;
+            ir.remote |= gi.remote;
         }
         // A tag is created when a reference uses one of its names; references may come later in
         // the body, so every name of this spawn is looked up now and the tag made if it resolves
@@ -1383,6 +1385,7 @@ impl<'b> BodyCompiler<'b> {
             wait: false,
             propagate: false,
             terminable: false,
+            remote: false,
             uses_previous: false,
             tag: None,
         };
@@ -1393,6 +1396,7 @@ impl<'b> BodyCompiler<'b> {
             match &c.kind {
                 ast::ConstraintKind::Wait => ir.wait = true,
                 ast::ConstraintKind::Propagate => ir.propagate = true,
+                ast::ConstraintKind::OnAgent(_) => ir.remote = true,
                 ast::ConstraintKind::Parallel | ast::ConstraintKind::Name(_) => {}
                 ast::ConstraintKind::Uses(_)
                 | ast::ConstraintKind::Priority(_)

@@ -6,5 +6,6 @@
 //! command left running forever, no command outlasting a deadline) so that the tests run in
 //! seconds in a debug build; `docs/verification.md` has the run with the default bounds.
 
+mod agents;
 mod mission;
 mod sim;
