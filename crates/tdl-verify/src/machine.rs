@@ -330,7 +330,13 @@ impl State {
         };
         let args: Arc<[Value]> = vec![Value::Unknown; n_params].into();
         let root = s.engine.root();
-        let spec = s.task_spec(cx, root, callee, args, None, false, false);
+        let act = Act {
+            callee,
+            args,
+            abstracted: false,
+            remote: false,
+        };
+        let spec = s.task_spec(cx, root, act, None);
         let now = s.engine.now();
         match s.engine.spawn(now, spec) {
             Ok(id) => s.root = Some(id),
@@ -802,20 +808,13 @@ impl State {
         &mut self,
         cx: &Ctx<'_>,
         parent: NodeId,
-        callee: Callee,
-        args: Arc<[Value]>,
+        act: Act,
         name: Option<String>,
-        abstracted: bool,
-        remote: bool,
     ) -> Spawn<Act, Fac> {
         let prog = cx.prog;
+        let (callee, abstracted, remote) = (act.callee, act.abstracted, act.remote);
+        let args = act.args.clone();
         let task_name = prog.callee_name(callee);
-        let act = Act {
-            callee,
-            args: args.clone(),
-            abstracted,
-            remote,
-        };
         // A task placed on an agent runs there, not its body here: a command, as below.
         if abstracted || (remote && matches!(callee, Callee::Task(_))) {
             // Nested beyond the recursion bound: a command of the checker's choice, with the
@@ -1595,15 +1594,13 @@ impl State {
             Value::Str(s) => Some(s.to_string()),
             _ => None,
         });
-        let mut spec = self.task_spec(
-            cx,
-            c.node,
-            sp.call.callee,
+        let act = Act {
+            callee: sp.call.callee,
             args,
-            instance,
             abstracted,
-            sp.remote,
-        );
+            remote: sp.remote,
+        };
+        let mut spec = self.task_spec(cx, c.node, act, instance);
         let mut armed: Vec<Lowered> = Vec::new();
         // The groups' constraints (outermost first, each with its own `previous`), then its own.
         let mut lists: Vec<(&[CIr], Option<Vec<NodeId>>)> = Vec::new();
