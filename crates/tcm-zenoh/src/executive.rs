@@ -68,6 +68,21 @@ struct State {
     stats: Stats,
 }
 
+/// Logs a message ignored (`what`, of a `whose` task) and writes it to the trace as a warning
+/// on its node, through `ctx` (a run already over has no trace to write to).
+fn ignored(msg: &Msg<ToExec>, what: &str, whose: &str, ctx: Option<Ctx>) {
+    let text = format!(
+        "{what} {} of {whose} {} ignored ({})",
+        msg.seq,
+        msg.task,
+        msg.body.name()
+    );
+    tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq, "{text}");
+    if let Some(ctx) = ctx {
+        let _ = ctx.warn(text);
+    }
+}
+
 impl State {
     fn end(&mut self, task: u64, seq: u64) {
         if let Some(p) = self.pending.remove(&task) {
@@ -395,31 +410,14 @@ impl Inner {
             }
             drop(s);
             let what = if dup { "duplicate" } else { "late" };
-            let text = format!(
-                "{what} message {} of ended remote task {} ignored ({})",
-                msg.seq,
-                msg.task,
-                msg.body.name()
-            );
-            tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq, "{text}");
-            if let Some(ctx) = ctx {
-                // A run already over has no trace to write to.
-                let _ = ctx.warn(text);
-            }
+            ignored(&msg, &format!("{what} message"), "ended remote task", ctx);
             return;
         };
         if msg.seq <= p.last_seq {
             let ctx = p.ctx.clone();
             s.stats.duplicates += 1;
             drop(s);
-            let text = format!(
-                "duplicate message {} of remote task {} ignored ({})",
-                msg.seq,
-                msg.task,
-                msg.body.name()
-            );
-            tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq, "{text}");
-            let _ = ctx.warn(text);
+            ignored(&msg, "duplicate message", "remote task", Some(ctx));
             return;
         }
         p.last_seq = msg.seq;

@@ -179,37 +179,7 @@ impl Remote {
     /// remote task), its arguments kept beside the node as a [`serde_json::Value`] (wiretaps read
     /// them; `Ctx::retry_with` a new value).
     pub fn task(self) -> Task {
-        let kind = match self.kind {
-            Kind::Command => NodeKind::Command,
-            Kind::Goal => NodeKind::Goal,
-        };
-        let args = match self.args {
-            Ok(a) => a,
-            Err(e) => {
-                let message = format!(
-                    "arguments of remote task {} do not serialise: {e}",
-                    self.name
-                );
-                return Task::new(kind, self.name, move |_| async move {
-                    Err::<Json, _>(RemoteError::failure(message))
-                });
-            }
-        };
-        let spec = Arc::new(Spec {
-            exec: self.exec,
-            at: self.at,
-            name: self.name.clone(),
-            kind: self.kind,
-            options: self.options,
-        });
-        let grace = spec.options.grace;
-        let task = Task::retryable_with(kind, self.name, args, move |ctx, args| {
-            run(spec.clone(), ctx, args)
-        });
-        match grace {
-            Some(g) => task.grace(g),
-            None => task,
-        }
+        self.task_map(Result::<Json, String>::Ok)
     }
 }
 

@@ -20,7 +20,8 @@ use std::time::{Duration, Instant};
 use tdl_verify::{Control, Options, SimOptions, SimProgress, SimReport};
 
 use crate::verify::{
-    load_program, load_properties, print_counterexample, slug, stop_on_ctrl_c, write_trace,
+    load_program, load_properties, print_counterexample, print_errors_and_notes, slug,
+    stop_on_ctrl_c, write_trace,
 };
 
 /// Options of `tdl sim`.
@@ -326,16 +327,7 @@ fn print_report(report: &SimReport, dir: &Path, out: &mut impl Write) -> anyhow:
             print_counterexample(c, &file, out)?;
         }
     }
-    for e in &report.errors {
-        writeln!(out, "checker error (please report): {e}")?;
-    }
-    if !report.notes.is_empty() {
-        writeln!(out, "what the checker abstracts here:")?;
-        for n in &report.notes {
-            writeln!(out, "  {n}")?;
-        }
-    }
-    Ok(())
+    print_errors_and_notes(&report.errors, &report.notes, out)
 }
 
 #[cfg(test)]

@@ -304,12 +304,22 @@ fn print_report(report: &Report, dir: &Path, out: &mut impl Write) -> anyhow::Re
             }
         }
     }
-    for e in &report.errors {
+    print_errors_and_notes(&report.errors, &report.notes, out)
+}
+
+/// The end of a report, as `tdl verify` and `tdl sim` print it: the checker's own errors, then
+/// what it abstracts in this program.
+pub(crate) fn print_errors_and_notes(
+    errors: &[String],
+    notes: &[String],
+    out: &mut impl Write,
+) -> anyhow::Result<()> {
+    for e in errors {
         writeln!(out, "checker error (please report): {e}")?;
     }
-    if !report.notes.is_empty() {
+    if !notes.is_empty() {
         writeln!(out, "what the checker abstracts here:")?;
-        for n in &report.notes {
+        for n in notes {
             writeln!(out, "  {n}")?;
         }
     }
