@@ -3,9 +3,99 @@
 //! Slots are reused after a node is reclaimed; every reuse bumps the slot's generation, so an old
 //! [`NodeId`] can never reach the new occupant. The slot remembers the fate of its last occupant,
 //! which lets the engine answer constraints naming a node that was already reclaimed.
+//!
+//! A slot keeps its node as the engine's store says ([`Keep`]): in place ([`Owned`], a run), or
+//! shared between clones of an engine until one of them writes it ([`Shared`], the model checker,
+//! which clones an engine for every transition and changes a few of its nodes).
 
 use crate::engine::node::Node;
 use crate::ids::NodeId;
+use std::rc::Rc;
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::Owned {}
+    impl Sealed for super::Shared {}
+}
+
+/// How an engine keeps its nodes: [`Owned`] or [`Shared`]. Sealed: the two are the only ones.
+pub trait Keep<T>: sealed::Sealed {
+    #[doc(hidden)]
+    type Slot;
+    #[doc(hidden)]
+    fn wrap(t: T) -> Self::Slot;
+    #[doc(hidden)]
+    fn get(s: &Self::Slot) -> &T;
+    #[doc(hidden)]
+    fn get_mut(s: &mut Self::Slot) -> &mut T;
+    #[doc(hidden)]
+    fn unwrap(s: Self::Slot) -> T;
+    #[doc(hidden)]
+    fn dup(s: &Self::Slot) -> Self::Slot
+    where
+        T: Clone;
+}
+
+/// Each node in its slot, owned by one engine: what a run uses (the default).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Owned;
+
+/// Nodes shared between clones of an engine until one of them changes the node (copy on write):
+/// cloning the engine copies a pointer per node, and a transition then copies only the nodes it
+/// changes. For engines cloned often, as a model checker does; not `Send`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Shared;
+
+impl<T> Keep<T> for Owned {
+    type Slot = T;
+    #[inline]
+    fn wrap(t: T) -> T {
+        t
+    }
+    #[inline]
+    fn get(s: &T) -> &T {
+        s
+    }
+    #[inline]
+    fn get_mut(s: &mut T) -> &mut T {
+        s
+    }
+    #[inline]
+    fn unwrap(s: T) -> T {
+        s
+    }
+    #[inline]
+    fn dup(s: &T) -> T
+    where
+        T: Clone,
+    {
+        s.clone()
+    }
+}
+
+impl<T: Clone> Keep<T> for Shared {
+    type Slot = Rc<T>;
+    #[inline]
+    fn wrap(t: T) -> Rc<T> {
+        Rc::new(t)
+    }
+    #[inline]
+    fn get(s: &Rc<T>) -> &T {
+        s
+    }
+    #[inline]
+    fn get_mut(s: &mut Rc<T>) -> &mut T {
+        Rc::make_mut(s)
+    }
+    #[inline]
+    fn unwrap(s: Rc<T>) -> T {
+        Rc::unwrap_or_clone(s)
+    }
+    #[inline]
+    fn dup(s: &Rc<T>) -> Rc<T> {
+        Rc::clone(s)
+    }
+}
 
 /// How a reclaimed node ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -18,10 +108,9 @@ pub(crate) enum Fate {
     Dead,
 }
 
-#[derive(Clone)]
-struct Slot<A, F> {
+struct Slot<A, F, S: Keep<Node<A, F>>> {
     generation: u32,
-    node: Option<Node<A, F>>,
+    node: Option<S::Slot>,
     // Invariant: meaningful only while `node` is None and generation > 0.
     fate: Fate,
 }
@@ -39,19 +128,43 @@ pub(crate) enum Lookup {
 const CHUNK_BITS: u32 = 10;
 const CHUNK: usize = 1 << CHUNK_BITS;
 
-#[derive(Clone)]
-pub(crate) struct Arena<A, F> {
+pub(crate) struct Arena<A, F, S: Keep<Node<A, F>>> {
     run: u32,
-    // Invariant: every chunk but the last is full (CHUNK slots); each has capacity CHUNK.
-    chunks: Vec<Vec<Slot<A, F>>>,
+    // Invariant: every chunk but the last is full (CHUNK slots). A chunk made by `insert` has
+    // capacity CHUNK; a clone's grows as it fills.
+    chunks: Vec<Vec<Slot<A, F, S>>>,
     n_slots: usize,
     free: Vec<u32>,
     live: usize,
     high_water: usize,
 }
 
-impl<A, F> Arena<A, F> {
-    pub(crate) fn new(run: u32) -> Arena<A, F> {
+impl<A: Clone, F: Clone, S: Keep<Node<A, F>>> Clone for Slot<A, F, S> {
+    fn clone(&self) -> Self {
+        Slot {
+            generation: self.generation,
+            node: self.node.as_ref().map(S::dup),
+            fate: self.fate,
+        }
+    }
+}
+
+impl<A: Clone, F: Clone, S: Keep<Node<A, F>>> Clone for Arena<A, F, S> {
+    fn clone(&self) -> Self {
+        Arena {
+            run: self.run,
+            // A cloned chunk holds its slots only; the last one grows again as `insert` pushes.
+            chunks: self.chunks.clone(),
+            n_slots: self.n_slots,
+            free: self.free.clone(),
+            live: self.live,
+            high_water: self.high_water,
+        }
+    }
+}
+
+impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
+    pub(crate) fn new(run: u32) -> Arena<A, F, S> {
         Arena {
             run,
             chunks: Vec::new(),
@@ -71,7 +184,7 @@ impl<A, F> Arena<A, F> {
                 unreachable!("a free index names an existing slot");
             };
             slot.generation = slot.generation.wrapping_add(1);
-            slot.node = Some(node);
+            slot.node = Some(S::wrap(node));
             NodeId {
                 run,
                 idx,
@@ -85,7 +198,7 @@ impl<A, F> Arena<A, F> {
             if let Some(chunk) = self.chunks.last_mut() {
                 chunk.push(Slot {
                     generation: 0,
-                    node: Some(node),
+                    node: Some(S::wrap(node)),
                     fate: Fate::Completed,
                 });
             }
@@ -98,13 +211,13 @@ impl<A, F> Arena<A, F> {
         }
     }
 
-    fn slot(&self, idx: u32) -> Option<&Slot<A, F>> {
+    fn slot(&self, idx: u32) -> Option<&Slot<A, F, S>> {
         self.chunks
             .get((idx >> CHUNK_BITS) as usize)?
             .get(idx as usize & (CHUNK - 1))
     }
 
-    fn slot_mut(&mut self, idx: u32) -> Option<&mut Slot<A, F>> {
+    fn slot_mut(&mut self, idx: u32) -> Option<&mut Slot<A, F, S>> {
         self.chunks
             .get_mut((idx >> CHUNK_BITS) as usize)?
             .get_mut(idx as usize & (CHUNK - 1))
@@ -119,7 +232,7 @@ impl<A, F> Arena<A, F> {
         slot.fate = fate;
         self.free.push(id.idx);
         self.live -= 1;
-        Some(node)
+        Some(S::unwrap(node))
     }
 
     /// Frees the node's slot, dropping the node where it lies (no copy out).
@@ -143,7 +256,7 @@ impl<A, F> Arena<A, F> {
         if slot.generation != id.generation {
             return None;
         }
-        slot.node.as_ref()
+        slot.node.as_ref().map(S::get)
     }
 
     pub(crate) fn get_mut(&mut self, id: NodeId) -> Option<&mut Node<A, F>> {
@@ -151,7 +264,7 @@ impl<A, F> Arena<A, F> {
         if slot.generation != id.generation {
             return None;
         }
-        slot.node.as_mut()
+        slot.node.as_mut().map(S::get_mut)
     }
 
     /// Whether the handle names a live node or a reclaimed one (and how it ended). A handle whose
@@ -192,7 +305,7 @@ impl<A, F> Arena<A, F> {
             .flatten()
             .enumerate()
             .filter_map(move |(idx, slot)| {
-                slot.node.as_ref().map(|n| {
+                slot.node.as_ref().map(S::get).map(|n| {
                     (
                         NodeId {
                             run,

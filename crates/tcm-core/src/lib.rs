@@ -30,6 +30,8 @@
 //! - Memory is proportional to live nodes: completed subtrees are reclaimed unless persistent.
 
 #![warn(missing_docs)]
+// `Keep` bounds name the engine's private node type: the store is chosen, never implemented, outside.
+#![allow(private_bounds)]
 
 mod arena;
 mod constraint;
@@ -43,6 +45,7 @@ mod time;
 #[cfg(test)]
 mod tests;
 
+pub use arena::{Keep, Owned, Shared};
 pub use constraint::{Constraint, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{

@@ -60,7 +60,7 @@ pub(crate) enum Fac {
     Retry(Act),
 }
 
-pub(crate) type Eng = Engine<Act, Fac>;
+pub(crate) type Eng = Engine<Act, Fac, tcm_core::Shared>;
 
 /// A transition.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -18,10 +18,12 @@
 //! queues progress of the target; terminating queues a termination; activating makes an activation.
 //! The shorthands (`sequential`, `serial`) are lowered to enabling triggers here too.
 
+use super::node::Node;
 use super::node::{WaitKind, Waiter};
 use super::timers::TimerKind;
 use super::{Effect, Engine, EngineError, WatchOutcome, Work};
 use crate::NodeKind;
+use crate::arena::Keep;
 use crate::arena::{Fate, Lookup};
 use crate::constraint::{Constraint, Event, NodeRef, Then, When};
 use crate::ids::{ExternalId, NodeId, WatchToken};
@@ -87,7 +89,7 @@ fn nanos(d: Duration) -> u64 {
     u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Applies a constraint to a node that already exists. Termination constraints apply at any time
     /// before the node completes; enablement constraints only while their facet is still disabled.
     pub fn constrain(&mut self, now: Time, node: NodeId, c: Constraint) -> Result<(), EngineError> {

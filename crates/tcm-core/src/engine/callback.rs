@@ -7,16 +7,18 @@
 //! ([`Engine::notify_at`]), so a pending one keeps the run alive like any timer, while a pending
 //! event callback does not (docs/semantics.md, "Run outcome").
 
+use super::node::Node;
 use super::timers::TimerKind;
 use super::{Engine, EngineError};
 use crate::NodeKind;
+use crate::arena::Keep;
 use crate::arena::Lookup;
 use crate::constraint::{Event, NodeRef};
 use crate::ids::{NodeId, WatchToken};
 use crate::time::Time;
 use tcm_trace::{TraceEventRef, TraceKind, TraceWhen};
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Command: TCM's `InvokeWhen(point)`. The shell is told ([`Effect::Notify`] with `token`, and
     /// how the node got there, as for [`Engine::watch`]) when `event` happens, at once if it already
     /// did. Traced as `callback_set` named `name`; `by` is the node whose action set it, if any.

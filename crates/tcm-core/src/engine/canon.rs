@@ -30,6 +30,7 @@ use super::node::{Node, Payload, Purpose, WaitKind, Waiter};
 use super::timers::TimerKind;
 use super::{Engine, Work};
 use crate::Name;
+use crate::arena::Keep;
 use crate::arena::{Fate, Lookup};
 use crate::constraint::{Constraint, Event, NodeRef, Then, When};
 use crate::failure::Failure;
@@ -110,7 +111,7 @@ fn failure(f: &Failure, h: &mut impl Hasher) {
     f.ancestry.hash(h);
 }
 
-impl<A: Hash, F: Hash + Clone> Engine<A, F> {
+impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Feeds `h` a canonical form of the whole state (see the module documentation) and returns
     /// the numbering of the live nodes it used.
     pub fn canonical_hash<H: Hasher>(&self, h: &mut H) -> Canonical {
@@ -235,12 +236,12 @@ impl<A: Hash, F: Hash + Clone> Engine<A, F> {
 }
 
 /// What hashing reads: the engine and the numbering.
-struct Hashing<'a, A, F> {
-    engine: &'a Engine<A, F>,
+struct Hashing<'a, A, F, S: Keep<Node<A, F>>> {
+    engine: &'a Engine<A, F, S>,
     canon: &'a Canonical,
 }
 
-impl<A: Hash, F: Hash + Clone> Hashing<'_, A, F> {
+impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
     /// A reference to a node: its number, or how it ended if it is gone.
     fn node_ref(&self, id: NodeId, h: &mut impl Hasher) {
         match self.canon.index(id) {

@@ -22,8 +22,10 @@
 //!    from the factory given at spawn) is inserted under the handler node; its failures search from
 //!    there upward, so the handler's maximum activations bound the attempts.
 
+use super::node::Node;
 use super::node::{Payload, Propagate, Purpose};
 use super::{Engine, EngineError, Work};
+use crate::arena::Keep;
 use crate::failure::{Failure, FailurePolicy, FatalFailure};
 use crate::ids::NodeId;
 use crate::time::Time;
@@ -60,7 +62,7 @@ pub(crate) struct HandlerCtx {
     pub(crate) bypass: bool,
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// The handler node `node`, still running, asks to pass its exception on (step 5): when its
     /// body ends, whatever it returns, the search goes on after it.
     pub fn request_bypass(&mut self, now: Time, node: NodeId) -> Result<(), EngineError> {

@@ -92,7 +92,7 @@ mod timers;
 mod tree;
 mod wiretap;
 
-use crate::arena::{Arena, Lookup};
+use crate::arena::{Arena, Keep, Lookup, Owned};
 use crate::failure::{FailurePolicy, FatalFailure};
 use crate::ids::{ExternalId, NodeId};
 use crate::time::Time;
@@ -124,12 +124,13 @@ enum Work {
 
 /// The deterministic task-tree engine. `A` is the shell's action type; the engine only stores it and
 /// hands it back in [`Effect::Start`]. `F` is a reusable factory (monitor bodies, handlers,
-/// retries, wiretap checks), handed out in [`Effect::Invoke`].
+/// retries, wiretap checks), handed out in [`Effect::Invoke`]. `S` says how nodes are kept:
+/// [`Owned`](crate::Owned) by a run, [`Shared`](crate::Shared) between clones by a model checker.
 #[derive(Clone)]
-pub struct Engine<A, F = ()> {
+pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     run: u32,
     now: Time,
-    nodes: Arena<A, F>,
+    nodes: Arena<A, F, S>,
     root: NodeId,
     next_display: u64,
     seq: u64,
@@ -164,9 +165,9 @@ pub struct Engine<A, F = ()> {
     res: resource::Resources,
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// A new run with its root node. `run` numbers the run: handles of other runs are refused.
-    pub fn new(run: u32) -> Engine<A, F> {
+    pub fn new(run: u32) -> Engine<A, F, S> {
         let mut nodes = Arena::new(run);
         let mut root = Node::new(0, NodeKind::Root, Name::Borrowed("Root Node"), None);
         root.states = [State::Active, State::Active, State::Active];

@@ -21,9 +21,11 @@
 //!    a new `monitor_params` record. A maximum already reached completes the monitor's handling at
 //!    once; a new period counts from the poll already due.
 
+use super::node::Node;
 use super::node::{Payload, Purpose};
 use super::timers::TimerKind;
 use super::{Engine, EngineError, Work};
+use crate::arena::Keep;
 use crate::constraint::{Constraint, NodeRef};
 use crate::ids::NodeId;
 use crate::time::Time;
@@ -131,7 +133,7 @@ impl<F> Monitor<F> {
     }
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Activates a monitor now. Returns the activation node, or `None` if the monitor already
     /// reached its maximum. Activating a monitor whose handling is not active is an error (and a
     /// warning in the trace).

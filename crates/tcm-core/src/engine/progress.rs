@@ -19,6 +19,7 @@ use super::node::{Node, Payload, WaitKind, Waiters};
 use super::timers::TimerKind;
 use super::{Effect, Engine, EngineError, Job, WatchOutcome, Work};
 use crate::NodeKind;
+use crate::arena::Keep;
 use crate::arena::{Arena, Fate};
 use crate::constraint::Then;
 use crate::failure::Failure;
@@ -27,7 +28,7 @@ use crate::time::Time;
 use std::time::Duration;
 use tcm_trace::{Facet, State, Termination, TraceKind};
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Input: a job the shell ran for the engine ended ([`Effect::Start`] or [`Effect::Invoke`]).
     ///
     /// For a node's action or invocation, its handling completes (failed, if `result` is a
@@ -539,7 +540,10 @@ impl<A, F: Clone> Engine<A, F> {
 }
 
 /// Whether a timer still matters when it surfaces (stale ones are skipped, see `timers.rs`).
-pub(super) fn timer_is_live<A, F>(nodes: &Arena<A, F>, kind: &TimerKind) -> bool {
+pub(super) fn timer_is_live<A, F, S: Keep<Node<A, F>>>(
+    nodes: &Arena<A, F, S>,
+    kind: &TimerKind,
+) -> bool {
     match *kind {
         // A terminating node that has not started still needs its enabling timers.
         TimerKind::Trigger { target, then } => nodes.get(target).is_some_and(|n| match then {

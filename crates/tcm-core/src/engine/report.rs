@@ -3,6 +3,7 @@
 use super::Engine;
 use super::node::{Node, WaitKind};
 use crate::NodeKind;
+use crate::arena::Keep;
 use crate::constraint::{Event, NodeRef, Then};
 use crate::ids::NodeId;
 use std::collections::BTreeMap;
@@ -108,7 +109,7 @@ impl fmt::Display for Blocked {
     }
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// A snapshot of a live node; `None` once it was reclaimed.
     pub fn info(&self, id: NodeId) -> Option<NodeInfo> {
         let n = self.query(id)?;
@@ -380,7 +381,7 @@ enum Edge {
     Event,
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// The wait cycles through resources: who waits for whom (a request for the holders of what it
     /// needs, or for the earlier requests it may not overtake; a parked action for the node it
     /// awaits; a node whose own action ended for its unfinished children; a facet held disabled
@@ -544,7 +545,7 @@ struct Reasons {
     activate: BTreeMap<u64, Vec<String>>,
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// What a waiting request waits for, about resource `r`, as the report writes it.
     fn waits_for_resource(&self, r: crate::ids::ResourceId, why: &super::resource::Why) -> String {
         use super::resource::Why;

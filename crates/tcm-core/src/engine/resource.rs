@@ -26,6 +26,7 @@
 use super::node::Node;
 use super::{Engine, EngineError};
 use crate::Name;
+use crate::arena::Keep;
 use crate::failure::Failure;
 use crate::ids::{NodeId, ResourceId};
 use crate::time::Time;
@@ -159,7 +160,7 @@ pub(crate) enum Why {
     Behind(Vec<NodeId>),
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Declares a resource of `capacity` units (at least 1), with at most `pending_limit` requests
     /// waiting for it (`None`: no limit; past it the oldest waiting request is dropped). The name
     /// must be new in the run. Traced as a `resource` record.

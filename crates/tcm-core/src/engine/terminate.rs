@@ -1,8 +1,10 @@
 //! Termination and suspension of subtrees (docs/semantics.md, "Termination" and "Suspension").
 
+use super::node::Node;
 use super::node::{OnTerminate, Payload, WaitKind};
 use super::{Effect, Engine, EngineError, Work};
 use crate::NodeKind;
+use crate::arena::Keep;
 use crate::arena::{Fate, Lookup};
 use crate::constraint::Then;
 use crate::ids::NodeId;
@@ -10,7 +12,7 @@ use crate::time::Time;
 use std::collections::VecDeque;
 use tcm_trace::{Facet, State, Termination, TraceKind};
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Terminates a node and its subtree (docs/semantics.md, "Termination"). A node already gone
     /// (completed and reclaimed, terminated, or a dead reservation) is not an error: a warning is
     /// traced and nothing else happens, as for a node already terminating.

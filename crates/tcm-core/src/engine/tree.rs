@@ -9,13 +9,14 @@ use super::exception::HandlerEntry;
 use super::monitor::Monitor;
 use super::node::{Link, Node, Payload};
 use super::{Engine, EngineError, Spawn, Work};
+use crate::arena::Keep;
 use crate::constraint::Constraint;
 use crate::ids::NodeId;
 use crate::time::Time;
 use crate::{Name, NodeKind};
 use tcm_trace::{Facet, State, TraceKind};
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Reserves a node under `parent` for a later spawn, so constraints can name it before it exists
     /// (a forward reference). If the parent's action ends without spawning it, it is *dead*:
     /// enablement constraints on it are void, `terminate at` it fires at once (docs/semantics.md, "Tags and forward references").

@@ -11,9 +11,11 @@
 //! 3. When the last check reports: all passed, the node starts (before) or completes (after); one
 //!    failed, the node fails with the first failure instead (a "before" check vetoes the action).
 
+use super::node::Node;
 use super::node::Purpose;
 use super::{Effect, Engine, EngineError, Job};
 use crate::Name;
+use crate::arena::Keep;
 use crate::failure::Failure;
 use crate::ids::{NodeId, TapWhen, WiretapId};
 use tcm_trace::TraceKind;
@@ -28,7 +30,7 @@ pub(crate) struct Wiretap<F> {
     pub(crate) body: F,
 }
 
-impl<A, F: Clone> Engine<A, F> {
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Registers a wiretap on a class of tasks: `body` runs whenever a node that is an instance of
     /// the task `task` (whatever its instance name) is about to start its action (`Before`) or
     /// has returned successfully (`After`), without touching that task's code. A failing check

@@ -9,7 +9,7 @@ use std::time::Duration;
 
 type E = Engine<u32, u32>;
 
-fn hash(e: &E) -> u64 {
+fn hash<S: Keep<crate::engine::node::Node<u32, u32>>>(e: &Engine<u32, u32, S>) -> u64 {
     let mut h = DefaultHasher::new();
     let _ = e.canonical_hash(&mut h);
     h.finish()
@@ -20,7 +20,9 @@ fn t(secs: u64) -> Time {
 }
 
 /// Drains the effects, returning the nodes started.
-fn started(e: &mut E) -> Vec<NodeId> {
+fn started<S: Keep<crate::engine::node::Node<u32, u32>>>(
+    e: &mut Engine<u32, u32, S>,
+) -> Vec<NodeId> {
     let mut out = Vec::new();
     while let Some(effect) = e.poll_effect() {
         if let Effect::Start { node, .. } = effect {
@@ -30,7 +32,9 @@ fn started(e: &mut E) -> Vec<NodeId> {
     out
 }
 
-fn records(e: &mut E) -> Vec<String> {
+fn records<S: Keep<crate::engine::node::Node<u32, u32>>>(
+    e: &mut Engine<u32, u32, S>,
+) -> Vec<String> {
     let mut out = Vec::new();
     while let Some(r) = e.poll_trace() {
         out.push(tcm_trace::to_line(&r));
@@ -62,6 +66,61 @@ fn a_clone_runs_as_the_original() {
     }
     assert_eq!(records(&mut a), records(&mut b));
     assert_eq!(hash(&a), hash(&b));
+}
+
+/// The two-command program of the test above, on an engine keeping its nodes as `S` does.
+fn two_commands<S: Keep<crate::engine::node::Node<u32, u32>>>() -> (Engine<u32, u32, S>, NodeId) {
+    let mut e: Engine<u32, u32, S> = Engine::new(1);
+    let root = e.root();
+    let x = e
+        .spawn(t(0), Spawn::new(root, NodeKind::Command, "x", 1))
+        .expect("spawn x");
+    e.spawn(
+        t(0),
+        Spawn::new(root, NodeKind::Command, "y", 2)
+            .with(Constraint::sequential_previous())
+            .with(Constraint::terminate(When::In(Duration::from_secs(5)))),
+    )
+    .expect("spawn y");
+    (e, x)
+}
+
+#[test]
+fn shared_nodes_are_copied_on_write_and_run_as_owned_ones() {
+    let (mut owned, x) = two_commands::<Owned>();
+    let (mut shared, _) = two_commands::<Shared>();
+    assert_eq!(records(&mut owned), records(&mut shared));
+    let before = hash(&shared);
+    let mut snapshot = shared.clone();
+    // The clone moves on: x fails, y is terminated; the original's nodes must not see it.
+    assert_eq!(started(&mut shared), vec![x]);
+    shared
+        .handle_action_finished(t(1), x, Err(Failure::new("Boom", "boom")))
+        .expect("x fails");
+    shared.handle_timeout(t(5));
+    let _ = records(&mut shared);
+    assert_ne!(hash(&shared), before, "the clone changed");
+    assert_eq!(hash(&snapshot), before, "the original is untouched");
+    // The original then runs exactly as an engine owning its nodes.
+    for e in [&mut owned as &mut dyn Steps, &mut snapshot] {
+        e.steps(x);
+    }
+    assert_eq!(records(&mut owned), records(&mut snapshot));
+    assert_eq!(hash(&owned), hash(&snapshot));
+}
+
+/// The same steps on an owned or a shared engine.
+trait Steps {
+    fn steps(&mut self, x: NodeId);
+}
+
+impl<S: Keep<crate::engine::node::Node<u32, u32>>> Steps for Engine<u32, u32, S> {
+    fn steps(&mut self, x: NodeId) {
+        assert_eq!(started(self), vec![x]);
+        self.handle_action_finished(t(1), x, Ok(()))
+            .expect("x ends");
+        self.handle_timeout(t(5));
+    }
 }
 
 #[test]
