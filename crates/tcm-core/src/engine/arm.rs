@@ -138,7 +138,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             .and_then(|p| p.last_spawned)
             .filter(|p| *p != node);
         self.apply(node, parent, previous, c);
-        self.work.push_back(Work::Progress(node));
+        self.queue_progress(node);
         self.settle();
         Ok(())
     }
@@ -185,7 +185,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             return Ok(());
         }
         self.arm_group(target, g);
-        self.work.push_back(Work::Progress(target));
+        self.queue_progress(target);
         self.settle();
         Ok(())
     }
@@ -687,7 +687,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if *b > 0 {
             *b -= 1;
         }
-        self.work.push_back(Work::Progress(target));
+        self.queue_progress(target);
     }
 
     /// Carries out a waiter whose point was reached. `by_termination`: the watched node reached it

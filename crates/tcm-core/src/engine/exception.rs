@@ -163,7 +163,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 of: of_display,
             }
         );
-        self.work.push_back(Work::Progress(id));
+        self.queue_progress(id);
         self.settle();
         Ok(id)
     }
@@ -448,6 +448,6 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             index,
             bypass: false,
         });
-        self.work.push_back(Work::Progress(id));
+        self.queue_progress(id);
     }
 }

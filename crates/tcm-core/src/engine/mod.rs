@@ -341,6 +341,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
     }
 
+    /// Queues `Work::Progress(id)`, unless it is already the last work queued: `progress` moves a
+    /// node as far as it can go, so a second run right after the first would find nothing to do
+    /// (a completing child asks for its parent's progress up to three times in a row).
+    fn queue_progress(&mut self, id: NodeId) {
+        if !matches!(self.work.back(), Some(Work::Progress(last)) if *last == id) {
+            self.work.push_back(Work::Progress(id));
+        }
+    }
+
     fn next_display(&mut self) -> u64 {
         let d = self.next_display;
         self.next_display += 1;

@@ -339,7 +339,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             mon.last = Some(id);
         }
         self.node_mut(monitor).last_spawned = Some(id);
-        self.work.push_back(Work::Progress(id));
+        self.queue_progress(id);
         if max.is_some_and(|max| number >= max) {
             self.monitor_done(monitor);
         }
@@ -357,7 +357,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.release_resources(monitor);
         self.transition(monitor, Facet::Handling, State::Completed);
         self.bury_reservations(monitor);
-        self.work.push_back(Work::Progress(monitor));
+        self.queue_progress(monitor);
     }
 
     // ---- Limits changed after the spawn (protocol step 5).

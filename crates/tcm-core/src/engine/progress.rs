@@ -104,7 +104,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             // Its action no longer runs: what it was granted goes back (docs/semantics.md,
             // "Resources").
             self.release_resources(node);
-            self.work.push_back(Work::Progress(node));
+            self.queue_progress(node);
             self.settle();
         }
     }
@@ -259,7 +259,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     if let Some(p) = self.nodes.get_mut(p) {
                         p.open_expansions -= 1;
                     }
-                    self.work.push_back(Work::Progress(p));
+                    self.queue_progress(p);
                 }
                 continue;
             }
@@ -278,7 +278,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     if let Some(p) = self.nodes.get_mut(p) {
                         p.open_executions -= 1;
                     }
-                    self.work.push_back(Work::Progress(p));
+                    self.queue_progress(p);
                 }
                 continue;
             }
@@ -295,7 +295,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     if let Some(pn) = self.nodes.get_mut(p) {
                         pn.terminating_children -= 1;
                     }
-                    self.work.push_back(Work::Progress(p));
+                    self.queue_progress(p);
                 }
                 continue;
             }
@@ -313,7 +313,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     pub(super) fn progress_children(&mut self, id: NodeId) {
         let mut c = self.first_child(id);
         while let Some(child) = c {
-            self.work.push_back(Work::Progress(child));
+            self.queue_progress(child);
             c = self.next_sibling(child);
         }
     }
@@ -473,7 +473,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             self.progress_children(id);
         }
         self.bury_reservations(id);
-        self.work.push_back(Work::Progress(id));
+        self.queue_progress(id);
     }
 
     /// The body of `id` ended: reservations it never spawned are dead (docs/semantics.md, "Tags and
@@ -534,7 +534,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.nodes.discard(id, fate);
         emit!(self, TraceKind::Reclaimed { node: display });
         if let Some(p) = parent {
-            self.work.push_back(Work::Progress(p));
+            self.queue_progress(p);
         }
     }
 }

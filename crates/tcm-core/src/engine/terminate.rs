@@ -182,7 +182,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 queue.push_back(ch);
                 child = self.next_sibling(ch);
             }
-            self.work.push_back(Work::Progress(c));
+            self.queue_progress(c);
         }
         if !unstarted.is_empty() {
             self.release_delays(&unstarted);
@@ -248,7 +248,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         // Delayed termination: the terminating parent does not take it down (see `do_terminate`).
         self.node_mut(id).immune = true;
         self.node_mut(parent).last_spawned = Some(id);
-        self.work.push_back(Work::Progress(id));
+        self.queue_progress(id);
     }
 
     /// Suspends a node and its subtree: no action in it starts until it is unsuspended. Running

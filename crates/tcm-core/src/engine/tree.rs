@@ -191,7 +191,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 explicit: false,
             });
         }
-        self.work.push_back(Work::Progress(id));
+        self.queue_progress(id);
         self.settle();
         Ok(id)
     }
