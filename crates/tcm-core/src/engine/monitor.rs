@@ -24,7 +24,7 @@
 use super::node::Node;
 use super::node::{Payload, Purpose};
 use super::timers::TimerKind;
-use super::{Engine, EngineError, Work};
+use super::{Engine, EngineError};
 use crate::arena::Keep;
 use crate::constraint::{Constraint, NodeRef};
 use crate::ids::NodeId;
