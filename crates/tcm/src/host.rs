@@ -703,14 +703,19 @@ pub(crate) enum Ended {
 }
 
 impl Access<'_> {
-    /// Carries out the effects, then takes the jobs the pump is to poll (`Inner::take_launches`);
-    /// taking them changes nothing of the engine, so the access ends without another look.
-    pub(crate) fn settle_and_take_launches(&mut self) -> LaunchBatch {
+    /// Carries out the effects, then takes the jobs the pump is to poll (`Inner::take_launches`)
+    /// into `batch` (empty, kept by the pump so that its buffer serves every batch); taking them
+    /// changes nothing of the engine, so the access ends without another look. Returns the jobs
+    /// cancelled before the pump could poll them.
+    pub(crate) fn settle_and_take_launches(
+        &mut self,
+        batch: &mut Vec<(Job, ActionFuture)>,
+    ) -> Vec<(Job, ActionFuture)> {
         self.carry_out();
         if self.guard.ended {
-            return (Vec::new(), std::mem::take(&mut self.guard.launches));
+            return std::mem::take(&mut self.guard.launches);
         }
-        self.guard.take_launches()
+        self.guard.take_launches(batch)
     }
 }
 
@@ -773,14 +778,19 @@ impl Inner {
         let _ = self.engine.handle_action_finished(now, job, result);
     }
 
-    /// The jobs the pump is to poll, and those cancelled before it could (to drop unpolled).
-    pub(crate) fn take_launches(&mut self) -> LaunchBatch {
-        let launches = std::mem::take(&mut self.launches);
+    /// Moves the jobs the pump is to poll into `batch` (empty), swapping buffers so that neither
+    /// is allocated again; returns those cancelled before the pump could poll them (to drop
+    /// unpolled).
+    pub(crate) fn take_launches(
+        &mut self,
+        batch: &mut Vec<(Job, ActionFuture)>,
+    ) -> Vec<(Job, ActionFuture)> {
+        std::mem::swap(&mut self.launches, batch);
         if self.inline_cancelled.is_empty() {
-            return (launches, Vec::new());
+            return Vec::new();
         }
         let cancelled = &mut self.inline_cancelled;
-        launches.into_iter().partition(|(job, _)| {
+        let (keep, dropped): LaunchBatch = batch.drain(..).partition(|(job, _)| {
             let node = job.node();
             match cancelled.iter().position(|n| *n == node) {
                 Some(i) if job.cancellable() => {
@@ -789,7 +799,9 @@ impl Inner {
                 }
                 _ => true,
             }
-        })
+        });
+        batch.extend(keep);
+        dropped
     }
 
     /// Spawns, as a tokio task, a job the pump polled once and left pending; if it was cancelled

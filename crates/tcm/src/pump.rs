@@ -123,6 +123,9 @@ pub(crate) fn flush(inner: &mut Inner, shared: &Shared) {
     });
 }
 
+/// The largest batch buffer the pump keeps from one batch to the next.
+const KEEP_BATCH: usize = 64;
+
 /// The pump of this thread, while it runs for one run; the previous one (of another run, if any)
 /// comes back when it ends.
 pub(crate) struct Guard {
@@ -171,9 +174,11 @@ impl Guard {
         };
         let waker = Waker::noop();
         let mut cx = Context::from_waker(waker);
+        // One buffer for every batch (swapped with the host's, `Inner::take_launches`).
+        let mut batch = Vec::new();
         loop {
-            let (batch, dropped) = match shared.enter() {
-                Ok(mut inner) => inner.settle_and_take_launches(),
+            let dropped = match shared.enter() {
+                Ok(mut inner) => inner.settle_and_take_launches(&mut batch),
                 Err(_) => return,
             };
             // Cancelled before their poll: dropped unpolled, outside the lock, and reported stopped.
@@ -187,13 +192,18 @@ impl Guard {
                 }
                 continue;
             }
-            for (job, mut fut) in batch {
+            for (job, mut fut) in batch.drain(..) {
                 // Polled as a task would be: with no budget taken from the task that ended.
                 let once = tokio::task::unconstrained(CatchUnwind(fut.as_mut()));
                 match std::pin::pin!(once).poll(&mut cx) {
                     Poll::Ready(res) => push(|st| st.done.push(Ended::Returned(job, res))),
                     Poll::Pending => push(|st| st.pending.push((job, fut))),
                 }
+            }
+            // Kept only while small (a chain releases one action at a time): a wide release's
+            // buffer goes back to the allocator, which then serves the next allocations from it.
+            if batch.capacity() > KEEP_BATCH {
+                batch = Vec::new();
             }
             self.drop_stale();
         }
