@@ -61,10 +61,10 @@ thread_local! {
     static PUMP: RefCell<Option<PumpState>> = const { RefCell::new(None) };
 }
 
-/// Whether an action that starts now is left to the pump of this thread: it pumps for `shared`,
-/// and nothing of the run is queued (a task would run next).
-pub(crate) fn takes(shared: &Shared) -> bool {
-    shared.queued.load(Ordering::SeqCst) == 0 && pumps(shared)
+/// Whether nothing of the run is queued (a task spawned now would run next): then an action that
+/// starts now is left to the pump of this thread, if it pumps for the run ([`pumps`]).
+pub(crate) fn nothing_queued(shared: &Shared) -> bool {
+    shared.queued.load(Ordering::SeqCst) == 0
 }
 
 /// Whether the pump of this thread runs for `shared`.
@@ -192,7 +192,9 @@ impl Guard {
                 }
                 continue;
             }
-            for (job, mut fut) in batch.drain(..) {
+            // In start order: reversed, then popped (cheaper than a drain for a batch of one).
+            batch.reverse();
+            while let Some((job, mut fut)) = batch.pop() {
                 // Polled as a task would be: with no budget taken from the task that ended.
                 let once = tokio::task::unconstrained(CatchUnwind(fut.as_mut()));
                 match std::pin::pin!(once).poll(&mut cx) {
