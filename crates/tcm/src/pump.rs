@@ -6,8 +6,9 @@
 //! then hand their futures to the *pump* of the thread, which polls each once, outside the lock,
 //! right after the end that released it. A future that is done then never becomes a task: its end
 //! is kept on the pump and reported with the others the next time the lock is taken (once for a
-//! whole batch, or earlier, the moment one of the next futures touches the engine, so that nothing
-//! of the engine ever sees an action run before the end of one polled before it was reported). A
+//! whole batch, or earlier: the moment one of the next futures touches the engine, so that nothing
+//! of the engine ever sees an action run before the end of one polled before it was reported, and
+//! every `REPORT_EVERY` ends of a wide batch, so that the ends kept stay few). A
 //! future that is not done is spawned as a task, as before (its first poll had a no-op waker: the
 //! task polls it again at once, which registers its own). What the reported ends start is pumped in
 //! turn, in a loop, never recursively.
@@ -126,6 +127,9 @@ pub(crate) fn flush(inner: &mut Inner, shared: &Shared) {
 /// The largest batch buffer the pump keeps from one batch to the next.
 const KEEP_BATCH: usize = 64;
 
+/// How many ends (and futures left pending) the pump keeps at most before it reports them.
+const REPORT_EVERY: usize = 64;
+
 /// The pump of this thread, while it runs for one run; the previous one (of another run, if any)
 /// comes back when it ends.
 pub(crate) struct Guard {
@@ -184,7 +188,7 @@ impl Guard {
             // Cancelled before their poll: dropped unpolled, outside the lock, and reported stopped.
             for (job, fut) in dropped {
                 drop(fut);
-                push(|st| st.done.push(Ended::Dropped(job)));
+                let _ = push(|st| st.done.push(Ended::Dropped(job)));
             }
             if batch.is_empty() {
                 if self.idle() {
@@ -197,9 +201,19 @@ impl Guard {
             while let Some((job, mut fut)) = batch.pop() {
                 // Polled as a task would be: with no budget taken from the task that ended.
                 let once = tokio::task::unconstrained(CatchUnwind(fut.as_mut()));
-                match std::pin::pin!(once).poll(&mut cx) {
+                let kept = match std::pin::pin!(once).poll(&mut cx) {
                     Poll::Ready(res) => push(|st| st.done.push(Ended::Returned(job, res))),
                     Poll::Pending => push(|st| st.pending.push((job, fut))),
+                };
+                // A wide batch reports its ends every `REPORT_EVERY`, as if one of its futures
+                // touched the engine: what they start is polled after this batch all the same,
+                // and the ends kept stay few (and in the cache) however wide the batch.
+                if kept >= REPORT_EVERY {
+                    match shared.enter() {
+                        Ok(inner) => drop(inner),
+                        Err(_) => return,
+                    }
+                    self.drop_stale();
                 }
             }
             // Kept only while small (a chain releases one action at a time): a wide release's
@@ -233,14 +247,17 @@ impl Guard {
     }
 }
 
-fn push(f: impl FnOnce(&mut PumpState)) {
+/// Hands `f` the pump of this thread; returns how many ends and pending futures it then keeps.
+fn push(f: impl FnOnce(&mut PumpState)) -> usize {
     PUMP.with(|p| {
-        if let Ok(mut p) = p.try_borrow_mut() {
-            if let Some(st) = p.as_mut() {
-                f(st);
-            }
-        }
-    });
+        let Ok(mut p) = p.try_borrow_mut() else {
+            return 0;
+        };
+        p.as_mut().map_or(0, |st| {
+            f(st);
+            st.done.len() + st.pending.len()
+        })
+    })
 }
 
 impl Drop for Guard {
