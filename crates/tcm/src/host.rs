@@ -893,8 +893,9 @@ impl Aborts {
     #[inline]
     fn insert(&mut self, node: NodeId, r: Running) {
         let i = node.slot() as usize;
-        if self.slots.len() <= i {
-            self.slots.resize_with(i + 1, || (None, None));
+        // Slots are mostly new one at a time, in order.
+        while self.slots.len() <= i {
+            self.slots.push((None, None));
         }
         let handle = match r {
             Running::Inline => None,

@@ -198,22 +198,25 @@ impl Guard {
             }
             // In start order: reversed, then popped (cheaper than a drain for a batch of one).
             batch.reverse();
+            let mut stale = false;
             while let Some((job, mut fut)) = batch.pop() {
                 // Polled as a task would be: with no budget taken from the task that ended.
                 let once = tokio::task::unconstrained(CatchUnwind(fut.as_mut()));
-                let kept = match std::pin::pin!(once).poll(&mut cx) {
+                let (kept, to_drop) = match std::pin::pin!(once).poll(&mut cx) {
                     Poll::Ready(res) => push(|st| st.done.push(Ended::Returned(job, res))),
                     Poll::Pending => push(|st| st.pending.push((job, fut))),
                 };
                 // A wide batch reports its ends every `REPORT_EVERY`, as if one of its futures
                 // touched the engine: what they start is polled after this batch all the same,
                 // and the ends kept stay few (and in the cache) however wide the batch.
+                stale |= to_drop;
                 if kept >= REPORT_EVERY {
                     match shared.enter() {
                         Ok(inner) => drop(inner),
                         Err(_) => return,
                     }
                     self.drop_stale();
+                    stale = false;
                 }
             }
             // Kept only while small (a chain releases one action at a time): a wide release's
@@ -221,7 +224,9 @@ impl Guard {
             if batch.capacity() > KEEP_BATCH {
                 batch = Vec::new();
             }
-            self.drop_stale();
+            if stale {
+                self.drop_stale();
+            }
         }
     }
 
@@ -247,15 +252,16 @@ impl Guard {
     }
 }
 
-/// Hands `f` the pump of this thread; returns how many ends and pending futures it then keeps.
-fn push(f: impl FnOnce(&mut PumpState)) -> usize {
+/// Hands `f` the pump of this thread; returns how many ends and pending futures it then keeps,
+/// and whether a flush left it futures to drop (`Guard::drop_stale`).
+fn push(f: impl FnOnce(&mut PumpState)) -> (usize, bool) {
     PUMP.with(|p| {
         let Ok(mut p) = p.try_borrow_mut() else {
-            return 0;
+            return (0, false);
         };
-        p.as_mut().map_or(0, |st| {
+        p.as_mut().map_or((0, false), |st| {
             f(st);
-            st.done.len() + st.pending.len()
+            (st.done.len() + st.pending.len(), !st.to_drop.is_empty())
         })
     })
 }
