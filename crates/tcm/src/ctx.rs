@@ -208,9 +208,9 @@ impl Ctx {
     }
 
     /// Starts building a spawn of `task` as a child of this node.
+    #[inline]
     pub fn spawn(&self, task: Task) -> Spawner<'_> {
-        let kept = task.kept();
-        let spec = task.into_spawn(self.node);
+        let (spec, kept) = task.into_parts(self.node);
         Spawner {
             ctx: self,
             spec,
@@ -575,57 +575,68 @@ pub struct Spawner<'a> {
 
 impl Spawner<'_> {
     /// Adds any constraint.
+    #[inline]
     pub fn with(mut self, c: Constraint) -> Self {
         self.spec.constraints.push(c);
         self
     }
 
     /// `sequential <facet> <reference>`.
+    #[inline]
     pub fn sequential(self, facet: Facet, of: impl Into<NodeRef>) -> Self {
         self.with(Constraint::Sequential(facet, of.into()))
     }
 
     /// `serial <reference>`.
+    #[inline]
     pub fn serial(self, of: impl Into<NodeRef>) -> Self {
         self.with(Constraint::Serial(of.into()))
     }
 
     /// `expand first`.
+    #[inline]
     pub fn expand_first(self) -> Self {
         self.with(Constraint::ExpandFirst)
     }
 
     /// `delay expansion`.
+    #[inline]
     pub fn delay_expansion(self) -> Self {
         self.with(Constraint::DelayExpansion)
     }
 
     /// `disable <facet> until <event>`.
+    #[inline]
     pub fn disable_until(self, facet: Facet, event: Event) -> Self {
         self.with(Constraint::disable(facet, When::Event(event)))
     }
 
     /// `disable <facet> for <duration>`.
+    #[inline]
     pub fn disable_for(self, facet: Facet, d: Duration) -> Self {
         self.with(Constraint::disable(facet, When::In(d)))
     }
 
     /// `terminate at <event>`.
+    #[inline]
     pub fn terminate_at(self, event: Event) -> Self {
         self.with(Constraint::terminate(When::Event(event)))
     }
 
     /// `terminate in <duration>`.
+    #[inline]
     pub fn terminate_in(self, d: Duration) -> Self {
         self.with(Constraint::terminate(When::In(d)))
     }
 
     /// `activate …` (monitors).
+    #[inline]
     pub fn activate(self, when: When) -> Self {
         self.with(Constraint::activate(when))
     }
 
     /// Overrides the monitor's maximum activations for this spawn.
+    #[inline]
     pub fn max_activations(mut self, n: u32) -> Self {
         if let Some(m) = self.spec.monitor.as_mut() {
             m.max_activations = Some(n);
@@ -634,6 +645,7 @@ impl Spawner<'_> {
     }
 
     /// Overrides the monitor's maximum triggers for this spawn.
+    #[inline]
     pub fn max_triggers(mut self, n: u32) -> Self {
         if let Some(m) = self.spec.monitor.as_mut() {
             m.max_triggers = Some(n);
@@ -642,6 +654,7 @@ impl Spawner<'_> {
     }
 
     /// Overrides the monitor's polling period for this spawn.
+    #[inline]
     pub fn period(mut self, d: Duration) -> Self {
         if let Some(m) = self.spec.monitor.as_mut() {
             m.period = Some(d);
@@ -651,6 +664,7 @@ impl Spawner<'_> {
 
     /// Attaches a spawn-level exception handler (tried after the task-level ones; among spawn-level
     /// handlers, in the order attached).
+    #[inline]
     pub fn handler(mut self, h: Handler) -> Self {
         self.spec.handlers.push(h.spec);
         self
@@ -658,6 +672,7 @@ impl Spawner<'_> {
 
     /// Sets the grace period of this node's action, as [`Task::grace`] does for every node of a
     /// task (docs/semantics.md, "Termination").
+    #[inline]
     pub fn grace(mut self, grace: Duration) -> Self {
         self.kept.grace = Some(grace);
         self
@@ -668,6 +683,7 @@ impl Spawner<'_> {
     /// at once before it starts, and released when its action ends (docs/semantics.md,
     /// "Resources"). Until then it waits, enabled; asking for more than a capacity fails it with
     /// [`crate::ResourceDenied`].
+    #[inline]
     pub fn uses(mut self, resource: impl Into<crate::ResourceRef>, amount: u32) -> Self {
         self.kept
             .wanted
@@ -679,6 +695,7 @@ impl Spawner<'_> {
 
     /// The priority of the node's request for resources: lower is granted first, requests of one
     /// priority in the order they were made (0 by default).
+    #[inline]
     pub fn priority(mut self, priority: i32) -> Self {
         self.kept.wanted.get_or_insert_with(Box::default).priority = Some(priority);
         self
@@ -686,6 +703,7 @@ impl Spawner<'_> {
 
     /// If its resources cannot be granted at once, the node does not wait: it fails with
     /// [`crate::ResourceDenied`], which a handler may take (TDL's `deny if busy`).
+    #[inline]
     pub fn deny_if_busy(mut self) -> Self {
         self.kept
             .wanted
@@ -695,6 +713,7 @@ impl Spawner<'_> {
     }
 
     /// Keep the node after it completes (not reclaimed).
+    #[inline]
     pub fn persistent(mut self) -> Self {
         self.spec.persistent = true;
         self
@@ -702,6 +721,7 @@ impl Spawner<'_> {
 
     /// `on terminate spawn <task>`: run `task` as a child if this node is terminated while its action
     /// runs; it runs to completion.
+    #[inline]
     pub fn on_terminate(mut self, task: Task) -> Self {
         if let Some(ot) = task.into_cleanup() {
             self.spec.on_terminate.push(ot);
@@ -710,18 +730,21 @@ impl Spawner<'_> {
     }
 
     /// Fulfils a reservation made with [`Ctx::reserve`].
+    #[inline]
     pub fn fulfils(mut self, reserved: NodeId) -> Self {
         self.spec.fulfils = Some(reserved);
         self
     }
 
     /// Inserts the node under another parent than the spawning action's node (TDL's `parent`).
+    #[inline]
     pub fn under(mut self, parent: NodeId) -> Self {
         self.spec.parent = parent;
         self
     }
 
     /// Inserts the node; returns at once (TDL's non-blocking `spawn`).
+    #[inline]
     pub fn start(self) -> Result<NodeId, Error> {
         let mut inner = self.ctx.shared.enter()?;
         let now = self.ctx.shared.now();
@@ -788,6 +811,7 @@ impl Spawner<'_> {
     /// it still runs, its other children are terminated, and its handlers are searched, so one of
     /// them may `retry` the whole subtree (TDL's `with propagate`; docs/semantics.md, "Failing
     /// the parent"). Under the root it changes nothing.
+    #[inline]
     pub fn propagate(mut self) -> Self {
         self.kept.fail_parent = true;
         self

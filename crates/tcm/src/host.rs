@@ -122,7 +122,7 @@ impl Parking {
 
     /// The job ended (or was cancelled): whatever it left parked no longer counts.
     fn forget_job(&mut self, job: Job) {
-        if self.by_job.remove(&job).is_some() {
+        if !self.by_job.is_empty() && self.by_job.remove(&job).is_some() {
             self.by_token.retain(|_, (j, _)| *j != job);
         }
     }
@@ -245,6 +245,7 @@ impl Inner {
     ) -> (&'a mut Engine<Action, Factory>, Host<'a>) {
         let host = Host {
             shared,
+            pumps: None,
             aborts: &mut self.aborts,
             launches: &mut self.launches,
             inline_cancelled: &mut self.inline_cancelled,
@@ -270,10 +271,13 @@ impl Inner {
     pub(crate) fn effects(&mut self, shared: &Arc<Shared>) -> Wake {
         let (engine, mut host) = self.split(shared);
         Driver::effects(engine, &mut host);
-        let mut wake = self.roots_changed || !self.due.is_empty() || self.engine.fatal().is_some();
-        if let Some(t) = self.engine.poll_timeout() {
-            wake = wake || self.armed.is_none_or(|a| t < a);
-        }
+        let wake = self.roots_changed
+            || !self.due.is_empty()
+            || self.engine.fatal().is_some()
+            || self
+                .engine
+                .poll_timeout()
+                .is_some_and(|t| self.armed.is_none_or(|a| t < a));
         if wake || self.quiet() {
             Wake::Now
         } else if self.engine.has_trace() {
@@ -308,6 +312,7 @@ impl Inner {
 
     /// Inserts a node for the program or an action, and keeps its task name if it differs from its
     /// instance name (`Task::named`) and its arguments (`Task::with_args`).
+    #[inline]
     pub(crate) fn spawn(
         &mut self,
         now: Time,
@@ -450,6 +455,7 @@ impl Shared {
     }
 
     /// Exclusive access to the engine; its effects are carried out when the access ends.
+    #[inline]
     pub(crate) fn enter(self: &Arc<Shared>) -> Result<Access<'_>, Error> {
         Ok(Access {
             guard: lock(self)?,
@@ -461,6 +467,7 @@ impl Shared {
 
 /// The engine's lock. On a thread whose pump runs for this run, the ends it keeps are reported
 /// first (`pump.rs`): whatever looks at the engine sees them.
+#[inline]
 pub(crate) fn lock(shared: &Shared) -> Result<MutexGuard<'_, Inner>, Error> {
     let mut inner = shared.inner.lock().map_err(|_| Error::Poisoned)?;
     crate::pump::flush(&mut inner, shared);
@@ -505,6 +512,7 @@ impl Access<'_> {
 }
 
 impl Drop for Access<'_> {
+    #[inline]
     fn drop(&mut self) {
         if !self.settled {
             self.carry_out();
@@ -534,6 +542,9 @@ impl Drop for Unpark<'_> {
 /// The host's side of the [`Driver`], borrowed from [`Inner`] for one step.
 pub(crate) struct Host<'a> {
     shared: &'a Arc<Shared>,
+    // Whether the pump of this thread runs for this run (`pump::pumps`), looked up on the first
+    // start of a step: nothing that runs while the host carries effects out enters or leaves a pump.
+    pumps: Option<bool>,
     aborts: &'a mut Aborts,
     launches: &'a mut Vec<(Job, ActionFuture)>,
     inline_cancelled: &'a mut Vec<NodeId>,
@@ -556,7 +567,9 @@ impl Host<'_> {
     /// else spawned as a tokio task, under the lock (the task's own end takes the lock, so its
     /// abort handle is recorded before it can finish).
     fn run(&mut self, job: Job, fut: ActionFuture) {
-        let running = if crate::pump::takes(self.shared) {
+        let shared = self.shared;
+        let pumps = *self.pumps.get_or_insert_with(|| crate::pump::pumps(shared));
+        let running = if pumps && crate::pump::nothing_queued(self.shared) {
             self.launches.push((job, fut));
             Running::Inline
         } else {
@@ -703,14 +716,19 @@ pub(crate) enum Ended {
 }
 
 impl Access<'_> {
-    /// Carries out the effects, then takes the jobs the pump is to poll (`Inner::take_launches`);
-    /// taking them changes nothing of the engine, so the access ends without another look.
-    pub(crate) fn settle_and_take_launches(&mut self) -> LaunchBatch {
+    /// Carries out the effects, then takes the jobs the pump is to poll (`Inner::take_launches`)
+    /// into `batch` (empty, kept by the pump so that its buffer serves every batch); taking them
+    /// changes nothing of the engine, so the access ends without another look. Returns the jobs
+    /// cancelled before the pump could poll them.
+    pub(crate) fn settle_and_take_launches(
+        &mut self,
+        batch: &mut Vec<(Job, ActionFuture)>,
+    ) -> Vec<(Job, ActionFuture)> {
         self.carry_out();
         if self.guard.ended {
-            return (Vec::new(), std::mem::take(&mut self.guard.launches));
+            return std::mem::take(&mut self.guard.launches);
         }
-        self.guard.take_launches()
+        self.guard.take_launches(batch)
     }
 }
 
@@ -755,7 +773,9 @@ impl Inner {
         }
         if job.cancellable() {
             self.aborts.remove(&node);
-            self.activation_data.remove(&node);
+            if !self.activation_data.is_empty() {
+                self.activation_data.remove(&node);
+            }
             self.cancels.finished(node);
             if !self.inline_cancelled.is_empty() {
                 self.inline_cancelled.retain(|n| *n != node);
@@ -765,6 +785,9 @@ impl Inner {
         }
         self.parking.forget_job(job);
         let result = result.map(|value| {
+            if self.values.is_empty() {
+                return;
+            }
             if let Some(slot) = self.values.get_mut(&node) {
                 *slot = Some(value);
             }
@@ -773,14 +796,19 @@ impl Inner {
         let _ = self.engine.handle_action_finished(now, job, result);
     }
 
-    /// The jobs the pump is to poll, and those cancelled before it could (to drop unpolled).
-    pub(crate) fn take_launches(&mut self) -> LaunchBatch {
-        let launches = std::mem::take(&mut self.launches);
+    /// Moves the jobs the pump is to poll into `batch` (empty), swapping buffers so that neither
+    /// is allocated again; returns those cancelled before the pump could poll them (to drop
+    /// unpolled).
+    pub(crate) fn take_launches(
+        &mut self,
+        batch: &mut Vec<(Job, ActionFuture)>,
+    ) -> Vec<(Job, ActionFuture)> {
+        std::mem::swap(&mut self.launches, batch);
         if self.inline_cancelled.is_empty() {
-            return (launches, Vec::new());
+            return Vec::new();
         }
         let cancelled = &mut self.inline_cancelled;
-        launches.into_iter().partition(|(job, _)| {
+        let (keep, dropped): LaunchBatch = batch.drain(..).partition(|(job, _)| {
             let node = job.node();
             match cancelled.iter().position(|n| *n == node) {
                 Some(i) if job.cancellable() => {
@@ -789,7 +817,9 @@ impl Inner {
                 }
                 _ => true,
             }
-        })
+        });
+        batch.extend(keep);
+        dropped
     }
 
     /// Spawns, as a tokio task, a job the pump polled once and left pending; if it was cancelled
@@ -860,10 +890,12 @@ pub(crate) struct Aborts {
 }
 
 impl Aborts {
+    #[inline]
     fn insert(&mut self, node: NodeId, r: Running) {
         let i = node.slot() as usize;
-        if self.slots.len() <= i {
-            self.slots.resize_with(i + 1, || (None, None));
+        // Slots are mostly new one at a time, in order.
+        while self.slots.len() <= i {
+            self.slots.push((None, None));
         }
         let handle = match r {
             Running::Inline => None,
@@ -877,6 +909,7 @@ impl Aborts {
         }
     }
 
+    #[inline]
     fn remove(&mut self, node: &NodeId) -> Option<Running> {
         let slot = self.slots.get_mut(node.slot() as usize)?;
         if slot.0 != Some(*node) {

@@ -6,8 +6,9 @@
 //! then hand their futures to the *pump* of the thread, which polls each once, outside the lock,
 //! right after the end that released it. A future that is done then never becomes a task: its end
 //! is kept on the pump and reported with the others the next time the lock is taken (once for a
-//! whole batch, or earlier, the moment one of the next futures touches the engine, so that nothing
-//! of the engine ever sees an action run before the end of one polled before it was reported). A
+//! whole batch, or earlier: the moment one of the next futures touches the engine, so that nothing
+//! of the engine ever sees an action run before the end of one polled before it was reported, and
+//! every `REPORT_EVERY` ends of a wide batch, so that the ends kept stay few). A
 //! future that is not done is spawned as a task, as before (its first poll had a no-op waker: the
 //! task polls it again at once, which registers its own). What the reported ends start is pumped in
 //! turn, in a loop, never recursively.
@@ -61,10 +62,10 @@ thread_local! {
     static PUMP: RefCell<Option<PumpState>> = const { RefCell::new(None) };
 }
 
-/// Whether an action that starts now is left to the pump of this thread: it pumps for `shared`,
-/// and nothing of the run is queued (a task would run next).
-pub(crate) fn takes(shared: &Shared) -> bool {
-    shared.queued.load(Ordering::SeqCst) == 0 && pumps(shared)
+/// Whether nothing of the run is queued (a task spawned now would run next): then an action that
+/// starts now is left to the pump of this thread, if it pumps for the run ([`pumps`]).
+pub(crate) fn nothing_queued(shared: &Shared) -> bool {
+    shared.queued.load(Ordering::SeqCst) == 0
 }
 
 /// Whether the pump of this thread runs for `shared`.
@@ -123,6 +124,12 @@ pub(crate) fn flush(inner: &mut Inner, shared: &Shared) {
     });
 }
 
+/// The largest batch buffer the pump keeps from one batch to the next.
+const KEEP_BATCH: usize = 64;
+
+/// How many ends (and futures left pending) the pump keeps at most before it reports them.
+const REPORT_EVERY: usize = 64;
+
 /// The pump of this thread, while it runs for one run; the previous one (of another run, if any)
 /// comes back when it ends.
 pub(crate) struct Guard {
@@ -171,15 +178,17 @@ impl Guard {
         };
         let waker = Waker::noop();
         let mut cx = Context::from_waker(waker);
+        // One buffer for every batch (swapped with the host's, `Inner::take_launches`).
+        let mut batch = Vec::new();
         loop {
-            let (batch, dropped) = match shared.enter() {
-                Ok(mut inner) => inner.settle_and_take_launches(),
+            let dropped = match shared.enter() {
+                Ok(mut inner) => inner.settle_and_take_launches(&mut batch),
                 Err(_) => return,
             };
             // Cancelled before their poll: dropped unpolled, outside the lock, and reported stopped.
             for (job, fut) in dropped {
                 drop(fut);
-                push(|st| st.done.push(Ended::Dropped(job)));
+                let _ = push(|st| st.done.push(Ended::Dropped(job)));
             }
             if batch.is_empty() {
                 if self.idle() {
@@ -187,15 +196,37 @@ impl Guard {
                 }
                 continue;
             }
-            for (job, mut fut) in batch {
+            // In start order: reversed, then popped (cheaper than a drain for a batch of one).
+            batch.reverse();
+            let mut stale = false;
+            while let Some((job, mut fut)) = batch.pop() {
                 // Polled as a task would be: with no budget taken from the task that ended.
                 let once = tokio::task::unconstrained(CatchUnwind(fut.as_mut()));
-                match std::pin::pin!(once).poll(&mut cx) {
+                let (kept, to_drop) = match std::pin::pin!(once).poll(&mut cx) {
                     Poll::Ready(res) => push(|st| st.done.push(Ended::Returned(job, res))),
                     Poll::Pending => push(|st| st.pending.push((job, fut))),
+                };
+                // A wide batch reports its ends every `REPORT_EVERY`, as if one of its futures
+                // touched the engine: what they start is polled after this batch all the same,
+                // and the ends kept stay few (and in the cache) however wide the batch.
+                stale |= to_drop;
+                if kept >= REPORT_EVERY {
+                    match shared.enter() {
+                        Ok(inner) => drop(inner),
+                        Err(_) => return,
+                    }
+                    self.drop_stale();
+                    stale = false;
                 }
             }
-            self.drop_stale();
+            // Kept only while small (a chain releases one action at a time): a wide release's
+            // buffer goes back to the allocator, which then serves the next allocations from it.
+            if batch.capacity() > KEEP_BATCH {
+                batch = Vec::new();
+            }
+            if stale {
+                self.drop_stale();
+            }
         }
     }
 
@@ -221,14 +252,18 @@ impl Guard {
     }
 }
 
-fn push(f: impl FnOnce(&mut PumpState)) {
+/// Hands `f` the pump of this thread; returns how many ends and pending futures it then keeps,
+/// and whether a flush left it futures to drop (`Guard::drop_stale`).
+fn push(f: impl FnOnce(&mut PumpState)) -> (usize, bool) {
     PUMP.with(|p| {
-        if let Ok(mut p) = p.try_borrow_mut() {
-            if let Some(st) = p.as_mut() {
-                f(st);
-            }
-        }
-    });
+        let Ok(mut p) = p.try_borrow_mut() else {
+            return (0, false);
+        };
+        p.as_mut().map_or((0, false), |st| {
+            f(st);
+            (st.done.len() + st.pending.len(), !st.to_drop.is_empty())
+        })
+    })
 }
 
 impl Drop for Guard {

@@ -440,8 +440,8 @@ impl Runtime {
             inner.finishing = true;
             let now = shared.now();
             let root = inner.engine.root();
-            let kept = task.kept();
-            inner.spawn_root(now, task.into_spawn(root), kept)?;
+            let (spec, kept) = task.into_parts(root);
+            inner.spawn_root(now, spec, kept)?;
         }
         let timer = self.timer()?;
         let driver = RunLoop::new(shared.clone(), timer);

@@ -63,8 +63,8 @@ impl Session {
         }
         let now = self.shared().now();
         let root = inner.engine.root();
-        let kept = task.kept();
-        Ok(inner.spawn_root(now, task.into_spawn(root), kept)?)
+        let (spec, kept) = task.into_parts(root);
+        Ok(inner.spawn_root(now, spec, kept)?)
     }
 
     /// Waits until the run is *quiescent*: nothing more can happen without input from outside the

@@ -194,8 +194,9 @@ impl Attached {
 pub struct Task {
     pub(crate) kind: NodeKind,
     pub(crate) name: Name,
-    // The task's own name; the instance name differs once `named` renamed it.
-    pub(crate) task_name: Name,
+    // The task's own name, once `named` renamed the instance (`None`: the instance name), so that
+    // a task that is not renamed keeps one name, never compared nor cloned.
+    pub(crate) task_name: Option<Name>,
     pub(crate) action: Option<Action>,
     pub(crate) constraints: Vec<Constraint>,
     pub(crate) on_terminate: Vec<Task>,
@@ -212,7 +213,7 @@ impl Task {
     fn bare(kind: NodeKind, name: Name, action: Option<Action>) -> Task {
         Task {
             kind,
-            task_name: name.clone(),
+            task_name: None,
             name,
             action,
             constraints: Vec::new(),
@@ -394,17 +395,6 @@ impl Task {
         self
     }
 
-    /// What the host keeps beside the node.
-    pub(crate) fn kept(&self) -> Kept {
-        Kept {
-            task_name: self.renamed(),
-            args: self.args.clone(),
-            grace: self.grace,
-            fail_parent: false,
-            wanted: self.wanted.clone(),
-        }
-    }
-
     /// The instance name.
     pub fn name(&self) -> &str {
         &self.name
@@ -413,12 +403,7 @@ impl Task {
     /// The task's own name, which [`Task::named`] leaves alone (TCM's type name, TDL's task name):
     /// what [`Ctx::is_instance_of`] compares with.
     pub fn task_name(&self) -> &str {
-        &self.task_name
-    }
-
-    /// The task name to keep beside the node, when it differs from the instance name.
-    pub(crate) fn renamed(&self) -> Option<Name> {
-        (self.task_name != self.name).then(|| self.task_name.clone())
+        self.task_name.as_deref().unwrap_or(&self.name)
     }
 
     /// The node kind.
@@ -491,14 +476,39 @@ impl Task {
     /// Renames the instance (TDL's `name` constraint); the task name stays (see
     /// [`Task::task_name`]).
     pub fn named(mut self, name: impl Into<Name>) -> Task {
-        self.name = name.into();
+        let name = name.into();
+        let own = std::mem::replace(&mut self.name, name);
+        self.task_name.get_or_insert(own);
         self
     }
 
-    /// The engine's spawn request for this task under `parent`.
-    pub(crate) fn into_spawn(self, parent: NodeId) -> Spawn<Action, Factory> {
-        let task = self.renamed();
-        Spawn {
+    /// The engine's spawn request for this task under `parent`, and what the host keeps beside
+    /// the node: the task name when the instance was renamed (and differs), the arguments, the
+    /// grace period and the resources it uses. Everything is moved, nothing copied.
+    #[inline]
+    pub(crate) fn into_parts(self, parent: NodeId) -> (Spawn<Action, Factory>, Kept) {
+        let task = self.task_name.filter(|t| *t != self.name);
+        let kept = Kept {
+            task_name: task.clone(),
+            args: self.args,
+            grace: self.grace,
+            fail_parent: false,
+            wanted: self.wanted,
+        };
+        let on_terminate = if self.on_terminate.is_empty() {
+            Vec::new()
+        } else {
+            self.on_terminate
+                .into_iter()
+                .filter_map(Task::into_cleanup)
+                .collect()
+        };
+        let handlers = if self.handlers.is_empty() {
+            Vec::new()
+        } else {
+            self.handlers.into_iter().map(|h| h.spec).collect()
+        };
+        let spawn = Spawn {
             parent,
             kind: self.kind,
             name: self.name,
@@ -506,18 +516,15 @@ impl Task {
             action: self.action,
             constraints: self.constraints,
             persistent: self.persistent,
-            on_terminate: self
-                .on_terminate
-                .into_iter()
-                .filter_map(Task::into_cleanup)
-                .collect(),
+            on_terminate,
             fulfils: None,
             monitor: self.monitor,
-            handlers: self.handlers.into_iter().map(|h| h.spec).collect(),
+            handlers,
             retry: self.retry,
             // Resolved by name when the spawn is made (`Kept::wanted`).
             uses: None,
-        }
+        };
+        (spawn, kept)
     }
 
     /// As an on-terminate task; monitors cannot be one.
