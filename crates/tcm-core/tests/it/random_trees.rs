@@ -12,7 +12,7 @@ use std::time::Duration;
 use tcm_core::sim::{Body, Factory, Outcome, Sim, SimEngine, body, factory};
 use tcm_core::{
     Constraint, EngineError, Event, ExternalId, Facet, Failure, HandlerSpec, MonitorSpec, NodeId,
-    NodeKind, NodeRef, Point, Purpose, Spawn, Then, Time, Uses, When,
+    NodeKind, NodeRef, Point, Purpose, Spawn, Termination, Then, Time, Uses, When,
 };
 
 #[derive(Clone, Debug)]
@@ -395,6 +395,15 @@ fn action(plan: Rc<Plan>) -> Body {
                 // execution active`, fired by the first command below it): then the rest of the
                 // body is refused, as a `tcm` action's would be, and its end does not matter.
                 Err(EngineError::Gone(n)) if n == me => return Outcome::done(),
+                // Likewise a reservation this node made died when it was terminated: fulfilling
+                // it is refused (`dead` was traced for it), as a `tcm` action's spawn would be.
+                Err(EngineError::NotReserved(r))
+                    if Some(r) == ids[i]
+                        && e.info(me)
+                            .is_some_and(|n| n.termination != Termination::Alive) =>
+                {
+                    return Outcome::done();
+                }
                 Err(err) => panic!("spawn: {err}"),
             };
         }

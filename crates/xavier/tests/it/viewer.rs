@@ -133,14 +133,25 @@ fn the_viewer_shows_a_mission_trace_why_a_node_waits_and_replays_it() -> anyhow:
             .eval(&format!("document.querySelector('{row}').dataset.e"))
             .await?;
         ensure!(before == "disabled", "execution of {{{node}}} before: {before}");
-        b.click(&format!("{row} .name")).await?;
-        let waits = b
-            .wait_for(
-                "(() => { const w = document.querySelectorAll('#waits li'); \
-                 return w.length ? [...w].map(e => e.textContent).join(' | ') : null; })()",
-                Duration::from_secs(10),
-            )
-            .await?;
+        // A click that lands while the rows are still being redrawn (a loaded machine) selects
+        // nothing: click again, as a person would, where the row now is.
+        let mut attempt = 0;
+        let waits = loop {
+            attempt += 1;
+            b.click(&format!("{row} .name")).await?;
+            let shown = b
+                .wait_for(
+                    "(() => { const w = document.querySelectorAll('#waits li'); \
+                     return w.length ? [...w].map(e => e.textContent).join(' | ') : null; })()",
+                    Duration::from_secs(5),
+                )
+                .await;
+            match shown {
+                Ok(w) => break w,
+                Err(_) if attempt < 3 => continue,
+                Err(e) => return Err(e),
+            }
+        };
         let waits = waits.as_str().unwrap_or_default().to_string();
         ensure!(
             waits.contains("execution:") && waits.contains("since"),
