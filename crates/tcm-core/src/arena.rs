@@ -211,12 +211,14 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
         }
     }
 
+    #[inline]
     fn slot(&self, idx: u32) -> Option<&Slot<A, F, S>> {
         self.chunks
             .get((idx >> CHUNK_BITS) as usize)?
             .get(idx as usize & (CHUNK - 1))
     }
 
+    #[inline]
     fn slot_mut(&mut self, idx: u32) -> Option<&mut Slot<A, F, S>> {
         self.chunks
             .get_mut((idx >> CHUNK_BITS) as usize)?
@@ -251,6 +253,7 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
 
     /// The node a handle names, if it is live. The run is not checked here (this is the engine's
     /// hottest path): the engine's entry points check it once (`Engine::check_run`).
+    #[inline]
     pub(crate) fn get(&self, id: NodeId) -> Option<&Node<A, F>> {
         let slot = self.slot(id.idx)?;
         if slot.generation != id.generation {
@@ -259,6 +262,7 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
         slot.node.as_ref().map(S::get)
     }
 
+    #[inline]
     pub(crate) fn get_mut(&mut self, id: NodeId) -> Option<&mut Node<A, F>> {
         let slot = self.slot_mut(id.idx)?;
         if slot.generation != id.generation {

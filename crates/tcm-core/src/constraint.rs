@@ -131,6 +131,10 @@ pub enum Then {
     Activate,
 }
 
+/// The constraints of one spawn, kept inline up to two (most spawns carry none, one or two), so a
+/// spawn allocates nothing for them.
+pub type Constraints = smallvec::SmallVec<[Constraint; 2]>;
+
 /// A synchronisation constraint on one node.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Constraint {

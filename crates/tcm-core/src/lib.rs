@@ -46,7 +46,7 @@ mod time;
 mod tests;
 
 pub use arena::{Keep, Owned, Shared};
-pub use constraint::{Constraint, Event, NodeRef, Then, When};
+pub use constraint::{Constraint, Constraints, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{
     Blocked, Canonical, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorInfo,

@@ -198,7 +198,7 @@ pub struct Task {
     // a task that is not renamed keeps one name, never compared nor cloned.
     pub(crate) task_name: Option<Name>,
     pub(crate) action: Option<Action>,
-    pub(crate) constraints: Vec<Constraint>,
+    pub(crate) constraints: tcm_core::Constraints,
     pub(crate) on_terminate: Vec<Task>,
     pub(crate) handlers: Vec<Handler>,
     pub(crate) monitor: Option<Box<MonitorSpec<Factory>>>,
@@ -216,7 +216,7 @@ impl Task {
             task_name: None,
             name,
             action,
-            constraints: Vec::new(),
+            constraints: tcm_core::Constraints::new(),
             on_terminate: Vec::new(),
             handlers: Vec::new(),
             monitor: None,

@@ -5,7 +5,7 @@ use super::exception::HandlerSpec;
 use super::monitor::MonitorSpec;
 use super::node::{OnTerminate, Purpose};
 use super::resource::Uses;
-use crate::constraint::Constraint;
+use crate::constraint::{Constraint, Constraints};
 use crate::failure::Failure;
 use crate::ids::{NodeId, WatchToken, WiretapId};
 use crate::{Name, NodeKind};
@@ -87,7 +87,7 @@ pub struct Spawn<A, F = ()> {
     /// Its action (`None` for a monitor, which runs its body per activation).
     pub action: Option<A>,
     /// Constraints applied before insertion (terminate forms right after it).
-    pub constraints: Vec<Constraint>,
+    pub constraints: Constraints,
     /// Keep the node after completion (not reclaimed).
     pub persistent: bool,
     /// Cleanup tasks run if the node is terminated while its action runs.
@@ -113,7 +113,7 @@ impl<A, F: Clone> Spawn<A, F> {
             name: name.into(),
             task: None,
             action: Some(action),
-            constraints: Vec::new(),
+            constraints: Constraints::new(),
             persistent: false,
             on_terminate: Vec::new(),
             fulfils: None,
@@ -132,7 +132,7 @@ impl<A, F: Clone> Spawn<A, F> {
             name: name.into(),
             task: None,
             action: None,
-            constraints: Vec::new(),
+            constraints: Constraints::new(),
             persistent: false,
             on_terminate: Vec::new(),
             fulfils: None,

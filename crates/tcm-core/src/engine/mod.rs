@@ -334,8 +334,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Moves the engine's clock to `now`. It never skips a deadline: timers due before `now` fire
     /// first, each at its own time, so an input that arrives late (on real time the shell wakes a
     /// little after a deadline) never overtakes a timer that was due before it.
+    #[inline]
     fn advance(&mut self, now: Time) {
-        self.fire_timers(now, false);
+        if !self.timers.is_empty() {
+            self.fire_timers(now, false);
+        }
         if now > self.now {
             self.now = now;
         }
@@ -344,6 +347,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Queues `Work::Progress(id)`, unless it is already the last work queued: `progress` moves a
     /// node as far as it can go, so a second run right after the first would find nothing to do
     /// (a completing child asks for its parent's progress up to three times in a row).
+    #[inline]
     fn queue_progress(&mut self, id: NodeId) {
         if !matches!(self.work.back(), Some(Work::Progress(last)) if *last == id) {
             self.work.push_back(Work::Progress(id));
@@ -395,10 +399,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.nodes.get(id)
     }
 
+    #[inline]
     pub(crate) fn node(&self, id: NodeId) -> &Node<A, F> {
         self.nodes.get(id).expect("engine invariant: node exists")
     }
 
+    #[inline]
     fn node_mut(&mut self, id: NodeId) -> &mut Node<A, F> {
         self.nodes
             .get_mut(id)

@@ -329,11 +329,22 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// Moves `facet` of `id` to `to`, traces it and fires the waiters whose point is now reached.
+    #[inline]
     pub(super) fn transition(&mut self, id: NodeId, facet: Facet, to: State) {
+        let tracing = self.tracing;
         let n = self.node_mut(id);
         let from = n.states[facet.index()];
         debug_assert!(from < to, "facets only move forward");
         n.states[facet.index()] = to;
+        // Most transitions fire nothing and, with tracing off, record nothing.
+        if tracing || !n.waiters.is_empty() {
+            self.record_and_fire(id, facet, from, to);
+        }
+    }
+
+    /// The rest of `transition`: traces it and fires the waiters whose point is now reached.
+    fn record_and_fire(&mut self, id: NodeId, facet: Facet, from: State, to: State) {
+        let n = self.node_mut(id);
         let display = n.display;
         // Usually none or one fires: `Waiters` keeps one inline, so no allocation.
         let fired = if n.waiters.is_empty() {
@@ -479,11 +490,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// The body of `id` ended: reservations it never spawned are dead (docs/semantics.md, "Tags and
     /// forward references"). The labels of its own on-terminate tasks stay until its execution
     /// completes: a termination before then still inserts those tasks.
+    #[inline]
     pub(super) fn bury_reservations(&mut self, id: NodeId) {
-        let n = self.node_mut(id);
-        if !n.holds_reservations() {
-            return;
+        if self.node(id).holds_reservations() {
+            self.bury_unspawned(id);
         }
+    }
+
+    fn bury_unspawned(&mut self, id: NodeId) {
+        let n = self.node_mut(id);
         let labels = n.on_terminate_labels();
         let mut reservations = n.take_cold(|c| &mut c.reservations);
         if !labels.is_empty() {

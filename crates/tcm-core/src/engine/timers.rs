@@ -52,6 +52,12 @@ pub(crate) struct Timers {
 }
 
 impl Timers {
+    /// Whether no timer is pending at all (stale ones included).
+    #[inline]
+    pub(crate) fn is_empty(&self) -> bool {
+        self.heap.is_empty()
+    }
+
     pub(crate) fn push(&mut self, at: Time, kind: TimerKind) {
         let seq = self.seq;
         self.seq += 1;

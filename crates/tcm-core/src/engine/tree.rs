@@ -422,22 +422,17 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Traces a node's insertion under `parent`; returns its display number.
     fn emit_spawned(&mut self, id: NodeId, parent: NodeId) -> u64 {
         let (display, kind) = (self.node(id).display, self.node(id).kind);
-        let parent = self.node(parent).display;
-        // The name is only copied when someone reads the trace.
-        let name = if self.tracing {
-            self.node(id).name.to_string()
-        } else {
-            String::new()
-        };
-        emit!(
-            self,
-            TraceKind::Spawned {
+        // The record (and its copy of the name) is only built when someone reads the trace.
+        if self.tracing {
+            let parent = self.node(parent).display;
+            let name = self.node(id).name.to_string();
+            self.push_trace(TraceKind::Spawned {
                 node: display,
                 parent,
                 kind,
                 name,
-            }
-        );
+            });
+        }
         display
     }
 }

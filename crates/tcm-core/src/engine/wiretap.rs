@@ -112,10 +112,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// Starts the wiretaps of `node` for `when`; returns how many started.
+    #[inline]
     pub(crate) fn start_taps(&mut self, node: NodeId, when: TapWhen) -> u32 {
         if self.taps.is_empty() {
             return 0;
         }
+        self.start_matching_taps(node, when)
+    }
+
+    fn start_matching_taps(&mut self, node: NodeId, when: TapWhen) -> u32 {
         let n = self.node(node);
         let (name, task) = (n.name.clone(), n.task_name().clone());
         let matching: Vec<(WiretapId, F)> = self

@@ -18,7 +18,7 @@ fn spawn(
     cs: &[Constraint],
 ) -> NodeId {
     let mut spec = Spawn::new(up, kind, name, name);
-    spec.constraints = cs.to_vec();
+    spec.constraints = cs.iter().copied().collect();
     e.spawn(Time::ZERO, spec).expect("spawn")
 }
 
