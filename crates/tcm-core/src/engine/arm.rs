@@ -19,7 +19,7 @@
 //! The shorthands (`sequential`, `serial`) are lowered to enabling triggers here too.
 
 use super::node::Node;
-use super::node::{WaitKind, Waiter};
+use super::node::{Delay, WaitKind, Waiter};
 use super::timers::TimerKind;
 use super::{Effect, Engine, EngineError, WatchOutcome, Work};
 use crate::NodeKind;
@@ -269,7 +269,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             WaitKind::Trigger {
                 target: j.target,
                 then: j.then,
-                delay: j.delay,
+                delay: Delay::of(j.delay),
             },
             false,
         );
@@ -526,7 +526,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     ext.waiters.push(WaitKind::Trigger {
                         target: node,
                         then,
-                        delay: None,
+                        delay: Delay::NONE,
                     });
                     self.block(node, then);
                 }
@@ -623,7 +623,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 return self.impossible(WaitKind::Trigger {
                     target: node,
                     then,
-                    delay,
+                    delay: Delay::of(delay),
                 });
             }
             return self.fire_passed(node, then, delay);
@@ -636,7 +636,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             kind: WaitKind::Trigger {
                 target: node,
                 then,
-                delay,
+                delay: Delay::of(delay),
             },
         });
     }
@@ -702,23 +702,21 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             WaitKind::Trigger {
                 target,
                 then,
-                delay: None,
-            } => self.fire_trigger(target, then, true),
-            WaitKind::Trigger {
-                target,
-                then,
-                delay: Some(d),
-            } => {
-                // A terminating node that has not started waits for events, not for delays.
-                let forced = matches!(then, Then::Enable(_))
-                    && self.nodes.get(target).is_some_and(|n| !n.alive());
-                if forced {
-                    self.fire_trigger(target, then, true);
-                } else {
-                    self.timers
-                        .push(self.now + d, TimerKind::Trigger { target, then });
+                delay,
+            } => match delay.get() {
+                None => self.fire_trigger(target, then, true),
+                Some(d) => {
+                    // A terminating node that has not started waits for events, not for delays.
+                    let forced = matches!(then, Then::Enable(_))
+                        && self.nodes.get(target).is_some_and(|n| !n.alive());
+                    if forced {
+                        self.fire_trigger(target, then, true);
+                    } else {
+                        self.timers
+                            .push(self.now + d, TimerKind::Trigger { target, then });
+                    }
                 }
-            }
+            },
             WaitKind::Join { join, .. } => self.join_reached(join, by_termination),
             // Only reached through `fire_now`, which supplies the outcome.
             WaitKind::Watch { .. } => {}

@@ -384,7 +384,7 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
                 0u8.hash(h);
                 self.node_ref(target, h);
                 self.then(then, h);
-                delay.hash(h);
+                delay.get().hash(h);
             }
             // The token is the shell's routing; it hashes what it waits for itself.
             WaitKind::Watch { .. } => 1u8.hash(h),

@@ -16,7 +16,7 @@ pub(crate) enum WaitKind {
     Trigger {
         target: NodeId,
         then: Then,
-        delay: Option<Duration>,
+        delay: Delay,
     },
     /// Tell the shell.
     Watch { token: WatchToken },
@@ -36,6 +36,31 @@ impl WaitKind {
                 ..
             }
         )
+    }
+}
+
+/// An optional delay in 8 bytes (an `Option<Duration>` takes 16), so a waiter, which every node
+/// keeps one of inline, stays small. A delay beyond `u64::MAX - 1` nanoseconds (584 years) is
+/// kept as that.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) struct Delay(u64);
+
+impl Delay {
+    pub(crate) const NONE: Delay = Delay(u64::MAX);
+
+    #[inline]
+    pub(crate) fn of(d: Option<Duration>) -> Delay {
+        match d {
+            None => Delay::NONE,
+            Some(d) => {
+                Delay(u64::try_from(d.as_nanos()).map_or(u64::MAX - 1, |n| n.min(u64::MAX - 1)))
+            }
+        }
+    }
+
+    #[inline]
+    pub(crate) fn get(self) -> Option<Duration> {
+        (self != Delay::NONE).then(|| Duration::from_nanos(self.0))
     }
 }
 
@@ -107,83 +132,9 @@ pub(crate) enum Payload<A, F> {
 }
 
 /// The waiters of one node: most nodes have none or one (the next sibling's `sequential`), so one
-/// is kept inline and only more allocate.
-#[derive(Clone, Default)]
-pub(crate) enum Waiters {
-    #[default]
-    None,
-    One(Waiter),
-    Many(Vec<Waiter>),
-}
-
-impl Waiters {
-    pub(crate) fn push(&mut self, w: Waiter) {
-        *self = match std::mem::take(self) {
-            Waiters::None => Waiters::One(w),
-            Waiters::One(first) => Waiters::Many(vec![first, w]),
-            Waiters::Many(mut v) => {
-                v.push(w);
-                Waiters::Many(v)
-            }
-        };
-    }
-
-    pub(crate) fn is_empty(&self) -> bool {
-        match self {
-            Waiters::None => true,
-            Waiters::One(_) => false,
-            Waiters::Many(v) => v.is_empty(),
-        }
-    }
-
-    pub(crate) fn retain(&mut self, mut keep: impl FnMut(&Waiter) -> bool) {
-        match self {
-            Waiters::None => {}
-            Waiters::One(w) => {
-                if !keep(w) {
-                    *self = Waiters::None;
-                }
-            }
-            Waiters::Many(v) => v.retain(keep),
-        }
-    }
-
-    pub(crate) fn iter(&self) -> std::slice::Iter<'_, Waiter> {
-        match self {
-            Waiters::None => [].iter(),
-            Waiters::One(w) => std::slice::from_ref(w).iter(),
-            Waiters::Many(v) => v.iter(),
-        }
-    }
-}
-
-impl IntoIterator for Waiters {
-    type Item = Waiter;
-    type IntoIter = WaitersIter;
-    fn into_iter(self) -> WaitersIter {
-        match self {
-            Waiters::None => WaitersIter::One(None),
-            Waiters::One(w) => WaitersIter::One(Some(w)),
-            Waiters::Many(v) => WaitersIter::Many(v.into_iter()),
-        }
-    }
-}
-
-/// The waiters of a node, by value, without allocating for the inline one.
-pub(crate) enum WaitersIter {
-    One(Option<Waiter>),
-    Many(std::vec::IntoIter<Waiter>),
-}
-
-impl Iterator for WaitersIter {
-    type Item = Waiter;
-    fn next(&mut self) -> Option<Waiter> {
-        match self {
-            WaitersIter::One(w) => w.take(),
-            WaitersIter::Many(it) => it.next(),
-        }
-    }
-}
+/// is kept inline and only more allocate. Its length is a plain field, so the check every
+/// transition makes ("does anything wait here?") is one comparison.
+pub(crate) type Waiters = smallvec::SmallVec<[Waiter; 1]>;
 
 /// A task to insert as a child if the node is terminated while its action runs.
 #[derive(Clone)]

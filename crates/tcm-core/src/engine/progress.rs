@@ -346,13 +346,17 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     fn record_and_fire(&mut self, id: NodeId, facet: Facet, from: State, to: State) {
         let n = self.node_mut(id);
         let display = n.display;
-        // Usually none or one fires: `Waiters` keeps one inline, so no allocation.
-        let fired = if n.waiters.is_empty() {
-            Waiters::None
+        // Usually none or one fires: `Waiters` keeps one inline, so no allocation. Most
+        // transitions of a watched node fire nothing, so its waiters are first only looked at.
+        let fires = |w: &super::node::Waiter| w.facet == facet && w.point.state() <= to;
+        let fired = if !n.waiters.iter().any(fires) {
+            Waiters::new()
+        } else if n.waiters.iter().all(fires) {
+            std::mem::take(&mut n.waiters)
         } else {
-            let mut fired = Waiters::None;
+            let mut fired = Waiters::new();
             n.waiters.retain(|w| {
-                if w.facet == facet && w.point.state() <= to {
+                if fires(w) {
                     fired.push(*w);
                     false
                 } else {

@@ -258,7 +258,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 let WaitKind::Trigger {
                     target,
                     then,
-                    delay: after,
+                    delay,
                 } = w.kind
                 else {
                     continue;
@@ -267,7 +267,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     continue;
                 };
                 let mut what = describe(n, w.facet, w.point);
-                if let Some(d) = after {
+                if let Some(d) = delay.get() {
                     what = format!("{d:?} after {what}");
                 }
                 match then {
