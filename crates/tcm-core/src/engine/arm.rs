@@ -463,7 +463,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             Constraint::Serial(r) => {
                 let when = When::Event(Event::on(r, Facet::Execution, Point::Completed));
-                self.arm(node, parent, previous, when, Then::Enable(Facet::Expansion));
+                // On a command the expansion half is void (`arm`, step 1): only a trace would
+                // tell, so it is skipped when nothing is traced.
+                if self.tracing || self.node(node).kind.expands() {
+                    self.arm(node, parent, previous, when, Then::Enable(Facet::Expansion));
+                }
                 self.arm(node, parent, previous, when, Then::Enable(Facet::Execution));
             }
             Constraint::Trigger(when, then) => self.arm(node, parent, previous, when, then),

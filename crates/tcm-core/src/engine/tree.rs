@@ -69,21 +69,6 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if let Some(u) = uses.as_mut() {
             self.validate_uses(u)?;
         }
-        // Handlers attached from outside to this node's task.
-        let class_handlers: Vec<HandlerEntry<F>> = if self.class_handlers.is_empty() {
-            Vec::new()
-        } else {
-            let key = task.as_ref().unwrap_or(&name);
-            self.class_handlers.get(key).map_or_else(Vec::new, |specs| {
-                specs
-                    .iter()
-                    .map(|spec| HandlerEntry {
-                        spec: spec.clone(),
-                        uses: 0,
-                    })
-                    .collect()
-            })
-        };
         if (kind == NodeKind::Monitor) != monitor.is_some() {
             return Err(EngineError::NotAMonitor(self.next_display));
         }
@@ -147,11 +132,26 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     .copied()
                     .collect();
             }
-            if !class_handlers.is_empty() {
-                node.cold_mut().class_handlers = class_handlers;
-            }
             if let Some(u) = uses.filter(|u| !u.amounts.is_empty()) {
                 node.cold_mut().uses = Some(*u);
+            }
+        }
+        if !self.class_handlers.is_empty() {
+            // Handlers attached from outside to this node's task.
+            let attached: Option<Vec<HandlerEntry<F>>> = self
+                .class_handlers
+                .get(self.node(id).task_name())
+                .map(|specs| {
+                    specs
+                        .iter()
+                        .map(|spec| HandlerEntry {
+                            spec: spec.clone(),
+                            uses: 0,
+                        })
+                        .collect()
+                });
+            if let Some(entries) = attached {
+                self.node_mut(id).cold_mut().class_handlers = entries;
             }
         }
         self.link(parent, id);
@@ -169,7 +169,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         } else {
             Vec::new()
         };
-        for c in constraints {
+        for &c in &constraints {
             if c.applies_after_link() {
                 later.push((c, previous));
             } else {
