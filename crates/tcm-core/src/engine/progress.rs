@@ -337,7 +337,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         debug_assert!(from < to, "facets only move forward");
         n.states[facet.index()] = to;
         // Most transitions fire nothing and, with tracing off, record nothing.
-        if tracing || !n.waiters.is_empty() {
+        if tracing
+            || n.waiters
+                .iter()
+                .any(|w| w.facet == facet && w.point.state() <= to)
+        {
             self.record_and_fire(id, facet, from, to);
         }
     }
