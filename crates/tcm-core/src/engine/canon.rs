@@ -544,7 +544,7 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
         for r in &cold.reservations {
             self.node_ref(*r, h);
         }
-        match &cold.monitor {
+        match cold.monitor.as_deref() {
             None => 0u8.hash(h),
             Some(m) => {
                 1u8.hash(h);
@@ -587,7 +587,7 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
         for e in &cold.handlers {
             self.handler(e, h);
         }
-        match &cold.handler {
+        match cold.handler.as_deref() {
             None => 0u8.hash(h),
             Some(c) => {
                 1u8.hash(h);
@@ -599,7 +599,7 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
         cold.taps_open.hash(h);
         cold.tapped_before.hash(h);
         cold.tap_failure.is_some().hash(h);
-        if let Some(f) = &cold.tap_failure {
+        if let Some(f) = cold.tap_failure.as_deref() {
             failure(f, h);
         }
         cold.deferred.len().hash(h);

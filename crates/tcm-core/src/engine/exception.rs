@@ -75,7 +75,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if n.state(Facet::Handling) != State::Active || !n.alive() {
             return Err(EngineError::NotRunning(node));
         }
-        if let Some(ctx) = self.node_mut(node).cold_mut().handler.as_mut() {
+        if let Some(ctx) = self.node_mut(node).cold_mut().handler.as_deref_mut() {
             ctx.bypass = true;
         }
         Ok(())
@@ -409,11 +409,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             return;
         };
         entry.uses += 1;
-        let (body, name, handler) = (
-            entry.spec.body.clone(),
-            entry.spec.name.clone(),
-            entry.spec.name.to_string(),
-        );
+        let (body, name) = (entry.spec.body.clone(), entry.spec.name.clone());
         self.node_mut(failing).cold_mut().handled = true;
         let purpose = Purpose::Handler {
             failure: failure.clone(),
@@ -438,16 +434,16 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 failing: fd,
                 attached: ad,
                 exception: failure.exception.to_string(),
-                handler,
+                handler: self.node(id).name.to_string(),
             }
         );
-        self.node_mut(id).cold_mut().handler = Some(HandlerCtx {
+        self.node_mut(id).cold_mut().handler = Some(Box::new(HandlerCtx {
             failure,
             failing,
             attached,
             index,
             bypass: false,
-        });
+        }));
         self.queue_progress(id);
     }
 }

@@ -206,13 +206,13 @@ pub(crate) struct Cold<A, F> {
     // Reserved children not spawned yet.
     pub(crate) reservations: Vec<NodeId>,
     // Monitor state, for monitor nodes.
-    pub(crate) monitor: Option<Monitor<F>>,
+    pub(crate) monitor: Option<Box<Monitor<F>>>,
     // For activation nodes: their monitor.
     pub(crate) activation_of: Option<NodeId>,
     // Exception handlers attached to this node, in the order they are tried.
     pub(crate) handlers: Vec<HandlerEntry<F>>,
     // For handler nodes: what they handle.
-    pub(crate) handler: Option<HandlerCtx>,
+    pub(crate) handler: Option<Box<HandlerCtx>>,
     // A factory that re-runs this task, for retries.
     pub(crate) retry: Option<F>,
     // A handler took this node's failure.
@@ -220,7 +220,7 @@ pub(crate) struct Cold<A, F> {
     // Wiretap checks running on this node, and whether the "before" checks already ran.
     pub(crate) taps_open: Vec<crate::ids::WiretapId>,
     pub(crate) tapped_before: bool,
-    pub(crate) tap_failure: Option<Failure>,
+    pub(crate) tap_failure: Option<Box<Failure>>,
     // Constraints applied to a reservation before its spawn, with the `previous` of that moment;
     // applied when the spawn fulfils it.
     pub(crate) deferred: Vec<(crate::constraint::Constraint, Option<NodeId>)>,
@@ -364,11 +364,11 @@ impl<A, F> Node<A, F> {
     }
 
     pub(crate) fn monitor(&self) -> Option<&Monitor<F>> {
-        self.cold.as_ref().and_then(|c| c.monitor.as_ref())
+        self.cold.as_ref().and_then(|c| c.monitor.as_deref())
     }
 
     pub(crate) fn monitor_mut(&mut self) -> Option<&mut Monitor<F>> {
-        self.cold.as_mut().and_then(|c| c.monitor.as_mut())
+        self.cold.as_mut().and_then(|c| c.monitor.as_deref_mut())
     }
 
     pub(crate) fn activation_of(&self) -> Option<NodeId> {
@@ -401,7 +401,7 @@ impl<A, F> Node<A, F> {
 
     /// What a handler node handles.
     pub(crate) fn handler_ctx(&self) -> Option<&HandlerCtx> {
-        self.cold.as_ref().and_then(|c| c.handler.as_ref())
+        self.cold.as_ref().and_then(|c| c.handler.as_deref())
     }
 
     /// A handler node whose body asked to pass its exception on.

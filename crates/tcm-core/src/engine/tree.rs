@@ -114,7 +114,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             node.suspended = parent_suspended;
             if let Some(m) = monitor {
-                node.cold_mut().monitor = Some(Monitor::new(*m));
+                node.cold_mut().monitor = Some(Box::new(Monitor::new(*m)));
             }
             if !handlers.is_empty() {
                 node.cold_mut().handlers = handlers

@@ -88,13 +88,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.running -= 1;
         if let Err(f) = result {
             if c.tap_failure.is_none() {
-                c.tap_failure = Some(f);
+                c.tap_failure = Some(Box::new(f));
             }
         }
         if !c.taps_open.is_empty() || !alive {
             return Ok(());
         }
-        let failure = c.tap_failure.take();
+        let failure = c.tap_failure.take().map(|f| *f);
         match (when, failure) {
             (TapWhen::Before, None) => self.ready.push_back(node),
             (TapWhen::Before, Some(f)) => {
