@@ -390,7 +390,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// A live node of this run, or why not.
     fn live(&self, id: NodeId) -> Result<&Node<A, F>, EngineError> {
         self.check_run(id)?;
-        self.nodes.get(id).ok_or(EngineError::Gone(id))
+        // Not `ok_or`: an error built and dropped on every call costs a drop of its own.
+        match self.nodes.get(id) {
+            Some(n) => Ok(n),
+            None => Err(EngineError::Gone(id)),
+        }
     }
 
     /// A live node of this run for a query: `None` for a handle of another run, as for one gone.

@@ -50,7 +50,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             self.settle();
             return res;
         }
-        let n = self.nodes.get(node).ok_or(EngineError::Gone(node))?;
+        // Not `ok_or`: an error built and dropped on every call costs a drop of its own.
+        let Some(n) = self.nodes.get(node) else {
+            return Err(EngineError::Gone(node));
+        };
         if n.stopping {
             // A terminated node's action ended before it could be stopped: whatever it returned,
             // the node was terminated (docs/semantics.md, "Termination").
