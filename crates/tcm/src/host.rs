@@ -869,7 +869,7 @@ impl Inner {
     }
 }
 
-/// What [`Inner::take_launches`] gives the pump.
+/// A batch [`Inner::take_launches`] splits in two: the jobs to poll, and those to drop unpolled.
 pub(crate) type LaunchBatch = (Vec<(Job, ActionFuture)>, Vec<(Job, ActionFuture)>);
 
 /// The record of a panic in the action (or callback) of `node`.
