@@ -24,8 +24,8 @@ use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 use tcm_core::{
-    Driver, Engine, EngineError, Event, Failure, Job, Name, NodeId, Purpose, Shell, Spawn, Time,
-    WatchOutcome, WatchToken,
+    Driver, Effect, Engine, EngineError, Event, Failure, Job, Name, NodeId, Purpose, Shell, Spawn,
+    Time, WatchOutcome, WatchToken,
 };
 use tcm_trace::TraceEvent;
 use tokio::sync::{Notify, oneshot, watch};
@@ -269,8 +269,13 @@ impl Inner {
     /// it can do: re-arm the timer, run a due callback, see that a top-level task ended or that the
     /// run is quiet), or only to hand trace records to the sinks.
     pub(crate) fn effects(&mut self, shared: &Arc<Shared>) -> Wake {
-        let (engine, mut host) = self.split(shared);
-        Driver::effects(engine, &mut host);
+        // Most accesses leave no effect (a spawn whose parent holds its children): the host is
+        // borrowed only for one.
+        if let Some(first) = self.engine.poll_effect() {
+            let (engine, mut host) = self.split(shared);
+            host.effect(engine, first);
+            Driver::effects(engine, &mut host);
+        }
         let wake = self.roots_changed
             || !self.due.is_empty()
             || self.engine.fatal().is_some()
@@ -619,6 +624,18 @@ where
     }
 }
 
+impl Host<'_> {
+    /// Carries out one effect, as `Driver::effects` does each.
+    fn effect(&mut self, engine: &mut Engine<Action, Factory>, effect: Effect<Action, Factory>) {
+        match effect {
+            Effect::Start { node, action } => self.start(engine, node, action),
+            Effect::Invoke { job, body, purpose } => self.invoke(engine, job, body, purpose),
+            Effect::Cancel { node } => self.cancel(node),
+            Effect::Notify { token, outcome } => self.notify(engine, token, *outcome),
+        }
+    }
+}
+
 impl Shell<Action, Factory> for Host<'_> {
     fn start(&mut self, _: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
         // The engine already holds the action's children (`Engine::hold_by_default`, set by
@@ -718,17 +735,19 @@ pub(crate) enum Ended {
 impl Access<'_> {
     /// Carries out the effects, then takes the jobs the pump is to poll (`Inner::take_launches`)
     /// into `batch` (empty, kept by the pump so that its buffer serves every batch); taking them
-    /// changes nothing of the engine, so the access ends without another look. Returns the jobs
-    /// cancelled before the pump could poll them.
+    /// changes nothing of the engine, so the access ends without another look. The jobs
+    /// cancelled before the pump could poll them go to `dropped` (empty, kept by the pump too).
     pub(crate) fn settle_and_take_launches(
         &mut self,
         batch: &mut Vec<(Job, ActionFuture)>,
-    ) -> Vec<(Job, ActionFuture)> {
+        dropped: &mut Vec<(Job, ActionFuture)>,
+    ) {
         self.carry_out();
         if self.guard.ended {
-            return std::mem::take(&mut self.guard.launches);
+            dropped.append(&mut self.guard.launches);
+            return;
         }
-        self.guard.take_launches(batch)
+        self.guard.take_launches(batch, dropped);
     }
 }
 
@@ -756,21 +775,7 @@ impl Inner {
                 return;
             }
         };
-        let (result, panic) = match res {
-            Ok(r) => (r, None),
-            Err(panic) => {
-                let message = panic_message(panic.as_ref());
-                (
-                    Err(Failure::new("ActionPanicked", message.clone())),
-                    Some(message),
-                )
-            }
-        };
         let node = job.node();
-        if let Some(message) = panic {
-            let record = panicked(&self.engine, Some(node), String::new(), false, message);
-            self.panics.push(record);
-        }
         if job.cancellable() {
             self.aborts.remove(&node);
             if !self.activation_data.is_empty() {
@@ -784,31 +789,47 @@ impl Inner {
             self.checks.remove(&job);
         }
         self.parking.forget_job(job);
-        let result = result.map(|value| {
-            if self.values.is_empty() {
-                return;
+        let result = match res {
+            Ok(Ok(value)) => {
+                if !self.values.is_empty() {
+                    if let Some(slot) = self.values.get_mut(&node) {
+                        *slot = Some(value);
+                    }
+                }
+                Ok(())
             }
-            if let Some(slot) = self.values.get_mut(&node) {
-                *slot = Some(value);
+            Ok(Err(failure)) => Err(failure),
+            Err(panic) => {
+                let message = panic_message(panic.as_ref());
+                let record = panicked(
+                    &self.engine,
+                    Some(node),
+                    String::new(),
+                    false,
+                    message.clone(),
+                );
+                self.panics.push(record);
+                Err(Failure::new("ActionPanicked", message))
             }
-        });
+        };
         // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
         let _ = self.engine.handle_action_finished(now, job, result);
     }
 
     /// Moves the jobs the pump is to poll into `batch` (empty), swapping buffers so that neither
-    /// is allocated again; returns those cancelled before the pump could poll them (to drop
-    /// unpolled).
+    /// is allocated again; those cancelled before the pump could poll them go to `dropped` (to
+    /// drop unpolled).
     pub(crate) fn take_launches(
         &mut self,
         batch: &mut Vec<(Job, ActionFuture)>,
-    ) -> Vec<(Job, ActionFuture)> {
+        dropped: &mut Vec<(Job, ActionFuture)>,
+    ) {
         std::mem::swap(&mut self.launches, batch);
         if self.inline_cancelled.is_empty() {
-            return Vec::new();
+            return;
         }
         let cancelled = &mut self.inline_cancelled;
-        let (keep, dropped): LaunchBatch = batch.drain(..).partition(|(job, _)| {
+        let (keep, gone): LaunchBatch = batch.drain(..).partition(|(job, _)| {
             let node = job.node();
             match cancelled.iter().position(|n| *n == node) {
                 Some(i) if job.cancellable() => {
@@ -819,7 +840,7 @@ impl Inner {
             }
         });
         batch.extend(keep);
-        dropped
+        dropped.extend(gone);
     }
 
     /// Spawns, as a tokio task, a job the pump polled once and left pending; if it was cancelled
@@ -848,7 +869,7 @@ impl Inner {
     }
 }
 
-/// What [`Inner::take_launches`] gives the pump.
+/// A batch [`Inner::take_launches`] splits in two: the jobs to poll, and those to drop unpolled.
 pub(crate) type LaunchBatch = (Vec<(Job, ActionFuture)>, Vec<(Job, ActionFuture)>);
 
 /// The record of a panic in the action (or callback) of `node`.

@@ -115,12 +115,11 @@ pub(crate) fn flush(inner: &mut Inner, shared: &Shared) {
         let Some(st) = p.as_mut().filter(|st| same(&st.shared, shared)) else {
             return;
         };
-        if st.done.is_empty() && st.pending.is_empty() {
-            return;
-        }
-        for (job, fut) in st.pending.drain(..) {
-            if let Some(fut) = inner.spawn_job(&st.shared, job, fut) {
-                st.to_drop.push(fut);
+        if !st.pending.is_empty() {
+            for (job, fut) in st.pending.drain(..) {
+                if let Some(fut) = inner.spawn_job(&st.shared, job, fut) {
+                    st.to_drop.push(fut);
+                }
             }
         }
         if !st.done.is_empty() {
@@ -188,15 +187,19 @@ impl Guard {
         let mut cx = Context::from_waker(waker);
         // One buffer for every batch (swapped with the host's, `Inner::take_launches`).
         let mut batch = Vec::new();
+        // Those cancelled before their poll (rare), likewise.
+        let mut dropped = Vec::new();
         loop {
-            let dropped = match shared.enter() {
-                Ok(mut inner) => inner.settle_and_take_launches(&mut batch),
+            match shared.enter() {
+                Ok(mut inner) => inner.settle_and_take_launches(&mut batch, &mut dropped),
                 Err(_) => return,
-            };
+            }
             // Cancelled before their poll: dropped unpolled, outside the lock, and reported stopped.
-            for (job, fut) in dropped {
-                drop(fut);
-                let _ = push(|st| st.done.push(Ended::Dropped(job)));
+            if !dropped.is_empty() {
+                for (job, fut) in dropped.drain(..) {
+                    drop(fut);
+                    let _ = push(|st| st.done.push(Ended::Dropped(job)));
+                }
             }
             if batch.is_empty() {
                 if self.idle() {

@@ -199,8 +199,9 @@ pub struct Task {
     pub(crate) task_name: Option<Name>,
     pub(crate) action: Option<Action>,
     pub(crate) constraints: tcm_core::Constraints,
-    pub(crate) on_terminate: Vec<Task>,
-    pub(crate) handlers: Vec<Handler>,
+    // Kept as the engine takes them (`Task::into_parts` moves them as they are).
+    pub(crate) on_terminate: Vec<OnTerminate<Action>>,
+    pub(crate) handlers: Vec<HandlerSpec<Factory>>,
     pub(crate) monitor: Option<Box<MonitorSpec<Factory>>>,
     pub(crate) retry: Option<Factory>,
     pub(crate) persistent: bool,
@@ -421,7 +422,9 @@ impl Task {
     /// Adds a task-level `on terminate` task: spawned as a child if a node of this task is terminated
     /// while its action runs; it runs to completion.
     pub fn on_terminate(mut self, cleanup: Task) -> Task {
-        self.on_terminate.push(cleanup);
+        if let Some(ot) = cleanup.into_cleanup() {
+            self.on_terminate.push(ot);
+        }
         self
     }
 
@@ -429,7 +432,7 @@ impl Task {
     /// spawn-level ones, and within each group in the order attached (docs/semantics.md,
     /// "Exceptions and handlers").
     pub fn handler(mut self, h: Handler) -> Task {
-        self.handlers.push(h);
+        self.handlers.push(h.spec);
         self
     }
 
@@ -495,19 +498,6 @@ impl Task {
             fail_parent: false,
             wanted: self.wanted,
         };
-        let on_terminate = if self.on_terminate.is_empty() {
-            Vec::new()
-        } else {
-            self.on_terminate
-                .into_iter()
-                .filter_map(Task::into_cleanup)
-                .collect()
-        };
-        let handlers = if self.handlers.is_empty() {
-            Vec::new()
-        } else {
-            self.handlers.into_iter().map(|h| h.spec).collect()
-        };
         let spawn = Spawn {
             parent,
             kind: self.kind,
@@ -516,10 +506,10 @@ impl Task {
             action: self.action,
             constraints: self.constraints,
             persistent: self.persistent,
-            on_terminate,
+            on_terminate: self.on_terminate,
             fulfils: None,
             monitor: self.monitor,
-            handlers,
+            handlers: self.handlers,
             retry: self.retry,
             // Resolved by name when the spawn is made (`Kept::wanted`).
             uses: None,
