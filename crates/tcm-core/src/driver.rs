@@ -65,12 +65,22 @@ impl Driver {
     /// Step 2: hands every queued effect to the shell.
     pub fn effects<A, F: Clone>(engine: &mut Engine<A, F>, shell: &mut impl Shell<A, F>) {
         while let Some(effect) = engine.poll_effect() {
-            match effect {
-                Effect::Start { node, action } => shell.start(engine, node, action),
-                Effect::Invoke { job, body, purpose } => shell.invoke(engine, job, body, purpose),
-                Effect::Cancel { node } => shell.cancel(node),
-                Effect::Notify { token, outcome } => shell.notify(engine, token, *outcome),
-            }
+            Driver::effect(engine, shell, effect);
+        }
+    }
+
+    /// Hands one effect, already polled, to the shell (what step 2 does with each).
+    #[inline]
+    pub fn effect<A, F: Clone>(
+        engine: &mut Engine<A, F>,
+        shell: &mut impl Shell<A, F>,
+        effect: Effect<A, F>,
+    ) {
+        match effect {
+            Effect::Start { node, action } => shell.start(engine, node, action),
+            Effect::Invoke { job, body, purpose } => shell.invoke(engine, job, body, purpose),
+            Effect::Cancel { node } => shell.cancel(node),
+            Effect::Notify { token, outcome } => shell.notify(engine, token, *outcome),
         }
     }
 

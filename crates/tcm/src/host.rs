@@ -24,8 +24,8 @@ use std::pin::Pin;
 use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 use tcm_core::{
-    Driver, Effect, Engine, EngineError, Event, Failure, Job, Name, NodeId, Purpose, Shell, Spawn,
-    Time, WatchOutcome, WatchToken,
+    Driver, Engine, EngineError, Event, Failure, Job, Name, NodeId, Purpose, Shell, Spawn, Time,
+    WatchOutcome, WatchToken,
 };
 use tcm_trace::TraceEvent;
 use tokio::sync::{Notify, oneshot, watch};
@@ -273,7 +273,7 @@ impl Inner {
         // borrowed only for one.
         if let Some(first) = self.engine.poll_effect() {
             let (engine, mut host) = self.split(shared);
-            host.effect(engine, first);
+            Driver::effect(engine, &mut host, first);
             Driver::effects(engine, &mut host);
         }
         let wake = self.roots_changed
@@ -621,18 +621,6 @@ where
     match rt {
         Some(rt) => rt.spawn(task),
         None => tokio::spawn(task),
-    }
-}
-
-impl Host<'_> {
-    /// Carries out one effect, as `Driver::effects` does each.
-    fn effect(&mut self, engine: &mut Engine<Action, Factory>, effect: Effect<Action, Factory>) {
-        match effect {
-            Effect::Start { node, action } => self.start(engine, node, action),
-            Effect::Invoke { job, body, purpose } => self.invoke(engine, job, body, purpose),
-            Effect::Cancel { node } => self.cancel(node),
-            Effect::Notify { token, outcome } => self.notify(engine, token, *outcome),
-        }
     }
 }
 
