@@ -197,6 +197,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
 
     /// Moves a node as far as its constraints allow (see the module documentation).
     fn progress(&mut self, id: NodeId) {
+        // What the parent allows, looked up when first needed and kept while only this node's
+        // own states change: a transition that ran waiters, or a completion, may have changed
+        // anything, and then it is looked up again.
+        let mut parent_gate: Option<ParentGate> = None;
         loop {
             let Some(n) = self.nodes.get(id) else { return };
             if n.reserved || n.kind == NodeKind::Root {
@@ -210,29 +214,35 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             // Children of a holding action are not enabled at all until it releases them (only
             // looked up while something is left to enable). A terminating node that had not
             // started is still enabled in the plan's order; it just never starts.
-            let can_enable = !terminated
+            let g = if !terminated
                 && (h == State::Disabled || x == State::Disabled || e == State::Disabled)
-                && !n
-                    .parent
-                    .and_then(|p| self.nodes.get(p))
-                    .is_some_and(|p| p.holding && p.state(Facet::Handling) == State::Active);
+            {
+                *parent_gate.get_or_insert_with(|| self.parent_gate(n))
+            } else {
+                ParentGate::CLOSED
+            };
+            let can_enable = g.open;
             if can_enable
                 && x == State::Disabled
                 && n.blocks[Facet::Expansion.index()] == 0
-                && self.parent_allows(n, Facet::Expansion)
+                && g.expansion
                 && (!n.delay_expansion || e >= State::Enabled)
             {
-                self.transition(id, Facet::Expansion, State::Enabled);
+                if self.transition(id, Facet::Expansion, State::Enabled) {
+                    parent_gate = None;
+                }
                 self.progress_children(id);
                 continue;
             }
             if can_enable
                 && e == State::Disabled
                 && n.blocks[Facet::Execution.index()] == 0
-                && self.parent_allows(n, Facet::Execution)
+                && g.execution
                 && (!n.expand_first || x == State::Completed)
             {
-                self.transition(id, Facet::Execution, State::Enabled);
+                if self.transition(id, Facet::Execution, State::Enabled) {
+                    parent_gate = None;
+                }
                 self.progress_children(id);
                 continue;
             }
@@ -242,12 +252,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 && n.blocks[Facet::Handling.index()] == 0
                 && gate >= State::Enabled
             {
-                self.transition(id, Facet::Handling, State::Enabled);
+                if self.transition(id, Facet::Handling, State::Enabled) {
+                    parent_gate = None;
+                }
                 if alive {
                     self.ready.push_back(id);
                 } else {
                     self.transition(id, Facet::Handling, State::Completed);
                     self.bury_reservations(id);
+                    parent_gate = None;
                 }
                 continue;
             }
@@ -264,6 +277,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     }
                     self.queue_progress(p);
                 }
+                parent_gate = None;
                 continue;
             }
             if e != State::Completed
@@ -283,6 +297,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     }
                     self.queue_progress(p);
                 }
+                parent_gate = None;
                 continue;
             }
             if n.termination == Termination::Terminating
@@ -300,6 +315,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     }
                     self.queue_progress(p);
                 }
+                parent_gate = None;
                 continue;
             }
             if e == State::Completed
@@ -321,19 +337,29 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
     }
 
-    fn parent_allows(&self, n: &Node<A, F>, facet: Facet) -> bool {
-        match n.parent {
-            None => true,
-            Some(p) => self
-                .nodes
-                .get(p)
-                .is_none_or(|p| p.state(facet) >= State::Enabled),
+    /// What the parent of `n` allows its children now.
+    fn parent_gate(&self, n: &Node<A, F>) -> ParentGate {
+        match n.parent.and_then(|p| self.nodes.get(p)) {
+            // No parent (or one gone): nothing holds the node back.
+            None => ParentGate {
+                open: true,
+                expansion: true,
+                execution: true,
+            },
+            Some(p) => ParentGate {
+                // Children of a holding action are not enabled at all until it releases them.
+                open: !(p.holding && p.state(Facet::Handling) == State::Active),
+                expansion: p.state(Facet::Expansion) >= State::Enabled,
+                execution: p.state(Facet::Execution) >= State::Enabled,
+            },
         }
     }
 
     /// Moves `facet` of `id` to `to`, traces it and fires the waiters whose point is now reached.
+    /// Returns whether anything beyond the state itself may have changed (waiters ran, or a
+    /// record was traced).
     #[inline]
-    pub(super) fn transition(&mut self, id: NodeId, facet: Facet, to: State) {
+    pub(super) fn transition(&mut self, id: NodeId, facet: Facet, to: State) -> bool {
         let tracing = self.tracing;
         let n = self.node_mut(id);
         let from = n.states[facet.index()];
@@ -346,7 +372,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 .any(|w| w.facet == facet && w.point.state() <= to)
         {
             self.record_and_fire(id, facet, from, to);
+            return true;
         }
+        false
     }
 
     /// The rest of `transition`: traces it and fires the waiters whose point is now reached.
@@ -583,4 +611,23 @@ pub(super) fn timer_is_live<A, F, S: Keep<Node<A, F>>>(
         // A timer callback belongs to no node: it matters until it fires.
         TimerKind::Notify { .. } => true,
     }
+}
+
+/// What a parent allows its children, as `progress` reads it.
+#[derive(Clone, Copy)]
+struct ParentGate {
+    // The parent does not hold its children (an action holding them while it runs).
+    open: bool,
+    // The parent's expansion, and execution, is enabled (or there is no parent).
+    expansion: bool,
+    execution: bool,
+}
+
+impl ParentGate {
+    /// For a node with nothing left to enable: the parent is not looked at.
+    const CLOSED: ParentGate = ParentGate {
+        open: false,
+        expansion: false,
+        execution: false,
+    };
 }
