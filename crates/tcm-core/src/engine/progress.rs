@@ -222,16 +222,21 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 ParentGate::CLOSED
             };
             let can_enable = g.open;
+            let has_children = n.live_children > 0;
             if can_enable
                 && x == State::Disabled
                 && n.blocks[Facet::Expansion.index()] == 0
                 && g.expansion
                 && (!n.delay_expansion || e >= State::Enabled)
             {
+                // Children wait for this facet; a node with none (and whose transition ran
+                // nothing that could have made one) has nothing more to do here.
                 if self.transition(id, Facet::Expansion, State::Enabled) {
                     parent_gate = None;
+                    self.progress_children(id);
+                } else if has_children {
+                    self.progress_children(id);
                 }
-                self.progress_children(id);
                 continue;
             }
             if can_enable
@@ -240,10 +245,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 && g.execution
                 && (!n.expand_first || x == State::Completed)
             {
+                // Children wait for this facet; a node with none (and whose transition ran
+                // nothing that could have made one) has nothing more to do here.
                 if self.transition(id, Facet::Execution, State::Enabled) {
                     parent_gate = None;
+                    self.progress_children(id);
+                } else if has_children {
+                    self.progress_children(id);
                 }
-                self.progress_children(id);
                 continue;
             }
             let gate = if n.kind.expands() { x } else { e };
@@ -434,28 +443,18 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             return;
         }
-        // Its resources are granted before anything of it starts (docs/semantics.md,
-        // "Resources"): it waits, enabled, until then, or fails if it is refused.
-        if n.uses().is_some()
-            && n.grant() != super::resource::Grant::Held
-            && !self.request_resources(id)
-        {
-            return;
-        }
-        let Some(n) = self.nodes.get_mut(id) else {
-            return;
-        };
-        let is_monitor = n.monitor().is_some();
-        let tapped = n.tapped_before();
-        if !is_monitor && !tapped && !self.taps.is_empty() {
-            n.cold_mut().tapped_before = true;
-            if self.start_taps(id, crate::ids::TapWhen::Before) > 0 {
-                // Stays enabled until its checks report (`tap_finished`).
+        // Most nodes have no cold part (no resources, not a monitor, no wiretap checks made) and
+        // most runs no wiretap: then none of `start_checks` applies.
+        let (n, is_monitor) = if n.cold.is_none() && self.taps.is_empty() {
+            (n, false)
+        } else {
+            let Some(is_monitor) = self.start_checks(id) else {
                 return;
-            }
-        }
-        let Some(n) = self.nodes.get_mut(id) else {
-            return;
+            };
+            let Some(n) = self.nodes.get_mut(id) else {
+                return;
+            };
+            (n, is_monitor)
         };
         let payload = n.action.take();
         if payload.is_none() && !is_monitor {
@@ -497,6 +496,30 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             None => self.monitor_started(id),
         }
+    }
+
+    /// What must happen before a node with a cold part starts: its resources are granted
+    /// (docs/semantics.md, "Resources": it waits, enabled, until then, or fails if it is refused),
+    /// and its "before" wiretaps approve it (it stays enabled until they report,
+    /// `tap_finished`). Returns whether it is a monitor, or `None` if it does not start now.
+    fn start_checks(&mut self, id: NodeId) -> Option<bool> {
+        let n = self.nodes.get(id)?;
+        if n.uses().is_some()
+            && n.grant() != super::resource::Grant::Held
+            && !self.request_resources(id)
+        {
+            return None;
+        }
+        let n = self.nodes.get_mut(id)?;
+        let is_monitor = n.monitor().is_some();
+        let tapped = n.tapped_before();
+        if !is_monitor && !tapped && !self.taps.is_empty() {
+            n.cold_mut().tapped_before = true;
+            if self.start_taps(id, crate::ids::TapWhen::Before) > 0 {
+                return None;
+            }
+        }
+        Some(is_monitor)
     }
 
     /// A retry whose execution completes without failing recovers the first run of its task,

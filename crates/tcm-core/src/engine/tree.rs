@@ -420,10 +420,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// Traces a node's insertion under `parent`; returns its display number.
+    #[inline]
     fn emit_spawned(&mut self, id: NodeId, parent: NodeId) -> u64 {
-        let (display, kind) = (self.node(id).display, self.node(id).kind);
+        let display = self.node(id).display;
         // The record (and its copy of the name) is only built when someone reads the trace.
         if self.tracing {
+            let kind = self.node(id).kind;
             let parent = self.node(parent).display;
             let name = self.node(id).name.to_string();
             self.push_trace(TraceKind::Spawned {
