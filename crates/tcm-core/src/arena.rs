@@ -283,6 +283,16 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
         }
     }
 
+    /// The live node in slot `link`, if any (a link names a live node, whose generation is the
+    /// slot's).
+    #[inline]
+    pub(crate) fn get_mut_at(
+        &mut self,
+        link: crate::engine::node::Link,
+    ) -> Option<&mut Node<A, F>> {
+        self.slot_mut(link.0)?.node.as_mut().map(S::get_mut)
+    }
+
     /// The handle of the live node in slot `link`, if any.
     pub(crate) fn id_at(&self, link: crate::engine::node::Link) -> Option<NodeId> {
         let slot = self.slot(link.0)?;

@@ -296,11 +296,18 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 && e >= State::Enabled
                 && !n.stopping
             {
-                self.note_recovery(id);
-                self.transition(id, Facet::Execution, State::Completed);
-                self.bury_labels(id);
+                // Retries and reservations live in the cold part: a node without one (unless
+                // its transition ran waiters) has neither to look at. A linked node's parent
+                // never changes.
+                let (cold, parent) = (n.cold.is_some(), n.parent);
+                if cold {
+                    self.note_recovery(id);
+                }
+                if self.transition(id, Facet::Execution, State::Completed) || cold {
+                    self.bury_labels(id);
+                }
                 self.end_reservations_of(id);
-                if let Some(p) = self.node(id).parent {
+                if let Some(p) = parent {
                     if let Some(p) = self.nodes.get_mut(p) {
                         p.open_executions -= 1;
                     }
@@ -542,10 +549,17 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             self.release_resources(id);
         }
         self.transition(id, Facet::Handling, State::Completed);
-        if std::mem::replace(&mut self.node_mut(id).holding, false) {
+        let n = self.node_mut(id);
+        let (was_holding, reservations) = (
+            std::mem::replace(&mut n.holding, false),
+            n.holds_reservations(),
+        );
+        if was_holding {
             self.progress_children(id);
         }
-        self.bury_reservations(id);
+        if reservations {
+            self.bury_unspawned(id);
+        }
         self.queue_progress(id);
     }
 
@@ -600,14 +614,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     fn reclaim(&mut self, id: NodeId) {
-        let fate = if self.node(id).termination == Termination::Terminated {
+        let n = self.node(id);
+        let fate = if n.termination == Termination::Terminated {
             Fate::Terminated
         } else {
             Fate::Completed
         };
-        let parent = self.node(id).parent;
+        let (parent, display) = (n.parent, n.display);
         self.unlink(id);
-        let display = self.node(id).display;
         self.nodes.discard(id, fate);
         emit!(self, TraceKind::Reclaimed { node: display });
         if let Some(p) = parent {

@@ -620,8 +620,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             return;
         }
         self.res.reserved -= 1;
-        let resource = res.name.to_string();
-        emit!(self, TraceKind::ResourceUnreserved { resource });
+        emit!(
+            self,
+            TraceKind::ResourceUnreserved {
+                resource: self.res.list[idx as usize].name.to_string(),
+            }
+        );
         self.res.dirty = true;
     }
 

@@ -74,6 +74,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
         self.check_parent_open(parent)?;
         let pd = self.node(parent);
+        let parent_suspended = pd.suspended;
         if constraints.len() >= 2
             && constraints.contains(&Constraint::ExpandFirst)
             && constraints.contains(&Constraint::DelayExpansion)
@@ -102,7 +103,6 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             self.adopt_reservation(parent, id, r);
         }
         {
-            let parent_suspended = self.node(parent).suspended;
             let node = self.node_mut(id);
             node.action = action.map(Payload::Action);
             node.persistent = persistent;
@@ -156,11 +156,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
         self.link(parent, id);
         let display = self.emit_spawned(id, parent);
-        if let Some(m) = self.node(id).monitor() {
-            let record = m.spec.traced(display);
-            emit!(self, record);
+        if self.tracing {
+            let n = self.node(id);
+            if let Some(m) = n.monitor() {
+                let record = m.spec.traced(display);
+                emit!(self, record);
+            }
         }
-        if self.node(id).suspended {
+        if parent_suspended {
             emit!(self, TraceKind::Suspended { node: display });
         }
         // Only a reservation can carry constraints stated before its spawn.
@@ -300,25 +303,22 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     fn link(&mut self, parent: NodeId, child: NodeId) {
-        let last = self.node(parent).last_child;
-        {
-            let c = self.node_mut(child);
-            c.prev_sibling = last;
-            c.next_sibling = Link::NONE;
-        }
-        if let Some(l) = self.nodes.id_at(last) {
-            self.node_mut(l).next_sibling = Link::to(child);
-        }
-        let child_expands = self.node(child).state(Facet::Expansion) != State::Completed;
         let p = self.node_mut(parent);
+        let last = p.last_child;
         if p.first_child == Link::NONE {
             p.first_child = Link::to(child);
         }
         p.last_child = Link::to(child);
         p.live_children += 1;
         p.open_executions += 1;
-        if child_expands {
-            p.open_expansions += 1;
+        let c = self.node_mut(child);
+        c.prev_sibling = last;
+        c.next_sibling = Link::NONE;
+        if c.state(Facet::Expansion) != State::Completed {
+            self.node_mut(parent).open_expansions += 1;
+        }
+        if let Some(l) = self.nodes.get_mut_at(last) {
+            l.next_sibling = Link::to(child);
         }
     }
 
@@ -328,15 +328,28 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             (c.parent, c.prev_sibling, c.next_sibling)
         };
         let Some(parent) = parent else { return };
-        match self.nodes.id_at(prev) {
-            Some(p) => self.node_mut(p).next_sibling = next,
-            None => self.node_mut(parent).first_child = next,
+        let first = match self.nodes.get_mut_at(prev) {
+            Some(p) => {
+                p.next_sibling = next;
+                false
+            }
+            None => true,
+        };
+        let last = match self.nodes.get_mut_at(next) {
+            Some(n) => {
+                n.prev_sibling = prev;
+                false
+            }
+            None => true,
+        };
+        let p = self.node_mut(parent);
+        if first {
+            p.first_child = next;
         }
-        match self.nodes.id_at(next) {
-            Some(n) => self.node_mut(n).prev_sibling = prev,
-            None => self.node_mut(parent).last_child = prev,
+        if last {
+            p.last_child = prev;
         }
-        self.node_mut(parent).live_children -= 1;
+        p.live_children -= 1;
     }
 
     /// The first linked child of a live node.
