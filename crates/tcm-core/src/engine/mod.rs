@@ -334,7 +334,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Moves the engine's clock to `now`. It never skips a deadline: timers due before `now` fire
     /// first, each at its own time, so an input that arrives late (on real time the shell wakes a
     /// little after a deadline) never overtakes a timer that was due before it.
-    #[inline]
+    #[inline(always)]
     fn advance(&mut self, now: Time) {
         if !self.timers.is_empty() {
             self.fire_timers(now, false);

@@ -374,7 +374,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Moves `facet` of `id` to `to`, traces it and fires the waiters whose point is now reached.
     /// Returns whether anything beyond the state itself may have changed (waiters ran, or a
     /// record was traced).
-    #[inline]
+    #[inline(always)]
     pub(super) fn transition(&mut self, id: NodeId, facet: Facet, to: State) -> bool {
         let tracing = self.tracing;
         let n = self.node_mut(id);

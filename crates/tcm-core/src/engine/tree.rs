@@ -109,14 +109,18 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             if task.is_some() {
                 node.cold_mut().task = task;
             }
-            if !on_terminate.is_empty() {
+            if on_terminate.is_empty() {
+                discard(on_terminate);
+            } else {
                 node.cold_mut().on_terminate = on_terminate;
             }
             node.suspended = parent_suspended;
             if let Some(m) = monitor {
                 node.cold_mut().monitor = Some(Box::new(Monitor::new(*m)));
             }
-            if !handlers.is_empty() {
+            if handlers.is_empty() {
+                discard(handlers);
+            } else {
                 node.cold_mut().handlers = handlers
                     .into_iter()
                     .map(|spec| HandlerEntry { spec, uses: 0 })
@@ -433,7 +437,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// Traces a node's insertion under `parent`; returns its display number.
-    #[inline]
+    #[inline(always)]
     fn emit_spawned(&mut self, id: NodeId, parent: NodeId) -> u64 {
         let display = self.node(id).display;
         // The record (and its copy of the name) is only built when someone reads the trace.
@@ -449,5 +453,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             });
         }
         display
+    }
+}
+
+/// Drops a list a spawn did not use. Most are empty and never allocated: those own nothing, so
+/// they are forgotten rather than handed to their drop glue, a call the compiler does not inline
+/// (an empty list of a type with drop glue still goes through it).
+#[inline(always)]
+fn discard<T>(list: Vec<T>) {
+    if list.capacity() == 0 {
+        std::mem::forget(list);
     }
 }
