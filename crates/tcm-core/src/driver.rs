@@ -28,7 +28,13 @@ pub trait Shell<A, F> {
     fn start(&mut self, engine: &mut Engine<A, F>, node: NodeId, action: A);
     /// Runs a factory for `job` (a monitor activation, a handler, a retry, a wiretap check); its
     /// end goes to [`Engine::handle_action_finished`] with `job`.
-    fn invoke(&mut self, engine: &mut Engine<A, F>, job: Job, body: F, purpose: Box<Purpose>);
+    fn invoke(
+        &mut self,
+        engine: &mut Engine<A, F>,
+        job: Job,
+        body: F,
+        purpose: std::sync::Arc<Purpose>,
+    );
     /// Stops a running action; report to [`Engine::handle_action_stopped`] once it stopped.
     fn cancel(&mut self, node: NodeId);
     /// A watched point was reached.

@@ -243,7 +243,13 @@ impl Shell<Body, Factory> for SimShell {
         self.outcome(Job::from(node), outcome);
     }
 
-    fn invoke(&mut self, engine: &mut SimEngine, job: Job, body: Factory, purpose: Box<Purpose>) {
+    fn invoke(
+        &mut self,
+        engine: &mut SimEngine,
+        job: Job,
+        body: Factory,
+        purpose: std::sync::Arc<Purpose>,
+    ) {
         let outcome = (body.0)(engine, job.node(), self.now, &purpose);
         self.outcome(job, outcome);
     }

@@ -646,7 +646,7 @@ impl Shell<Action, Factory> for Host<'_> {
         engine: &mut Engine<Action, Factory>,
         job: Job,
         body: Factory,
-        p: Box<Purpose>,
+        p: Arc<Purpose>,
     ) {
         // A monitor's activation has the grace period its monitor's task set.
         if let Purpose::Activation { monitor, .. } = p.as_ref() {
@@ -661,7 +661,7 @@ impl Shell<Action, Factory> for Host<'_> {
         let ctx = Ctx {
             shared: self.shared.clone(),
             node: job.node(),
-            purpose: Some(Arc::from(p)),
+            purpose: Some(p),
             job: Some(job),
             // A check's node is the tapped node: its arguments (`Ctx::tapped_args`).
             args: self.args.get(&job.node()).cloned(),

@@ -9,6 +9,7 @@ use crate::constraint::{Constraint, Constraints};
 use crate::failure::Failure;
 use crate::ids::{NodeId, WatchToken, WiretapId};
 use crate::{Name, NodeKind};
+use std::sync::Arc;
 use tcm_trace::Facet;
 
 /// An output of the engine for the shell to carry out.
@@ -28,8 +29,9 @@ pub enum Effect<A, F = ()> {
         job: Job,
         /// The factory, given at spawn or registration.
         body: F,
-        /// Why it runs, with what it needs to know (boxed: effects stay small).
-        purpose: Box<Purpose>,
+        /// Why it runs, with what it needs to know (shared: effects stay small, and the shell
+        /// keeps it for the invocation's whole run without copying it).
+        purpose: Arc<Purpose>,
     },
     /// Stop this node's running action, then report that it stopped: to
     /// [`Engine::handle_action_stopped`] (or, if it ended first, to

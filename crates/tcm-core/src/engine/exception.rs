@@ -130,7 +130,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             node,
             kind,
             name,
-            Payload::Invoke(factory.clone(), Box::new(Purpose::Retry { of: failing })),
+            Payload::Invoke(
+                factory.clone(),
+                std::sync::Arc::new(Purpose::Retry { of: failing }),
+            ),
         );
         let task = self.node(failing).renamed_task().cloned();
         // Labelled on-terminate tasks stay: their reservations belong to the first run.
@@ -420,7 +423,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             under,
             NodeKind::Handler,
             name,
-            Payload::Invoke(body, Box::new(purpose)),
+            Payload::Invoke(body, std::sync::Arc::new(purpose)),
         );
         let (d, fd, ad) = (
             self.node(id).display,

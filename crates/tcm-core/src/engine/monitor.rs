@@ -290,7 +290,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
         let payload = Payload::Invoke(
             body,
-            Box::new(Purpose::Activation {
+            std::sync::Arc::new(Purpose::Activation {
                 monitor,
                 number,
                 triggers,

@@ -6,6 +6,7 @@ use crate::constraint::Then;
 use crate::failure::Failure;
 use crate::ids::{NodeId, WatchToken};
 use crate::{Name, NodeKind};
+use std::sync::Arc;
 use std::time::Duration;
 use tcm_trace::{Facet, Point, State, Termination};
 
@@ -127,8 +128,9 @@ pub enum Purpose {
 pub(crate) enum Payload<A, F> {
     /// The shell's one-shot action.
     Action(A),
-    /// A factory to invoke, and why (boxed: rare, and large next to an action).
-    Invoke(F, Box<Purpose>),
+    /// A factory to invoke, and why (shared: rare, large next to an action, and kept by the
+    /// shell for the invocation's whole run).
+    Invoke(F, Arc<Purpose>),
 }
 
 /// The waiters of one node: most nodes have none or one (the next sibling's `sequential`), so one

@@ -153,7 +153,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             self.effects.push_back(Effect::Invoke {
                 job: Job::check(node, tap),
                 body,
-                purpose: Box::new(Purpose::Tap { tap, when }),
+                purpose: std::sync::Arc::new(Purpose::Tap { tap, when }),
             });
         }
         k

@@ -40,7 +40,7 @@ fn started(e: &mut Bare, node: NodeId) {
 #[track_caller]
 fn invoked(e: &mut Bare) -> (Job, &'static str, Purpose) {
     match e.poll_effect() {
-        Some(Effect::Invoke { job, body, purpose }) => (job, body, *purpose),
+        Some(Effect::Invoke { job, body, purpose }) => (job, body, (*purpose).clone()),
         other => panic!("expected an invocation, got {other:?}"),
     }
 }
