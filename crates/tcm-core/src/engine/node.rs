@@ -75,6 +75,14 @@ pub(crate) struct Waiter {
     pub(crate) outcome: Option<tcm_trace::Outcome>,
 }
 
+impl Waiter {
+    /// Whether its point is reached when its node's `facet` moves to `to`.
+    #[inline]
+    pub(crate) fn fires_at(&self, facet: Facet, to: State) -> bool {
+        self.facet == facet && self.point.state() <= to
+    }
+}
+
 /// A link between linked (hence live) nodes: the slot index alone, `NONE` for no node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Link(pub(crate) u32);

@@ -382,11 +382,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         debug_assert!(from < to, "facets only move forward");
         n.states[facet.index()] = to;
         // Most transitions fire nothing and, with tracing off, record nothing.
-        if tracing
-            || n.waiters
-                .iter()
-                .any(|w| w.facet == facet && w.point.state() <= to)
-        {
+        if tracing || n.waiters.iter().any(|w| w.fires_at(facet, to)) {
             self.record_and_fire(id, facet, from, to);
             return true;
         }
@@ -399,7 +395,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         let display = n.display;
         // Usually none or one fires: `Waiters` keeps one inline, so no allocation. Most
         // transitions of a watched node fire nothing, so its waiters are first only looked at.
-        let fires = |w: &super::node::Waiter| w.facet == facet && w.point.state() <= to;
+        let fires = |w: &super::node::Waiter| w.fires_at(facet, to);
         let fired = if !n.waiters.iter().any(fires) {
             Waiters::new()
         } else if n.waiters.iter().all(fires) {
