@@ -412,9 +412,9 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
     }
 
     fn handler_ctx(&self, c: &HandlerCtx, h: &mut impl Hasher) {
-        // The purpose holds the failure, the failing node and the node the handler was attached
-        // to (the context's own copies of the two nodes are the same).
-        self.purpose(&c.purpose, h);
+        failure(&c.failure, h);
+        self.node_ref(c.failing, h);
+        self.node_ref(c.attached, h);
         c.index.hash(h);
         c.bypass.hash(h);
     }
@@ -587,7 +587,7 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
         for e in &cold.handlers {
             self.handler(e, h);
         }
-        match cold.handler.as_ref() {
+        match cold.handler.as_deref() {
             None => 0u8.hash(h),
             Some(c) => {
                 1u8.hash(h);

@@ -51,27 +51,15 @@ pub(crate) struct HandlerEntry<F> {
     pub(crate) uses: u32,
 }
 
-/// What a handler node handles, for bypass and retry. Kept inline in the node's cold part; the
-/// failure is the one in the invocation's purpose, shared with the shell (no second copy).
+/// What a handler node handles, for bypass and retry.
 #[derive(Clone)]
 pub(crate) struct HandlerCtx {
-    /// A `Purpose::Handler`, the one the handler's invocation carries.
-    pub(crate) purpose: std::sync::Arc<Purpose>,
+    pub(crate) failure: Failure,
     pub(crate) failing: NodeId,
     pub(crate) attached: NodeId,
-    pub(crate) index: u32,
+    pub(crate) index: usize,
     /// The handler's body asked to pass the exception on when it ends.
     pub(crate) bypass: bool,
-}
-
-impl HandlerCtx {
-    /// The failure being handled (always there: the purpose is a `Purpose::Handler`).
-    pub(crate) fn failure(&self) -> Option<&Failure> {
-        match &*self.purpose {
-            Purpose::Handler { failure, .. } => Some(failure),
-            _ => None,
-        }
-    }
 }
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
@@ -87,7 +75,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if n.state(Facet::Handling) != State::Active || !n.alive() {
             return Err(EngineError::NotRunning(node));
         }
-        if let Some(ctx) = self.node_mut(node).cold_mut().handler.as_mut() {
+        if let Some(ctx) = self.node_mut(node).cold_mut().handler.as_deref_mut() {
             ctx.bypass = true;
         }
         Ok(())
@@ -97,13 +85,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     pub(super) fn bypass(&mut self, node: NodeId) {
         let n = self.node(node);
         let display = n.display;
-        let Some((ctx, failure)) = n
-            .handler_ctx()
-            .and_then(|c| Some((c, c.failure()?.clone())))
-        else {
+        let Some(ctx) = n.handler_ctx() else {
             return;
         };
-        let (failing, attached, index) = (ctx.failing, ctx.attached, ctx.index as usize);
+        let (failure, failing, attached, index) =
+            (ctx.failure.clone(), ctx.failing, ctx.attached, ctx.index);
         emit!(
             self,
             TraceKind::Bypassed {
@@ -350,7 +336,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 break;
             }
             let parent = n.parent;
-            // A node without a cold part has no handlers, is no retry, and passes its failure up:
+            // A node without a cold part has no handlers, is no retry and passes its failure up:
             // the search goes straight on to its parent.
             if n.cold.is_none() {
                 cur = parent;
@@ -435,16 +421,16 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         entry.uses += 1;
         let (body, name) = (entry.spec.body.clone(), entry.spec.name.clone());
         self.node_mut(failing).cold_mut().handled = true;
-        let purpose = std::sync::Arc::new(Purpose::Handler {
-            failure,
+        let purpose = Purpose::Handler {
+            failure: failure.clone(),
             failing,
             attached,
-        });
+        };
         let id = self.insert(
             under,
             NodeKind::Handler,
             name,
-            Payload::Invoke(body, purpose.clone()),
+            Payload::Invoke(body, std::sync::Arc::new(purpose)),
         );
         let (d, fd, ad) = (
             self.node(id).display,
@@ -457,20 +443,17 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 node: d,
                 failing: fd,
                 attached: ad,
-                exception: match &*purpose {
-                    Purpose::Handler { failure, .. } => failure.exception.to_string(),
-                    _ => String::new(),
-                },
+                exception: failure.exception.to_string(),
                 handler: self.node(id).name.to_string(),
             }
         );
-        self.node_mut(id).cold_mut().handler = Some(HandlerCtx {
-            purpose,
+        self.node_mut(id).cold_mut().handler = Some(Box::new(HandlerCtx {
+            failure,
             failing,
             attached,
-            index: u32::try_from(index).unwrap_or(u32::MAX),
+            index,
             bypass: false,
-        });
+        }));
         self.queue_progress(id);
     }
 }

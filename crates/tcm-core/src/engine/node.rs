@@ -222,7 +222,7 @@ pub(crate) struct Cold<A, F> {
     // Exception handlers attached to this node, in the order they are tried.
     pub(crate) handlers: Vec<HandlerEntry<F>>,
     // For handler nodes: what they handle.
-    pub(crate) handler: Option<HandlerCtx>,
+    pub(crate) handler: Option<Box<HandlerCtx>>,
     // A factory that re-runs this task, for retries.
     pub(crate) retry: Option<F>,
     // A handler took this node's failure.
@@ -411,7 +411,7 @@ impl<A, F> Node<A, F> {
 
     /// What a handler node handles.
     pub(crate) fn handler_ctx(&self) -> Option<&HandlerCtx> {
-        self.cold.as_ref().and_then(|c| c.handler.as_ref())
+        self.cold.as_ref().and_then(|c| c.handler.as_deref())
     }
 
     /// A handler node whose body asked to pass its exception on.
