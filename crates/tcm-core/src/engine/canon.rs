@@ -26,7 +26,7 @@
 
 use super::arm::{External, GroupTrigger, Join};
 use super::exception::{HandlerCtx, HandlerEntry};
-use super::node::{Node, Payload, Purpose, WaitKind, Waiter};
+use super::node::{Link, Node, Payload, Purpose, WaitKind, Waiter};
 use super::timers::TimerKind;
 use super::{Engine, Work};
 use crate::Name;
@@ -176,9 +176,30 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 c.node_ref(*a, h);
             }
         }
-        self.work.len().hash(h);
+        // A run of children is hashed as the entries it stands for (those of its children still
+        // linked; an unlinked child's entry is a no-op, and the queue is empty between inputs).
+        let mut work: Vec<Work> = Vec::with_capacity(self.work.len());
         for w in &self.work {
             match *w {
+                Work::Children(run) => {
+                    if let Some(r) = self.runs.iter().find(|r| r.id == run) {
+                        let mut at = self.nodes.id_at(r.next);
+                        while let Some(child) = at {
+                            work.push(Work::Progress(child));
+                            let n = self.node(child);
+                            at = (Link::to(child) != r.last)
+                                .then(|| self.nodes.id_at(n.next_sibling))
+                                .flatten();
+                        }
+                    }
+                }
+                other => work.push(other),
+            }
+        }
+        work.len().hash(h);
+        for w in &work {
+            match *w {
+                Work::Children(_) => {}
                 Work::Progress(n) => {
                     0u8.hash(h);
                     c.node_ref(n, h);

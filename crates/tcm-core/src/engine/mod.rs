@@ -120,7 +120,30 @@ enum Work {
     /// Terminate the node and its subtree (`terminate.rs`); `explicit`: asked for by a command,
     /// not made due by a termination constraint.
     Terminate { node: NodeId, explicit: bool },
+    /// The progress of a run of linked children, in order, as if a `Progress` of each were
+    /// queued here (`progress_children` on a wide parent; see `ChildRun`).
+    Children(u32),
 }
+
+/// One `Work::Children` entry: the children from `next` to `last` (in sibling order) whose
+/// progress is still queued. It stands for the `Progress` entries of those children, one queue
+/// slot for them all, so releasing a million held children does not queue a million entries.
+/// `unlink` keeps it exact: an unlinked child's entry would have been a no-op, so the run only
+/// steps over it (`next` or `last` moves to its neighbour; `next` is `Link::NONE` once none is
+/// left). `last_id` is the last child as queued, which `queue_progress` compares with as the
+/// queue's last entry.
+#[derive(Clone, Copy, Debug)]
+struct ChildRun {
+    id: u32,
+    next: node::Link,
+    last: node::Link,
+    last_id: NodeId,
+}
+
+/// Children of one parent from which `progress_children` queues one run instead of one entry
+/// each, and how many runs may be pending at once (each `unlink` looks at every pending run).
+const RUN_FROM: u32 = 16;
+const MAX_RUNS: usize = 8;
 
 /// The deterministic task-tree engine. `A` is the shell's action type; the engine only stores it and
 /// hands it back in [`Effect::Start`]. `F` is a reusable factory (monitor bodies, handlers,
@@ -144,6 +167,11 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     unhandled: Vec<FatalFailure>,
     trace: VecDeque<TraceEvent>,
     work: VecDeque<Work>,
+    // The runs `Work::Children` entries of `work` stand for, and the next run's number.
+    runs: Vec<ChildRun>,
+    next_run: u32,
+    // From how many children a parent's are queued as one run (`RUN_FROM`).
+    run_from: u32,
     ready: VecDeque<NodeId>,
     effects: VecDeque<Effect<A, F>>,
     timers: Timers,
@@ -186,6 +214,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             unhandled: Vec::new(),
             trace: VecDeque::new(),
             work: VecDeque::new(),
+            runs: Vec::new(),
+            next_run: 0,
+            run_from: RUN_FROM,
             ready: VecDeque::new(),
             effects: VecDeque::new(),
             timers: Timers::default(),
@@ -344,14 +375,39 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
     }
 
+    /// From how many linked children of one parent their progress is queued as one run instead
+    /// of one entry each (default 16; `u32::MAX`: never). The trace is the same either way; this is
+    /// for the tests that compare the two.
+    #[doc(hidden)]
+    pub fn set_child_runs_from(&mut self, children: u32) {
+        self.run_from = children.max(1);
+    }
+
     /// Queues `Work::Progress(id)`, unless it is already the last work queued: `progress` moves a
     /// node as far as it can go, so a second run right after the first would find nothing to do
     /// (a completing child asks for its parent's progress up to three times in a row).
     #[inline]
     fn queue_progress(&mut self, id: NodeId) {
-        if !matches!(self.work.back(), Some(Work::Progress(last)) if *last == id) {
+        if !self.last_queued_is(id) {
             self.work.push_back(Work::Progress(id));
         }
+    }
+
+    /// Whether the last work queued is the progress of `id` (a run of children counts as its last
+    /// child's).
+    #[inline]
+    fn last_queued_is(&self, id: NodeId) -> bool {
+        match self.work.back() {
+            Some(Work::Progress(last)) => *last == id,
+            Some(Work::Children(run)) => self.run_ends_with(*run, id),
+            _ => false,
+        }
+    }
+
+    /// Whether the last child of the run of children `run` as queued is `id`.
+    #[cold]
+    fn run_ends_with(&self, run: u32, id: NodeId) -> bool {
+        self.runs.iter().any(|r| r.id == run && r.last_id == id)
     }
 
     fn next_display(&mut self) -> u64 {

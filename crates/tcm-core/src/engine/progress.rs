@@ -15,9 +15,9 @@
 //! 4. a terminating node is terminated once its execution completed and its children are;
 //! 5. a completed node with no children left is reclaimed, unless persistent.
 
-use super::node::{Node, Payload, WaitKind, Waiters};
+use super::node::{Link, Node, Payload, WaitKind, Waiters};
 use super::timers::TimerKind;
-use super::{Effect, Engine, EngineError, Job, WatchOutcome, Work};
+use super::{ChildRun, Effect, Engine, EngineError, Job, MAX_RUNS, WatchOutcome, Work};
 use crate::NodeKind;
 use crate::arena::Keep;
 use crate::arena::{Arena, Fate};
@@ -179,10 +179,19 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     pub(super) fn settle(&mut self) {
         loop {
             while let Some(w) = self.work.pop_front() {
-                match w {
-                    Work::Progress(id) => self.progress(id),
-                    Work::Terminate { node, explicit } => self.do_terminate(node, explicit),
-                }
+                // One call of `progress` (it is inlined here).
+                let id = match w {
+                    Work::Progress(id) => id,
+                    Work::Children(run) => match self.step_children(run) {
+                        Some(id) => id,
+                        None => continue,
+                    },
+                    Work::Terminate { node, explicit } => {
+                        self.do_terminate(node, explicit);
+                        continue;
+                    }
+                };
+                self.progress(id);
             }
             if self.res.dirty {
                 // Room was made: waiting requests that fit now are granted and queued.
@@ -346,11 +355,63 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     pub(super) fn progress_children(&mut self, id: NodeId) {
-        let mut c = self.first_child(id);
+        let Some(n) = self.nodes.get(id) else { return };
+        let (count, first, last) = (n.live_children, n.first_child, n.last_child);
+        if count >= self.run_from && self.runs.len() < MAX_RUNS {
+            self.queue_run(first, last);
+            return;
+        }
+        let mut c = self.nodes.id_at(first);
         while let Some(child) = c {
             self.queue_progress(child);
             c = self.next_sibling(child);
         }
+    }
+
+    /// Queues the progress of the linked children from `first` to `last` as one entry
+    /// (`ChildRun`); the first child's is left out if it is the last work queued, as
+    /// `queue_progress` would.
+    #[inline(never)]
+    fn queue_run(&mut self, first: Link, last: Link) {
+        let (Some(first_id), Some(last_id)) = (self.nodes.id_at(first), self.nodes.id_at(last))
+        else {
+            return;
+        };
+        let next = if self.last_queued_is(first_id) {
+            self.node(first_id).next_sibling
+        } else {
+            first
+        };
+        let run = self.next_run;
+        self.next_run = self.next_run.wrapping_add(1);
+        self.runs.push(ChildRun {
+            id: run,
+            next,
+            last,
+            last_id,
+        });
+        self.work.push_back(Work::Children(run));
+    }
+
+    /// The next child of a run of children (`Work::Children`), whose progress is due now. The run
+    /// goes back to the front of the queue for the children after it, so what this child's
+    /// progress queues comes after them, as it would after their own entries.
+    #[inline(never)]
+    fn step_children(&mut self, run: u32) -> Option<NodeId> {
+        let i = self.runs.iter().position(|r| r.id == run)?;
+        let r = self.runs[i];
+        let Some(child) = self.nodes.id_at(r.next) else {
+            // Every child left in the run was unlinked: their entries were no-ops.
+            self.runs.swap_remove(i);
+            return None;
+        };
+        if r.next == r.last {
+            self.runs.swap_remove(i);
+        } else {
+            self.runs[i].next = self.node(child).next_sibling;
+            self.work.push_front(Work::Children(run));
+        }
+        Some(child)
     }
 
     /// What the parent of `n` allows its children now.

@@ -346,6 +346,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             None => true,
         };
+        if !self.runs.is_empty() {
+            self.step_runs_over(Link::to(child), prev, next);
+        }
         let p = self.node_mut(parent);
         if first {
             p.first_child = next;
@@ -354,6 +357,21 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             p.last_child = prev;
         }
         p.live_children -= 1;
+    }
+
+    /// A pending run of children steps over the child at `at`, being unlinked from between `prev`
+    /// and `next` (`ChildRun`).
+    #[cold]
+    fn step_runs_over(&mut self, at: Link, prev: Link, next: Link) {
+        for r in &mut self.runs {
+            if r.next == at && r.last == at {
+                r.next = Link::NONE;
+            } else if r.next == at {
+                r.next = next;
+            } else if r.last == at && r.next != Link::NONE {
+                r.last = prev;
+            }
+        }
     }
 
     /// The first linked child of a live node.

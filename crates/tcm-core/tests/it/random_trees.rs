@@ -483,7 +483,15 @@ fn monitor_spec(m: &Mon) -> MonitorSpec<Factory> {
 }
 
 fn run(plan: &Plan) -> Vec<tcm_trace::TraceEvent> {
+    run_with(plan, None)
+}
+
+/// `runs_from`: from how many children the engine queues a parent's children as one run.
+fn run_with(plan: &Plan, runs_from: Option<u32>) -> Vec<tcm_trace::TraceEvent> {
     let mut sim = Sim::new();
+    if let Some(n) = runs_from {
+        sim.engine.set_child_runs_from(n);
+    }
     let root = sim.engine.root();
     // Resources the nodes use: one unit, two units with at most one request waiting, one unit.
     for (name, capacity, pending) in [("r0", 1, None), ("r1", 2, Some(1)), ("r2", 1, None)] {
@@ -509,5 +517,18 @@ proptest! {
             prop_assert!(false, "violations:\n{}\n\ntrace:\n{}", v.join("\n"), lines.join("\n"));
         }
         prop_assert_eq!(run(&plan), trace, "same program, same trace");
+    }
+
+    // Queuing a parent's children as one run (`Work::Children`) is only a cheaper queue: with
+    // runs for every parent with a child and with none, every program gives the same trace.
+    #[test]
+    fn children_queued_as_one_run_give_the_same_trace(plan in plan()) {
+        let one_each = run_with(&plan, Some(u32::MAX));
+        let runs = run_with(&plan, Some(1));
+        if runs != one_each {
+            let a: Vec<String> = one_each.iter().map(tcm_trace::to_line).collect();
+            let b: Vec<String> = runs.iter().map(tcm_trace::to_line).collect();
+            prop_assert!(false, "one entry each:\n{}\n\nruns:\n{}", a.join("\n"), b.join("\n"));
+        }
     }
 }
