@@ -26,6 +26,12 @@ impl NodeId {
     pub fn slot(self) -> u32 {
         self.idx
     }
+
+    /// How many nodes used its storage slot before it: with [`NodeId::slot`] and the run, what
+    /// tells this node apart from the others that use or used the same slot.
+    pub fn generation(self) -> u32 {
+        self.generation
+    }
 }
 
 impl fmt::Display for NodeId {

@@ -890,12 +890,26 @@ pub(crate) enum Running {
 }
 
 /// The running actions, by the node's storage slot (dense, so a vector beats a map on the path
-/// every action takes). A slot holds the node and, for a task, its abort handle (none: the pump
-/// holds it); 24 bytes, as many as a slot with only the abort handle.
+/// every action takes). The vector is as long as the highest slot a running action has used, so an
+/// entry is kept small (16 bytes: a million nodes alive at once cost 16 MB here): the node's
+/// generation in its slot (all the nodes of one host are of one run) and, for a task, its abort
+/// handle (none: the pump holds it).
 #[derive(Default)]
 pub(crate) struct Aborts {
-    slots: Vec<(Option<NodeId>, Option<AbortHandle>)>,
+    slots: Vec<AbortSlot>,
     len: usize,
+}
+
+#[derive(Default)]
+struct AbortSlot {
+    // The running node's generation plus one; 0: no action runs in this slot.
+    tag: u32,
+    handle: Option<AbortHandle>,
+}
+
+/// What an entry of [`Aborts`] holds for `node` (its generation plus one: never 0).
+fn tag(node: NodeId) -> u32 {
+    node.generation().wrapping_add(1).max(1)
 }
 
 impl Aborts {
@@ -904,16 +918,20 @@ impl Aborts {
         let i = node.slot() as usize;
         // Slots are mostly new one at a time, in order.
         while self.slots.len() <= i {
-            self.slots.push((None, None));
+            self.slots.push(AbortSlot::default());
         }
         let handle = match r {
             Running::Inline => None,
             Running::Task(h) => Some(h),
         };
-        if std::mem::replace(&mut self.slots[i], (Some(node), handle))
-            .0
-            .is_none()
-        {
+        let old = std::mem::replace(
+            &mut self.slots[i],
+            AbortSlot {
+                tag: tag(node),
+                handle,
+            },
+        );
+        if old.tag == 0 {
             self.len += 1;
         }
     }
@@ -921,11 +939,11 @@ impl Aborts {
     #[inline]
     fn remove(&mut self, node: &NodeId) -> Option<Running> {
         let slot = self.slots.get_mut(node.slot() as usize)?;
-        if slot.0 != Some(*node) {
+        if slot.tag != tag(*node) {
             return None;
         }
         self.len -= 1;
-        let (_, handle) = std::mem::take(slot);
+        let AbortSlot { handle, .. } = std::mem::take(slot);
         Some(match handle {
             Some(h) => Running::Task(h),
             None => Running::Inline,
@@ -935,8 +953,8 @@ impl Aborts {
     /// The action the pump held became a task; false if it is no longer running (cancelled).
     fn set_task(&mut self, node: NodeId, h: AbortHandle) -> bool {
         match self.slots.get_mut(node.slot() as usize) {
-            Some(slot) if slot.0 == Some(node) => {
-                slot.1 = Some(h);
+            Some(slot) if slot.tag == tag(node) => {
+                slot.handle = Some(h);
                 true
             }
             _ => false,
@@ -946,13 +964,15 @@ impl Aborts {
     pub(crate) fn contains(&self, node: NodeId) -> bool {
         self.slots
             .get(node.slot() as usize)
-            .is_some_and(|s| s.0 == Some(node))
+            .is_some_and(|s| s.tag == tag(node))
     }
 
     /// Takes every running task's abort handle (those the pump holds, it drops itself).
     pub(crate) fn drain(&mut self) -> impl Iterator<Item = AbortHandle> + '_ {
         self.len = 0;
-        self.slots.iter_mut().filter_map(|s| std::mem::take(s).1)
+        self.slots
+            .iter_mut()
+            .filter_map(|s| std::mem::take(s).handle)
     }
 }
 
