@@ -21,7 +21,12 @@
 //! layer's W1-scale spawn every command before any runs (layer `core-hold`), so all N are alive at
 //! once as in the shell. `bench/compare` runs each workload in a process of its own with these, to
 //! read its peak RSS and to match the sizes the other systems can handle.
+//!
+//! Every measurement runs on a heap kept between repeats (`heap.rs`); `--cold-heap` leaves glibc's
+//! allocator its defaults, which give memory back to the system and take it again. Each line says
+//! which (`heap`: `kept` or `cold`).
 
+mod heap;
 mod w7;
 
 use std::collections::VecDeque;
@@ -29,6 +34,17 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tcm::{Constraint, Facet, Failure, Handler, Monitor, NodeRef, Runtime, Task};
 use tcm_core::{Effect, Engine, HandlerSpec, NodeKind, Spawn, Time};
+
+/// Whether the heap is kept between measurements (`heap.rs`), set once at the start.
+static HEAP_KEPT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+fn heap_label() -> &'static str {
+    if HEAP_KEPT.load(std::sync::atomic::Ordering::Relaxed) {
+        "kept"
+    } else {
+        "cold"
+    }
+}
 
 /// Repetitions of each measurement; the best is kept (least disturbed by the machine).
 const REPEATS: usize = 3;
@@ -451,11 +467,13 @@ fn report(
             "floor_ns_per_node": (floor_ns * 10.0).round() / 10.0,
             "ratio": (ratio * 10.0).round() / 10.0,
             "high_water": hw,
+            "heap": heap_label(),
         });
         println!("{v}");
     } else {
         println!(
-            "{workload:<4} {layer:<6} n={n:<9} {ns:>9.1} ns/node   floor {floor_ns:>6.1} ns   ratio {ratio:>7.1}   high-water {hw}"
+            "{workload:<4} {layer:<6} n={n:<9} {ns:>9.1} ns/node   floor {floor_ns:>6.1} ns   ratio {ratio:>7.1}   high-water {hw}   heap {}",
+            heap_label()
         );
     }
 }
@@ -476,10 +494,12 @@ struct Options {
     hold: bool,
     /// Recursion depth for W3 (it reports `n` = 2 × depth nodes: a goal and a command per level).
     depth: Option<usize>,
+    /// Leave glibc's allocator its defaults instead of keeping the heap (`heap.rs`).
+    cold_heap: bool,
 }
 
 const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W5|W6|W7|W1-scale] \
-[--layer core|shell] [--n N] [--depth D] [--hold]";
+[--layer core|shell] [--n N] [--depth D] [--hold] [--cold-heap]";
 
 fn parse_args() -> Result<Options, String> {
     let mut o = Options {
@@ -490,6 +510,7 @@ fn parse_args() -> Result<Options, String> {
         n: None,
         depth: None,
         hold: false,
+        cold_heap: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -505,6 +526,7 @@ fn parse_args() -> Result<Options, String> {
             "--json" => o.json = true,
             "--quick" => o.quick = true,
             "--hold" => o.hold = true,
+            "--cold-heap" => o.cold_heap = true,
             "--workload" => {
                 let w = value("--workload")?;
                 if !matches!(
@@ -538,6 +560,13 @@ fn main() {
             std::process::exit(2);
         }
     };
+    if !o.cold_heap {
+        let kept = heap::keep();
+        if !kept {
+            eprintln!("note: could not keep the heap (not glibc?); figures are for a cold heap");
+        }
+        HEAP_KEPT.store(kept, std::sync::atomic::Ordering::Relaxed);
+    }
     let json = o.json;
     let quick = o.quick;
     if cfg!(debug_assertions) {
