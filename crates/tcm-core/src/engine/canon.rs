@@ -645,7 +645,7 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
         }
         cold.propagate.hash(h);
         // The resources it uses and where it stands with them.
-        match &cold.uses {
+        match cold.uses.as_deref() {
             None => 0u8.hash(h),
             Some(u) => {
                 1u8.hash(h);

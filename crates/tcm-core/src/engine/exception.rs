@@ -141,7 +141,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         let (labelled, on_terminate): (Vec<_>, Vec<_>) = std::mem::take(&mut c.on_terminate)
             .into_iter()
             .partition(|ot| ot.fulfils.is_some());
-        c.on_terminate = labelled;
+        c.on_terminate = labelled.into();
         let constraints = c.retry_constraints.clone();
         // A retry uses the same resources as the run it repeats.
         let uses = c.uses.clone();
@@ -152,7 +152,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         cold.task = task;
         cold.retry_of = Some(origin);
         cold.propagate = propagate;
-        cold.on_terminate = on_terminate;
+        cold.on_terminate = on_terminate.into();
         cold.retry_constraints = constraints.clone();
         cold.uses = uses;
         for c in constraints {

@@ -9,6 +9,7 @@ use crate::{Name, NodeKind};
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_trace::{Facet, Point, State, Termination};
+use thin_vec::ThinVec;
 
 /// What happens when a watched point of a node is reached.
 #[derive(Clone, Copy, Debug)]
@@ -212,15 +213,15 @@ pub(crate) struct Node<A, F> {
 #[derive(Clone)]
 pub(crate) struct Cold<A, F> {
     pub(crate) failure: Option<Failure>,
-    pub(crate) on_terminate: Vec<OnTerminate<A>>,
+    pub(crate) on_terminate: ThinVec<OnTerminate<A>>,
     // Reserved children not spawned yet.
-    pub(crate) reservations: Vec<NodeId>,
+    pub(crate) reservations: ThinVec<NodeId>,
     // Monitor state, for monitor nodes.
     pub(crate) monitor: Option<Box<Monitor<F>>>,
     // For activation nodes: their monitor.
     pub(crate) activation_of: Option<NodeId>,
     // Exception handlers attached to this node, in the order they are tried.
-    pub(crate) handlers: Vec<HandlerEntry<F>>,
+    pub(crate) handlers: ThinVec<HandlerEntry<F>>,
     // For handler nodes: what they handle.
     pub(crate) handler: Option<Box<HandlerCtx>>,
     // A factory that re-runs this task, for retries.
@@ -228,19 +229,19 @@ pub(crate) struct Cold<A, F> {
     // A handler took this node's failure.
     pub(crate) handled: bool,
     // Wiretap checks running on this node, and whether the "before" checks already ran.
-    pub(crate) taps_open: Vec<crate::ids::WiretapId>,
+    pub(crate) taps_open: ThinVec<crate::ids::WiretapId>,
     pub(crate) tapped_before: bool,
     pub(crate) tap_failure: Option<Box<Failure>>,
     // Constraints applied to a reservation before its spawn, with the `previous` of that moment;
     // applied when the spawn fulfils it.
-    pub(crate) deferred: Vec<(crate::constraint::Constraint, Option<NodeId>)>,
+    pub(crate) deferred: ThinVec<(crate::constraint::Constraint, Option<NodeId>)>,
     // Group triggers applied to a reservation before its spawn.
-    pub(crate) deferred_groups: Vec<super::arm::GroupTrigger>,
+    pub(crate) deferred_groups: ThinVec<super::arm::GroupTrigger>,
     // The task this node is an instance of, when it differs from its instance name.
     pub(crate) task: Option<Name>,
     // Handlers attached from outside to this node's task (`Engine::handler_for`), tried after
     // `handlers`, with their own use counts.
-    pub(crate) class_handlers: Vec<HandlerEntry<F>>,
+    pub(crate) class_handlers: ThinVec<HandlerEntry<F>>,
     // For a retry: the first run of the task, whose handlers (own and attached, with their use
     // counts) the retry shares (docs/semantics.md, "Exceptions and handlers", rule 7).
     pub(crate) retry_of: Option<NodeId>,
@@ -248,12 +249,12 @@ pub(crate) struct Cold<A, F> {
     // outcome is then that retry's.
     pub(crate) recovered_by: Option<NodeId>,
     // Constraints on the node itself that a retry keeps (`expand first`, `delay expansion`).
-    pub(crate) retry_constraints: Vec<crate::constraint::Constraint>,
+    pub(crate) retry_constraints: ThinVec<crate::constraint::Constraint>,
     // Where its own failure goes when no handler on it takes it, instead of being searched for
     // further up (`Engine::propagate`, `Engine::propagate_to_parent`).
     pub(crate) propagate: Propagate,
     // The resources it uses (`resource.rs`), and where it stands with them.
-    pub(crate) uses: Option<super::resource::Uses>,
+    pub(crate) uses: Option<Box<super::resource::Uses>>,
     pub(crate) grant: super::resource::Grant,
 }
 
@@ -273,24 +274,24 @@ impl<A, F> Default for Cold<A, F> {
     fn default() -> Self {
         Cold {
             failure: None,
-            on_terminate: Vec::new(),
-            reservations: Vec::new(),
+            on_terminate: ThinVec::new(),
+            reservations: ThinVec::new(),
             monitor: None,
             activation_of: None,
-            handlers: Vec::new(),
+            handlers: ThinVec::new(),
             handler: None,
             retry: None,
             handled: false,
-            taps_open: Vec::new(),
+            taps_open: ThinVec::new(),
             tapped_before: false,
             tap_failure: None,
-            deferred: Vec::new(),
-            deferred_groups: Vec::new(),
+            deferred: ThinVec::new(),
+            deferred_groups: ThinVec::new(),
             task: None,
-            class_handlers: Vec::new(),
+            class_handlers: ThinVec::new(),
             retry_of: None,
             recovered_by: None,
-            retry_constraints: Vec::new(),
+            retry_constraints: ThinVec::new(),
             propagate: Propagate::Up,
             uses: None,
             grant: super::resource::Grant::None,
@@ -455,7 +456,7 @@ impl<A, F> Node<A, F> {
 
     /// The resources it uses, if any (most nodes have no cold part at all).
     pub(crate) fn uses(&self) -> Option<&super::resource::Uses> {
-        self.cold.as_ref().and_then(|c| c.uses.as_ref())
+        self.cold.as_ref().and_then(|c| c.uses.as_deref())
     }
 
     /// Where it stands with its resources.
@@ -484,11 +485,11 @@ impl<A, F> Node<A, F> {
     /// Takes a list out of the cold part without allocating it.
     pub(crate) fn take_cold<T>(
         &mut self,
-        f: impl FnOnce(&mut Cold<A, F>) -> &mut Vec<T>,
-    ) -> Vec<T> {
+        f: impl FnOnce(&mut Cold<A, F>) -> &mut ThinVec<T>,
+    ) -> ThinVec<T> {
         match self.cold.as_mut() {
             Some(c) => std::mem::take(f(c)),
-            None => Vec::new(),
+            None => ThinVec::new(),
         }
     }
 }

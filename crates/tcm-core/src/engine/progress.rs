@@ -27,6 +27,7 @@ use crate::ids::{NodeId, TapWhen};
 use crate::time::Time;
 use std::time::Duration;
 use tcm_trace::{Facet, State, Termination, TraceKind};
+use thin_vec::ThinVec;
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Input: a job the shell ran for the engine ended ([`Effect::Start`] or [`Effect::Invoke`]).
@@ -651,7 +652,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.bury(reservations);
     }
 
-    fn bury(&mut self, reservations: Vec<NodeId>) {
+    fn bury(&mut self, reservations: ThinVec<NodeId>) {
         for r in reservations {
             let Some(node) = self.nodes.remove(r, Fate::Dead) else {
                 continue;

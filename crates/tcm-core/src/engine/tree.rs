@@ -112,7 +112,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             if on_terminate.is_empty() {
                 discard(on_terminate);
             } else {
-                node.cold_mut().on_terminate = on_terminate;
+                node.cold_mut().on_terminate = on_terminate.into();
             }
             node.suspended = parent_suspended;
             if let Some(m) = monitor {
@@ -137,7 +137,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     .collect();
             }
             if let Some(u) = uses.filter(|u| !u.amounts.is_empty()) {
-                node.cold_mut().uses = Some(*u);
+                node.cold_mut().uses = Some(u);
             }
         }
         if !self.class_handlers.is_empty() {
@@ -155,7 +155,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                         .collect()
                 });
             if let Some(entries) = attached {
-                self.node_mut(id).cold_mut().class_handlers = entries;
+                self.node_mut(id).cold_mut().class_handlers = entries.into();
             }
         }
         self.link(parent, id);
