@@ -10,7 +10,7 @@
 //! actions that never look cost nothing (no allocation on the path every action takes), and the
 //! channel latches the value, so a look after the cancellation still sees it.
 
-use crate::host::Shared;
+use crate::host::{Shared, TaskRef};
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 use std::time::Duration;
@@ -30,7 +30,7 @@ pub const DEFAULT_GRACE: Duration = Duration::from_secs(1);
 
 /// A job in its grace period: the action's task, and the timer that drops it.
 struct Cancelling {
-    action: AbortHandle,
+    action: TaskRef,
     timer: AbortHandle,
 }
 
@@ -56,6 +56,10 @@ pub(crate) struct Cancels {
     sweep_at: usize,
     // The grace period of the other jobs.
     pub(crate) default: Duration,
+    // Where the pump runs (`pump.rs`): how many tasks were aborted and not yet reported stopped.
+    // Tokio drops an aborted task when it next runs it, so until then it is queued, and an action
+    // released meanwhile must run after it, as a task, not inline.
+    pub(crate) aborted: usize,
 }
 
 impl Default for Cancels {
@@ -67,6 +71,7 @@ impl Default for Cancels {
             graces: BTreeMap::new(),
             sweep_at: SWEEP_MIN,
             default: DEFAULT_GRACE,
+            aborted: 0,
         }
     }
 }
@@ -132,11 +137,11 @@ impl Cancels {
         shared: &Arc<Shared>,
         rt: Option<&tokio::runtime::Handle>,
         node: NodeId,
-        action: AbortHandle,
+        action: TaskRef,
     ) {
         let grace = self.grace_of(node).unwrap_or(self.default);
         let Some(tx) = self.signals.get(&node) else {
-            action.abort();
+            self.abort(shared, &action);
             return;
         };
         // Fired even when the action is dropped at once: other tasks that hold a clone of its
@@ -148,7 +153,7 @@ impl Cancels {
         }
         if grace.is_zero() {
             self.signals.remove(&node);
-            action.abort();
+            self.abort(shared, &action);
             return;
         }
         let timer = {
@@ -176,6 +181,13 @@ impl Cancels {
                 timer: timer.abort_handle(),
             },
         );
+    }
+
+    /// Aborts a running job's task, counting it as queued until its stop is reported.
+    fn abort(&mut self, shared: &Shared, action: &TaskRef) {
+        if action.abort() && shared.inline.load(std::sync::atomic::Ordering::Relaxed) {
+            self.aborted += 1;
+        }
     }
 
     /// `node`'s job returned (or panicked): its signal is no longer needed and, if it was in its
@@ -223,6 +235,6 @@ fn expire(shared: &Arc<Shared>, node: NodeId, grace: Duration) {
         .engine
         .handle_action_overdue(now, tcm_core::Job::from(node), grace);
     // Safe under the lock: tokio drops an aborted task on its runtime, and its `Reporter` never
-    // takes this lock anyway (it reports through the channel the driver drains).
-    c.action.abort();
+    // takes this lock anyway (it reports through a channel, drained by whoever takes it next).
+    inner.cancels.abort(shared, &c.action);
 }

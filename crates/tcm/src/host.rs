@@ -14,6 +14,7 @@ use crate::Error;
 use crate::cancel::Cancels;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
+use crate::pump::Parked;
 use crate::task::{Action, ActionFuture, AnyArgs, Factory, Kept, Value};
 use std::any::Any;
 use std::collections::{BTreeMap, BTreeSet};
@@ -222,8 +223,11 @@ impl Inner {
     }
 
     /// Reports to the engine the jobs whose task was dropped unfinished since the last call.
-    pub(crate) fn report_stopped(&mut self, now: Time) {
+    pub(crate) fn report_stopped(&mut self, shared: &Shared, now: Time) {
         while let Ok(job) = self.stopped.try_recv() {
+            shared.stops.fetch_sub(1, Ordering::SeqCst);
+            // Its abort is over: it no longer counts as queued (`Cancels::aborted`).
+            self.cancels.aborted = self.cancels.aborted.saturating_sub(1);
             self.engine.handle_action_stopped(now, job);
         }
     }
@@ -431,6 +435,10 @@ pub(crate) struct Shared {
     pub(crate) handles: AtomicUsize,
     // Where a `Reporter` sends the job of a task dropped unfinished (it must not take the lock).
     pub(crate) stopped: Mutex<mpsc::Sender<Job>>,
+    // How many jobs were sent there and not yet reported: whoever takes the lock next reports
+    // them (`Shared::enter`), so that their order in the trace does not depend on when the
+    // driver runs.
+    pub(crate) stops: AtomicUsize,
     // Published by the driver under the engine's lock.
     pub(crate) status: watch::Sender<Status>,
     // Whether the end of a job's task pumps what it released (`pump.rs`): on a current-thread
@@ -460,14 +468,25 @@ impl Shared {
     }
 
     /// Exclusive access to the engine; its effects are carried out when the access ends.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn enter(self: &Arc<Shared>) -> Result<Access<'_>, Error> {
+        let mut guard = lock(self)?;
+        if self.stops.load(Ordering::Relaxed) > 0 {
+            stops_first(&mut guard, self);
+        }
         Ok(Access {
-            guard: lock(self)?,
+            guard,
             shared: self,
             settled: false,
         })
     }
+}
+
+/// Reports the stops sent since the last look, before anything else sees the engine.
+#[cold]
+#[inline(never)]
+fn stops_first(inner: &mut Inner, shared: &Shared) {
+    inner.report_stopped(shared, shared.now());
 }
 
 /// The engine's lock. On a thread whose pump runs for this run, the ends it keeps are reported
@@ -574,7 +593,7 @@ impl Host<'_> {
     fn run(&mut self, job: Job, fut: ActionFuture) {
         let shared = self.shared;
         let pumps = *self.pumps.get_or_insert_with(|| crate::pump::pumps(shared));
-        let running = if pumps && crate::pump::nothing_queued(self.shared) {
+        let running = if pumps && self.cancels.aborted == 0 && crate::pump::nothing_queued(shared) {
             self.launches.push((job, fut));
             Running::Inline
         } else {
@@ -590,7 +609,7 @@ impl Host<'_> {
 }
 
 /// Spawns a job's future as a tokio task that reports its end (or its panic, or its drop).
-fn spawn_task(
+pub(crate) fn spawn_task(
     shared: &Arc<Shared>,
     rt: Option<&tokio::runtime::Handle>,
     job: Job,
@@ -675,7 +694,14 @@ impl Shell<Action, Factory> for Host<'_> {
         // Removed from the running actions either way: an action in its grace period is never
         // parked again, so it keeps the run busy, not stuck, until it stops.
         match self.aborts.remove(&node) {
-            Some(Running::Task(h)) => self.cancels.cancel(self.shared, self.spawner, node, h),
+            Some(Running::Task(h)) => {
+                self.cancels
+                    .cancel(self.shared, self.spawner, node, TaskRef::Task(h));
+            }
+            Some(Running::Parked(p)) => {
+                self.cancels
+                    .cancel(self.shared, self.spawner, node, TaskRef::Parked(p));
+            }
             // The pump holds it: it drops it unpolled, or cancels the task it becomes.
             Some(Running::Inline) => self.inline_cancelled.push(node),
             None => {}
@@ -851,9 +877,56 @@ impl Inner {
         if let Some(i) = self.inline_cancelled.iter().position(|n| *n == node) {
             self.inline_cancelled.swap_remove(i);
             let rt = self.spawner.clone();
-            self.cancels.cancel(shared, rt.as_ref(), node, h);
+            self.cancels
+                .cancel(shared, rt.as_ref(), node, TaskRef::Task(h));
         }
         None
+    }
+
+    /// Records a job the pump polled once and parked (`pump::Parked`); if it was cancelled
+    /// meanwhile, it is cancelled at once (signalled with its grace period, or aborted). Gives the
+    /// future back when the run ended, for the caller to drop outside the lock.
+    pub(crate) fn park_job(
+        &mut self,
+        shared: &Arc<Shared>,
+        job: Job,
+        parked: Arc<Parked>,
+    ) -> Option<ActionFuture> {
+        if self.ended {
+            return parked.take();
+        }
+        let node = job.node();
+        if self.aborts.set_parked(node, parked.clone()) {
+            return None;
+        }
+        if let Some(i) = self.inline_cancelled.iter().position(|n| *n == node) {
+            self.inline_cancelled.swap_remove(i);
+            let rt = self.spawner.clone();
+            self.cancels
+                .cancel(shared, rt.as_ref(), node, TaskRef::Parked(parked));
+        }
+        None
+    }
+}
+
+/// A running job's task, for its cancellation: a tokio task, or a future the pump parked after its
+/// first poll, until its first wake-up (`pump::Parked`).
+pub(crate) enum TaskRef {
+    Task(AbortHandle),
+    Parked(Arc<Parked>),
+}
+
+impl TaskRef {
+    /// Aborts the job's task; returns whether a stop will be reported (by the `Reporter` of a task
+    /// dropped unfinished).
+    pub(crate) fn abort(&self) -> bool {
+        match self {
+            TaskRef::Task(h) => {
+                h.abort();
+                true
+            }
+            TaskRef::Parked(p) => p.abort(),
+        }
     }
 }
 
@@ -883,10 +956,12 @@ pub(crate) fn panicked(
     }
 }
 
-/// How a running action runs: held by the pump that polls it (`pump.rs`), or as a tokio task.
+/// How a running action runs: held by the pump that polls it (`pump.rs`), as a tokio task, or
+/// parked by the pump until its first wake-up.
 pub(crate) enum Running {
     Inline,
     Task(AbortHandle),
+    Parked(Arc<Parked>),
 }
 
 /// The running actions, by the node's storage slot (dense, so a vector beats a map on the path
@@ -898,12 +973,16 @@ pub(crate) enum Running {
 pub(crate) struct Aborts {
     slots: Vec<AbortSlot>,
     len: usize,
+    // The parked actions (fewer: only those that awaited), kept apart so that a slot stays small.
+    parked: BTreeMap<NodeId, Arc<Parked>>,
 }
 
 #[derive(Default)]
 struct AbortSlot {
     // The running node's generation plus one; 0: no action runs in this slot.
     tag: u32,
+    // Whether the action is parked (in `Aborts::parked`).
+    parked: bool,
     handle: Option<AbortHandle>,
 }
 
@@ -920,14 +999,19 @@ impl Aborts {
         while self.slots.len() <= i {
             self.slots.push(AbortSlot::default());
         }
-        let handle = match r {
-            Running::Inline => None,
-            Running::Task(h) => Some(h),
+        let (handle, parked) = match r {
+            Running::Inline => (None, false),
+            Running::Task(h) => (Some(h), false),
+            Running::Parked(p) => {
+                self.parked.insert(node, p);
+                (None, true)
+            }
         };
         let old = std::mem::replace(
             &mut self.slots[i],
             AbortSlot {
                 tag: tag(node),
+                parked,
                 handle,
             },
         );
@@ -943,11 +1027,28 @@ impl Aborts {
             return None;
         }
         self.len -= 1;
-        let AbortSlot { handle, .. } = std::mem::take(slot);
+        let AbortSlot { handle, parked, .. } = std::mem::take(slot);
+        if parked {
+            if let Some(p) = self.parked.remove(node) {
+                return Some(Running::Parked(p));
+            }
+        }
         Some(match handle {
             Some(h) => Running::Task(h),
             None => Running::Inline,
         })
+    }
+
+    /// The action the pump held is parked; false if it is no longer running (cancelled).
+    fn set_parked(&mut self, node: NodeId, p: Arc<Parked>) -> bool {
+        match self.slots.get_mut(node.slot() as usize) {
+            Some(slot) if slot.tag == tag(node) => {
+                slot.parked = true;
+                self.parked.insert(node, p);
+                true
+            }
+            _ => false,
+        }
     }
 
     /// The action the pump held became a task; false if it is no longer running (cancelled).
@@ -967,12 +1068,14 @@ impl Aborts {
             .is_some_and(|s| s.tag == tag(node))
     }
 
-    /// Takes every running task's abort handle (those the pump holds, it drops itself).
-    pub(crate) fn drain(&mut self) -> impl Iterator<Item = AbortHandle> + '_ {
+    /// Takes every running task (those the pump holds, it drops itself).
+    pub(crate) fn drain(&mut self) -> impl Iterator<Item = TaskRef> + '_ {
         self.len = 0;
+        let parked = std::mem::take(&mut self.parked);
         self.slots
             .iter_mut()
-            .filter_map(|s| std::mem::take(s).handle)
+            .filter_map(|s| std::mem::take(s).handle.map(TaskRef::Task))
+            .chain(parked.into_values().map(TaskRef::Parked))
     }
 }
 
@@ -1013,6 +1116,8 @@ impl Drop for Reporter {
         if self.done {
             return;
         }
+        // Counted first: a count above zero may find the channel still empty, never the reverse.
+        self.shared.stops.fetch_add(1, Ordering::SeqCst);
         if let Ok(tx) = self.shared.stopped.lock() {
             let _ = tx.send(self.job);
         }

@@ -235,6 +235,7 @@ impl Runtime {
             shared: Arc::new(Shared {
                 inner: Mutex::new(Inner::new(engine(run), stopped_rx)),
                 stopped: Mutex::new(stopped),
+                stops: AtomicUsize::new(0),
                 wake: Notify::new(),
                 clock: Clock::new(),
                 handles: AtomicUsize::new(0),
@@ -574,7 +575,7 @@ impl RunLoop {
         // itself would spin while the run waits for an event handle.
         let mut inner = lock(&self.shared)?;
         let now = self.shared.now();
-        inner.report_stopped(now);
+        inner.report_stopped(&self.shared, now);
         let (engine, mut host) = inner.split(&self.shared);
         let next = tcm_core::Driver::turn(engine, &mut host, now);
         trace.append(&mut inner.trace);
@@ -708,10 +709,14 @@ impl RunLoop {
 /// whoever waits is told.
 pub(crate) fn end_run(shared: &Shared) {
     let mut launches = Vec::new();
+    let mut parked = Vec::new();
     if let Ok(mut inner) = lock(shared) {
         inner.ended = true;
-        for h in inner.aborts.drain() {
-            h.abort();
+        for t in inner.aborts.drain() {
+            match t {
+                crate::host::TaskRef::Task(h) => h.abort(),
+                crate::host::TaskRef::Parked(p) => parked.extend(p.take()),
+            }
         }
         launches = std::mem::take(&mut inner.launches);
         inner.cancels.end();
@@ -720,8 +725,9 @@ pub(crate) fn end_run(shared: &Shared) {
         inner.watchers.clear();
         shared.status.send_modify(|s| s.ended = true);
     }
-    // Started but never polled: dropped outside the lock (a drop may take it).
+    // Started but never polled, or parked: dropped outside the lock (a drop may take it).
     drop(launches);
+    drop(parked);
 }
 
 async fn sleep_until(at: Option<tokio::time::Instant>) {
