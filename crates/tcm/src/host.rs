@@ -470,6 +470,8 @@ impl Shared {
     /// Exclusive access to the engine; its effects are carried out when the access ends.
     #[inline(always)]
     pub(crate) fn enter(self: &Arc<Shared>) -> Result<Access<'_>, Error> {
+        // What the engine does under the lock happens in its own order, not the polled future's.
+        let polling = crate::pump::polling(false);
         let mut guard = lock(self)?;
         if self.stops.load(Ordering::Relaxed) > 0 {
             stops_first(&mut guard, self);
@@ -478,6 +480,7 @@ impl Shared {
             guard,
             shared: self,
             settled: false,
+            polling,
         })
     }
 }
@@ -505,6 +508,9 @@ pub(crate) struct Access<'a> {
     shared: &'a Arc<Shared>,
     // The effects were carried out and nothing changed since (`Access::carry_out`).
     settled: bool,
+    // The pump of this thread was polling a future when the access began: wake-ups it causes are
+    // held back again once it ends (`pump::hold_wake`); those the engine causes are not.
+    polling: bool,
 }
 
 impl std::ops::Deref for Access<'_> {
@@ -525,13 +531,18 @@ impl Access<'_> {
     /// Carries out the engine's effects now, rather than when the access ends.
     pub(crate) fn carry_out(&mut self) {
         self.settled = true;
-        match self.guard.effects(self.shared) {
-            Wake::No => {}
-            // Taking trace records changes nothing of the engine: while this thread pumps, the
-            // driver takes them when the pump ends (`pump.rs`).
-            Wake::Trace if crate::pump::defer_wake(self.shared) => {}
-            Wake::Trace | Wake::Now => self.shared.wake.notify_one(),
-        }
+        carry_out(&mut self.guard, self.shared);
+    }
+}
+
+/// Carries out the engine's effects (under its lock), and wakes the driver if it must.
+pub(crate) fn carry_out(inner: &mut Inner, shared: &Arc<Shared>) {
+    match inner.effects(shared) {
+        Wake::No => {}
+        // Taking trace records changes nothing of the engine: while this thread pumps, the
+        // driver takes them when the pump ends (`pump.rs`).
+        Wake::Trace if crate::pump::defer_wake(shared) => {}
+        Wake::Trace | Wake::Now => shared.wake.notify_one(),
     }
 }
 
@@ -540,6 +551,9 @@ impl Drop for Access<'_> {
     fn drop(&mut self) {
         if !self.settled {
             self.carry_out();
+        }
+        if self.polling {
+            crate::pump::polling(true);
         }
     }
 }
