@@ -888,13 +888,18 @@ impl Inner {
         if !job.cancellable() || self.aborts.set_task(node, h.clone()) {
             return None;
         }
+        self.cancel_if_cancelled_inline(shared, node, TaskRef::Task(h));
+        None
+    }
+
+    /// A job the pump held, now a task or parked, is no longer running: if it was cancelled while
+    /// the pump held it, it is cancelled now (signalled with its grace period, or aborted).
+    fn cancel_if_cancelled_inline(&mut self, shared: &Arc<Shared>, node: NodeId, task: TaskRef) {
         if let Some(i) = self.inline_cancelled.iter().position(|n| *n == node) {
             self.inline_cancelled.swap_remove(i);
             let rt = self.spawner.clone();
-            self.cancels
-                .cancel(shared, rt.as_ref(), node, TaskRef::Task(h));
+            self.cancels.cancel(shared, rt.as_ref(), node, task);
         }
-        None
     }
 
     /// Records a job the pump polled once and parked (`pump::Parked`); if it was cancelled
@@ -913,12 +918,7 @@ impl Inner {
         if self.aborts.set_parked(node, parked.clone()) {
             return None;
         }
-        if let Some(i) = self.inline_cancelled.iter().position(|n| *n == node) {
-            self.inline_cancelled.swap_remove(i);
-            let rt = self.spawner.clone();
-            self.cancels
-                .cancel(shared, rt.as_ref(), node, TaskRef::Parked(parked));
-        }
+        self.cancel_if_cancelled_inline(shared, node, TaskRef::Parked(parked));
         None
     }
 }
