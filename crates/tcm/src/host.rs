@@ -232,6 +232,20 @@ impl Inner {
         }
     }
 
+    /// Hands the stops of jobs the pump dropped unpolled to whoever takes the lock next, as the
+    /// drops of their tasks, aborted, would be (`Reporter`): until then they count as aborted
+    /// tasks still queued.
+    pub(crate) fn hand_over_stops(&mut self, shared: &Shared, jobs: impl Iterator<Item = Job>) {
+        for job in jobs {
+            self.cancels.aborted += 1;
+            shared.stops.fetch_add(1, Ordering::SeqCst);
+            if let Ok(tx) = shared.stopped.lock() {
+                let _ = tx.send(job);
+            }
+        }
+        shared.wake.notify_one();
+    }
+
     /// The driver looked at the roots.
     pub(crate) fn clear_roots_changed(&mut self) {
         self.roots_changed = false;
@@ -273,13 +287,7 @@ impl Inner {
     /// it can do: re-arm the timer, run a due callback, see that a top-level task ended or that the
     /// run is quiet), or only to hand trace records to the sinks.
     pub(crate) fn effects(&mut self, shared: &Arc<Shared>) -> Wake {
-        // Most accesses leave no effect (a spawn whose parent holds its children): the host is
-        // borrowed only for one.
-        if let Some(first) = self.engine.poll_effect() {
-            let (engine, mut host) = self.split(shared);
-            Driver::effect(engine, &mut host, first);
-            Driver::effects(engine, &mut host);
-        }
+        self.start_effects(shared);
         let wake = self.roots_changed
             || !self.due.is_empty()
             || self.engine.fatal().is_some()
@@ -293,6 +301,26 @@ impl Inner {
             Wake::Trace
         } else {
             Wake::No
+        }
+    }
+
+    /// Hands the engine's effects (starts, cancellations, notifications) to the host.
+    #[inline]
+    pub(crate) fn start_effects(&mut self, shared: &Arc<Shared>) {
+        self.start_effects_pumping(shared, None);
+    }
+
+    /// [`Inner::start_effects`], told whether the pump of this thread runs for this run (`None`:
+    /// the host looks, on its first start).
+    #[inline]
+    pub(crate) fn start_effects_pumping(&mut self, shared: &Arc<Shared>, pumps: Option<bool>) {
+        // Most accesses leave no effect (a spawn whose parent holds its children): the host is
+        // borrowed only for one.
+        if let Some(first) = self.engine.poll_effect() {
+            let (engine, mut host) = self.split(shared);
+            host.pumps = pumps;
+            Driver::effect(engine, &mut host, first);
+            Driver::effects(engine, &mut host);
         }
     }
 
@@ -439,6 +467,10 @@ pub(crate) struct Shared {
     // them (`Shared::enter`), so that their order in the trace does not depend on when the
     // driver runs.
     pub(crate) stops: AtomicUsize,
+    // How many jobs were cancelled while the pump held them, ever: the pump looks again at the
+    // rest of its batch when it grows (`pump.rs`), so that a job cancelled by one polled before
+    // it is dropped unpolled.
+    pub(crate) inline_cancels: AtomicUsize,
     // Published by the driver under the engine's lock.
     pub(crate) status: watch::Sender<Status>,
     // Whether the end of a job's task pumps what it released (`pump.rs`): on a current-thread
@@ -485,17 +517,20 @@ impl Shared {
     }
 }
 
-/// Reports the stops sent since the last look, before anything else sees the engine.
+/// Reports the stops sent since the last look, before anything else sees the engine, and hands
+/// their effects to the host, as the end of a job does (`pump::flush`): an action a stop starts is
+/// running when what took the lock cancels it.
 #[cold]
 #[inline(never)]
-fn stops_first(inner: &mut Inner, shared: &Shared) {
+fn stops_first(inner: &mut Inner, shared: &Arc<Shared>) {
     inner.report_stopped(shared, shared.now());
+    inner.start_effects(shared);
 }
 
 /// The engine's lock. On a thread whose pump runs for this run, the ends it keeps are reported
 /// first (`pump.rs`): whatever looks at the engine sees them.
 #[inline]
-pub(crate) fn lock(shared: &Shared) -> Result<MutexGuard<'_, Inner>, Error> {
+pub(crate) fn lock(shared: &Arc<Shared>) -> Result<MutexGuard<'_, Inner>, Error> {
     let mut inner = shared.inner.lock().map_err(|_| Error::Poisoned)?;
     crate::pump::flush(&mut inner, shared);
     Ok(inner)
@@ -717,7 +752,10 @@ impl Shell<Action, Factory> for Host<'_> {
                     .cancel(self.shared, self.spawner, node, TaskRef::Parked(p));
             }
             // The pump holds it: it drops it unpolled, or cancels the task it becomes.
-            Some(Running::Inline) => self.inline_cancelled.push(node),
+            Some(Running::Inline) => {
+                self.inline_cancelled.push(node);
+                self.shared.inline_cancels.fetch_add(1, Ordering::Relaxed);
+            }
             None => {}
         }
         self.parking.forget_job(Job::from(node));
@@ -761,21 +799,25 @@ pub(crate) enum Ended {
 }
 
 impl Access<'_> {
-    /// Carries out the effects, then takes the jobs the pump is to poll (`Inner::take_launches`)
-    /// into `batch` (empty, kept by the pump so that its buffer serves every batch); taking them
-    /// changes nothing of the engine, so the access ends without another look. The jobs
-    /// cancelled before the pump could poll them go to `dropped` (empty, kept by the pump too).
+    /// Carries out the effects, then takes the jobs the pump is to poll into `batch` (empty, kept
+    /// by the pump so that its buffer serves every batch; buffers are swapped, so neither is
+    /// allocated again); taking them changes nothing of the engine, so the access ends without
+    /// another look. Those cancelled before the pump could poll them stay in the batch, in their
+    /// place, and their nodes go to `skip` (`Inner::cancelled_in`). When the run ended, every job
+    /// goes to `dropped`, to drop unpolled.
     pub(crate) fn settle_and_take_launches(
         &mut self,
         batch: &mut Vec<(Job, ActionFuture)>,
         dropped: &mut Vec<(Job, ActionFuture)>,
+        skip: &mut Vec<NodeId>,
     ) {
         self.carry_out();
         if self.guard.ended {
             dropped.append(&mut self.guard.launches);
             return;
         }
-        self.guard.take_launches(batch, dropped);
+        std::mem::swap(&mut self.guard.launches, batch);
+        self.guard.cancelled_in(batch, skip);
     }
 }
 
@@ -844,31 +886,23 @@ impl Inner {
         let _ = self.engine.handle_action_finished(now, job, result);
     }
 
-    /// Moves the jobs the pump is to poll into `batch` (empty), swapping buffers so that neither
-    /// is allocated again; those cancelled before the pump could poll them go to `dropped` (to
-    /// drop unpolled).
-    pub(crate) fn take_launches(
-        &mut self,
-        batch: &mut Vec<(Job, ActionFuture)>,
-        dropped: &mut Vec<(Job, ActionFuture)>,
-    ) {
-        std::mem::swap(&mut self.launches, batch);
+    /// Adds to `skip` the nodes of the jobs in `batch` cancelled while the pump held them: the
+    /// pump drops each unpolled when its turn comes, as tokio drops an aborted task when it reaches
+    /// it in its queue.
+    pub(crate) fn cancelled_in(&mut self, batch: &[(Job, ActionFuture)], skip: &mut Vec<NodeId>) {
         if self.inline_cancelled.is_empty() {
             return;
         }
         let cancelled = &mut self.inline_cancelled;
-        let (keep, gone): LaunchBatch = batch.drain(..).partition(|(job, _)| {
+        for (job, _) in batch {
             let node = job.node();
-            match cancelled.iter().position(|n| *n == node) {
-                Some(i) if job.cancellable() => {
+            if let Some(i) = cancelled.iter().position(|n| *n == node) {
+                if job.cancellable() {
                     cancelled.swap_remove(i);
-                    false
+                    skip.push(node);
                 }
-                _ => true,
             }
-        });
-        batch.extend(keep);
-        dropped.extend(gone);
+        }
     }
 
     /// Spawns, as a tokio task, a job the pump polled once and left pending; if it was cancelled
@@ -943,9 +977,6 @@ impl TaskRef {
         }
     }
 }
-
-/// A batch [`Inner::take_launches`] splits in two: the jobs to poll, and those to drop unpolled.
-pub(crate) type LaunchBatch = (Vec<(Job, ActionFuture)>, Vec<(Job, ActionFuture)>);
 
 /// The record of a panic in the action (or callback) of `node`.
 pub(crate) fn panicked(

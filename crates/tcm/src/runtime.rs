@@ -236,6 +236,7 @@ impl Runtime {
                 inner: Mutex::new(Inner::new(engine(run), stopped_rx)),
                 stopped: Mutex::new(stopped),
                 stops: AtomicUsize::new(0),
+                inline_cancels: AtomicUsize::new(0),
                 wake: Notify::new(),
                 clock: Clock::new(),
                 handles: AtomicUsize::new(0),
@@ -534,7 +535,7 @@ impl Runtime {
 }
 
 /// The report of a run that ended with `outcome`.
-pub(crate) fn report(shared: &Shared, outcome: RunOutcome) -> Result<Report, Error> {
+pub(crate) fn report(shared: &Arc<Shared>, outcome: RunOutcome) -> Result<Report, Error> {
     let mut inner = lock(shared)?;
     let stats = inner.engine.stats();
     Ok(Report {
@@ -707,7 +708,7 @@ impl RunLoop {
 
 /// The run is over: whatever still runs belongs to a run that is over, no callback will run, and
 /// whoever waits is told.
-pub(crate) fn end_run(shared: &Shared) {
+pub(crate) fn end_run(shared: &Arc<Shared>) {
     let mut launches = Vec::new();
     let mut parked = Vec::new();
     if let Ok(mut inner) = lock(shared) {
