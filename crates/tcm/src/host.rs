@@ -172,6 +172,9 @@ pub(crate) struct Inner {
     pub(crate) finishing: bool,
     // The driver loop ended: nothing more runs.
     pub(crate) ended: bool,
+    // The engine's counters when the driver took the run's last trace records: the report's, so
+    // that it counts what the trace holds (a warning may come after, from another process).
+    pub(crate) final_stats: Option<tcm_core::Stats>,
     pub(crate) callbacks: BTreeMap<u64, PendingCallback>,
     pub(crate) due: Vec<DueCallback>,
     // Data given to a monitor activation (`Ctx::activate_with`), by activation node.
@@ -210,6 +213,7 @@ impl Inner {
             roots_changed: false,
             finishing: false,
             ended: false,
+            final_stats: None,
             callbacks: BTreeMap::new(),
             due: Vec::new(),
             activation_data: BTreeMap::new(),

@@ -537,7 +537,7 @@ impl Runtime {
 /// The report of a run that ended with `outcome`.
 pub(crate) fn report(shared: &Arc<Shared>, outcome: RunOutcome) -> Result<Report, Error> {
     let mut inner = lock(shared)?;
-    let stats = inner.engine.stats();
+    let stats = inner.final_stats.unwrap_or_else(|| inner.engine.stats());
     Ok(Report {
         outcome,
         elapsed: shared.now().since_start(),
@@ -611,6 +611,9 @@ impl RunLoop {
         // Published under the lock, so a program that reads the turn number under it sees a turn
         // that began after its own changes (`Session::quiescent`).
         let ended = end.is_some();
+        if ended {
+            inner.final_stats = Some(inner.engine.stats());
+        }
         self.shared.status.send_modify(|s| {
             s.turn += 1;
             s.quiet = quiet;
