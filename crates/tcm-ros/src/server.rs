@@ -157,6 +157,9 @@ where
     loop {
         let mut changed = false;
         tokio::select! {
+            // The serving node's termination first: its goals, terminated with it, are canceled
+            // ones, even when their ends are ready at the same poll.
+            biased;
             () = &mut cancelled, if !stopping => {
                 stopping = true;
                 for entry in goals.values_mut() {
