@@ -242,10 +242,7 @@ impl Inner {
     pub(crate) fn hand_over_stops(&mut self, shared: &Shared, jobs: impl Iterator<Item = Job>) {
         for job in jobs {
             self.cancels.aborted += 1;
-            shared.stops.fetch_add(1, Ordering::SeqCst);
-            if let Ok(tx) = shared.stopped.lock() {
-                let _ = tx.send(job);
-            }
+            shared.send_stop(job);
         }
         shared.wake.notify_one();
     }
@@ -496,6 +493,16 @@ impl Shared {
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .clone()
+    }
+
+    /// Sends the stop of a job whose future was dropped unfinished, for whoever takes the lock
+    /// next to report (`Shared::enter`).
+    pub(crate) fn send_stop(&self, job: Job) {
+        // Counted first: a count above zero may find the channel still empty, never the reverse.
+        self.stops.fetch_add(1, Ordering::SeqCst);
+        if let Ok(tx) = self.stopped.lock() {
+            let _ = tx.send(job);
+        }
     }
 
     /// The engine's time now (see [`Clock`]).
@@ -1165,11 +1172,7 @@ impl Drop for Reporter {
         if self.done {
             return;
         }
-        // Counted first: a count above zero may find the channel still empty, never the reverse.
-        self.shared.stops.fetch_add(1, Ordering::SeqCst);
-        if let Ok(tx) = self.shared.stopped.lock() {
-            let _ = tx.send(self.job);
-        }
+        self.shared.send_stop(self.job);
         self.shared.wake.notify_one();
     }
 }

@@ -390,8 +390,8 @@ impl Guard {
                 if !skip.is_empty() {
                     if let Some(i) = skip.iter().position(|n| *n == job.node()) {
                         skip.swap_remove(i);
-                        dropped.push((job, fut));
-                        drop_unpolled(&mut dropped);
+                        drop(fut);
+                        let _ = push(|st| st.done.push(Ended::Dropped(job)));
                         unpolled = true;
                         continue;
                     }
@@ -1428,6 +1428,26 @@ mod tests {
     fn programs_once_found_giving_another_order_give_the_same_trace() {
         use Kid::*;
         type Kids = Vec<(Kid, Option<u8>)>;
+        // A monitor's activation dropped in its batch, a node released by its stop, and `then`
+        // released with that node.
+        let after_a_dropped_activation = |then: Kid| -> Kids {
+            vec![
+                (Ends, None),
+                (Ends, None),
+                (Ends, None),
+                (Waits(0), None),
+                (Fails, None),
+                (Ends, None),
+                (Polls(1), Some(2)),
+                (Terminates(1), Some(3)),
+                (Ends, Some(2)),
+                (then, Some(2)),
+                (WaitsFor(4), None),
+                (Ends, Some(1)),
+                (Ends, None),
+                (Ends, None),
+            ]
+        };
         let programs: Vec<(&str, Kids)> = vec![
             // A handler about to start when a node of the same batch terminates its failed node:
             // what an end starts is started before the next end, or the future that took the
@@ -1453,43 +1473,13 @@ mod tests {
             // The same, the stop then releasing a node a later future waits for.
             (
                 "stop of a dropped activation, then a send",
-                vec![
-                    (Ends, None),
-                    (Ends, None),
-                    (Ends, None),
-                    (Waits(0), None),
-                    (Fails, None),
-                    (Ends, None),
-                    (Polls(1), Some(2)),
-                    (Terminates(1), Some(3)),
-                    (Ends, Some(2)),
-                    (Sends(0), Some(2)),
-                    (WaitsFor(4), None),
-                    (Ends, Some(1)),
-                    (Ends, None),
-                    (Ends, None),
-                ],
+                after_a_dropped_activation(Sends(0)),
             ),
             // A stop reported before a node it releases is terminated by the lock that reported
             // it (`host::stops_first` starts what the stop starts).
             (
                 "stop, then a termination in the same lock",
-                vec![
-                    (Ends, None),
-                    (Ends, None),
-                    (Ends, None),
-                    (Waits(0), None),
-                    (Fails, None),
-                    (Ends, None),
-                    (Polls(1), Some(2)),
-                    (Terminates(1), Some(3)),
-                    (Ends, Some(2)),
-                    (Terminates(1), Some(2)),
-                    (WaitsFor(4), None),
-                    (Ends, Some(1)),
-                    (Ends, None),
-                    (Ends, None),
-                ],
+                after_a_dropped_activation(Terminates(1)),
             ),
             // Two handlers started in one batch, the second cancelled: dropped in its turn, after
             // the first ran.
