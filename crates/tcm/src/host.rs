@@ -533,7 +533,7 @@ impl Shared {
 /// running when what took the lock cancels it.
 #[cold]
 #[inline(never)]
-fn stops_first(inner: &mut Inner, shared: &Arc<Shared>) {
+pub(crate) fn stops_first(inner: &mut Inner, shared: &Arc<Shared>) {
     inner.report_stopped(shared, shared.now());
     inner.start_effects(shared);
 }
