@@ -38,8 +38,9 @@
 //! Cancellation keeps its meaning. A job cancelled before its poll stays in its batch and is
 //! dropped unpolled in its turn (a job polled before it may cancel it), as tokio drops an aborted
 //! task when it reaches it in its queue; its stop is reported by whatever reports next, and when
-//! nothing of its batch comes after it and nothing is started, by whoever runs next (the stop is
-//! handed over as a dropped task's, `Inner::hand_over_stops`), not by the pump. A wake-up held
+//! nothing of its batch comes after it and nothing is started, or the next batch reports nothing
+//! (its futures all left pending), by whoever runs next (the stop is handed over as a dropped
+//! task's, `Inner::hand_over_stops`), not by the pump. A wake-up held
 //! back goes before such stops (a stop is reported by the next end, after what the future polled
 //! meanwhile woke). One cancelled after a poll that left it pending is spawned and then cancelled
 //! as any running task (signalled with its grace period, or aborted); one that returned is
@@ -49,7 +50,7 @@
 //! Random programs (ending, sleeping, yielding, failing, retrying, spawning, waking one another
 //! through channels and engine watches, terminating one another, polling, sharing a resource)
 //! give the same trace as tasks, record for record, and the same pumped trace on every run
-//! (`random_programs_give_the_same_trace_with_and_without_the_pump`; 20,000 cases passed once,
+//! (`random_programs_give_the_same_trace_with_and_without_the_pump`; 200,000 cases passed once,
 //! and the programs it found on the way are kept in
 //! `programs_once_found_giving_another_order_give_the_same_trace`). The limits:
 //! - tokio delivers a deferred wake-up (`tokio::task::yield_now`) when its queue is empty, or after
@@ -275,6 +276,8 @@ fn report_with_wakes(
             }
         }
         inner.ended_job(now, ended);
+        // What it starts goes to the host before the next end is reported, as in `flush`.
+        inner.start_effects(shared);
     }
     if next.peek().is_some() {
         crate::host::carry_out(inner, shared);
@@ -371,9 +374,12 @@ impl Guard {
                             // driver, reports them, as it would their tasks' drops.
                             inner.hand_over_stops(&shared, trailing.drain(..));
                         } else {
-                            // What this batch polls runs after them: reported first.
+                            // What this batch polls runs after them: reported first, by the
+                            // first of its ends reported or access to the engine. If none comes,
+                            // they are still last at the next look, and handed over then.
                             let _ =
                                 push(|st| st.done.extend(trailing.drain(..).map(Ended::Dropped)));
+                            unpolled = true;
                         }
                     }
                 }
@@ -1564,6 +1570,40 @@ mod tests {
                     (Terminates(1), Some(3)),
                     (Ends, Some(1)),
                     (Ends, Some(1)),
+                ],
+            ),
+            // An end reported with a held wake-up (its future woke a waiting task) starts a node
+            // the next future of its batch terminates: the start went to the host first, so the
+            // node is stopped as a running action, not struck from the engine's effects.
+            (
+                "a start by an end reported with a wake-up, terminated in the same batch",
+                vec![
+                    (Sends(1), None),
+                    (Ends, None),
+                    (Ends, None),
+                    (Ends, Some(1)),
+                    (Sends(0), Some(1)),
+                    (Ends, Some(1)),
+                    (Terminates(1), Some(3)),
+                    (Waits(0), None),
+                    (Uses(1), None),
+                    (Ends, Some(1)),
+                    (Ends, None),
+                ],
+            ),
+            // A handler dropped unpolled last in its batch; the next batch's one future yields
+            // (no end reported): the stop is handed over then, not reported by the pump, so the
+            // node it releases starts after the yielded future resumed, as with tasks.
+            (
+                "a stop kept past a batch that reported nothing",
+                vec![
+                    (Ends, None),
+                    (Ends, None),
+                    (Waits(0), Some(1)),
+                    (Fails, Some(2)),
+                    (Terminates(1), Some(2)),
+                    (Yields, Some(1)),
+                    (Terminates(1), Some(3)),
                 ],
             ),
         ];
