@@ -50,7 +50,7 @@
 //! Random programs (ending, sleeping, yielding, failing, retrying, spawning, waking one another
 //! through channels and engine watches, terminating one another, polling, sharing a resource)
 //! give the same trace as tasks, record for record, and the same pumped trace on every run
-//! (`random_programs_give_the_same_trace_with_and_without_the_pump`; 200,000 cases passed once,
+//! (`random_programs_give_the_same_trace_with_and_without_the_pump`; 500,000 cases passed once,
 //! and the programs it found on the way are kept in
 //! `programs_once_found_giving_another_order_give_the_same_trace`). The limits:
 //! - tokio delivers a deferred wake-up (`tokio::task::yield_now`) when its queue is empty, or after
