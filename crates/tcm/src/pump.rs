@@ -48,10 +48,11 @@
 //! panicking future fails its node, as in a task.
 //!
 //! Random programs (ending, sleeping, yielding, failing, retrying, spawning, waking one another
-//! through channels and engine watches, terminating one another, polling, sharing a resource)
-//! give the same trace as tasks, record for record, and the same pumped trace on every run
+//! through channels and engine watches, terminating one another, polling, sharing a resource,
+//! running code in their closures that others' futures look at) give the same trace as tasks,
+//! record for record, and the same pumped trace on every run
 //! (`random_programs_give_the_same_trace_with_and_without_the_pump`; 500,000 cases passed once,
-//! and the programs it found on the way are kept in
+//! 200,000 with the closures' code, and the programs it found on the way are kept in
 //! `programs_once_found_giving_another_order_give_the_same_trace`). The limits:
 //! - tokio delivers a deferred wake-up (`tokio::task::yield_now`) when its queue is empty, or after
 //!   61 tasks (its event interval): the pump's inline actions are no tasks to count, so past 61
@@ -1302,6 +1303,10 @@ mod tests {
         Retries,
         // A goal whose child fails: the failure goes up to the program's handler.
         FailsBelow,
+        // Its closure (code run when it starts, before its future) adds its place to a log.
+        Marks,
+        // Its future traces the log.
+        Reads,
     }
 
     fn kid() -> impl Strategy<Value = (Kid, Option<u8>)> {
@@ -1319,6 +1324,8 @@ mod tests {
             1 => (1u8..4).prop_map(Kid::Polls),
             1 => Just(Kid::Retries),
             1 => Just(Kid::FailsBelow),
+            1 => Just(Kid::Marks),
+            1 => Just(Kid::Reads),
         ];
         (kid, proptest::option::weighted(0.5, 1u8..4))
     }
@@ -1339,6 +1346,7 @@ mod tests {
                     receivers.push(Some(rx));
                 }
                 let senders: Chan = Arc::new(Mutex::new(senders));
+                let log: Arc<Mutex<Vec<usize>>> = Arc::default();
                 let mut ids = Vec::new();
                 for (i, (kid, after)) in kids.into_iter().enumerate() {
                     let task = match kid {
@@ -1438,6 +1446,26 @@ mod tests {
                                 },
                             ))
                         }
+                        Kid::Marks => {
+                            let log = log.clone();
+                            Task::command("marks", move |_| {
+                                if let Ok(mut l) = log.lock() {
+                                    l.push(i);
+                                }
+                                async { Ok(()) }
+                            })
+                        }
+                        Kid::Reads => {
+                            let log = log.clone();
+                            Task::command("reads", move |ctx| {
+                                let log = log.clone();
+                                async move {
+                                    let seen = log.lock().map(|l| format!("{l:?}")).ok();
+                                    ctx.warn(format!("log {seen:?}"))?;
+                                    Ok(())
+                                }
+                            })
+                        }
                         Kid::FailsBelow => Task::goal("fails_below", |ctx| async move {
                             ctx.spawn(Task::command("fails", |_| async {
                                 Err::<(), _>(Failure::new("Boom", "below"))
@@ -1483,10 +1511,10 @@ mod tests {
 
         /// Random programs (ending, sleeping, yielding, failing into a handler or below,
         /// retrying, spawning, waking one another through channels and engine watches,
-        /// terminating one another, polling, sharing a resource; some after others, several
-        /// released together) give the same trace with and without the pump, record for record,
-        /// and the same pumped trace on every run. (What an action's closure does before its
-        /// future is checked by `code_an_end_starts_runs_before_the_rest_of_its_batch`.)
+        /// terminating one another, polling, sharing a resource, running code in their closures
+        /// that others' futures look at; some after others, several released together) give the
+        /// same trace with and without the pump, record for record, and the same pumped trace on
+        /// every run.
         #[test]
         fn random_programs_give_the_same_trace_with_and_without_the_pump(
             kids in proptest::collection::vec(kid(), 1..40),
