@@ -294,7 +294,8 @@ fn report_with_wakes(
 /// The largest batch buffer the pump keeps from one batch to the next.
 const KEEP_BATCH: usize = 64;
 
-/// How many ends (and futures left pending) the pump keeps at most before it reports them.
+/// How many futures left pending the pump keeps at most before it records them under the lock,
+/// and how many ends of a batch share one clock reading.
 const REPORT_EVERY: usize = 64;
 
 /// The pump of this thread, while it runs for one run; the previous one (of another run, if any)
@@ -452,9 +453,9 @@ impl Guard {
                         Err(fut) => push(|st| st.pending.push((job, fut))),
                     },
                 };
-                // A wide batch reports its ends every `REPORT_EVERY`, as if one of its futures
-                // touched the engine: what they start is polled after this batch all the same,
-                // and the ends kept stay few (and in the cache) however wide the batch.
+                // Futures left pending (and the last end) are recorded every `REPORT_EVERY`, as
+                // if one of the batch's futures touched the engine, so that what the pump keeps
+                // stays small however wide the batch.
                 stale |= to_drop;
                 if kept >= REPORT_EVERY {
                     match shared.enter() {
