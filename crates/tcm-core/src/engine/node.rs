@@ -355,6 +355,32 @@ impl<A, F> Node<A, F> {
         self.termination == Termination::Alive
     }
 
+    /// Whether the end of one of its children (its expansion or execution completing, its
+    /// termination, its reclaim; the child's counts already updated) may let this node progress.
+    /// When it may not, its progress is not queued for it: `progress` would find every branch
+    /// closed. Only the completion branches depend on children, and each needs the handling
+    /// completed (reclaim through the execution) or a termination; the counts then say which one
+    /// could be reached.
+    #[inline]
+    pub(crate) fn child_end_may_progress(&self) -> bool {
+        if self.kind == NodeKind::Root {
+            return false;
+        }
+        if self.termination != Termination::Alive {
+            return true;
+        }
+        if self.state(Facet::Handling) != State::Completed {
+            return false;
+        }
+        if self.state(Facet::Expansion) != State::Completed {
+            self.open_expansions == 0
+        } else if self.state(Facet::Execution) != State::Completed {
+            self.open_executions == 0
+        } else {
+            self.live_children == 0
+        }
+    }
+
     /// The rarely used part, allocated on first write.
     pub(crate) fn cold_mut(&mut self) -> &mut Cold<A, F> {
         self.cold.get_or_insert_with(Box::default)

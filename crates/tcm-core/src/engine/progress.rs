@@ -291,10 +291,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             {
                 self.transition(id, Facet::Expansion, State::Completed);
                 if let Some(p) = self.node(id).parent {
-                    if let Some(p) = self.nodes.get_mut(p) {
-                        p.open_expansions -= 1;
+                    if let Some(pn) = self.nodes.get_mut(p) {
+                        pn.open_expansions -= 1;
+                        if pn.child_end_may_progress() {
+                            self.queue_progress(p);
+                        }
                     }
-                    self.queue_progress(p);
                 }
                 parent_gate = None;
                 continue;
@@ -318,10 +320,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 }
                 self.end_reservations_of(id);
                 if let Some(p) = parent {
-                    if let Some(p) = self.nodes.get_mut(p) {
-                        p.open_executions -= 1;
+                    if let Some(pn) = self.nodes.get_mut(p) {
+                        pn.open_executions -= 1;
+                        if pn.child_end_may_progress() {
+                            self.queue_progress(p);
+                        }
                     }
-                    self.queue_progress(p);
                 }
                 parent_gate = None;
                 continue;
@@ -682,7 +686,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.unlink(id);
         self.nodes.discard(id, fate);
         emit!(self, TraceKind::Reclaimed { node: display });
-        if let Some(p) = parent {
+        if let Some(p) = parent
+            && self
+                .nodes
+                .get(p)
+                .is_some_and(|pn| pn.child_end_may_progress())
+        {
             self.queue_progress(p);
         }
     }
