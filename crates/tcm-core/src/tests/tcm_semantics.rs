@@ -287,6 +287,92 @@ fn terminating_a_completed_persistent_goal_terminates_and_reclaims_its_subtree()
     assert_eq!(r.sim.engine.stats().live_nodes, 1, "only the root is left");
 }
 
+/// Goals whose executions completed wait, unreclaimed, for a persistent grandchild; once it is
+/// terminated and reclaimed, its parent goes, and then that goal's parent: a reclaim is what
+/// lets the next one up go.
+#[test]
+fn completed_goals_are_reclaimed_once_their_terminated_persistent_grandchild_is() {
+    let r = check(
+        |e, root| {
+            let holder = goal(
+                e,
+                root,
+                "holder",
+                spawns(0.0, |e, me, now| {
+                    let mid = Spawn::new(
+                        me,
+                        NodeKind::Goal,
+                        "mid",
+                        spawns(0.0, |e, me, now| {
+                            let mut kept = Spawn::new(me, NodeKind::Command, "kept", noop());
+                            kept.persistent = true;
+                            e.spawn(now, kept).expect("spawn")
+                        }),
+                    );
+                    e.spawn(now, mid).expect("spawn")
+                }),
+                &[],
+            );
+            let killer = body(move |e, _, now| {
+                let mid = e.children(holder).first().copied().expect("mid is alive");
+                let kept = e.children(mid).first().copied().expect("kept is alive");
+                e.terminate(now, kept)
+                    .expect("terminate a completed persistent command");
+                Outcome::done()
+            });
+            cmd(e, root, "killer", killer, &[not_before(5.0)]);
+        },
+        "
+        0 holder expansion enabled
+        0 holder execution enabled
+        0 holder handling enabled
+        0 holder handling active
+        0 holder expansion active
+        0 killer execution enabled
+        0 mid expansion enabled
+        0 mid execution enabled
+        0 mid handling enabled
+        0 mid handling active
+        0 mid expansion active
+        0 kept execution enabled
+        0 kept handling enabled
+        0 kept handling active
+        0 kept execution active
+        0 mid execution active
+        0 holder execution active
+        0 holder handling completed
+        0 mid handling completed
+        0 mid expansion completed
+        0 holder expansion completed
+        0 kept handling completed
+        0 kept execution completed
+        0 mid execution completed
+        0 holder execution completed
+        5 killer handling enabled
+        5 killer handling active
+        5 killer execution active
+        5 kept terminating
+        5 kept terminated
+        5 killer handling completed
+        5 killer execution completed
+        ",
+    );
+    let reclaimed: Vec<u64> = r
+        .trace()
+        .iter()
+        .filter_map(|t| match t.kind {
+            TraceKind::Reclaimed { node } => Some(node),
+            _ => None,
+        })
+        .collect();
+    // holder {1}, killer {2}, mid {3}, kept {4}: kept goes first, then mid, then holder.
+    assert!(
+        reclaimed.windows(3).any(|w| w == [4, 3, 1]),
+        "kept, mid and holder reclaimed in turn: {reclaimed:?}"
+    );
+    assert_eq!(r.sim.engine.stats().live_nodes, 1, "only the root is left");
+}
+
 #[test]
 fn a_child_spawned_under_a_completed_persistent_goal_runs_with_a_warning() {
     let r = check(
