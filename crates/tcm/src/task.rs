@@ -488,7 +488,7 @@ impl Task {
     /// The engine's spawn request for this task under `parent`, and what the host keeps beside
     /// the node: the task name when the instance was renamed (and differs), the arguments, the
     /// grace period and the resources it uses. Everything is moved, nothing copied.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn into_parts(self, parent: NodeId) -> (Spawn<Action, Factory>, Kept) {
         let task = self.task_name.filter(|t| *t != self.name);
         let kept = Kept {
