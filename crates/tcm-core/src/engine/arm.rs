@@ -615,34 +615,35 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         then: Then,
         delay: Option<Duration>,
     ) {
-        let w = self.node(watched);
+        let w = self.node_mut(watched);
         if then == Then::Terminate && !w.alive() {
             // Its points are reached by termination only: the constraint never fires.
             return;
         }
-        if w.reached(ev.facet, ev.point) {
-            if ev.outcome.is_some_and(|o| o != self.outcome_of(watched)) {
-                // It ended otherwise: the event never happens.
-                self.block(node, then);
-                return self.impossible(WaitKind::Trigger {
+        if !w.reached(ev.facet, ev.point) {
+            // The usual case: wait (the waiter first, while the watched node is at hand).
+            w.waiters.push(Waiter {
+                facet: ev.facet,
+                point: ev.point,
+                outcome: ev.outcome,
+                kind: WaitKind::Trigger {
                     target: node,
                     then,
                     delay: Delay::of(delay),
-                });
-            }
-            return self.fire_passed(node, then, delay);
+                },
+            });
+            return self.block(node, then);
         }
-        self.block(node, then);
-        self.node_mut(watched).waiters.push(Waiter {
-            facet: ev.facet,
-            point: ev.point,
-            outcome: ev.outcome,
-            kind: WaitKind::Trigger {
+        if ev.outcome.is_some_and(|o| o != self.outcome_of(watched)) {
+            // It ended otherwise: the event never happens.
+            self.block(node, then);
+            return self.impossible(WaitKind::Trigger {
                 target: node,
                 then,
                 delay: Delay::of(delay),
-            },
-        });
+            });
+        }
+        self.fire_passed(node, then, delay);
     }
 
     /// The event already happened: the trigger fires now, or its delay starts now.
@@ -683,7 +684,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// One enablement constraint of `target`'s `facet` is satisfied.
-    fn satisfy(&mut self, target: NodeId, facet: Facet) {
+    pub(super) fn satisfy(&mut self, target: NodeId, facet: Facet) {
         let Some(n) = self.nodes.get_mut(target) else {
             return;
         };

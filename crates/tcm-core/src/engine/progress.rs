@@ -221,6 +221,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             let h = n.state(Facet::Handling);
             let x = n.state(Facet::Expansion);
             let e = n.state(Facet::Execution);
+            if n.blocks[Facet::Execution.index()] > 0 && e == State::Disabled && !n.kind.expands() {
+                // A command whose execution waits for a constraint (`serial previous`, as every
+                // node of a chain but the first when its parent lets them go): nothing below
+                // applies until the constraint is satisfied.
+                return;
+            }
             // Children of a holding action are not enabled at all until it releases them (only
             // looked up while something is left to enable). A terminating node that had not
             // started is still enabled in the plan's order; it just never starts.
@@ -459,6 +465,31 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     fn record_and_fire(&mut self, id: NodeId, facet: Facet, from: State, to: State) {
         let n = self.node_mut(id);
         let display = n.display;
+        // The usual waiter (`serial previous` and `sequential`): the only one, an enabling
+        // trigger with neither delay nor outcome. Firing it is what `fire_now` would do with it
+        // (an enablement fires even for a terminating node), without going through it.
+        if let [w] = n.waiters.as_slice()
+            && w.fires_at(facet, to)
+            && w.outcome.is_none()
+            && let WaitKind::Trigger {
+                target,
+                then: crate::constraint::Then::Enable(f),
+                delay: super::node::Delay::NONE,
+            } = w.kind
+        {
+            n.waiters.clear();
+            emit!(
+                self,
+                TraceKind::Transition {
+                    node: display,
+                    facet,
+                    from,
+                    to,
+                }
+            );
+            self.satisfy(target, f);
+            return;
+        }
         // Usually none or one fires: `Waiters` keeps one inline, so no allocation. Most
         // transitions of a watched node fire nothing, so its waiters are first only looked at.
         let fires = |w: &super::node::Waiter| w.fires_at(facet, to);

@@ -75,6 +75,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.check_parent_open(parent)?;
         let pd = self.node(parent);
         let parent_suspended = pd.suspended;
+        // A parent that holds its children (the usual spawn: from a running body); constraints do
+        // not change it.
+        let parent_holds = pd.holding;
         if constraints.len() >= 2
             && constraints.contains(&Constraint::ExpandFirst)
             && constraints.contains(&Constraint::DelayExpansion)
@@ -198,7 +201,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 explicit: false,
             });
         }
-        self.queue_progress(id);
+        // Under a parent that holds its children, a new node cannot move at all until the hold
+        // ends, which queues the progress of every child: unless its constraints queued work, its
+        // own progress would be a no-op.
+        if !(parent_holds
+            && self.work.is_empty()
+            && self.node(parent).state(Facet::Handling) == State::Active)
+        {
+            self.queue_progress(id);
+        }
         self.settle();
         Ok(id)
     }
