@@ -56,7 +56,7 @@ pub use engine::{
 pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
 pub use ids::{ExternalId, NodeId, ResourceId, TapWhen, WatchToken, WiretapId};
 pub use tcm_trace::{Facet, NodeKind, Outcome, Point, State, Termination};
-pub use time::Time;
+pub use time::{Clock, Time};
 
 /// Instance and type names: static strings cost no allocation.
 pub type Name = std::borrow::Cow<'static, str>;

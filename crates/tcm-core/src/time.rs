@@ -59,3 +59,7 @@ impl fmt::Display for Time {
         write!(f, "{}.{:09}s", d.as_secs(), d.subsec_nanos())
     }
 }
+
+/// A shell's clock as the engine reads it when it needs the time ([`crate::Engine::with_clock`]):
+/// the engine stays free of I/O, the shell says how time is read.
+pub type Clock = std::sync::Arc<dyn Fn() -> Time + Send + Sync>;

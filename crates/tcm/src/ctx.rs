@@ -747,8 +747,7 @@ impl Spawner<'_> {
     #[inline]
     pub fn start(self) -> Result<NodeId, Error> {
         let mut inner = self.ctx.shared.enter()?;
-        let now = self.ctx.shared.now();
-        Ok(inner.spawn(now, self.spec, self.kept)?)
+        Ok(inner.spawn(None, self.spec, self.kept)?)
     }
 
     /// Inserts the node and waits until its execution completes (TDL's `with wait`).
@@ -778,8 +777,7 @@ impl Spawner<'_> {
         let ctx = self.ctx;
         let id = {
             let mut inner = ctx.shared.enter()?;
-            let now = ctx.shared.now();
-            let id = inner.spawn(now, self.spec, self.kept)?;
+            let id = inner.spawn(None, self.spec, self.kept)?;
             inner.values.insert(id, None);
             inner.engine.propagate(id)?;
             id

@@ -351,15 +351,18 @@ impl Inner {
     /// Inserts a node for the program or an action, and keeps its task name if it differs from its
     /// instance name (`Task::named`) and its arguments (`Task::with_args`).
     #[inline]
+    /// At `now`, or at the clock's time if `None` (read only if the spawn needs it,
+    /// `Engine::at_clock`).
     pub(crate) fn spawn(
         &mut self,
-        now: Time,
+        now: Option<Time>,
         mut spec: Spawn<Action, Factory>,
         mut kept: Kept,
     ) -> Result<NodeId, EngineError> {
         if let Some(wanted) = kept.wanted.take() {
             spec.uses = self.resolve(*wanted)?;
         }
+        let now = now.unwrap_or_else(|| self.engine.at_clock());
         let id = self.engine.spawn(now, spec)?;
         if kept.fail_parent {
             self.engine.propagate_to_parent(id)?;
@@ -398,7 +401,7 @@ impl Inner {
         spec: Spawn<Action, Factory>,
         kept: Kept,
     ) -> Result<NodeId, EngineError> {
-        let id = self.spawn(now, spec, kept)?;
+        let id = self.spawn(Some(now), spec, kept)?;
         let token = self.next_token();
         self.roots.push(Root {
             node: id,
@@ -459,7 +462,7 @@ pub(crate) struct Status {
 pub(crate) struct Shared {
     pub(crate) inner: Mutex<Inner>,
     pub(crate) wake: Notify,
-    pub(crate) clock: Clock,
+    pub(crate) clock: Arc<Clock>,
     // Open event handles: while any is open, an idle run waits instead of ending stuck.
     pub(crate) handles: AtomicUsize,
     // Where a `Reporter` sends the job of a task dropped unfinished (it must not take the lock).
@@ -842,16 +845,17 @@ fn finish(
     let Ok(mut inner) = shared.enter() else {
         return;
     };
-    let now = shared.now();
-    inner.ended_job(now, Ended::Returned(job, res));
+    inner.ended_job(None, Ended::Returned(job, res));
 }
 
 impl Inner {
-    /// Reports a job's end to the engine.
-    pub(crate) fn ended_job(&mut self, now: Time, ended: Ended) {
+    /// Reports a job's end to the engine, at `now`, or at the clock's time if `None` (read only
+    /// if the report needs it, `Engine::at_clock`).
+    pub(crate) fn ended_job(&mut self, now: Option<Time>, ended: Ended) {
         let (job, res) = match ended {
             Ended::Returned(job, res) => (job, res),
             Ended::Dropped(job) => {
+                let now = now.unwrap_or_else(|| self.engine.at_clock());
                 self.engine.handle_action_stopped(now, job);
                 return;
             }
@@ -894,6 +898,7 @@ impl Inner {
             }
         };
         // A node terminated meanwhile, or already reclaimed, has nothing left to finish.
+        let now = now.unwrap_or_else(|| self.engine.at_clock());
         let _ = self.engine.handle_action_finished(now, job, result);
     }
 

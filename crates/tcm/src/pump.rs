@@ -12,9 +12,11 @@
 //! until it is first woken, and is spawned as a task then, queued where its task, idle until then,
 //! would be queued by that wake-up; parked futures are recorded under the lock with the next end
 //! reported, or every `REPORT_EVERY`. What the reported ends start is pumped in turn, in a loop,
-//! never recursively. The ends reported while one batch is polled share a clock reading, taken
-//! afresh every `REPORT_EVERY` ends (`PumpState::now`): reading the clock is a large part of a
-//! report, and on virtual time the clock does not move while a batch is polled.
+//! never recursively. Reading the clock is a large part of a report, so a report reads it only if
+//! it needs the time (`Engine::at_clock`: a traced run, a pending timer, a timer or monitor it
+//! starts). When the engine wants the time at once (`Engine::wants_time`), the ends reported while
+//! one batch is polled share a clock reading, taken afresh every `REPORT_EVERY` ends
+//! (`PumpState::now`): on virtual time the clock does not move while a batch is polled.
 //!
 //! **The same order as tasks.** A task spawned on a current-thread runtime runs after every task
 //! already queued. So a released action is pumped only when nothing of the run is queued: the
@@ -249,7 +251,9 @@ pub(crate) fn flush(inner: &mut Inner, shared: &Arc<Shared>) {
             // action an end starts is running when a later end, or the future that took the
             // lock, cancels it. The host is told that this thread pumps for the run, so that it
             // does not look at the pump's state, borrowed here.
-            let now = st.now();
+            // One clock reading for the batch if the reports need the time; else each report
+            // reads it only if it turns out to need it.
+            let now = inner.engine.wants_time().then(|| st.now());
             for ended in st.done.drain(..) {
                 inner.ended_job(now, ended);
                 inner.start_effects_pumping(shared, Some(true));
@@ -267,7 +271,7 @@ fn report_with_wakes(
     mut wakes: Vec<(usize, Waker)>,
 ) -> (Vec<Ended>, Vec<(usize, Waker)>) {
     let was = polling(false);
-    let now = shared.now();
+    let now = inner.engine.wants_time().then(|| shared.now());
     let mut next = wakes.drain(..).peekable();
     for (i, ended) in done.drain(..).enumerate() {
         if next.peek().is_some_and(|(at, _)| *at <= i) {
@@ -508,24 +512,31 @@ impl Guard {
 /// to drop).
 fn report_now(shared: &Arc<Shared>, job: Job, res: ActionResult) -> Result<bool, crate::Error> {
     let mut ended = Some(Ended::Returned(job, res));
-    let now = PUMP.with(|p| {
+    PUMP.with(|p| {
         let mut p = p.try_borrow_mut().ok()?;
         let st = p.as_mut()?;
-        if st.done.is_empty()
+        if !(st.done.is_empty()
             && st.pending.is_empty()
             && st.parked.is_empty()
-            && st.wakes.is_empty()
+            && st.wakes.is_empty())
         {
-            Some(st.now())
-        } else {
             st.done.extend(ended.take());
-            None
         }
+        Some(())
     });
     let (mut inner, flushed) = match ended {
         Some(ended) => {
             let mut inner = shared.inner.lock().map_err(|_| crate::Error::Poisoned)?;
-            inner.ended_job(now.unwrap_or_else(|| shared.now()), ended);
+            // The batch's clock reading if the report needs the time; else the report reads the
+            // clock only if it turns out to need it.
+            let now = inner.engine.wants_time().then(|| {
+                PUMP.with(|p| {
+                    let mut p = p.try_borrow_mut().ok()?;
+                    Some(p.as_mut()?.now())
+                })
+                .unwrap_or_else(|| shared.now())
+            });
+            inner.ended_job(now, ended);
             inner.start_effects_pumping(shared, Some(true));
             (inner, false)
         }

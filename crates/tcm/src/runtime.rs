@@ -231,14 +231,19 @@ impl Runtime {
     pub fn new() -> Runtime {
         let run = RUNS.fetch_add(1, Ordering::Relaxed);
         let (stopped, stopped_rx) = std::sync::mpsc::channel();
+        let clock = Arc::new(Clock::new());
+        let mut engine = engine(run);
+        // The engine reads the clock itself for the inputs that may not need it (`Engine::at_clock`).
+        let read = clock.clone();
+        engine.set_clock(Arc::new(move || read.now()));
         Runtime {
             shared: Arc::new(Shared {
-                inner: Mutex::new(Inner::new(engine(run), stopped_rx)),
+                inner: Mutex::new(Inner::new(engine, stopped_rx)),
                 stopped: Mutex::new(stopped),
                 stops: AtomicUsize::new(0),
                 inline_cancels: AtomicUsize::new(0),
                 wake: Notify::new(),
-                clock: Clock::new(),
+                clock,
                 handles: AtomicUsize::new(0),
                 status: watch::Sender::new(Status::default()),
                 inline: AtomicBool::new(false),

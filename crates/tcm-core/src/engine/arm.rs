@@ -511,7 +511,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 }
             }
             When::At(at) => self.arm_at(node, at, then),
-            When::In(d) => self.arm_at(node, self.now + d, then),
+            When::In(d) => {
+                let now = self.time();
+                self.arm_at(node, now + d, then)
+            }
             When::External(x) => {
                 let Some(ext) = self.externals.get(x.0 as usize) else {
                     return self.void(node, || "unknown external event".into());
@@ -543,7 +546,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 let Some(watched) = self.resolve(ev.node, node, parent, previous) else {
                     if let Some(d) = delay {
                         // TDL: a missing `previous` drops the `after` part, the delay stays.
-                        return self.arm_at(node, self.now + d, then);
+                        let now = self.time();
+                        return self.arm_at(node, now + d, then);
                     }
                     return self.void(node, || {
                         format!(
@@ -597,10 +601,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         });
         // An activation due in the past still waits for the timer queue's turn, so a monitor
         // spawned with it has started by then.
-        if at > self.now || then == Then::Activate {
+        let now = self.time();
+        if at > now || then == Then::Activate {
             self.block(node, then);
             self.timers
-                .push(at.max(self.now), TimerKind::Trigger { target: node, then });
+                .push(at.max(now), TimerKind::Trigger { target: node, then });
         } else {
             self.fire_trigger(node, then, false);
         }
@@ -652,8 +657,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             None => self.fire_trigger(node, then, false),
             Some(d) => {
                 self.block(node, then);
+                let now = self.time();
                 self.timers
-                    .push(self.now + d, TimerKind::Trigger { target: node, then });
+                    .push(now + d, TimerKind::Trigger { target: node, then });
             }
         }
     }
@@ -717,8 +723,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     if forced {
                         self.fire_trigger(target, then, true);
                     } else {
+                        let now = self.time();
                         self.timers
-                            .push(self.now + d, TimerKind::Trigger { target, then });
+                            .push(now + d, TimerKind::Trigger { target, then });
                     }
                 }
             },

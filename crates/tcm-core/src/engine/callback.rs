@@ -75,8 +75,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// of [`Engine::poll_timeout`].
     pub fn notify_at(&mut self, now: Time, at: Time, token: WatchToken) {
         self.advance(now);
-        self.timers
-            .push(at.max(self.now), TimerKind::Notify { token });
+        let now = self.time();
+        self.timers.push(at.max(now), TimerKind::Notify { token });
     }
 
     /// The shell runs the callback of `token` now: traced as `callback_ran`.

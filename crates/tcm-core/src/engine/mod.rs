@@ -95,7 +95,7 @@ mod wiretap;
 use crate::arena::{Arena, Keep, Lookup, Owned};
 use crate::failure::{FailurePolicy, FatalFailure};
 use crate::ids::{ExternalId, NodeId};
-use crate::time::Time;
+use crate::time::{Clock, Time};
 use crate::{Name, NodeKind};
 pub use api::{Effect, EngineError, Job, Spawn, Stats, WatchOutcome};
 use arm::{External, Join};
@@ -152,7 +152,13 @@ const MAX_RUNS: usize = 8;
 #[derive(Clone)]
 pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     run: u32,
+    // The latest time known; behind the clock while `behind` (see `Engine::at_clock`).
     now: Time,
+    // The shell's clock, read only when the time is needed (`Engine::set_clock`).
+    clock: Option<Clock>,
+    // Since `Engine::at_clock`, until the clock is read or an input is given a later time: `now`
+    // may be behind the clock, which the next use of the time reads.
+    behind: bool,
     nodes: Arena<A, F, S>,
     root: NodeId,
     next_display: u64,
@@ -203,6 +209,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         let mut engine = Engine {
             run,
             now: Time::ZERO,
+            clock: None,
+            behind: false,
             nodes,
             root: root_id,
             next_display: 1,
@@ -280,9 +288,62 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.root
     }
 
-    /// The current virtual time (the latest given to an input).
+    /// The current virtual time (the latest given to an input, or read from the clock).
     pub fn now(&self) -> Time {
         self.now
+    }
+
+    /// Gives the engine the shell's clock, for [`Engine::at_clock`]. It must read the same
+    /// time as the shell gives its inputs, never going back.
+    pub fn set_clock(&mut self, clock: Clock) {
+        self.clock = Some(clock);
+    }
+
+    /// The time to give the next input so that it happens at the clock's time
+    /// ([`Engine::set_clock`]), read only if the input needs it: to date a trace record, to fire
+    /// due timers, to start a timer or a monitor. An input that needs none of these (an untraced
+    /// spawn or end of a node, with no timer pending) costs no reading, which is most of what a
+    /// reading costs an input. What happens is what the input would do given the clock's time,
+    /// as the clock reads at the input's first use of it instead of before the call. The engine
+    /// stays behind its clock until it reads it (an input given a later time than the one
+    /// returned here sets the time, as always). Without a clock, the latest time known.
+    pub fn at_clock(&mut self) -> Time {
+        self.behind = self.clock.is_some();
+        self.now
+    }
+
+    /// Calls `input` at the clock's time ([`Engine::at_clock`]).
+    pub fn with_clock<R>(&mut self, input: impl FnOnce(&mut Self, Time) -> R) -> R {
+        let now = self.at_clock();
+        input(self, now)
+    }
+
+    /// Whether an input is likely to need the time (it is traced, or a timer is pending), so
+    /// that a shell which shares one clock reading between several inputs gives it at once
+    /// rather than through [`Engine::at_clock`].
+    pub fn wants_time(&self) -> bool {
+        self.tracing || !self.timers.is_empty()
+    }
+
+    /// The time now: the clock's, if the engine is behind it (`at_clock`), else the latest known.
+    #[inline]
+    fn time(&mut self) -> Time {
+        if self.behind {
+            self.catch_up();
+        }
+        self.now
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn catch_up(&mut self) {
+        self.behind = false;
+        if let Some(clock) = &self.clock {
+            let t = clock();
+            if t > self.now {
+                self.now = t;
+            }
+        }
     }
 
     /// The first unhandled failure, under [`FailurePolicy::Fatal`].
@@ -367,6 +428,22 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// little after a deadline) never overtakes a timer that was due before it.
     #[inline(always)]
     fn advance(&mut self, now: Time) {
+        if self.behind && now <= self.now {
+            // The time is the clock's (`at_clock`): read now only if a timer may be due. Due
+            // timers fire at their own times, before the engine's time moves on to the reading.
+            if !self.timers.is_empty() {
+                self.behind = false;
+                if let Some(now) = self.clock.as_ref().map(|clock| clock()) {
+                    self.fire_timers(now, false);
+                    if now > self.now {
+                        self.now = now;
+                    }
+                }
+            }
+            return;
+        }
+        // An input given its time: the engine is no longer behind its clock.
+        self.behind = false;
         if !self.timers.is_empty() {
             self.fire_timers(now, false);
         }
@@ -420,11 +497,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     fn push_trace(&mut self, kind: TraceKind) {
         let seq = self.seq;
         self.seq += 1;
-        self.trace.push_back(TraceEvent {
-            seq,
-            t: self.now.as_nanos(),
-            kind,
-        });
+        let t = self.time().as_nanos();
+        self.trace.push_back(TraceEvent { seq, t, kind });
     }
 
     fn check_run(&self, id: NodeId) -> Result<(), EngineError> {

@@ -225,7 +225,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
 
     /// The monitor's handling became active (step 1 of the protocol).
     pub(crate) fn monitor_started(&mut self, monitor: NodeId) {
-        let now = self.now;
+        let now = self.time();
         let Some(mon) = self.node_mut(monitor).monitor_mut() else {
             return;
         };

@@ -4,6 +4,8 @@
 use super::{AFTER_PREVIOUS, assert_checked, cmd, goal, never, run, s, spawns};
 use crate::sim::{Sim, noop};
 use crate::*;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use tcm_trace::{TraceEvent, TraceKind};
 
 /// An engine whose actions and factories are names.
@@ -484,4 +486,107 @@ fn monitor_info_answers_for_the_monitor_and_its_activations() {
     assert!(!info.initial_wait);
     assert_eq!(e.monitor_info(e.root()), None);
     checked_trace(&mut e);
+}
+
+/// A clock for `Engine::with_clock` that reads `at` (in ms) and counts its readings.
+fn counting_clock(e: &mut Bare) -> (Arc<AtomicU64>, Arc<AtomicU64>) {
+    let (at, reads) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
+    let (a, r) = (at.clone(), reads.clone());
+    e.set_clock(Arc::new(move || {
+        r.fetch_add(1, Ordering::Relaxed);
+        Time::ZERO + s(a.load(Ordering::Relaxed) as f64 / 1000.0)
+    }));
+    (at, reads)
+}
+
+#[test]
+fn with_the_clock_an_untraced_input_that_needs_no_time_reads_no_clock() {
+    let mut e: Bare = Engine::new(1);
+    e.set_tracing(false);
+    let (at, reads) = counting_clock(&mut e);
+    at.store(5, Ordering::Relaxed);
+    let root = e.root();
+    let spec = Spawn::new(root, NodeKind::Command, "a", "a");
+    let a = e.with_clock(|e, now| e.spawn(now, spec)).expect("spawn");
+    started(&mut e, a);
+    e.with_clock(|e, now| e.handle_action_finished(now, a, Ok(())))
+        .expect("end");
+    assert_eq!(reads.load(Ordering::Relaxed), 0, "nothing needed the time");
+    assert!(e.info(a).is_none(), "a ran and was reclaimed");
+    // A timer started by an input needs the time: the clock is read then, once.
+    let spec =
+        Spawn::new(root, NodeKind::Command, "b", "b").with(Constraint::terminate(When::In(s(1.0))));
+    let b = e.with_clock(|e, now| e.spawn(now, spec)).expect("spawn");
+    assert_eq!(reads.load(Ordering::Relaxed), 1);
+    assert_eq!(e.now(), Time::ZERO + s(0.005));
+    assert_eq!(
+        e.poll_timeout(),
+        Some(Time::ZERO + s(1.005)),
+        "counted from the reading"
+    );
+    started(&mut e, b);
+}
+
+#[test]
+fn with_the_clock_a_traced_input_is_dated_by_one_reading_and_due_timers_fire_at_their_own_time() {
+    let mut e: Bare = Engine::new(1);
+    let (at, reads) = counting_clock(&mut e);
+    let root = e.root();
+    at.store(1_000, Ordering::Relaxed);
+    let spec =
+        Spawn::new(root, NodeKind::Command, "a", "a").with(Constraint::terminate(When::In(s(1.0))));
+    let a = e.with_clock(|e, now| e.spawn(now, spec)).expect("spawn");
+    assert_eq!(
+        reads.load(Ordering::Relaxed),
+        1,
+        "one reading dates the whole input"
+    );
+    started(&mut e, a);
+    // The next input comes late, after `a`'s deadline (2 s) passed unnoticed: `a` is
+    // terminated at its deadline, and the new node is spawned at the reading, 3 s.
+    at.store(3_000, Ordering::Relaxed);
+    let spec = Spawn::new(root, NodeKind::Command, "b", "b");
+    let b = e.with_clock(|e, now| e.spawn(now, spec)).expect("spawn");
+    assert_eq!(reads.load(Ordering::Relaxed), 2);
+    let trace = checked_trace(&mut e);
+    let when = |pred: &dyn Fn(&TraceKind) -> bool| {
+        trace
+            .iter()
+            .find(|r| pred(&r.kind))
+            .map(|r| r.t)
+            .expect("record")
+    };
+    let (a_disp, b_disp) = (e.info(a).expect("a").display, e.info(b).expect("b").display);
+    assert_eq!(
+        when(&|k| matches!(k, TraceKind::Spawned { node, .. } if *node == a_disp)),
+        1_000_000_000
+    );
+    assert_eq!(
+        when(&|k| matches!(k, TraceKind::Terminating { node } if *node == a_disp)),
+        2_000_000_000,
+        "the timer fired at its own time"
+    );
+    assert_eq!(
+        when(&|k| matches!(k, TraceKind::Spawned { node, .. } if *node == b_disp)),
+        3_000_000_000
+    );
+}
+
+#[test]
+fn without_a_clock_with_clock_gives_the_latest_time_known() {
+    let mut e: Bare = Engine::new(1);
+    let root = e.root();
+    let a = spawn(&mut e, root, NodeKind::Command, "a", &[]);
+    started(&mut e, a);
+    e.handle_action_finished(Time::ZERO + s(2.0), a, Ok(()))
+        .expect("end");
+    let spec = Spawn::new(root, NodeKind::Command, "b", "b");
+    let b = e.with_clock(|e, now| e.spawn(now, spec)).expect("spawn");
+    let trace = checked_trace(&mut e);
+    let b_disp = e.info(b).expect("b").display;
+    let spawned = trace
+        .iter()
+        .find(|r| matches!(r.kind, TraceKind::Spawned { node, .. } if node == b_disp))
+        .expect("spawned");
+    assert_eq!(spawned.t, 2_000_000_000);
 }
