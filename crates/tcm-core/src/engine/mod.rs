@@ -428,27 +428,34 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// little after a deadline) never overtakes a timer that was due before it.
     #[inline(always)]
     fn advance(&mut self, now: Time) {
-        if self.behind && now <= self.now {
-            // The time is the clock's (`at_clock`): read now only if a timer may be due. Due
-            // timers fire at their own times, before the engine's time moves on to the reading.
-            if !self.timers.is_empty() {
-                self.behind = false;
-                if let Some(now) = self.clock.as_ref().map(|clock| clock()) {
-                    self.fire_timers(now, false);
-                    if now > self.now {
-                        self.now = now;
-                    }
-                }
+        if self.behind {
+            if now <= self.now {
+                return self.advance_to_clock();
             }
-            return;
+            // An input given a later time: the engine is no longer behind its clock.
+            self.behind = false;
         }
-        // An input given its time: the engine is no longer behind its clock.
-        self.behind = false;
         if !self.timers.is_empty() {
             self.fire_timers(now, false);
         }
         if now > self.now {
             self.now = now;
+        }
+    }
+
+    /// `advance` at the clock's time (`at_clock`): the clock is read only if a timer may be due.
+    /// Due timers fire at their own times, before the engine's time moves on to the reading.
+    #[inline(never)]
+    fn advance_to_clock(&mut self) {
+        if self.timers.is_empty() {
+            return;
+        }
+        self.behind = false;
+        if let Some(now) = self.clock.as_ref().map(|clock| clock()) {
+            self.fire_timers(now, false);
+            if now > self.now {
+                self.now = now;
+            }
         }
     }
 
