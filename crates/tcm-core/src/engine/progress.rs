@@ -465,35 +465,27 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     fn record_and_fire(&mut self, id: NodeId, facet: Facet, from: State, to: State) {
         let n = self.node_mut(id);
         let display = n.display;
-        // The usual waiter (`serial previous` and `sequential`): the only one, an enabling
-        // trigger with neither delay nor outcome. Firing it is what `fire_now` would do with it
-        // (an enablement fires even for a terminating node), without going through it.
-        if let [w] = n.waiters.as_slice()
-            && w.fires_at(facet, to)
-            && w.outcome.is_none()
-            && let WaitKind::Trigger {
-                target,
-                then: crate::constraint::Then::Enable(f),
-                delay: super::node::Delay::NONE,
-            } = w.kind
-        {
-            n.waiters.clear();
-            emit!(
-                self,
-                TraceKind::Transition {
-                    node: display,
-                    facet,
-                    from,
-                    to,
-                }
-            );
-            self.satisfy(target, f);
-            return;
-        }
         // Usually none or one fires: `Waiters` keeps one inline, so no allocation. Most
         // transitions of a watched node fire nothing, so its waiters are first only looked at.
         let fires = |w: &super::node::Waiter| w.fires_at(facet, to);
-        let fired = if !n.waiters.iter().any(fires) {
+        // The usual waiter (`serial previous` and `sequential`): the only one, an enabling
+        // trigger with neither delay nor outcome. Firing it is what `fire_now` would do with it
+        // (an enablement fires even for a terminating node), without going through it.
+        let direct = match n.waiters.as_slice() {
+            [w] if fires(w) && w.outcome.is_none() => match w.kind {
+                WaitKind::Trigger {
+                    target,
+                    then: crate::constraint::Then::Enable(f),
+                    delay: super::node::Delay::NONE,
+                } => Some((target, f)),
+                _ => None,
+            },
+            _ => None,
+        };
+        let fired = if direct.is_some() {
+            n.waiters.clear();
+            Waiters::new()
+        } else if !n.waiters.iter().any(fires) {
             Waiters::new()
         } else if n.waiters.iter().all(fires) {
             std::mem::take(&mut n.waiters)
@@ -518,6 +510,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 to,
             }
         );
+        if let Some((target, f)) = direct {
+            return self.satisfy(target, f);
+        }
         if !fired.is_empty() {
             for w in fired {
                 match w.outcome {
