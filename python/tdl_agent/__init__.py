@@ -201,6 +201,46 @@ class _Running:
     task: Optional["asyncio.Task[None]"] = None
 
 
+#: How long the first messages to an executive wait for its inbox to be known (seconds).
+REACH = 10.0
+
+
+class _Outlet:
+    """The publisher to an executive's inbox, and what waits for a subscriber of it to be known:
+    zenoh drops a publication no known subscriber matches, and an executive's token can come
+    before its inbox's declaration (docs/distributed.md, "Messages")."""
+
+    def __init__(self, publisher: Any) -> None:
+        self.publisher = publisher
+        self.matched = False
+        self.waiting: List[bytes] = []
+        self.listener: Any = None
+
+    def put(self, data: bytes) -> None:
+        if self.matched:
+            self.publisher.put(data)
+        else:
+            self.waiting.append(data)
+
+    def open(self) -> None:
+        """Sends what waited, in order; later messages go at once."""
+        self.matched = True
+        waiting, self.waiting = self.waiting, []
+        for data in waiting:
+            self.publisher.put(data)
+        listener, self.listener = self.listener, None
+        if listener is not None:
+            try:
+                listener.undeclare()
+            except Exception as e:
+                log.debug("undeclaring a matching listener: %s", e)
+
+    def undeclare(self) -> None:
+        if self.listener is not None:
+            self.listener.undeclare()
+        self.publisher.undeclare()
+
+
 class Agent:
     """An agent named ``name`` of system ``system``; offer tasks, then :meth:`start` it."""
 
@@ -214,7 +254,7 @@ class Agent:
         self._offers: Dict[str, _Offer] = {}
         self._running: Dict[Tuple[str, int], _Running] = {}
         self._ended: "collections.OrderedDict[Tuple[str, int], int]" = collections.OrderedDict()
-        self._publishers: Dict[str, Any] = {}
+        self._publishers: Dict[str, _Outlet] = {}
         self._keep: List[Any] = []
         self._tasks: "set[asyncio.Task[None]]" = set()
         self._session: Optional[zenoh.Session] = None
@@ -358,15 +398,43 @@ class Agent:
 
     # --- the agent's loop ---------------------------------------------------------------------
 
-    def _publisher(self, executive: str) -> Any:
+    def _publisher(self, executive: str) -> Optional[_Outlet]:
         p = self._publishers.get(executive)
         if p is None and self._session is not None:
-            p = self._session.declare_publisher(
-                wire.executive_inbox(self.system, executive),
-                congestion_control=zenoh.CongestionControl.BLOCK,
+            p = _Outlet(
+                self._session.declare_publisher(
+                    wire.executive_inbox(self.system, executive),
+                    congestion_control=zenoh.CongestionControl.BLOCK,
+                )
             )
             self._publishers[executive] = p
+            if p.publisher.matching_status.matching:
+                p.open()
+            else:
+                outlet = p
+
+                def on_matching(status: Any) -> None:
+                    if status.matching:
+                        self._from_any_thread(self._reached, executive, outlet)
+
+                p.listener = p.publisher.declare_matching_listener(on_matching)
+                # A declaration may have come between the first look and the listener; after
+                # a while, what waits is sent anyway.
+                if p.publisher.matching_status.matching:
+                    p.open()
+                elif self._loop is not None:
+                    self._loop.call_later(REACH, self._reached, executive, p)
         return p
+
+    def _reached(self, executive: str, p: _Outlet) -> None:
+        if self._publishers.get(executive) is p and not p.matched:
+            if not p.publisher.matching_status.matching:
+                log.warning(
+                    "agent %s: no subscriber of %s's inbox is known: sending anyway",
+                    self.name,
+                    executive,
+                )
+            p.open()
 
     def _send(self, key: Tuple[str, int], r: _Running, body: Dict[str, Json]) -> None:
         r.out_seq += 1

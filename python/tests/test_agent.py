@@ -1,6 +1,7 @@
 """Unit tests of tdl_agent without a network: the messages' encoding as the Rust side writes and
 reads them (crates/tcm-zenoh/src/wire.rs), typed failures, and the agent's exactly-once handling
-of messages, driven on an asyncio loop with a publisher that records what it is given.
+of messages, driven on an asyncio loop with a publisher that records what it is given, and the
+wait of the first messages to an executive until its inbox is known.
 
 Run with ``python -m unittest discover -s python/tests`` (the package ``eclipse-zenoh`` must be
 installed: ``tdl_agent`` imports it); crates/tcm-zenoh/tests/it/python.rs runs them in its venv.
@@ -12,6 +13,7 @@ import asyncio
 import json
 import os
 import sys
+import types
 import unittest
 from typing import Any, List
 
@@ -184,6 +186,71 @@ class ExactlyOnce(unittest.TestCase):
         self.settle()
         self.assertEqual((self.agent.stats.orphaned, self.cleanups), (1, [20_000]))
         self.assertEqual(self.out.sent, [(6, 1, {"kind": "started"})])
+
+
+class FakePublisher:
+    """A publisher whose matching status the test sets, keeping what is put."""
+
+    def __init__(self, matching: bool) -> None:
+        self.sent: List[bytes] = []
+        self.matching = matching
+        self.handler: Any = None
+
+    @property
+    def matching_status(self) -> Any:
+        return types.SimpleNamespace(matching=self.matching)
+
+    def declare_matching_listener(self, handler: Any) -> Any:
+        self.handler = handler
+        return types.SimpleNamespace(undeclare=lambda: None)
+
+    def put(self, data: bytes) -> None:
+        self.sent.append(data)
+
+
+class Reach(unittest.TestCase):
+    def setUp(self) -> None:
+        self.loop = asyncio.new_event_loop()
+        self.agent = tdl_agent.Agent("sys", "py")
+        self.agent._loop = self.loop
+        self.publishers: List[FakePublisher] = []
+        # Whether a subscriber of the inbox is known when the publisher is declared.
+        self.known = False
+
+        def declare(key: str, congestion_control: Any) -> FakePublisher:
+            self.assertEqual(key, "tdl/sys/to-exec/exec1")
+            p = FakePublisher(self.known)
+            self.publishers.append(p)
+            return p
+
+        self.agent._session = types.SimpleNamespace(declare_publisher=declare)  # type: ignore[assignment]
+
+    def tearDown(self) -> None:
+        self.agent._session = None
+        self.loop.close()
+
+    def test_messages_wait_until_the_executives_inbox_is_known_then_go_in_order(self) -> None:
+        out = self.agent._publisher("exec1")
+        assert out is not None
+        out.put(b"1")
+        out.put(b"2")
+        pub = self.publishers[0]
+        self.assertEqual(pub.sent, [])
+        pub.matching = True
+        pub.handler(types.SimpleNamespace(matching=True))
+        self.loop.run_until_complete(asyncio.sleep(0.01))
+        out.put(b"3")
+        self.assertEqual(pub.sent, [b"1", b"2", b"3"])
+        self.assertIs(self.agent._publisher("exec1"), out)
+        self.assertEqual(len(self.publishers), 1)
+
+    def test_an_inbox_known_at_once_sends_at_once(self) -> None:
+        self.known = True
+        out = self.agent._publisher("exec1")
+        assert out is not None
+        out.put(b"1")
+        self.assertEqual(self.publishers[0].sent, [b"1"])
+        self.assertIsNone(self.publishers[0].handler)
 
 
 if __name__ == "__main__":

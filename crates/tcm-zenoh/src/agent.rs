@@ -360,7 +360,8 @@ impl AgentInner {
         self.lock().publishers.get(exec).cloned()
     }
 
-    /// The publisher to executive `exec`'s inbox.
+    /// The publisher to executive `exec`'s inbox, declared and matched (see [`crate::matched`])
+    /// before it is kept.
     pub(crate) async fn publisher(&self, exec: &str) -> Result<Arc<Publisher<'static>>, Error> {
         if let Some(p) = self.lock().publishers.get(exec) {
             return Ok(p.clone());
@@ -371,6 +372,9 @@ impl AgentInner {
             .congestion_control(CongestionControl::Block)
             .await
             .map_err(Error::zenoh)?;
+        if !crate::matched(&p).await? {
+            tracing::warn!(target: "tcm_zenoh", agent = self.name, "no subscriber of {exec}'s inbox is known: sending anyway");
+        }
         let p = Arc::new(p);
         Ok(self
             .lock()

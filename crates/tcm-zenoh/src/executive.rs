@@ -543,6 +543,12 @@ impl Inner {
         publisher.put(bytes).await.map_err(Error::zenoh)
     }
 
+    /// Waits until `agent`'s inbox is reachable: its publisher declared and a subscriber of it
+    /// known, or given up after a while (the sends then go out anyway).
+    pub(crate) async fn reach(&self, agent: &str) -> Result<(), Error> {
+        self.publisher(agent).await.map(drop)
+    }
+
     /// Queues `msg` for `agent`, from where no await is possible.
     pub(crate) fn send_later(&self, agent: &str, msg: Msg<ToAgent>) {
         let _ = self.outbox.send((agent.to_string(), msg));
@@ -558,6 +564,9 @@ impl Inner {
             .congestion_control(CongestionControl::Block)
             .await
             .map_err(Error::zenoh)?;
+        if !crate::matched(&p).await? {
+            tracing::warn!(target: "tcm_zenoh", agent, "no subscriber of the agent's inbox is known: sending anyway");
+        }
         let p = Arc::new(p);
         let mut s = self.lock();
         Ok(s.publishers.entry(agent.to_string()).or_insert(p).clone())

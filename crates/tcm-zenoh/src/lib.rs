@@ -74,6 +74,40 @@ impl Error {
     }
 }
 
+/// How long a sender waits for the first subscriber of a key it publishes to.
+const REACH: std::time::Duration = std::time::Duration::from_secs(10);
+
+/// Waits until this session knows a subscriber matching `publisher`'s key, at most [`REACH`];
+/// whether it does. Zenoh drops a publication that matches no subscriber the session knows of,
+/// and a peer's liveliness token can reach a session before its subscriber's declaration
+/// (docs/distributed.md, "Messages"): the first message to a peer waits for this.
+pub(crate) async fn matched(publisher: &zenoh::pubsub::Publisher<'_>) -> Result<bool, Error> {
+    let now = || async {
+        publisher
+            .matching_status()
+            .await
+            .map(|s| s.matching())
+            .map_err(Error::zenoh)
+    };
+    if now().await? {
+        return Ok(true);
+    }
+    let listener = publisher.matching_listener().await.map_err(Error::zenoh)?;
+    // A declaration may have come between the first look and the listener.
+    if now().await? {
+        return Ok(true);
+    }
+    let wait = async {
+        while let Ok(status) = listener.recv_async().await {
+            if status.matching() {
+                return true;
+            }
+        }
+        false
+    };
+    Ok(tokio::time::timeout(REACH, wait).await.unwrap_or(false))
+}
+
 /// The counters of an executive.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {

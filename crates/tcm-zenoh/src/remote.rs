@@ -390,6 +390,18 @@ async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
         ended: false,
         cancelled: false,
     };
+    // The start waits until the agent's inbox is known here: sent before, it would be lost.
+    tokio::select! {
+        r = exec.reach(&agent) => r.map_err(|e| RemoteError::failure(e.to_string()))?,
+        () = sleep_until(sts) => {
+            link.end();
+            return Err(timeout(TimeoutKind::ScheduleToStart, &spec, Some(&agent), opts.schedule_to_start));
+        }
+        () = &mut cancelled => {
+            link.end();
+            return Ok(Json::Null);
+        }
+    }
     link.send(ToAgent::Start {
         node: display,
         name: spec.name.clone(),

@@ -7,6 +7,7 @@ mod exactly_once;
 mod exceptions;
 mod goals;
 mod python;
+mod reach;
 mod remote_command;
 mod suspension;
 mod tdl;
