@@ -217,6 +217,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 return;
             }
             let alive = n.alive();
+            let n_expands = n.kind.expands();
             let terminated = n.termination == Termination::Terminated;
             let h = n.state(Facet::Handling);
             let x = n.state(Facet::Expansion);
@@ -266,8 +267,27 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 if self.transition(id, Facet::Execution, State::Enabled) {
                     parent_gate = None;
                     self.progress_children(id);
-                } else if has_children {
+                    continue;
+                }
+                if has_children {
                     self.progress_children(id);
+                }
+                // A live command whose handling waits for nothing else (the usual released
+                // command): the handling branch below applies at once, and once it ran without
+                // firing anything, nothing else does (the next pass would find every branch
+                // closed). The pass between is skipped.
+                if alive
+                    && !n_expands
+                    && h == State::Disabled
+                    && self.node(id).blocks[Facet::Handling.index()] == 0
+                {
+                    let fired = self.transition(id, Facet::Handling, State::Enabled);
+                    self.ready.push_back(id);
+                    if fired {
+                        parent_gate = None;
+                        continue;
+                    }
+                    return;
                 }
                 continue;
             }
@@ -332,6 +352,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                             self.queue_progress(p);
                         }
                     }
+                }
+                // A live node whose execution completed has one branch left, its reclaim (the
+                // next pass would find every other closed): taken here, without that pass.
+                let Some(n) = self.nodes.get(id) else { return };
+                if n.alive() {
+                    if n.live_children == 0 && !n.persistent {
+                        self.reclaim(id);
+                    }
+                    return;
                 }
                 parent_gate = None;
                 continue;
