@@ -34,6 +34,25 @@ pub trait Keep<T>: sealed::Sealed {
     fn dup(s: &Self::Slot) -> Self::Slot
     where
         T: Clone;
+    /// How the arena keeps a chunk of `CHUNK` slots.
+    #[doc(hidden)]
+    type Chunk<E>;
+    /// A new chunk, its slots never used (`empty` makes one).
+    #[doc(hidden)]
+    fn new_chunk<E>(empty: impl FnMut() -> E) -> Self::Chunk<E>;
+    /// Slot `i` of a chunk (`i < CHUNK`), if it exists.
+    #[doc(hidden)]
+    fn at<E>(c: &Self::Chunk<E>, i: usize) -> Option<&E>;
+    #[doc(hidden)]
+    fn at_mut<E>(c: &mut Self::Chunk<E>, i: usize) -> Option<&mut E>;
+    /// Fills slot `i`, the first never used in the chunk.
+    #[doc(hidden)]
+    fn put<E>(c: &mut Self::Chunk<E>, i: usize, e: E);
+    #[doc(hidden)]
+    fn dup_chunk<E: Clone>(c: &Self::Chunk<E>) -> Self::Chunk<E>;
+    /// The chunk's slots, in order (those never used included, or not).
+    #[doc(hidden)]
+    fn slots<E>(c: &Self::Chunk<E>) -> &[E];
 }
 
 /// Each node in its slot, owned by one engine: what a run uses (the default).
@@ -71,6 +90,40 @@ impl<T> Keep<T> for Owned {
     {
         s.clone()
     }
+    // A run's chunk is an array of its full size, every slot made empty at once, so that a
+    // slot's place in it needs no check: the engine's hottest path, every lookup of a node.
+    type Chunk<E> = Box<[E; CHUNK]>;
+    fn new_chunk<E>(empty: impl FnMut() -> E) -> Box<[E; CHUNK]> {
+        full_chunk(std::iter::repeat_with(empty))
+    }
+    #[inline(always)]
+    fn at<E>(c: &Box<[E; CHUNK]>, i: usize) -> Option<&E> {
+        Some(&c[i & (CHUNK - 1)])
+    }
+    #[inline(always)]
+    fn at_mut<E>(c: &mut Box<[E; CHUNK]>, i: usize) -> Option<&mut E> {
+        Some(&mut c[i & (CHUNK - 1)])
+    }
+    #[inline]
+    fn put<E>(c: &mut Box<[E; CHUNK]>, i: usize, e: E) {
+        c[i & (CHUNK - 1)] = e;
+    }
+    fn dup_chunk<E: Clone>(c: &Box<[E; CHUNK]>) -> Box<[E; CHUNK]> {
+        full_chunk(c.iter().cloned())
+    }
+    fn slots<E>(c: &Box<[E; CHUNK]>) -> &[E] {
+        &c[..]
+    }
+}
+
+/// A chunk of the first `CHUNK` elements of `slots`, built on the heap (it is too large for a
+/// stack).
+fn full_chunk<E>(slots: impl Iterator<Item = E>) -> Box<[E; CHUNK]> {
+    let all: Box<[E]> = slots.take(CHUNK).collect();
+    match all.try_into() {
+        Ok(chunk) => chunk,
+        Err(_) => unreachable!("a chunk is made of CHUNK slots"),
+    }
 }
 
 impl<T: Clone> Keep<T> for Shared {
@@ -94,6 +147,29 @@ impl<T: Clone> Keep<T> for Shared {
     #[inline]
     fn dup(s: &Rc<T>) -> Rc<T> {
         Rc::clone(s)
+    }
+    // A model checker keeps many engines, most of them small: a chunk holds the slots used so
+    // far, and a clone only those.
+    type Chunk<E> = Vec<E>;
+    fn new_chunk<E>(_: impl FnMut() -> E) -> Vec<E> {
+        Vec::with_capacity(CHUNK)
+    }
+    #[inline]
+    fn at<E>(c: &Vec<E>, i: usize) -> Option<&E> {
+        c.get(i)
+    }
+    #[inline]
+    fn at_mut<E>(c: &mut Vec<E>, i: usize) -> Option<&mut E> {
+        c.get_mut(i)
+    }
+    fn put<E>(c: &mut Vec<E>, _: usize, e: E) {
+        c.push(e);
+    }
+    fn dup_chunk<E: Clone>(c: &Vec<E>) -> Vec<E> {
+        c.clone()
+    }
+    fn slots<E>(c: &Vec<E>) -> &[E] {
+        c
     }
 }
 
@@ -124,15 +200,16 @@ pub(crate) enum Lookup {
 }
 
 /// Slots per chunk. Storage grows a chunk at a time and never moves: no reallocation copies
-/// (which would briefly double the memory of a million-node tree), and no slot ever moves.
+/// (which would briefly double the memory of a million-node tree), and no slot ever moves. How a
+/// chunk is kept depends on the store ([`Keep::Chunk`]).
 const CHUNK_BITS: u32 = 10;
 const CHUNK: usize = 1 << CHUNK_BITS;
 
 pub(crate) struct Arena<A, F, S: Keep<Node<A, F>>> {
     run: u32,
-    // Invariant: every chunk but the last is full (CHUNK slots). A chunk made by `insert` has
-    // capacity CHUNK; a clone's grows as it fills.
-    chunks: Vec<Vec<Slot<A, F, S>>>,
+    // Invariant: every chunk but the last is full; the slots from `n_slots` on were never used
+    // (empty, generation 0; in a `Shared` store, not there yet).
+    chunks: Vec<S::Chunk<Slot<A, F, S>>>,
     n_slots: usize,
     free: Vec<u32>,
     live: usize,
@@ -153,8 +230,7 @@ impl<A: Clone, F: Clone, S: Keep<Node<A, F>>> Clone for Arena<A, F, S> {
     fn clone(&self) -> Self {
         Arena {
             run: self.run,
-            // A cloned chunk holds its slots only; the last one grows again as `insert` pushes.
-            chunks: self.chunks.clone(),
+            chunks: self.chunks.iter().map(S::dup_chunk).collect(),
             n_slots: self.n_slots,
             free: self.free.clone(),
             live: self.live,
@@ -193,14 +269,22 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
         } else {
             let idx = u32::try_from(self.n_slots).expect("more than 2^32 live nodes");
             if self.n_slots % CHUNK == 0 {
-                self.chunks.push(Vec::with_capacity(CHUNK));
+                self.chunks.push(S::new_chunk(|| Slot {
+                    generation: 0,
+                    node: None,
+                    fate: Fate::Completed,
+                }));
             }
             if let Some(chunk) = self.chunks.last_mut() {
-                chunk.push(Slot {
-                    generation: 0,
-                    node: Some(S::wrap(node)),
-                    fate: Fate::Completed,
-                });
+                S::put(
+                    chunk,
+                    idx as usize & (CHUNK - 1),
+                    Slot {
+                        generation: 0,
+                        node: Some(S::wrap(node)),
+                        fate: Fate::Completed,
+                    },
+                );
             }
             self.n_slots += 1;
             NodeId {
@@ -213,16 +297,18 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
 
     #[inline]
     fn slot(&self, idx: u32) -> Option<&Slot<A, F, S>> {
-        self.chunks
-            .get((idx >> CHUNK_BITS) as usize)?
-            .get(idx as usize & (CHUNK - 1))
+        S::at(
+            self.chunks.get((idx >> CHUNK_BITS) as usize)?,
+            idx as usize & (CHUNK - 1),
+        )
     }
 
     #[inline]
     fn slot_mut(&mut self, idx: u32) -> Option<&mut Slot<A, F, S>> {
-        self.chunks
-            .get_mut((idx >> CHUNK_BITS) as usize)?
-            .get_mut(idx as usize & (CHUNK - 1))
+        S::at_mut(
+            self.chunks.get_mut((idx >> CHUNK_BITS) as usize)?,
+            idx as usize & (CHUNK - 1),
+        )
     }
 
     pub(crate) fn remove(&mut self, id: NodeId, fate: Fate) -> Option<Node<A, F>> {
@@ -316,7 +402,8 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
         let run = self.run;
         self.chunks
             .iter()
-            .flatten()
+            .flat_map(|c| S::slots(c))
+            .take(self.n_slots)
             .enumerate()
             .filter_map(move |(idx, slot)| {
                 slot.node.as_ref().map(S::get).map(|n| {
