@@ -34,13 +34,16 @@ pub trait Keep<T>: sealed::Sealed {
     fn dup(s: &Self::Slot) -> Self::Slot
     where
         T: Clone;
-    /// How the arena keeps a chunk of `CHUNK` slots.
+    /// The arena's chunks hold `1 << CHUNK_BITS` slots.
+    #[doc(hidden)]
+    const CHUNK_BITS: u32;
+    /// How the arena keeps a chunk of slots.
     #[doc(hidden)]
     type Chunk<E>;
     /// A new chunk, its slots never used (`empty` makes one).
     #[doc(hidden)]
     fn new_chunk<E>(empty: impl FnMut() -> E) -> Self::Chunk<E>;
-    /// Slot `i` of a chunk (`i < CHUNK`), if it exists.
+    /// Slot `i` of a chunk (`i < 1 << CHUNK_BITS`), if it exists.
     #[doc(hidden)]
     fn at<E>(c: &Self::Chunk<E>, i: usize) -> Option<&E>;
     #[doc(hidden)]
@@ -91,38 +94,44 @@ impl<T> Keep<T> for Owned {
         s.clone()
     }
     // A run's chunk is an array of its full size, every slot made empty at once, so that a
-    // slot's place in it needs no check: the engine's hottest path, every lookup of a node.
-    type Chunk<E> = Box<[E; CHUNK]>;
-    fn new_chunk<E>(empty: impl FnMut() -> E) -> Box<[E; CHUNK]> {
+    // slot's place in it needs no check: the engine's hottest path, every lookup of a node. It is
+    // small (13 KB for 64 slots of a 200-byte node), so that a run's first spawn does not pay the
+    // first touch of a large block: 1,024 slots cost a polling monitor's start 60-90 us of page
+    // faults, which every activation's lateness then carried.
+    const CHUNK_BITS: u32 = 6;
+    type Chunk<E> = Box<[E; OWNED_CHUNK]>;
+    fn new_chunk<E>(empty: impl FnMut() -> E) -> Box<[E; OWNED_CHUNK]> {
         full_chunk(std::iter::repeat_with(empty))
     }
     #[inline(always)]
-    fn at<E>(c: &Box<[E; CHUNK]>, i: usize) -> Option<&E> {
-        Some(&c[i & (CHUNK - 1)])
+    fn at<E>(c: &Box<[E; OWNED_CHUNK]>, i: usize) -> Option<&E> {
+        Some(&c[i & (OWNED_CHUNK - 1)])
     }
     #[inline(always)]
-    fn at_mut<E>(c: &mut Box<[E; CHUNK]>, i: usize) -> Option<&mut E> {
-        Some(&mut c[i & (CHUNK - 1)])
+    fn at_mut<E>(c: &mut Box<[E; OWNED_CHUNK]>, i: usize) -> Option<&mut E> {
+        Some(&mut c[i & (OWNED_CHUNK - 1)])
     }
     #[inline]
-    fn put<E>(c: &mut Box<[E; CHUNK]>, i: usize, e: E) {
-        c[i & (CHUNK - 1)] = e;
+    fn put<E>(c: &mut Box<[E; OWNED_CHUNK]>, i: usize, e: E) {
+        c[i & (OWNED_CHUNK - 1)] = e;
     }
-    fn dup_chunk<E: Clone>(c: &Box<[E; CHUNK]>) -> Box<[E; CHUNK]> {
+    fn dup_chunk<E: Clone>(c: &Box<[E; OWNED_CHUNK]>) -> Box<[E; OWNED_CHUNK]> {
         full_chunk(c.iter().cloned())
     }
-    fn slots<E>(c: &Box<[E; CHUNK]>) -> &[E] {
+    fn slots<E>(c: &Box<[E; OWNED_CHUNK]>) -> &[E] {
         &c[..]
     }
 }
 
-/// A chunk of the first `CHUNK` elements of `slots`, built on the heap (it is too large for a
-/// stack).
-fn full_chunk<E>(slots: impl Iterator<Item = E>) -> Box<[E; CHUNK]> {
-    let all: Box<[E]> = slots.take(CHUNK).collect();
+/// Slots per chunk of an [`Owned`] store.
+const OWNED_CHUNK: usize = 1 << <Owned as Keep<()>>::CHUNK_BITS;
+
+/// A chunk of the first `OWNED_CHUNK` elements of `slots`, built on the heap.
+fn full_chunk<E>(slots: impl Iterator<Item = E>) -> Box<[E; OWNED_CHUNK]> {
+    let all: Box<[E]> = slots.take(OWNED_CHUNK).collect();
     match all.try_into() {
         Ok(chunk) => chunk,
-        Err(_) => unreachable!("a chunk is made of CHUNK slots"),
+        Err(_) => unreachable!("a chunk is made of OWNED_CHUNK slots"),
     }
 }
 
@@ -149,10 +158,11 @@ impl<T: Clone> Keep<T> for Shared {
         Rc::clone(s)
     }
     // A model checker keeps many engines, most of them small: a chunk holds the slots used so
-    // far, and a clone only those.
+    // far, and a clone only those (one allocation for up to 1,024 of them).
+    const CHUNK_BITS: u32 = 10;
     type Chunk<E> = Vec<E>;
     fn new_chunk<E>(_: impl FnMut() -> E) -> Vec<E> {
-        Vec::with_capacity(CHUNK)
+        Vec::with_capacity(1 << <Self as Keep<T>>::CHUNK_BITS)
     }
     #[inline]
     fn at<E>(c: &Vec<E>, i: usize) -> Option<&E> {
@@ -199,11 +209,9 @@ pub(crate) enum Lookup {
     Gone(Fate),
 }
 
-/// Slots per chunk. Storage grows a chunk at a time and never moves: no reallocation copies
-/// (which would briefly double the memory of a million-node tree), and no slot ever moves. How a
-/// chunk is kept depends on the store ([`Keep::Chunk`]).
-const CHUNK_BITS: u32 = 10;
-const CHUNK: usize = 1 << CHUNK_BITS;
+// Storage grows a chunk at a time and never moves: no reallocation copies (which would briefly
+// double the memory of a million-node tree), and no slot ever moves. How large a chunk is, and
+// how it is kept, depend on the store (`Keep::CHUNK_BITS`, `Keep::Chunk`).
 
 pub(crate) struct Arena<A, F, S: Keep<Node<A, F>>> {
     run: u32,
@@ -268,7 +276,8 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
             }
         } else {
             let idx = u32::try_from(self.n_slots).expect("more than 2^32 live nodes");
-            if self.n_slots % CHUNK == 0 {
+            let mask = (1usize << S::CHUNK_BITS) - 1;
+            if self.n_slots & mask == 0 {
                 self.chunks.push(S::new_chunk(|| Slot {
                     generation: 0,
                     node: None,
@@ -278,7 +287,7 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
             if let Some(chunk) = self.chunks.last_mut() {
                 S::put(
                     chunk,
-                    idx as usize & (CHUNK - 1),
+                    idx as usize & mask,
                     Slot {
                         generation: 0,
                         node: Some(S::wrap(node)),
@@ -298,16 +307,16 @@ impl<A, F, S: Keep<Node<A, F>>> Arena<A, F, S> {
     #[inline]
     fn slot(&self, idx: u32) -> Option<&Slot<A, F, S>> {
         S::at(
-            self.chunks.get((idx >> CHUNK_BITS) as usize)?,
-            idx as usize & (CHUNK - 1),
+            self.chunks.get((idx >> S::CHUNK_BITS) as usize)?,
+            idx as usize & ((1 << S::CHUNK_BITS) - 1),
         )
     }
 
     #[inline]
     fn slot_mut(&mut self, idx: u32) -> Option<&mut Slot<A, F, S>> {
         S::at_mut(
-            self.chunks.get_mut((idx >> CHUNK_BITS) as usize)?,
-            idx as usize & (CHUNK - 1),
+            self.chunks.get_mut((idx >> S::CHUNK_BITS) as usize)?,
+            idx as usize & ((1 << S::CHUNK_BITS) - 1),
         )
     }
 
