@@ -291,7 +291,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 }
                 continue;
             }
-            let gate = if n.kind.expands() { x } else { e };
+            let gate = if n_expands { x } else { e };
             if can_enable
                 && h == State::Disabled
                 && n.blocks[Facet::Handling.index()] == 0
