@@ -4,7 +4,10 @@
 //! defines those records and everything that reads them without needing the engine:
 //!
 //! - [`jsonl`]: the JSON-lines codec ([`write_line`], [`read_jsonl`]), schema in `docs/trace-format.md`;
-//! - [`Replay`]: the task tree rebuilt record by record, shared by all the readers below;
+//! - [`Replay`]: the one fold of a trace: the task tree and each node's history ([`Row`]: when it
+//!   reached each point), exception stories, resource restrictions, rebuilt record by record and
+//!   read by every reader below and by the viewer, the demo's summary and `tdl trace`;
+//! - [`RecordClass`] and [`TraceKind::describe`]: each record's class and its text for people;
 //! - [`TextLog`]: TCM's terminal log, column for column, and [`dump_tcm`] and [`dump_modern`]: tree
 //!   dumps in TCM's form and ours (docs/semantics.md, "TCM-compatible output");
 //! - [`check`]: the trace checker every runtime test runs, with its [`Rule`]s;
@@ -36,6 +39,7 @@
 #![warn(missing_docs)]
 
 mod check;
+mod describe;
 mod dump;
 mod event;
 pub mod jsonl;
@@ -48,12 +52,17 @@ mod textlog;
 mod test_util;
 
 pub use check::{CheckReport, Checker, MAX_VIOLATIONS, Rule, Violation, check, check_prefix};
+pub use describe::RecordClass;
 pub use dump::{dump_modern, dump_tcm};
 pub use event::{
     OLDEST_READABLE_VERSION, ResourceUse, TRACE_FORMAT_VERSION, TraceConstraint, TraceEvent,
     TraceEventRef, TraceKind, TraceThen, TraceWhen,
 };
 pub use jsonl::{JsonlReader, ReadError, read_jsonl, to_line, write_line};
-pub use replay::{MonitorInfo, ROOT_NAME, Replay, ReplayError, ReplayNode, ReplayResource};
+pub use replay::{
+    ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SPAWNED, M_TERMINATED,
+    M_TERMINATING, MARKS, Mark, MonitorInfo, NUMBER_SLACK, ROOT_NAME, Replay, ReplayError,
+    ReplayNode, ReplayResource, Restriction, Row, Step, m_point,
+};
 pub use state::{Facet, NodeKind, Outcome, Point, State, Termination};
 pub use textlog::{TextLog, TextLogOptions, tcm_state_word, time_suffix};

@@ -1,19 +1,31 @@
-//! A model of the task tree rebuilt from a trace, one record at a time.
+//! The one fold of a trace: the task tree and the run's history rebuilt from its records, one
+//! record at a time.
 //!
-//! [`Replay`] is what every reader of a trace shares: the TCM text log asks it for names and states, the
-//! tree dump walks it, and the checker (`check.rs`) reads the state just before each record and the
-//! aggregates kept here (open children, started descendants) to verify the Figure 3 axioms in amortised
-//! constant time per record. Nodes are kept after they are reclaimed (flagged), so a viewer can still show
-//! them and a constraint can still name them.
+//! [`Replay`] is what every reader of a trace reads instead of matching on record kinds itself:
+//! the TCM text log asks it for names and states, the tree dumps walk it, the viewer's model, the
+//! demo's summary and `tdl trace tree`/`story` read its nodes, [`Row`]s (the moment each node
+//! reached each point, its failures, handler, retry, resource request), its [`ExceptionStory`]s and
+//! its [`Restriction`]s (`history.rs`). A new record kind is applied here, once.
+//!
+//! The checker (`check.rs`) reads only the replayed state of the tree just before each record (states,
+//! parents, resources) and the aggregates kept here (open children, started descendants) to verify
+//! the Figure 3 axioms in amortised constant time per record; it never reads the history. Nodes are
+//! kept after they are reclaimed (flagged), so a viewer can still show them and a constraint can
+//! still name them.
 
 use crate::event::{ResourceUse, TraceConstraint, TraceEvent, TraceKind};
 use crate::state::{Facet, NodeKind, Outcome, Point, State, Termination};
 use std::collections::BTreeMap;
 
+mod history;
 mod resources;
 #[cfg(test)]
 mod tests;
 
+pub use history::{
+    ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SPAWNED, M_TERMINATED,
+    M_TERMINATING, MARKS, Mark, NUMBER_SLACK, Restriction, Row, Step, m_point,
+};
 pub use resources::ReplayResource;
 
 /// Display name of the implicit root, as TCM prints it.
@@ -343,6 +355,8 @@ pub struct Replay {
     nodes: BTreeMap<u64, ReplayNode>,
     // Declared resources, by name.
     resources: BTreeMap<String, ReplayResource>,
+    // What happened to each node, and when (`history.rs`).
+    history: history::History,
     run: Option<u32>,
     n_records: u64,
     last_t: u64,
@@ -362,6 +376,7 @@ impl Replay {
         Replay {
             nodes,
             resources: BTreeMap::new(),
+            history: history::History::new(),
             run: None,
             n_records: 0,
             last_t: 0,
@@ -561,6 +576,7 @@ impl Replay {
                 }
             }
         }
+        self.record_history(history::Mark { seq: ev.seq, t }, &ev.kind);
         self.n_records += 1;
         self.last_t = t;
         Ok(())

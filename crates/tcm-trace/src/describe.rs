@@ -1,0 +1,231 @@
+//! Each record kind's class and its text for people: what `tdl trace story` prints, kept with the
+//! record type so that a new kind is described where it is defined.
+
+use crate::event::TraceKind;
+use crate::story::uses_text;
+
+/// The class of a record, for filters (`tdl trace story --kind`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum RecordClass {
+    /// Facet transitions.
+    Transition,
+    /// Spawns, reservations, dead reservations, reclamation, placement on an agent.
+    Spawn,
+    /// Constraints applied and void constraints.
+    Constraint,
+    /// Termination.
+    Terminate,
+    /// Suspension.
+    Suspend,
+    /// Failures.
+    Fail,
+    /// Handlers chosen and bypasses.
+    Handler,
+    /// Retries.
+    Retry,
+    /// Wiretap checks.
+    Wiretap,
+    /// Monitor parameters, activations and triggers.
+    Monitor,
+    /// External events and timer callbacks.
+    Event,
+    /// Resources: declarations, requests, grants, releases, refusals, reservations and locks.
+    Resource,
+    /// Warnings.
+    Warning,
+}
+
+impl TraceKind {
+    /// The record's class, the node it is told about (for a handler chosen, the failing node; for
+    /// an activation or a trigger, the monitor), and what it says, e.g. `handling active`,
+    /// `failed Blocked: no way through`; `None` for the run's first record. `name` names a node
+    /// the text mentions besides its subject.
+    pub fn describe(
+        &self,
+        name: impl Fn(u64) -> String,
+    ) -> Option<(RecordClass, Option<u64>, String)> {
+        use RecordClass as C;
+        use TraceKind as K;
+        let name = |n: &u64| name(*n);
+        Some(match self {
+            K::RunStarted { .. } => return None,
+            K::Reserved { node, parent, .. } => {
+                (C::Spawn, Some(*node), format!("reserved under {{{parent}}}"))
+            }
+            K::Spawned {
+                node, parent, kind, ..
+            } => (
+                C::Spawn,
+                Some(*node),
+                format!("spawned ({kind:?}) under {{{parent}}}").to_lowercase(),
+            ),
+            K::Constrained { node, constraint } => (
+                C::Constraint,
+                Some(*node),
+                format!("constrained {constraint:?}"),
+            ),
+            K::ConstraintVoid { node, reason } => (
+                C::Constraint,
+                Some(*node),
+                format!("constraint void: {reason}"),
+            ),
+            K::Transition {
+                node, facet, to, ..
+            } => (C::Transition, Some(*node), format!("{facet} {to}")),
+            K::Terminating { node } => (C::Terminate, Some(*node), "terminating".into()),
+            K::Terminated { node } => (C::Terminate, Some(*node), "terminated".into()),
+            K::Suspended { node } => (C::Suspend, Some(*node), "suspended".into()),
+            K::Unsuspended { node } => (C::Suspend, Some(*node), "unsuspended".into()),
+            K::Failed {
+                node,
+                exception,
+                message,
+            } => (
+                C::Fail,
+                Some(*node),
+                format!("failed {exception}: {message}"),
+            ),
+            K::Dead { node } => (C::Spawn, Some(*node), "dead".into()),
+            K::Reclaimed { node } => (C::Spawn, Some(*node), "reclaimed".into()),
+            K::External { name } => (C::Event, None, format!("external event {name}")),
+            K::MonitorParams {
+                node,
+                max_activations,
+                max_triggers,
+                period_ns,
+                ..
+            } => (
+                C::Monitor,
+                Some(*node),
+                format!(
+                    "monitor parameters: maximum activate {}, maximum trigger {}, period {}",
+                    max_activations.map_or("-".into(), |it| it.to_string()),
+                    max_triggers.map_or("-".into(), |it| it.to_string()),
+                    period_ns.map_or("-".into(), |it| format!("{}s", it as f64 / 1e9)),
+                ),
+            ),
+            K::Activated {
+                monitor,
+                node,
+                number,
+            } => (
+                C::Monitor,
+                Some(*monitor),
+                format!("activation {number}: {} {{{node}}}", name(node)),
+            ),
+            K::Triggered { monitor, count } => {
+                (C::Monitor, Some(*monitor), format!("triggered ({count})"))
+            }
+            K::HandlerChosen {
+                node,
+                failing,
+                attached,
+                exception,
+                handler,
+            } => (
+                C::Handler,
+                Some(*failing),
+                format!(
+                    "handler {handler} {{{node}}} chosen for {exception} (attached to {} {{{attached}}})",
+                    name(attached)
+                ),
+            ),
+            K::Bypassed { node, exception } => {
+                (C::Handler, Some(*node), format!("bypasses {exception}"))
+            }
+            K::Retried { node, of } => (
+                C::Retry,
+                Some(*node),
+                format!("retries {} {{{of}}}", name(of)),
+            ),
+            K::Tapped { node, tap, when } => (
+                C::Wiretap,
+                Some(*node),
+                format!("wiretap {tap} checks {when}"),
+            ),
+            K::CallbackSet { name, node, .. } => {
+                (C::Event, *node, format!("callback {name} set"))
+            }
+            K::CallbackRan { name, .. } => (C::Event, None, format!("callback {name} ran")),
+            K::Resource {
+                resource,
+                capacity,
+                pending_limit,
+            } => {
+                let pending = pending_limit.map_or(String::new(), |p| format!(", pending {p}"));
+                let text = format!("resource {resource} capacity {capacity}{pending}");
+                (C::Resource, None, text)
+            }
+            K::Requested {
+                node,
+                uses,
+                priority,
+            } => (
+                C::Resource,
+                Some(*node),
+                format!("requests {} (priority {priority})", uses_text(uses)),
+            ),
+            K::Granted { node, uses } => (
+                C::Resource,
+                Some(*node),
+                format!("granted {}", uses_text(uses)),
+            ),
+            K::Released { node, uses } => (
+                C::Resource,
+                Some(*node),
+                format!("released {}", uses_text(uses)),
+            ),
+            K::Withdrawn { node } => (C::Resource, Some(*node), "withdraws its request".into()),
+            K::Denied { node, resource } => {
+                (C::Resource, Some(*node), format!("denied {resource}"))
+            }
+            K::Dropped { node, resource } => (
+                C::Resource,
+                Some(*node),
+                format!("dropped from {resource}'s queue"),
+            ),
+            K::ResourceReserved { resource, holder } => (
+                C::Resource,
+                Some(*holder),
+                format!("reserves {resource} for its subtree"),
+            ),
+            K::ResourceUnreserved { resource } => {
+                (C::Resource, None, format!("{resource} unreserved"))
+            }
+            K::ResourceLocked { resource } => (C::Resource, None, format!("{resource} locked")),
+            K::ResourceUnlocked { resource } => {
+                (C::Resource, None, format!("{resource} unlocked"))
+            }
+            K::Placed { node, agent } => {
+                (C::Spawn, Some(*node), format!("runs on agent {agent}"))
+            }
+            K::Warning { node, message } => (C::Warning, *node, format!("warning: {message}")),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_handler_choice_is_told_about_the_failing_node_and_names_the_attachment() {
+        let kind = TraceKind::HandlerChosen {
+            node: 9,
+            failing: 7,
+            attached: 2,
+            exception: "Overheating".into(),
+            handler: "cool".into(),
+        };
+        let (class, node, text) = kind
+            .describe(|n| format!("n{n}"))
+            .expect("a handler choice is described");
+        assert_eq!((class, node), (RecordClass::Handler, Some(7)));
+        assert_eq!(
+            text,
+            "handler cool {9} chosen for Overheating (attached to n2 {2})"
+        );
+        let start = TraceKind::RunStarted { version: 6, run: 0 };
+        assert_eq!(start.describe(|_| String::new()), None);
+    }
+}
