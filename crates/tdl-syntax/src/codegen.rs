@@ -30,7 +30,7 @@ use crate::ast::{
     TaskConstraintKind, TaskKind,
 };
 use crate::diagnostic::Diagnostic;
-use crate::resolve::FileScope;
+use crate::hir::FileScope;
 use crate::{Parse, parse_str};
 
 /// Generated Rust code and the diagnostics found while generating it.
@@ -119,19 +119,17 @@ pub fn compile_program(files: &[(&str, &str)]) -> Vec<(Option<TokenStream>, Vec<
         .iter()
         .map(|(name, src)| crate::parse_str_syntax(name, src))
         .collect();
+    let trees: Vec<(&str, &Ast)> = files
+        .iter()
+        .zip(&parses)
+        .map(|((name, _), parse)| (*name, &parse.file))
+        .collect();
+    let program = crate::hir::Program::new(&trees);
     let mut out = Vec::with_capacity(files.len());
-    for (i, parse) in parses.iter().enumerate() {
-        let others: Vec<(&str, &Ast)> = files
-            .iter()
-            .zip(&parses)
-            .enumerate()
-            .filter(|(j, _)| *j != i)
-            .map(|(_, ((name, _), parse))| (*name, &parse.file))
-            .collect();
-        let scope = FileScope::in_program(&parse.file, &others);
+    for (parse, file) in parses.iter().zip(program.files()) {
         let mut diagnostics = parse.diagnostics.clone();
-        crate::diagnose::diagnose_in(&scope, &parse.file, &mut diagnostics);
-        let generated = generate_in(&scope, &parse.file, Some(files[i].0));
+        crate::diagnose::diagnose_in(&file.scope, &parse.file, &mut diagnostics);
+        let generated = generate_in(&file.scope, &parse.file, Some(file.name));
         diagnostics.extend(generated.diagnostics);
         diagnostics.sort_by_key(|it| (it.start(), it.severity()));
         let tokens = if diagnostics.iter().any(Diagnostic::is_error) {

@@ -34,7 +34,7 @@ use crate::diagnostic::Diagnostic;
 
 mod resources;
 
-use crate::resolve::{
+use crate::hir::{
     BodyScope, Def, Duplicate, FileScope, IndexError, LoopId, Named, NodeUse, Refers, Resolution,
     Tdl, refers,
 };
@@ -50,10 +50,15 @@ pub(crate) fn diagnose(ast: &Ast, diags: &mut Vec<Diagnostic>) {
 /// Diagnoses `ast`, one file of a program whose names `file` resolves, and appends the findings
 /// to `diags`.
 pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagnostic>) {
-    for (name, other) in &file.elsewhere {
+    for it in &file.elsewhere {
+        let name = it.name;
         diags.push(
-            Diagnostic::error(name.span(), format!("`{name}` is also declared in {other}"))
-                .with_hint("the files of a program share one name space: rename one of them"),
+            Diagnostic::error(
+                name.span(),
+                format!("`{name}` is also declared in {}", it.file),
+            )
+            .with_label_in(it.file, it.first, "first declared here")
+            .with_hint("the files of a program share one name space: rename one of them"),
         );
     }
     for duplicate in &file.duplicates {
@@ -68,6 +73,11 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                     .with_label(first.span, "first declared here")
                     .with_hint("rename one of the exceptions")
             }
+            Duplicate::Resource(r, first) => {
+                Diagnostic::error(r.span, format!("duplicate resource `{}`", r.name))
+                    .with_label(first.span, "first declared here")
+                    .with_hint("rename one of the resources")
+            }
         });
     }
     for item in &ast.items {
@@ -77,12 +87,12 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                 let body = Body {
                     file,
                     task,
-                    scope: BodyScope::new(task),
+                    scope: file.body(task),
                 };
                 body.diagnose(diags);
-                let flow = flow::Flow::new(file, task, &body.scope);
-                cycles::check(&flow, &body.scope, diags);
-                waits::check(&flow, &body.scope, diags);
+                let flow = flow::Flow::new(file, task, body.scope);
+                cycles::check(&flow, body.scope, diags);
+                waits::check(&flow, body.scope, diags);
             }
             Item::Exception(exc) => {
                 if let Some(parent) = &exc.parent {
@@ -299,7 +309,7 @@ enum Site<'a> {
 struct Body<'s, 'a> {
     file: &'s FileScope<'a>,
     task: &'a Task,
-    scope: BodyScope<'a>,
+    scope: &'s BodyScope<'a>,
 }
 
 impl<'a> Body<'_, 'a> {

@@ -58,6 +58,8 @@ impl LineCol {
 /// A secondary location attached to a [`Diagnostic`], such as "first defined here".
 #[derive(Clone, Debug)]
 pub struct Label {
+    /// The file it points into, when not the diagnostic's own.
+    file: Option<String>,
     span: Span,
     start: LineCol,
     end: LineCol,
@@ -76,6 +78,10 @@ impl Label {
     /// What the label says about its location.
     pub fn message(&self) -> &str {
         &self.message
+    }
+    /// The file the label points into, when it is another than the diagnostic's.
+    pub fn file(&self) -> Option<&str> {
+        self.file.as_deref()
     }
 }
 
@@ -128,6 +134,26 @@ impl Diagnostic {
     #[must_use]
     pub fn with_label(mut self, span: Span, message: impl Into<String>) -> Diagnostic {
         self.labels.push(Label {
+            file: None,
+            span,
+            start: LineCol::start_of(span),
+            end: LineCol::end_of(span),
+            message: message.into(),
+        });
+        self
+    }
+
+    /// Adds a secondary label at `span` in another file of the program, `file`: rendered as a
+    /// note naming the file, line and column.
+    #[must_use]
+    pub fn with_label_in(
+        mut self,
+        file: &str,
+        span: Span,
+        message: impl Into<String>,
+    ) -> Diagnostic {
+        self.labels.push(Label {
+            file: Some(file.to_owned()),
             span,
             start: LineCol::start_of(span),
             end: LineCol::end_of(span),
@@ -196,14 +222,19 @@ impl Diagnostic {
             Severity::Error => Level::ERROR,
             Severity::Warning => Level::WARNING,
         };
-        let notes: Vec<String> = match source {
-            Some(_) => Vec::new(),
-            None => self
-                .labels
-                .iter()
-                .map(|it| format!("{}:{}: {}", it.start.line, it.start.column, it.message))
-                .collect(),
-        };
+        // Labels in another file, and every label when there is no source, are notes.
+        let notes: Vec<String> = self
+            .labels
+            .iter()
+            .filter(|it| source.is_none() || it.file.is_some())
+            .map(|it| match &it.file {
+                Some(file) => format!(
+                    "{}: {file}:{}:{}",
+                    it.message, it.start.line, it.start.column
+                ),
+                None => format!("{}:{}: {}", it.start.line, it.start.column, it.message),
+            })
+            .collect();
         let group = level.primary_title(self.message.as_str());
         let mut group = match source {
             Some(source) => {
@@ -213,7 +244,7 @@ impl Diagnostic {
                     .annotation(
                         AnnotationKind::Primary.span(byte_range(source, self.start, self.end)),
                     );
-                for label in &self.labels {
+                for label in self.labels.iter().filter(|it| it.file.is_none()) {
                     snippet = snippet.annotation(
                         AnnotationKind::Context
                             .span(byte_range(source, label.start, label.end))

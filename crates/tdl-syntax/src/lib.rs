@@ -65,9 +65,9 @@ mod codegen;
 mod diagnose;
 mod diagnostic;
 mod dump;
+pub mod hir;
 mod keyword;
 mod parser;
-mod resolve;
 mod time;
 
 use std::str::FromStr;

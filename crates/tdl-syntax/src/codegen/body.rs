@@ -34,7 +34,7 @@ use quote::{format_ident, quote};
 use super::spawn::Frame;
 use crate::ast::{Block, Else, Fail, ResourceOp, Stmt, Task, TaskConstraintKind, TaskKind};
 use crate::diagnostic::Diagnostic;
-use crate::resolve::{BodyScope, FileScope, LoopId, node_macro};
+use crate::hir::{BodyScope, FileScope, LoopId, node_macro};
 
 /// A generated action body.
 pub(super) struct Action {
@@ -56,7 +56,7 @@ pub(super) fn task_body(
         file,
         task,
         source,
-        scope: BodyScope::new(task),
+        scope: file.body(task),
         diags,
         frames: Vec::new(),
         loops: Vec::new(),
@@ -265,7 +265,7 @@ pub(super) struct Gen<'s, 'a> {
     /// source marker (see [`SOURCE_MARKER`]).
     pub(super) source: Option<&'s str>,
     /// The body's names, resolved.
-    pub(super) scope: BodyScope<'a>,
+    pub(super) scope: &'s BodyScope<'a>,
     pub(super) diags: &'s mut Vec<Diagnostic>,
     /// The `with` groups around the statement being generated, outermost first.
     pub(super) frames: Vec<Frame<'a>>,

@@ -21,7 +21,7 @@ use crate::ast::{
     Constraint, ConstraintKind, Event, ExternalName, Facet, Point, RelTime, Tag, TagIndex, TagKind,
 };
 use crate::ast::{Then, TimeOfDay, When};
-use crate::resolve::{Def, Index, LoopId, Named, Resolution, SpawnId};
+use crate::hir::{Def, Index, LoopId, Named, Resolution, SpawnId};
 
 /// The nodes a tag denotes at run time.
 pub(super) enum Nodes {

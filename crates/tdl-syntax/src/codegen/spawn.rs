@@ -15,7 +15,7 @@ use crate::ast::{
     TagKind, TaskKind, Then, When, WithGroup,
 };
 use crate::diagnostic::Diagnostic;
-use crate::resolve::{LoopId, uses_previous};
+use crate::hir::{LoopId, uses_previous};
 
 /// Where the spawn's builder chain stands: plain method calls, a loop over an entity's members,
 /// or a method applied only when an entity has no member.

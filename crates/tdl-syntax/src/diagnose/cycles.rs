@@ -18,7 +18,7 @@ use super::flow::{Ev, Flow, Node, Target, blocked, gate};
 use super::graph;
 use crate::ast::{Facet, TaskKind};
 use crate::diagnostic::Diagnostic;
-use crate::resolve::{BodyScope, SpawnId};
+use crate::hir::{BodyScope, SpawnId};
 
 /// Why an edge is there.
 #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]

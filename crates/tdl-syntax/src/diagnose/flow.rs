@@ -17,7 +17,7 @@ use crate::ast::{
     Block, Constraint, ConstraintKind, Else, Event, Facet, Point, Stmt, Tag, TagKind, Task,
     TaskConstraintKind, TaskKind, Then, When,
 };
-use crate::resolve::{BodyScope, Def, FileScope, GroupId, SpawnId, uses_previous};
+use crate::hir::{BodyScope, Def, FileScope, GroupId, SpawnId};
 
 /// How far a facet got: the stages of `enabled`, `active` and `completed` (an outcome is the
 /// execution's completion).
@@ -286,8 +286,6 @@ impl<'a> Flow<'a> {
             position: 0,
             cond: Cond::default(),
             frames: Vec::new(),
-            prev: Prev::Nothing,
-            entities: 0,
         };
         walk.block(&task.body);
         walk.flow
@@ -367,9 +365,19 @@ impl<'a> Flow<'a> {
 struct Frame<'a> {
     group: GroupId,
     constraints: &'a [Constraint],
-    /// `previous` for this group's constraints while a nested group runs: the entity before the
-    /// nested group (TDL paper, "with/do"; `codegen/spawn.rs`).
-    snapshot: Option<Prev>,
+    /// The position of the group's statement.
+    position: usize,
+}
+
+impl Prev {
+    /// `previous` at the statement at `position`, as the resolver found it.
+    fn at(scope: &BodyScope<'_>, position: usize) -> Prev {
+        match scope.previous_at(position).map(|it| &it.known) {
+            Some(Some(ids)) if ids.is_empty() => Prev::Nothing,
+            Some(Some(ids)) => Prev::Known(ids.clone()),
+            Some(None) | None => Prev::Unknown,
+        }
+    }
 }
 
 /// The walk that builds a [`Flow`]; positions are counted as in `resolve.rs`.
@@ -380,9 +388,6 @@ struct Walk<'s, 'a> {
     position: usize,
     cond: Cond,
     frames: Vec<Frame<'a>>,
-    prev: Prev,
-    /// Spawns and groups met so far: what changes `previous`.
-    entities: usize,
 }
 
 impl<'a> Walk<'_, 'a> {
@@ -403,18 +408,22 @@ impl<'a> Walk<'_, 'a> {
                 if self.flow.spawns.len() != id {
                     return;
                 }
-                self.entities += 1;
                 let mut delay_expansion = false;
                 let mut wait = None;
+                // `previous` for a spawn's own constraints and its innermost group's is the
+                // entity before it; for an outer group's, the entity before the group nested in
+                // it (TDL paper, "with/do"; `codegen/spawn.rs`).
+                let prev = Prev::at(self.scope, self.position);
                 let mut lists: Vec<(&'a [Constraint], Prev)> = self
                     .frames
                     .iter()
-                    .map(|f| {
-                        let prev = f.snapshot.clone().unwrap_or_else(|| self.prev.clone());
-                        (f.constraints, prev)
+                    .enumerate()
+                    .map(|(k, f)| match self.frames.get(k + 1) {
+                        Some(inner) => (f.constraints, Prev::at(self.scope, inner.position)),
+                        None => (f.constraints, prev.clone()),
                     })
                     .collect();
-                lists.push((&spawn.constraints, self.prev.clone()));
+                lists.push((&spawn.constraints, prev.clone()));
                 for (list, prev) in lists {
                     for constraint in list {
                         match constraint.kind {
@@ -453,7 +462,7 @@ impl<'a> Walk<'_, 'a> {
                 if let Some(span) = wait {
                     self.flow.waits.push(WaitPoint {
                         target: Target::Spawn(id),
-                        prev: self.prev.clone(),
+                        prev,
                         position: self.position,
                         cond: self.cond,
                         span,
@@ -464,36 +473,26 @@ impl<'a> Walk<'_, 'a> {
                         members.push(id);
                     }
                 }
-                self.prev = Prev::Known(vec![id]);
             }
             Stmt::With(group) => {
                 let Some(id) = self.scope.group_id(group) else {
                     return;
                 };
-                self.entities += 1;
-                let saved = self.frames.last_mut().map(|parent| {
-                    let snapshot = uses_previous(parent.constraints).then(|| self.prev.clone());
-                    std::mem::replace(&mut parent.snapshot, snapshot)
-                });
                 self.frames.push(Frame {
                     group: id,
                     constraints: &group.constraints,
-                    snapshot: None,
+                    position: self.position,
                 });
                 self.block(&group.body);
                 self.frames.pop();
-                if let (Some(parent), Some(saved)) = (self.frames.last_mut(), saved) {
-                    parent.snapshot = saved;
-                }
-                let members = self.flow.members.get(id).cloned().unwrap_or_default();
-                self.prev = Prev::Known(members);
             }
             Stmt::Constrain(it) => {
                 let target = Target::Tag(&it.tag);
+                let prev = Prev::at(self.scope, self.position);
                 if matches!(it.constraint.kind, ConstraintKind::Wait) {
                     self.flow.waits.push(WaitPoint {
                         target,
-                        prev: self.prev.clone(),
+                        prev: prev.clone(),
                         position: self.position,
                         cond: self.cond,
                         span: it.constraint.span,
@@ -502,16 +501,14 @@ impl<'a> Walk<'_, 'a> {
                 self.flow.applied.push(Applied {
                     target,
                     constraint: &it.constraint,
-                    prev: self.prev.clone(),
+                    prev,
                     position: self.position,
                     cond: self.cond,
                 });
             }
             Stmt::If(it) => self.branches(|walk| walk.if_branches(it)),
             Stmt::Match(it) => self.branches(|walk| {
-                let before = walk.prev.clone();
                 for arm in &it.arms {
-                    walk.prev = before.clone();
                     walk.block(&arm.body);
                 }
             }),
@@ -531,9 +528,7 @@ impl<'a> Walk<'_, 'a> {
     }
 
     fn if_branches(&mut self, it: &'a crate::ast::If) {
-        let before = self.prev.clone();
         self.block(&it.then_branch);
-        self.prev = before;
         match it.else_branch.as_deref() {
             Some(Else::If(next)) => self.if_branches(next),
             Some(Else::Block(block)) => self.block(block),
@@ -541,35 +536,18 @@ impl<'a> Walk<'_, 'a> {
         }
     }
 
-    /// Walks the branches of an `if` or a `match`; `previous` after it is unknown if any branch
-    /// spawned or ran a group.
+    /// Walks the branches of an `if` or a `match`.
     fn branches(&mut self, walk: impl FnOnce(&mut Self)) {
-        let entities = self.entities;
-        let before = self.prev.clone();
         let outer = self.cond;
         self.cond.branch = true;
         walk(self);
         self.cond = outer;
-        self.prev = if self.entities == entities {
-            before
-        } else {
-            Prev::Unknown
-        };
     }
 
     fn looped(&mut self, body: &'a Block) {
-        let entities = self.entities;
-        let before = self.prev.clone();
         let outer = self.cond;
         self.cond.looped = true;
-        // From the second iteration on, `previous` is whatever the last one spawned.
-        self.prev = Prev::Unknown;
         self.block(body);
         self.cond = outer;
-        self.prev = if self.entities == entities {
-            before
-        } else {
-            Prev::Unknown
-        };
     }
 }

@@ -21,7 +21,7 @@ use proc_macro2::Ident;
 use super::flow::{Flow, Node};
 use crate::ast::{Ast, ConstraintKind, Item, Point, Task, TaskConstraintKind, TaskKind};
 use crate::diagnostic::Diagnostic;
-use crate::resolve::{BodyScope, FileScope, Tdl};
+use crate::hir::{BodyScope, FileScope, Tdl};
 
 /// A spawn of a task: where its failures go next.
 struct Site<'a> {
@@ -61,7 +61,7 @@ pub(super) fn check(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagnostic>
     let mut program: Option<Program<'_, '_>> = None;
     for item in &ast.items {
         let Item::Task(task) = item else { continue };
-        let scope = BodyScope::new(task);
+        let scope = file.body(task);
         for stmt in &scope.stmts {
             let Tdl::Fail(fail) = stmt else { continue };
             let Some(exc) = &fail.exception else { continue };
@@ -149,8 +149,8 @@ impl<'s, 'a> Program<'s, 'a> {
                 .push(&task.name);
             self.attach(&task.name, target.to_string(), None);
         }
-        let scope = BodyScope::new(task);
-        let observed = failures_observed(self.file, task, &scope);
+        let scope = self.file.body(task);
+        let observed = failures_observed(self.file, task, scope);
         for (id, def) in scope.spawns.iter().enumerate() {
             let spawn = def.spawn;
             let spawned = spawn.task.to_string();

@@ -22,7 +22,7 @@ use crate::ast::{
     Ast, Block, Constraint, ConstraintKind, Else, Item, Spawn, Stmt, Task, TaskKind, Then, When,
 };
 use crate::diagnostic::Diagnostic;
-use crate::resolve::{BodyScope, Def, FileScope, Tdl};
+use crate::hir::{Def, FileScope, Tdl};
 
 /// Warns at each cycle of tasks that spawn one another on every path through their bodies.
 pub(super) fn check(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagnostic>) {
@@ -42,7 +42,7 @@ pub(super) fn check(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagnostic>
     let mut edges: Vec<(usize, usize)> = Vec::new();
     let mut spawns: Vec<&Spawn> = Vec::new();
     for (i, task) in tasks.iter().enumerate() {
-        for spawn in must_spawn(task) {
+        for spawn in must_spawn(file, task) {
             if let Some(&j) = index.get(&spawn.task.to_string()) {
                 edges.push((i, j));
                 spawns.push(spawn);
@@ -111,8 +111,8 @@ fn diagnostic(
 }
 
 /// The spawns `task`'s body surely runs, and that nothing may stop.
-fn must_spawn(task: &Task) -> Vec<&Spawn> {
-    let scope = BodyScope::new(task);
+fn must_spawn<'a>(file: &FileScope<'a>, task: &'a Task) -> Vec<&'a Spawn> {
+    let scope = file.body(task);
     let mut terminates = false;
     let mut named = Vec::new();
     for stmt in &scope.stmts {

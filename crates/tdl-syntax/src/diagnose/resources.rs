@@ -1,11 +1,10 @@
 //! The static diagnosis of resources (docs/semantics.md, "Resources"; docs/language.md,
-//! "Resources"): declarations (a name declared twice, a capacity of 0 or not an integer), and
+//! "Resources"): declarations (a capacity of 0 or not an integer; a name declared twice is
+//! reported with the other duplicate declarations, `diagnose.rs`), and
 //! every `uses` of a task or spawn and every `lock`, `unlock`, `reserve` and `unreserve` (an
 //! unknown resource once the program declares any; for `uses`, an amount of 0 or more than a
 //! declared capacity), `priority` out of range, the resource options in a
 //! constraint statement, and `priority` or `deny if busy` on a spawn that uses no resource.
-
-use std::collections::BTreeMap;
 
 use proc_macro2::{Ident, Span};
 
@@ -14,23 +13,13 @@ use crate::ast::{
     TaskConstraintKind,
 };
 use crate::diagnostic::Diagnostic;
-use crate::resolve::{BodyScope, FileScope, Tdl};
+use crate::hir::{FileScope, Tdl};
 
 /// Diagnoses the resources of `ast`, one file of the program `file` resolves.
 pub(super) fn diagnose(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagnostic>) {
-    let mut first: BTreeMap<String, Span> = BTreeMap::new();
     for item in &ast.items {
         match item {
             Item::Resource(r) => {
-                if let Some(at) = first.get(&r.name.to_string()) {
-                    diags.push(
-                        Diagnostic::error(r.span, format!("duplicate resource `{}`", r.name))
-                            .with_label(*at, "first declared here")
-                            .with_hint("rename one of the resources"),
-                    );
-                } else {
-                    first.insert(r.name.to_string(), r.span);
-                }
                 match r.capacity.base10_parse::<u32>() {
                     Ok(0) => diags.push(
                         Diagnostic::error(
@@ -75,7 +64,7 @@ fn task_uses(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
             _ => {}
         }
     }
-    let scope = BodyScope::new(task);
+    let scope = file.body(task);
     for group in &scope.groups {
         options(file, &group.group.constraints, diags);
     }

@@ -15,7 +15,7 @@ use std::collections::{BTreeMap, VecDeque};
 use super::flow::{Flow, Node, Shape, blocked, gate};
 use crate::ast::{Facet, Tag, TagKind, TaskKind};
 use crate::diagnostic::Diagnostic;
-use crate::resolve::{BodyScope, SpawnId};
+use crate::hir::{BodyScope, SpawnId};
 
 /// A spawn's event the wait needs, and how the search got there.
 type State = (SpawnId, usize);

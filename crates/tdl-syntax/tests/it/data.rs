@@ -112,3 +112,67 @@ fn warn_files_give_warnings_only() {
         });
     }
 }
+
+/// The programs of several files under `test_data/err/<name>/`: compiled as one program
+/// (`compile_program`, the files in name order), each file's diagnostics rendered with its own
+/// name and source, and snapshotted together as `<name>.snap`.
+#[test]
+fn err_programs_give_errors() {
+    let dir = data_dir("err");
+    let mut programs: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|err| panic!("cannot read {}: {err}", dir.display()))
+        .filter_map(Result::ok)
+        .map(|it| it.path())
+        .filter(|it| it.is_dir())
+        .collect();
+    programs.sort();
+    assert!(
+        !programs.is_empty(),
+        "expected programs under {}",
+        dir.display()
+    );
+    for program in programs {
+        let stem = program
+            .file_name()
+            .map(|it| it.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut files: Vec<(String, String)> = std::fs::read_dir(&program)
+            .unwrap_or_else(|err| panic!("cannot read {}: {err}", program.display()))
+            .filter_map(Result::ok)
+            .map(|it| it.path())
+            .filter(|it| it.extension().is_some_and(|ext| ext == "tdl"))
+            .map(|path| {
+                let name = format!(
+                    "{stem}/{}",
+                    path.file_name().unwrap_or_default().to_string_lossy()
+                );
+                let text = std::fs::read_to_string(&path)
+                    .unwrap_or_else(|err| panic!("cannot read {}: {err}", path.display()));
+                (name, text)
+            })
+            .collect();
+        files.sort();
+        let named: Vec<(&str, &str)> = files
+            .iter()
+            .map(|(n, t)| (n.as_str(), t.as_str()))
+            .collect();
+        let results = tdl_syntax::compile_program(&named);
+        let mut rendered = String::new();
+        for ((name, text), (_, diags)) in files.iter().zip(&results) {
+            rendered.push_str(&format!("=== {name}\n"));
+            rendered.push_str(&tdl_syntax::render_all(diags, name, Some(text)));
+        }
+        assert!(
+            results.iter().flat_map(|it| &it.1).any(|it| it.is_error()),
+            "{stem} gives no error:\n{rendered}"
+        );
+        insta::with_settings!({
+            snapshot_path => data_dir("err"),
+            prepend_module_to_snapshot => false,
+            description => stem.clone(),
+            omit_expression => true,
+        }, {
+            insta::assert_snapshot!(stem, rendered);
+        });
+    }
+}

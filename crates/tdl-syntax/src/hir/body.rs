@@ -1,277 +1,45 @@
-//! The scope and resolution pass: what every name in a source means, worked out once and read by
-//! both consumers, the static diagnosis (`diagnose.rs`) and the code generator (`codegen/`).
-//!
-//! - [`FileScope`]: the tasks and exceptions the source declares (the first of a duplicated name
-//!   wins; the later ones are kept in [`FileScope::duplicates`]) and exception ancestries.
-//! - [`BodyScope`]: one task body. Its TDL statements in source order, flattened out of the Rust
-//!   control flow around them ([`Tdl`]), each at a [`Site`] (a position and the enclosing loops);
-//!   its spawns, `with` groups and loops, numbered in source order; the names a tag can use; every
-//!   named tag written in a constraint ([`Ref`]) and every `node!(tag)` in its Rust code
-//!   ([`NodeUse`]); and what the generated code must track at run time: the local of each spawn,
-//!   group, labelled on-terminate task or bound tag that some tag names, the loops that count
-//!   their iterations, whether `previous` is used.
-//!
-//! Name rules (docs/semantics.md, "Tags and forward references"): tags are body-scoped, so forward
-//! references resolve. A label (of a spawn, a group or an on-terminate task) or a `bind` names
-//! that; the first of duplicated labels wins, and binding a name again rebinds it. Otherwise a
-//! task spawned exactly once in the body names its spawn, and one spawned several times is
-//! ambiguous. Unknown *task* names in spawns are not errors (tasks may come from other files),
-//! only unknown *tags* are.
-//!
-//! Resolution reports nothing itself: `diagnose` words what it finds (duplicates, unknown or
-//! ambiguous tags, wrong index counts, forward references to groups, `[.]` outside its loop), and
-//! the generator, which resolves the same tree again from [`crate::generate`], only reads it.
+//! One task body, resolved ([`BodyScope`]): its TDL statements in source order, flattened out of
+//! the Rust control flow around them ([`Tdl`]), each at a [`Site`] (a position and the enclosing
+//! loops); its spawns, `with` groups and loops, numbered in source order; the names a tag can
+//! use; every named tag written in a constraint ([`Ref`]) and every `node!(tag)` in its Rust code
+//! ([`NodeUse`]); `previous` at each TDL statement, as far as it is known statically
+//! ([`Previous`]); and what generated code must track at run time: the local of each spawn,
+//! group, labelled on-terminate task or bound tag that some tag names, the loops that count their
+//! iterations, whether `previous` is used.
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use proc_macro2::{Delimiter, Ident, Span, TokenStream, TokenTree};
 use quote::{ToTokens, format_ident};
 
+use super::previous::{self, Previous};
 use crate::ast::{
-    Ast, Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Count, Else, Event,
-    ExceptionDecl, ExternalName, Fail, If, Item, OnTerminate, Priority, RelTime, ResourceDecl,
-    ResourceStmt, Spawn, Stmt, Tag, TagIndex, TagKind, Task, TaskKind, When, WithGroup,
+    Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Count, Else, Event, ExternalName,
+    Fail, If, OnTerminate, Priority, RelTime, ResourceStmt, Spawn, Stmt, Tag, TagIndex, TagKind,
+    Task, When, WithGroup,
 };
 
-/// A spawn of a body, numbered in source order.
-pub(crate) type SpawnId = usize;
-/// A `with` group of a body, numbered in source order.
-pub(crate) type GroupId = usize;
-/// A `for`, `while` or `loop` of a body, numbered in source order.
-pub(crate) type LoopId = usize;
-/// A labelled `on terminate` task of a spawn, numbered in source order.
-pub(crate) type CleanupId = usize;
-
-/// The exceptions the runtime raises itself, which handlers name without declaring them
-/// (docs/semantics.md, "Resources").
-pub(crate) const BUILTIN_EXCEPTIONS: &[&str] = &["ResourceDenied", "ResourceDropped"];
-
-/// The tasks and exceptions a source declares.
-///
-/// Compiled as part of a program ([`crate::compile_program`]), it also knows the declarations of
-/// the program's other files: names resolve across every file, and a name declared in two files
-/// is reported in [`FileScope::elsewhere`].
-pub(crate) struct FileScope<'a> {
-    tasks: BTreeMap<String, &'a Task>,
-    exceptions: BTreeMap<String, &'a ExceptionDecl>,
-    /// Resources of the program: this file's (the first of a name), then the other files'.
-    resources: BTreeMap<String, &'a ResourceDecl>,
-    /// Declarations of a name already declared, in source order.
-    pub(crate) duplicates: Vec<Duplicate<'a>>,
-    /// Tasks and exceptions of the program's other files (the first file declaring a name wins).
-    other_tasks: BTreeMap<String, &'a Task>,
-    other_exceptions: BTreeMap<String, &'a ExceptionDecl>,
-    /// This file's declarations of a name another file of the program declares too: (the
-    /// declaration's name, the other file's name).
-    pub(crate) elsewhere: Vec<(&'a Ident, &'a str)>,
-}
-
-/// A declaration of a name declared before: (this one, the first).
-pub(crate) enum Duplicate<'a> {
-    /// Two tasks of one name.
-    Task(&'a Task, &'a Task),
-    /// Two exceptions of one name.
-    Exception(&'a ExceptionDecl, &'a ExceptionDecl),
-}
-
-impl<'a> FileScope<'a> {
-    /// The declarations of `ast`.
-    pub(crate) fn new(ast: &'a Ast) -> FileScope<'a> {
-        let mut scope = FileScope {
-            tasks: BTreeMap::new(),
-            exceptions: BTreeMap::new(),
-            resources: BTreeMap::new(),
-            duplicates: Vec::new(),
-            other_tasks: BTreeMap::new(),
-            other_exceptions: BTreeMap::new(),
-            elsewhere: Vec::new(),
-        };
-        for item in &ast.items {
-            match item {
-                Item::Task(task) => match scope.tasks.get(&task.name.to_string()) {
-                    Some(first) => scope.duplicates.push(Duplicate::Task(task, first)),
-                    None => {
-                        scope.tasks.insert(task.name.to_string(), task);
-                    }
-                },
-                Item::Exception(exc) => match scope.exceptions.get(&exc.name.to_string()) {
-                    Some(first) => scope.duplicates.push(Duplicate::Exception(exc, first)),
-                    None => {
-                        scope.exceptions.insert(exc.name.to_string(), exc);
-                    }
-                },
-                // Duplicates are diagnosed with the other resource checks (`diagnose/resources.rs`).
-                Item::Resource(r) => {
-                    scope.resources.entry(r.name.to_string()).or_insert(r);
-                }
-                Item::Rust(_) => {}
-            }
-        }
-        scope
-    }
-
-    /// The declarations of `ast`, with those of the program's other files, `(file name, tree)`.
-    pub(crate) fn in_program(ast: &'a Ast, others: &[(&'a str, &'a Ast)]) -> FileScope<'a> {
-        let mut scope = FileScope::new(ast);
-        for (file, other) in others {
-            for item in &other.items {
-                match item {
-                    Item::Task(task) => {
-                        let name = task.name.to_string();
-                        if let Some(mine) = scope.tasks.get(&name) {
-                            scope.elsewhere.push((&mine.name, file));
-                        }
-                        scope.other_tasks.entry(name).or_insert(task);
-                    }
-                    Item::Exception(exc) => {
-                        let name = exc.name.to_string();
-                        if let Some(mine) = scope.exceptions.get(&name) {
-                            scope.elsewhere.push((&mine.name, file));
-                        }
-                        scope.other_exceptions.entry(name).or_insert(exc);
-                    }
-                    Item::Resource(r) => {
-                        let name = r.name.to_string();
-                        if let Some(mine) = scope.resources.get(&name) {
-                            if !std::ptr::eq(*mine, r) {
-                                scope.elsewhere.push((&mine.name, file));
-                            }
-                        }
-                        scope.resources.entry(name).or_insert(r);
-                    }
-                    Item::Rust(_) => {}
-                }
-            }
-        }
-        scope.elsewhere.sort_by_key(|(name, _)| {
-            let at = name.span().start();
-            (at.line, at.column)
-        });
-        scope
-    }
-
-    /// The task of this name defined in the source or another file of the program.
-    pub(crate) fn task(&self, name: &str) -> Option<&'a Task> {
-        self.tasks
-            .get(name)
-            .or_else(|| self.other_tasks.get(name))
-            .copied()
-    }
-
-    fn exception_decl(&self, name: &str) -> Option<&'a ExceptionDecl> {
-        self.exceptions
-            .get(name)
-            .or_else(|| self.other_exceptions.get(name))
-            .copied()
-    }
-
-    /// Every task of the program, this source's first, then those of the other files (the first
-    /// declaration of a name only).
-    pub(crate) fn all_tasks(&self) -> impl Iterator<Item = &'a Task> + '_ {
-        let others = self
-            .other_tasks
-            .iter()
-            .filter(|(name, _)| !self.tasks.contains_key(*name))
-            .map(|(_, task)| *task);
-        self.tasks.values().copied().chain(others)
-    }
-
-    /// Whether `task` is declared in this source (not in another file of the program).
-    pub(crate) fn is_local(&self, task: &Task) -> bool {
-        self.tasks
-            .get(&task.name.to_string())
-            .is_some_and(|it| std::ptr::eq(*it, task))
-    }
-
-    /// Whether the whole ancestry of exception `name` is known: it and each of its ancestors are
-    /// declared in the program (an exception declared elsewhere, in Rust, may have ancestors the
-    /// front end cannot see).
-    pub(crate) fn ancestry_known(&self, name: &str) -> bool {
-        // `ancestry` ends with the first parent that is not declared, if any.
-        self.declares_exception(name)
-            && self
-                .ancestry(name)
-                .iter()
-                .all(|it| self.declares_exception(it))
-    }
-
-    /// The kind of the task of this name defined in the source.
-    pub(crate) fn kind_of(&self, name: &str) -> Option<TaskKind> {
-        self.task(name).map(|it| it.kind)
-    }
-
-    /// The names of the exceptions declared in the program, sorted.
-    pub(crate) fn exception_names(&self) -> impl Iterator<Item = &str> {
-        let mut names: BTreeSet<&str> = self.exceptions.keys().map(String::as_str).collect();
-        names.extend(self.other_exceptions.keys().map(String::as_str));
-        names.into_iter()
-    }
-
-    /// Whether `name` is an exception declared in the source or another file of the program, or
-    /// one of the runtime's own (`ResourceDenied`, `ResourceDropped`).
-    pub(crate) fn declares_exception(&self, name: &str) -> bool {
-        self.exception_decl(name).is_some() || BUILTIN_EXCEPTIONS.contains(&name)
-    }
-
-    /// The Rust type of the exception `name` as generated code names it: the runtime's own
-    /// exceptions through `::tdl` unless the program declares one of that name, others as written.
-    pub(crate) fn exception_type(&self, name: &Ident) -> proc_macro2::TokenStream {
-        let text = name.to_string();
-        if self.exception_decl(&text).is_none() && BUILTIN_EXCEPTIONS.contains(&text.as_str()) {
-            quote::quote!(::tdl::#name)
-        } else {
-            quote::quote!(#name)
-        }
-    }
-
-    /// The resource of this name declared in the program.
-    pub(crate) fn resource(&self, name: &str) -> Option<&'a ResourceDecl> {
-        self.resources.get(name).copied()
-    }
-
-    /// Whether the program declares any resource.
-    pub(crate) fn declares_resources(&self) -> bool {
-        !self.resources.is_empty()
-    }
-
-    /// The names of the resources declared in the program, sorted.
-    pub(crate) fn resource_names(&self) -> impl Iterator<Item = &str> {
-        self.resources.keys().map(String::as_str)
-    }
-
-    /// The ancestors of exception `name`, nearest first: its parent, the parent's parent, ... (a
-    /// parent declared elsewhere ends the chain; a cycle is cut).
-    pub(crate) fn ancestry(&self, name: &str) -> Vec<String> {
-        let parent_of = |name: &str| {
-            self.exception_decl(name)
-                .and_then(|it| it.parent.as_ref())
-                .map(ToString::to_string)
-        };
-        let mut out: Vec<String> = Vec::new();
-        let mut at = parent_of(name);
-        while let Some(parent) = at {
-            if parent == name || out.contains(&parent) {
-                break;
-            }
-            at = parent_of(&parent);
-            out.push(parent);
-        }
-        out
-    }
-}
+/// A spawn of a body, numbered in source order from 0.
+pub type SpawnId = usize;
+/// A `with` group of a body, numbered in source order from 0.
+pub type GroupId = usize;
+/// A `for`, `while` or `loop` of a body, numbered in source order from 0.
+pub type LoopId = usize;
+/// A labelled `on terminate` task of a spawn, numbered in source order from 0.
+pub type CleanupId = usize;
 
 /// Where a TDL statement is: its position among the body's statements (Rust ones included, in
 /// source order) and its enclosing loops, outermost first.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct Site {
+pub struct Site {
     /// Position in source order, from 1.
-    pub(crate) position: usize,
+    pub position: usize,
     /// Enclosing loops, outermost first.
-    pub(crate) loops: Vec<LoopId>,
+    pub loops: Vec<LoopId>,
 }
 
 /// One TDL statement of a body, in source order.
-pub(crate) enum Tdl<'a> {
+pub enum Tdl<'a> {
     /// A spawn.
     Spawn(SpawnId),
     /// A `with` group; its members follow.
@@ -289,54 +57,54 @@ pub(crate) enum Tdl<'a> {
 }
 
 /// A spawn statement.
-pub(crate) struct SpawnDef<'a> {
+pub struct SpawnDef<'a> {
     /// The statement.
-    pub(crate) spawn: &'a Spawn,
+    pub spawn: &'a Spawn,
     /// Where it is.
-    pub(crate) site: Site,
+    pub site: Site,
     /// The enclosing `with` groups, outermost first.
-    pub(crate) groups: Vec<GroupId>,
+    pub groups: Vec<GroupId>,
     /// The local holding its node (a reservation, or a map by iteration in loops), when some tag
     /// names it.
-    pub(crate) var: Option<Ident>,
+    pub var: Option<Ident>,
     /// It has a `parent` constraint: its node is not a child of this body, so it cannot fulfil a
     /// reservation of the body; its local is bound when it is spawned (`Option<NodeId>`).
-    pub(crate) late: bool,
+    pub late: bool,
 }
 
 /// A labelled `on terminate` task of a spawn: its labels name the node inserted if the spawned
 /// node is terminated while running.
-pub(crate) struct CleanupDef<'a> {
+pub struct CleanupDef<'a> {
     /// The spawn it is attached to.
-    pub(crate) spawn: SpawnId,
+    pub spawn: SpawnId,
     /// The constraint.
-    pub(crate) on_terminate: &'a OnTerminate,
+    pub on_terminate: &'a OnTerminate,
     /// The local holding the reservation it fulfils (a map by iteration in loops), when some tag
     /// names it.
-    pub(crate) var: Option<Ident>,
+    pub var: Option<Ident>,
 }
 
 /// A tag bound with `bind name = …;`: where its first `bind` is.
-pub(crate) struct BoundDef {
+pub struct BoundDef {
     /// Where it is.
-    pub(crate) site: Site,
+    pub site: Site,
     /// The local holding the node (`Option<NodeId>`), when some tag names it.
-    pub(crate) var: Option<Ident>,
+    pub var: Option<Ident>,
 }
 
 /// A `with` group.
-pub(crate) struct GroupDef<'a> {
+pub struct GroupDef<'a> {
     /// The statement.
-    pub(crate) group: &'a WithGroup,
+    pub group: &'a WithGroup,
     /// Where it is.
-    pub(crate) site: Site,
+    pub site: Site,
     /// The local collecting its members, when some tag names it.
-    pub(crate) var: Option<Ident>,
+    pub var: Option<Ident>,
 }
 
 /// What a name used as a tag stands for.
 #[derive(Clone, Copy, Debug)]
-pub(crate) enum Def<'a> {
+pub enum Def<'a> {
     /// A spawn, by its label or as the only spawn of its task.
     Spawn(SpawnId),
     /// A labelled `with` group.
@@ -349,15 +117,15 @@ pub(crate) enum Def<'a> {
 
 /// A name's definition and where it is written: the label, or the spawned task's name.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Named<'a> {
+pub struct Named<'a> {
     /// What the name stands for.
-    pub(crate) def: Def<'a>,
+    pub def: Def<'a>,
     /// The label, or the spawned task's name.
-    pub(crate) span: Span,
+    pub span: Span,
 }
 
 /// What a tag resolves to.
-pub(crate) enum Resolution<'a> {
+pub enum Resolution<'a> {
     /// `previous`: tracked at run time.
     Previous,
     /// `self`/`child`: the node being constrained.
@@ -373,27 +141,27 @@ pub(crate) enum Resolution<'a> {
 }
 
 /// A `node!(tag)` in the Rust code of a body.
-pub(crate) struct NodeUse {
+pub struct NodeUse {
     /// The tag written, or why the inside is not one.
-    pub(crate) tag: Result<Tag, syn::Error>,
+    pub tag: Result<Tag, syn::Error>,
     /// Span of `node`.
-    pub(crate) span: Span,
+    pub span: Span,
     /// Where: the statement it is written in.
-    pub(crate) site: Site,
+    pub site: Site,
 }
 
 /// A named tag written in a constraint, at the position of its statement.
-pub(crate) struct Ref<'a> {
+pub struct Ref<'a> {
     /// The tag.
-    pub(crate) tag: &'a Tag,
+    pub tag: &'a Tag,
     /// Its name.
-    pub(crate) name: &'a Ident,
+    pub name: &'a Ident,
     /// The position of the spawn, group or constraint statement it is written in.
-    pub(crate) position: usize,
+    pub position: usize,
 }
 
 /// One iteration index of a tag on a spawn inside loops.
-pub(crate) enum Index<'a> {
+pub enum Index<'a> {
     /// `[expr]`.
     Expr(&'a syn::Expr),
     /// `[.]`: the current iteration of this loop.
@@ -402,7 +170,7 @@ pub(crate) enum Index<'a> {
 
 /// Why a tag's iteration indexes do not fit its spawn.
 #[derive(Debug, PartialEq, Eq)]
-pub(crate) enum IndexError {
+pub enum IndexError {
     /// More indexes than loops around the spawn.
     TooMany,
     /// `[.]` where the loop it counts does not enclose the use.
@@ -410,7 +178,7 @@ pub(crate) enum IndexError {
 }
 
 /// What a constraint refers to besides the node it constrains.
-pub(crate) enum Refers<'a> {
+pub enum Refers<'a> {
     /// `sequential`/`serial` without a tag: `previous`.
     Previous,
     /// The tag of `sequential`/`serial`: the constrained node waits for it.
@@ -431,7 +199,7 @@ impl Refers<'_> {
 }
 
 /// The node `kind` refers to, if any.
-pub(crate) fn refers(kind: &ConstraintKind) -> Option<Refers<'_>> {
+pub fn refers(kind: &ConstraintKind) -> Option<Refers<'_>> {
     match kind {
         ConstraintKind::Sequential { tag, .. } | ConstraintKind::Serial { tag } => {
             Some(tag.as_ref().map_or(Refers::Previous, Refers::WaitsOn))
@@ -442,7 +210,7 @@ pub(crate) fn refers(kind: &ConstraintKind) -> Option<Refers<'_>> {
 }
 
 /// Whether any of `constraints` refers to `previous`.
-pub(crate) fn uses_previous(constraints: &[Constraint]) -> bool {
+pub fn uses_previous(constraints: &[Constraint]) -> bool {
     constraints
         .iter()
         .filter_map(|it| refers(&it.kind))
@@ -450,27 +218,29 @@ pub(crate) fn uses_previous(constraints: &[Constraint]) -> bool {
 }
 
 /// One task body, resolved.
-pub(crate) struct BodyScope<'a> {
+pub struct BodyScope<'a> {
     /// Its TDL statements in source order.
-    pub(crate) stmts: Vec<Tdl<'a>>,
+    pub stmts: Vec<Tdl<'a>>,
     /// Its spawns in source order.
-    pub(crate) spawns: Vec<SpawnDef<'a>>,
+    pub spawns: Vec<SpawnDef<'a>>,
     /// Its `with` groups in source order.
-    pub(crate) groups: Vec<GroupDef<'a>>,
+    pub groups: Vec<GroupDef<'a>>,
     /// Every named tag written in a constraint, in source order.
-    pub(crate) refs: Vec<Ref<'a>>,
+    pub refs: Vec<Ref<'a>>,
     /// Every `node!(tag)` in the body's Rust code, in source order.
-    pub(crate) node_uses: Vec<NodeUse>,
+    pub node_uses: Vec<NodeUse>,
     /// Its labelled on-terminate tasks, in source order.
-    pub(crate) cleanups: Vec<CleanupDef<'a>>,
+    pub cleanups: Vec<CleanupDef<'a>>,
     /// Its bound tags, by name.
-    pub(crate) bound: BTreeMap<String, BoundDef>,
+    pub bound: BTreeMap<String, BoundDef>,
     /// Labels already used: (the later label, the first one's span).
-    pub(crate) duplicate_labels: Vec<(&'a Ident, Span)>,
+    pub duplicate_labels: Vec<(&'a Ident, Span)>,
     /// Whether some constraint refers to `previous`.
-    pub(crate) uses_previous: bool,
+    pub uses_previous: bool,
     /// Its `lock`, `unlock`, `reserve` and `unreserve` statements, in source order.
-    pub(crate) resource_stmts: Vec<&'a ResourceStmt>,
+    pub resource_stmts: Vec<&'a ResourceStmt>,
+    /// `previous` at each spawn, group and constraint statement, by position.
+    previous: BTreeMap<usize, Previous>,
     /// Labels, the first of each.
     labels: BTreeMap<String, Named<'a>>,
     /// The spawns of each task.
@@ -486,7 +256,7 @@ pub(crate) struct BodyScope<'a> {
 
 impl<'a> BodyScope<'a> {
     /// Resolves the body of `task`.
-    pub(crate) fn new(task: &'a Task) -> BodyScope<'a> {
+    pub fn new(task: &'a Task) -> BodyScope<'a> {
         let mut walk = Walk {
             scope: BodyScope {
                 stmts: Vec::new(),
@@ -499,6 +269,7 @@ impl<'a> BodyScope<'a> {
                 duplicate_labels: Vec::new(),
                 uses_previous: false,
                 resource_stmts: Vec::new(),
+                previous: BTreeMap::new(),
                 labels: BTreeMap::new(),
                 by_task: BTreeMap::new(),
                 spawn_ids: BTreeMap::new(),
@@ -514,11 +285,24 @@ impl<'a> BodyScope<'a> {
         walk.block(&task.body);
         let mut scope = walk.scope;
         scope.assign_vars();
+        scope.previous = previous::compute(&task.body, &scope);
         scope
     }
 
+    /// `previous` at the spawn, group or constraint statement at `position` (see [`Site`]).
+    pub fn previous_at(&self, position: usize) -> Option<&Previous> {
+        self.previous.get(&position)
+    }
+
+    /// The spawns of group `id`, those of its nested groups included, in source order.
+    pub fn members(&self, id: GroupId) -> Vec<SpawnId> {
+        (0..self.spawns.len())
+            .filter(|it| self.spawns[*it].groups.contains(&id))
+            .collect()
+    }
+
     /// What `tag` denotes.
-    pub(crate) fn resolve(&self, tag: &Tag) -> Resolution<'a> {
+    pub fn resolve(&self, tag: &Tag) -> Resolution<'a> {
         match &tag.kind {
             TagKind::Previous => Resolution::Previous,
             TagKind::Child => Resolution::This,
@@ -528,7 +312,7 @@ impl<'a> BodyScope<'a> {
     }
 
     /// What the name `name` denotes: a label, else a task spawned once.
-    fn lookup(&self, name: &str) -> Resolution<'a> {
+    pub fn lookup(&self, name: &str) -> Resolution<'a> {
         if let Some(named) = self.labels.get(name) {
             return Resolution::Named(*named);
         }
@@ -543,7 +327,7 @@ impl<'a> BodyScope<'a> {
     }
 
     /// The named definition `tag` denotes, if it denotes one.
-    pub(crate) fn named(&self, tag: &Tag) -> Option<Named<'a>> {
+    pub fn named(&self, tag: &Tag) -> Option<Named<'a>> {
         match self.resolve(tag) {
             Resolution::Named(named) => Some(named),
             _ => None,
@@ -552,7 +336,7 @@ impl<'a> BodyScope<'a> {
 
     /// Where a definition is (an on-terminate task: where its spawn is; a bound tag: its first
     /// `bind`).
-    pub(crate) fn site(&self, def: Def<'a>) -> &Site {
+    pub fn site(&self, def: Def<'a>) -> &Site {
         match def {
             Def::Spawn(id) => &self.spawns[id].site,
             Def::OnTerminate(id) => &self.spawns[self.cleanups[id].spawn].site,
@@ -563,7 +347,7 @@ impl<'a> BodyScope<'a> {
 
     /// The task a definition runs: a spawn's or an on-terminate task; none for a group or a
     /// bound tag.
-    pub(crate) fn task_of(&self, def: Def<'a>) -> Option<&'a Ident> {
+    pub fn task_of(&self, def: Def<'a>) -> Option<&'a Ident> {
         match def {
             Def::Spawn(id) => Some(&self.spawns[id].spawn.task),
             Def::OnTerminate(id) => Some(&self.cleanups[id].on_terminate.task),
@@ -573,7 +357,7 @@ impl<'a> BodyScope<'a> {
 
     /// Whether the node of a definition is only known once a statement ran: a bound tag, or a
     /// spawn under another parent (its local is an `Option<NodeId>`, not a reservation).
-    pub(crate) fn is_late(&self, def: Def<'a>) -> bool {
+    pub fn is_late(&self, def: Def<'a>) -> bool {
         match def {
             Def::Spawn(id) => self.spawns[id].late,
             Def::Bound(_) => true,
@@ -582,40 +366,40 @@ impl<'a> BodyScope<'a> {
     }
 
     /// The labelled on-terminate task `it`, if it has a label.
-    pub(crate) fn cleanup(&self, it: &OnTerminate) -> Option<&CleanupDef<'a>> {
+    pub fn cleanup(&self, it: &OnTerminate) -> Option<&CleanupDef<'a>> {
         let id = self.cleanup_ids.get(&std::ptr::from_ref(it))?;
         self.cleanups.get(*id)
     }
 
     /// The spawn statement `spawn`.
-    pub(crate) fn spawn_def(&self, spawn: &Spawn) -> Option<&SpawnDef<'a>> {
+    pub fn spawn_def(&self, spawn: &Spawn) -> Option<&SpawnDef<'a>> {
         let id = self.spawn_ids.get(&std::ptr::from_ref(spawn))?;
         self.spawns.get(*id)
     }
 
     /// The number of the spawn statement `spawn`.
-    pub(crate) fn spawn_id(&self, spawn: &Spawn) -> Option<SpawnId> {
+    pub fn spawn_id(&self, spawn: &Spawn) -> Option<SpawnId> {
         self.spawn_ids.get(&std::ptr::from_ref(spawn)).copied()
     }
 
     /// The number of the group `group`.
-    pub(crate) fn group_id(&self, group: &WithGroup) -> Option<GroupId> {
+    pub fn group_id(&self, group: &WithGroup) -> Option<GroupId> {
         self.group_ids.get(&std::ptr::from_ref(group)).copied()
     }
 
     /// The number of the loop whose body is `body`.
-    pub(crate) fn loop_id(&self, body: &Block) -> Option<LoopId> {
+    pub fn loop_id(&self, body: &Block) -> Option<LoopId> {
         self.loop_ids.get(&std::ptr::from_ref(body)).copied()
     }
 
     /// Whether the loop counts its iterations (a tag names a spawn inside it).
-    pub(crate) fn is_counted(&self, id: LoopId) -> bool {
+    pub fn is_counted(&self, id: LoopId) -> bool {
         self.counted.contains(&id)
     }
 
     /// The iteration indexes of a tag naming spawn `id`, used inside the loops `site`: one per
     /// index written. A spawn outside loops takes none (more are reported by the index count).
-    pub(crate) fn indexes<'t>(
+    pub fn indexes<'t>(
         &self,
         id: SpawnId,
         indexes: &'t [TagIndex],
@@ -936,7 +720,7 @@ impl<'a> Walk<'a> {
 
 /// The `node!(tag)` uses in `tokens`, outermost first: the tag parsed from inside the
 /// parentheses (or why it is not one) and the span of `node`.
-pub(crate) fn node_uses(tokens: TokenStream) -> Vec<(Result<Tag, syn::Error>, Span)> {
+pub fn node_uses(tokens: TokenStream) -> Vec<(Result<Tag, syn::Error>, Span)> {
     let mut out = Vec::new();
     let tts: Vec<TokenTree> = tokens.into_iter().collect();
     let mut i = 0;
@@ -955,7 +739,7 @@ pub(crate) fn node_uses(tokens: TokenStream) -> Vec<(Result<Tag, syn::Error>, Sp
 }
 
 /// `node ! ( … )` at the start of `tts`: the tokens inside and the span of `node`.
-pub(crate) fn node_macro(tts: &[TokenTree]) -> Option<(TokenStream, Span)> {
+pub fn node_macro(tts: &[TokenTree]) -> Option<(TokenStream, Span)> {
     match tts {
         [
             TokenTree::Ident(name),
@@ -1029,6 +813,3 @@ fn constraint_code(kind: &ConstraintKind) -> TokenStream {
     }
     out
 }
-
-#[cfg(test)]
-mod tests;
