@@ -1,11 +1,10 @@
 //! What `tdl trace tree` and `tdl trace story` print: the task tree of a whole run (reclaimed nodes
-//! included), and the story of a run, one line per record with node numbers, filtered.
+//! included), and the story of a run, one line per record with node numbers, filtered. Both read
+//! the one fold of a trace, [`Replay`], and each record's own text ([`tcm_trace::TraceKind::describe`]).
 
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use tcm_trace::story::uses_text;
-use tcm_trace::{Facet, Replay, ReplayNode, Termination, TraceEvent, TraceKind};
+use tcm_trace::{Facet, RecordClass, Replay, ReplayNode, Termination, TraceEvent};
 
 /// The tree of every node the run spawned, reclaimed ones included (marked `reclaimed`), as the
 /// modern dump prints a live tree: `<indent><name> {id}  handling=.. expansion=.. execution=..`
@@ -114,6 +113,27 @@ pub(crate) struct Filter {
     pub(crate) to: Option<f64>,
 }
 
+impl Kind {
+    /// The `--kind` of a record class.
+    fn of(class: RecordClass) -> Kind {
+        match class {
+            RecordClass::Transition => Kind::Transition,
+            RecordClass::Spawn => Kind::Spawn,
+            RecordClass::Constraint => Kind::Constraint,
+            RecordClass::Terminate => Kind::Terminate,
+            RecordClass::Suspend => Kind::Suspend,
+            RecordClass::Fail => Kind::Fail,
+            RecordClass::Handler => Kind::Handler,
+            RecordClass::Retry => Kind::Retry,
+            RecordClass::Wiretap => Kind::Wiretap,
+            RecordClass::Monitor => Kind::Monitor,
+            RecordClass::Event => Kind::Event,
+            RecordClass::Resource => Kind::Resource,
+            RecordClass::Warning => Kind::Warning,
+        }
+    }
+}
+
 impl Filter {
     fn by_node(&self) -> bool {
         self.name.is_some() || self.path.is_some() || self.node.is_some()
@@ -122,22 +142,28 @@ impl Filter {
 
 /// The story lines of `trace` that `filter` keeps: `<seconds> {id} <name> <what>`, or
 /// `<seconds> <what>` for records about no node (external events, callbacks, run-wide warnings).
+/// Names and parents are the fold's ([`Replay`]) as of each record; the text is the record's own
+/// ([`tcm_trace::TraceKind::describe`]).
 pub(crate) fn story(trace: &[TraceEvent], filter: &Filter) -> Vec<String> {
-    let mut names: BTreeMap<u64, String> = BTreeMap::new();
-    let mut parents: BTreeMap<u64, u64> = BTreeMap::new();
+    let mut replay = Replay::new();
     let mut out = Vec::new();
     for ev in trace {
-        if let TraceKind::Spawned {
-            node, parent, name, ..
-        }
-        | TraceKind::Reserved { node, parent, name } = &ev.kind
-        {
-            names.insert(*node, name.clone());
-            parents.insert(*node, *parent);
-        }
-        let Some((kind, node, what)) = describe(&ev.kind, &names) else {
+        // A record the fold refuses is still told, with the names known so far; `tdl trace
+        // check` says what is wrong with it.
+        let _ = replay.apply(ev);
+        // The root has no name in a story.
+        let name_of = |n: u64| {
+            (n != 0)
+                .then(|| replay.node(n).map(|it| it.name().to_string()))
+                .flatten()
+        };
+        let Some((class, node, what)) = ev
+            .kind
+            .describe(|n| name_of(n).unwrap_or_else(|| format!("#{n}")))
+        else {
             continue;
         };
+        let kind = Kind::of(class);
         let wanted = if filter.kinds.is_empty() {
             kind != Kind::Constraint
         } else {
@@ -152,10 +178,10 @@ pub(crate) fn story(trace: &[TraceEvent], filter: &Filter) -> Vec<String> {
         }
         let line = match node {
             Some(node) => {
-                if filter.by_node() && !keeps(filter, node, &names, &parents) {
+                if filter.by_node() && !keeps(filter, node, &replay) {
                     continue;
                 }
-                let name = names.get(&node).map_or("?", String::as_str);
+                let name = name_of(node).unwrap_or_else(|| "?".to_string());
                 format!("{secs} {{{node}}} {name} {what}")
             }
             None if filter.by_node() => continue,
@@ -167,16 +193,12 @@ pub(crate) fn story(trace: &[TraceEvent], filter: &Filter) -> Vec<String> {
 }
 
 /// Whether a record about `node` passes the node filters.
-fn keeps(
-    filter: &Filter,
-    node: u64,
-    names: &BTreeMap<u64, String>,
-    parents: &BTreeMap<u64, u64>,
-) -> bool {
+fn keeps(filter: &Filter, node: u64, replay: &Replay) -> bool {
+    let name = |n: u64| (n != 0).then(|| replay.node(n).map(ReplayNode::name)).flatten();
     // The node and its ancestors up to the top-level task, nearest first.
     let mut chain = vec![node];
     let mut at = node;
-    while let Some(&parent) = parents.get(&at) {
+    while let Some(parent) = replay.node(at).and_then(ReplayNode::parent) {
         if parent == 0 || chain.contains(&parent) {
             break;
         }
@@ -186,7 +208,7 @@ fn keeps(
     if filter
         .name
         .as_ref()
-        .is_some_and(|name| names.get(&node) != Some(name))
+        .is_some_and(|wanted| name(node) != Some(wanted.as_str()))
     {
         return false;
     }
@@ -194,187 +216,11 @@ fn keeps(
         return false;
     }
     if let Some(path) = &filter.path {
-        let full: Vec<&str> = chain
-            .iter()
-            .rev()
-            .map(|n| names.get(n).map_or("?", String::as_str))
-            .collect();
+        let full: Vec<&str> = chain.iter().rev().map(|n| name(*n).unwrap_or("?")).collect();
         let wanted: Vec<&str> = path.trim_matches('/').split('/').collect();
         if full.len() < wanted.len() || full[..wanted.len()] != wanted[..] {
             return false;
         }
     }
     true
-}
-
-/// The kind, node and text of a record; `None` for the run's first record.
-fn describe(
-    kind: &TraceKind,
-    names: &BTreeMap<u64, String>,
-) -> Option<(Kind, Option<u64>, String)> {
-    let name = |n: &u64| names.get(n).cloned().unwrap_or_else(|| format!("#{n}"));
-    Some(match kind {
-        TraceKind::RunStarted { .. } => return None,
-        TraceKind::Reserved { node, parent, .. } => (
-            Kind::Spawn,
-            Some(*node),
-            format!("reserved under {{{parent}}}"),
-        ),
-        TraceKind::Spawned {
-            node, parent, kind, ..
-        } => (
-            Kind::Spawn,
-            Some(*node),
-            format!("spawned ({kind:?}) under {{{parent}}}").to_lowercase(),
-        ),
-        TraceKind::Constrained { node, constraint } => (
-            Kind::Constraint,
-            Some(*node),
-            format!("constrained {constraint:?}"),
-        ),
-        TraceKind::ConstraintVoid { node, reason } => (
-            Kind::Constraint,
-            Some(*node),
-            format!("constraint void: {reason}"),
-        ),
-        TraceKind::Transition {
-            node, facet, to, ..
-        } => (Kind::Transition, Some(*node), format!("{facet} {to}")),
-        TraceKind::Terminating { node } => (Kind::Terminate, Some(*node), "terminating".into()),
-        TraceKind::Terminated { node } => (Kind::Terminate, Some(*node), "terminated".into()),
-        TraceKind::Suspended { node } => (Kind::Suspend, Some(*node), "suspended".into()),
-        TraceKind::Unsuspended { node } => (Kind::Suspend, Some(*node), "unsuspended".into()),
-        TraceKind::Failed {
-            node,
-            exception,
-            message,
-        } => (
-            Kind::Fail,
-            Some(*node),
-            format!("failed {exception}: {message}"),
-        ),
-        TraceKind::Dead { node } => (Kind::Spawn, Some(*node), "dead".into()),
-        TraceKind::Reclaimed { node } => (Kind::Spawn, Some(*node), "reclaimed".into()),
-        TraceKind::External { name } => (Kind::Event, None, format!("external event {name}")),
-        TraceKind::MonitorParams {
-            node,
-            max_activations,
-            max_triggers,
-            period_ns,
-            ..
-        } => (
-            Kind::Monitor,
-            Some(*node),
-            format!(
-                "monitor parameters: maximum activate {}, maximum trigger {}, period {}",
-                max_activations.map_or("-".into(), |it| it.to_string()),
-                max_triggers.map_or("-".into(), |it| it.to_string()),
-                period_ns.map_or("-".into(), |it| format!("{}s", it as f64 / 1e9)),
-            ),
-        ),
-        TraceKind::Activated {
-            monitor,
-            node,
-            number,
-        } => (
-            Kind::Monitor,
-            Some(*monitor),
-            format!("activation {number}: {} {{{node}}}", name(node)),
-        ),
-        TraceKind::Triggered { monitor, count } => (
-            Kind::Monitor,
-            Some(*monitor),
-            format!("triggered ({count})"),
-        ),
-        TraceKind::HandlerChosen {
-            node,
-            failing,
-            attached,
-            exception,
-            handler,
-        } => (
-            Kind::Handler,
-            Some(*failing),
-            format!(
-                "handler {handler} {{{node}}} chosen for {exception} (attached to {} {{{attached}}})",
-                name(attached)
-            ),
-        ),
-        TraceKind::Bypassed { node, exception } => {
-            (Kind::Handler, Some(*node), format!("bypasses {exception}"))
-        }
-        TraceKind::Retried { node, of } => (
-            Kind::Retry,
-            Some(*node),
-            format!("retries {} {{{of}}}", name(of)),
-        ),
-        TraceKind::Tapped { node, tap, when } => (
-            Kind::Wiretap,
-            Some(*node),
-            format!("wiretap {tap} checks {when}"),
-        ),
-        TraceKind::CallbackSet { name, node, .. } => {
-            (Kind::Event, *node, format!("callback {name} set"))
-        }
-        TraceKind::CallbackRan { name, .. } => (Kind::Event, None, format!("callback {name} ran")),
-        TraceKind::Resource {
-            resource,
-            capacity,
-            pending_limit,
-        } => {
-            let pending = pending_limit.map_or(String::new(), |p| format!(", pending {p}"));
-            let text = format!("resource {resource} capacity {capacity}{pending}");
-            (Kind::Resource, None, text)
-        }
-        TraceKind::Requested {
-            node,
-            uses,
-            priority,
-        } => (
-            Kind::Resource,
-            Some(*node),
-            format!("requests {} (priority {priority})", uses_text(uses)),
-        ),
-        TraceKind::Granted { node, uses } => (
-            Kind::Resource,
-            Some(*node),
-            format!("granted {}", uses_text(uses)),
-        ),
-        TraceKind::Released { node, uses } => (
-            Kind::Resource,
-            Some(*node),
-            format!("released {}", uses_text(uses)),
-        ),
-        TraceKind::Withdrawn { node } => {
-            (Kind::Resource, Some(*node), "withdraws its request".into())
-        }
-        TraceKind::Denied { node, resource } => {
-            (Kind::Resource, Some(*node), format!("denied {resource}"))
-        }
-        TraceKind::Dropped { node, resource } => (
-            Kind::Resource,
-            Some(*node),
-            format!("dropped from {resource}'s queue"),
-        ),
-        TraceKind::ResourceReserved { resource, holder } => (
-            Kind::Resource,
-            Some(*holder),
-            format!("reserves {resource} for its subtree"),
-        ),
-        TraceKind::ResourceUnreserved { resource } => {
-            (Kind::Resource, None, format!("{resource} unreserved"))
-        }
-        TraceKind::ResourceLocked { resource } => {
-            (Kind::Resource, None, format!("{resource} locked"))
-        }
-        TraceKind::ResourceUnlocked { resource } => {
-            (Kind::Resource, None, format!("{resource} unlocked"))
-        }
-        TraceKind::Placed { node, agent } => {
-            (Kind::Spawn, Some(*node), format!("runs on agent {agent}"))
-        }
-        TraceKind::Warning { node, message } => {
-            (Kind::Warning, *node, format!("warning: {message}"))
-        }
-    })
 }
