@@ -399,25 +399,18 @@ impl RunModel {
         for u in uses {
             let mut why = Vec::new();
             let holders: Vec<String> = self
-                .rows()
-                .iter()
-                .filter(|r| {
-                    r.granted.is_some_and(|g| g.seq <= at.seq)
-                        && r.released.is_none_or(|rel| rel.seq > at.seq)
-                        && r.request
-                            .as_ref()
-                            .is_some_and(|(_, us)| us.iter().any(|x| x.resource == u.resource))
-                })
-                .map(|r| self.label(r.number))
+                .replay()
+                .holders_at(&u.resource, at.seq)
+                .map(|n| self.label(n))
                 .collect();
             if !holders.is_empty() {
                 why.push(format!("held by {}", holders.join(", ")));
             }
-            for r in self.restrictions().iter().filter(|r| {
-                r.resource == u.resource
-                    && r.from.seq <= at.seq
-                    && r.until.is_none_or(|until| until.seq > at.seq)
-            }) {
+            for r in self
+                .restrictions()
+                .iter()
+                .filter(|r| r.resource == u.resource && r.holds_at(at.seq))
+            {
                 match r.holder {
                     Some(h) => why.push(format!("reserved for {}", self.label(h))),
                     None => why.push("locked".to_string()),

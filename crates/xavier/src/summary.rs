@@ -1,48 +1,52 @@
 //! The summary of a run, read from its trace and the mission's log: rooms delivered, rooms given
-//! up and why, every exception raised and how it was handled (`failed`, `handler_chosen`,
-//! `bypassed`, `retried` and unhandled-exception `warning` records), the waits for a resource
-//! (`requested` to `granted`, with what held it: the motor monitor keeps the base while the motor
-//! cools), and the times.
+//! up and why, every exception raised and how it was handled, the waits for a resource (from the
+//! request to the grant, with what held it: the motor monitor keeps the base while the motor
+//! cools), and the times. The trace is read through its one fold, [`tcm_trace::Replay`]: its
+//! exception stories and each node's row; nothing here matches on record kinds.
 
 use crate::mission::Undeliverable;
 use crate::{Done, Setup, secs};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::time::Duration;
-use tdl::{FatalFailure, RunOutcome, TraceEvent, TraceKind};
+use tcm_trace::{ExceptionStory, M_SPAWNED, Replay, Row};
+use tdl::{FatalFailure, RunOutcome, TraceEvent};
 
-/// One exception raised during the run and what became of it.
+/// One exception raised during the run, as the trace's fold tells it ([`ExceptionStory`]), with
+/// the room whose delivery it happened in and what became of it in words.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ExceptionStory {
-    /// When it was raised (simulated time).
-    pub at: Duration,
+pub struct RoomException {
+    /// The exception's story: the failing node, the exception, its message, what followed.
+    pub story: ExceptionStory,
     /// The room whose delivery it happened in, if any.
     pub room: Option<u32>,
     /// The failing node: `name {id}`.
     pub node: String,
-    /// The exception type.
-    pub exception: String,
-    /// Its message.
-    pub message: String,
     /// What happened, in order: `handler detour {33} (attached to navigate_to_locn {20})`,
     /// `bypassed by ...`, `retried as {n}`, `no handler`.
     pub recovery: Vec<String>,
 }
 
-impl ExceptionStory {
+impl RoomException {
+    /// When it was raised (simulated time).
+    pub fn at(&self) -> Duration {
+        Duration::from_nanos(self.story.at.t)
+    }
+
     /// Whether some handler took it (and did not pass it on to nobody).
     pub fn handled(&self) -> bool {
-        self.recovery.iter().any(|h| h.starts_with("handler"))
-            && !self.recovery.iter().any(|h| h == "no handler")
+        let steps = &self.story.steps;
+        steps.iter().any(|s| s.what == "chosen") && !steps.iter().any(|s| s.what == "unhandled")
     }
 
     /// The name of the last handler chosen for it, if any.
     pub fn handler(&self) -> Option<&str> {
-        self.recovery
+        self.story
+            .steps
             .iter()
             .rev()
-            .find_map(|h| h.strip_prefix("handler "))
-            .and_then(|h| h.split(' ').next())
+            .find(|s| s.what == "chosen")
+            .map(|s| s.detail.as_str())
     }
 }
 
@@ -75,7 +79,7 @@ pub struct Summary {
     /// Rooms neither delivered nor given up (nobody took the letter in time).
     pub not_taken: Vec<u32>,
     /// Every exception raised, in order.
-    pub exceptions: Vec<ExceptionStory>,
+    pub exceptions: Vec<RoomException>,
     /// Every wait of a node for a resource, in order of its grant (those never granted last).
     pub resource_waits: Vec<ResourceWait>,
     /// How the run ended.
@@ -136,160 +140,114 @@ impl Summary {
     }
 }
 
-/// Exceptions and resource waits from the trace.
-fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<ExceptionStory>, Vec<ResourceWait>) {
-    let mut names: BTreeMap<u64, (String, u64)> = BTreeMap::new();
-    // Delivery nodes are spawned in the order of the rooms.
-    let mut deliveries: BTreeMap<u64, u32> = BTreeMap::new();
-    let mut stories: Vec<ExceptionStory> = Vec::new();
-    // Failing node -> its story; handler node -> the story it handles.
-    let mut by_failing: BTreeMap<u64, usize> = BTreeMap::new();
-    let mut by_handler: BTreeMap<u64, usize> = BTreeMap::new();
-    // Resource -> the node it is reserved for; node -> what it holds; node -> its open wait.
-    let mut reserved: BTreeMap<String, u64> = BTreeMap::new();
-    let mut held: BTreeMap<u64, Vec<String>> = BTreeMap::new();
-    let mut asked: BTreeMap<u64, (Duration, String, String)> = BTreeMap::new();
-    let mut waits: Vec<ResourceWait> = Vec::new();
-    let label = |names: &BTreeMap<u64, (String, u64)>, id: u64| match names.get(&id) {
-        Some((name, _)) => format!("{name} {{{id}}}"),
+/// Exceptions and resource waits from the trace, read from its fold ([`Replay`]).
+fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<RoomException>, Vec<ResourceWait>) {
+    let mut replay = Replay::new();
+    for ev in trace {
+        // A record the fold refuses is left out; the run's trace checker names it.
+        let _ = replay.apply(ev);
+    }
+    let spawned = |id: u64| replay.row(id).filter(|r| id != 0 && r.kind.is_some());
+    let label = |id: u64| match spawned(id) {
+        Some(r) => format!("{} {{{id}}}", r.name),
         None => format!("{{{id}}}"),
     };
-    let room_of = |names: &BTreeMap<u64, (String, u64)>, deliveries: &BTreeMap<u64, u32>, id| {
+    // Delivery nodes are spawned in the order of the rooms.
+    let mut deliveries: Vec<&Row> = replay
+        .rows()
+        .iter()
+        .filter(|r| r.name == "deliver_mail" && r.marks[M_SPAWNED].is_some())
+        .collect();
+    deliveries.sort_by_key(|r| r.marks[M_SPAWNED].map(|m| m.seq));
+    let deliveries: BTreeMap<u64, u32> = deliveries
+        .iter()
+        .zip(&setup.rooms)
+        .map(|(r, room)| (r.number, *room))
+        .collect();
+    let room_of = |id: u64| {
         let mut cur = Some(id);
         while let Some(n) = cur {
             if let Some(room) = deliveries.get(&n) {
                 return Some(*room);
             }
-            cur = names.get(&n).map(|(_, p)| *p).filter(|&p| p != n && p != 0);
+            cur = spawned(n)
+                .and_then(|r| r.parent)
+                .filter(|&p| p != n && p != 0);
         }
         None
     };
-    for ev in trace {
-        let at = Duration::from_nanos(ev.t);
-        match &ev.kind {
-            TraceKind::Spawned {
-                node, parent, name, ..
-            } => {
-                names.insert(*node, (name.clone(), *parent));
-                if name == "deliver_mail" {
-                    if let Some(room) = setup.rooms.get(deliveries.len()) {
-                        deliveries.insert(*node, *room);
-                    }
-                }
+    let stories = replay
+        .exceptions()
+        .iter()
+        .map(|story| {
+            let recovery = story
+                .steps
+                .iter()
+                .filter_map(|step| {
+                    let node = step.node.unwrap_or_default();
+                    Some(match step.what {
+                        "chosen" => format!(
+                            "handler {} {{{node}}} (attached to {})",
+                            step.detail,
+                            label(step.attached.unwrap_or_default())
+                        ),
+                        "bypassed" => format!("bypassed by {}", label(node)),
+                        "retried" => format!("retried as {{{node}}}"),
+                        "unhandled" => "no handler".to_string(),
+                        _ => return None,
+                    })
+                })
+                .collect();
+            RoomException {
+                story: story.clone(),
+                room: room_of(story.node),
+                node: label(story.node),
+                recovery,
             }
-            TraceKind::Failed {
-                node,
-                exception,
-                message,
-            } => {
-                by_failing.insert(*node, stories.len());
-                stories.push(ExceptionStory {
-                    at,
-                    room: room_of(&names, &deliveries, *node),
-                    node: label(&names, *node),
-                    exception: exception.clone(),
-                    message: message.clone(),
-                    recovery: Vec::new(),
-                });
+        })
+        .collect();
+    // Each request: why it waited when it was made (a reservation, the holders in its way).
+    let mut granted: Vec<(u64, ResourceWait)> = Vec::new();
+    let mut open: Vec<ResourceWait> = Vec::new();
+    for r in replay.rows() {
+        let Some((asked, uses)) = &r.request else {
+            continue;
+        };
+        let mut why = Vec::new();
+        for u in uses {
+            let reservation = replay.restrictions().iter().rev().find(|x| {
+                x.resource == u.resource && x.holder.is_some() && x.holds_at(asked.seq)
+            });
+            if let Some(holder) = reservation.and_then(|x| x.holder) {
+                why.push(format!("{} reserved for {}", u.resource, label(holder)));
             }
-            TraceKind::HandlerChosen {
-                node,
-                failing,
-                attached,
-                handler,
-                ..
-            } => {
-                if let Some(&i) = by_failing.get(failing) {
-                    by_handler.insert(*node, i);
-                    stories[i].recovery.push(format!(
-                        "handler {handler} {{{node}}} (attached to {})",
-                        label(&names, *attached)
-                    ));
-                }
+            let holders: Vec<String> = replay
+                .holders_at(&u.resource, asked.seq)
+                .map(label)
+                .collect();
+            if !holders.is_empty() {
+                why.push(format!("{} held by {}", u.resource, holders.join(", ")));
             }
-            TraceKind::Bypassed { node, .. } => {
-                if let Some(&i) = by_handler.get(node) {
-                    stories[i]
-                        .recovery
-                        .push(format!("bypassed by {}", label(&names, *node)));
-                }
+        }
+        let wait = |until: Option<Duration>| ResourceWait {
+            node: label(r.number),
+            uses: tcm_trace::story::uses_text(uses),
+            from: Duration::from_nanos(asked.t),
+            until,
+            why: why.join("; "),
+        };
+        match (r.granted, r.refused) {
+            (Some(g), _) if g.t > asked.t => {
+                granted.push((g.seq, wait(Some(Duration::from_nanos(g.t)))));
             }
-            TraceKind::Retried { node, of } => {
-                if let Some(&i) = by_failing.get(of) {
-                    stories[i].recovery.push(format!("retried as {{{node}}}"));
-                }
-            }
-            TraceKind::Warning {
-                node: Some(node),
-                message,
-            } if message.starts_with("No exception handler found") => {
-                if let Some(&i) = by_failing.get(node) {
-                    stories[i].recovery.push("no handler".to_string());
-                }
-            }
-            TraceKind::Requested { node, uses, .. } => {
-                let mut why = Vec::new();
-                for u in uses {
-                    if let Some(holder) = reserved.get(&u.resource) {
-                        why.push(format!(
-                            "{} reserved for {}",
-                            u.resource,
-                            label(&names, *holder)
-                        ));
-                    }
-                    let holders: Vec<String> = held
-                        .iter()
-                        .filter(|(_, rs)| rs.contains(&u.resource))
-                        .map(|(n, _)| label(&names, *n))
-                        .collect();
-                    if !holders.is_empty() {
-                        why.push(format!("{} held by {}", u.resource, holders.join(", ")));
-                    }
-                }
-                let text = tcm_trace::story::uses_text(uses);
-                asked.insert(*node, (at, text, why.join("; ")));
-            }
-            TraceKind::Granted { node, uses } => {
-                held.insert(*node, uses.iter().map(|u| u.resource.clone()).collect());
-                if let Some((from, uses, why)) = asked.remove(node) {
-                    if at > from {
-                        waits.push(ResourceWait {
-                            node: label(&names, *node),
-                            uses,
-                            from,
-                            until: Some(at),
-                            why,
-                        });
-                    }
-                }
-            }
-            TraceKind::Released { node, .. } => {
-                held.remove(node);
-            }
-            TraceKind::Withdrawn { node }
-            | TraceKind::Denied { node, .. }
-            | TraceKind::Dropped { node, .. } => {
-                asked.remove(node);
-            }
-            TraceKind::ResourceReserved { resource, holder } => {
-                reserved.insert(resource.clone(), *holder);
-            }
-            TraceKind::ResourceUnreserved { resource } => {
-                reserved.remove(resource);
-            }
+            (None, None) => open.push(wait(None)),
             _ => {}
         }
     }
-    // Waits still open at the end of the run.
-    for (node, (from, uses, why)) in asked {
-        waits.push(ResourceWait {
-            node: label(&names, node),
-            uses,
-            from,
-            until: None,
-            why,
-        });
-    }
+    // In order of the grant; waits still open at the end of the run last.
+    granted.sort_by_key(|(seq, _)| *seq);
+    let mut waits: Vec<ResourceWait> = granted.into_iter().map(|(_, w)| w).collect();
+    waits.append(&mut open);
     (stories, waits)
 }
 
@@ -337,10 +295,10 @@ impl fmt::Display for Summary {
             writeln!(
                 f,
                 "    {:>7}  {room}{} failed {}: {}",
-                secs(e.at),
+                secs(e.at()),
                 e.node,
-                e.exception,
-                e.message
+                e.story.exception,
+                e.story.message
             )?;
             for h in &e.recovery {
                 writeln!(f, "             -> {h}")?;
