@@ -12,9 +12,11 @@
 //! | family | methods | file |
 //! |---|---|---|
 //! | inputs | [`Engine::handle_action_finished`], [`Engine::handle_action_stopped`], [`Engine::handle_timeout`] | `progress.rs` |
-//! | | [`Engine::handle_external`] | `arm.rs` |
+//! | | [`Engine::handle_external`] | `arm/external.rs` |
 //! | commands: the tree | [`Engine::spawn`], [`Engine::reserve`], [`Engine::hold_children`] | `tree.rs` |
-//! | commands: constraints | [`Engine::constrain`], [`Engine::trigger_group`], [`Engine::watch`], [`Engine::external`] | `arm.rs` |
+//! | commands: constraints | [`Engine::constrain`] | `arm.rs` |
+//! | | [`Engine::trigger_group`] | `arm/group.rs` |
+//! | | [`Engine::watch`], [`Engine::external`] | `arm/external.rs` |
 //! | commands: termination | [`Engine::terminate`], [`Engine::terminate_children`], [`Engine::terminate_siblings`], [`Engine::suspend`], [`Engine::unsuspend`] | `terminate.rs` |
 //! | commands: monitors | [`Engine::activate`], [`Engine::trigger`], [`Engine::set_max_activations`], [`Engine::set_max_triggers`], [`Engine::set_period`] | `monitor.rs` |
 //! | commands: exceptions | [`Engine::request_bypass`], [`Engine::retry`] | `exception.rs` |
