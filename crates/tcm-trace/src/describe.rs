@@ -49,9 +49,11 @@ impl TraceKind {
         let name = |n: &u64| name(*n);
         Some(match self {
             K::RunStarted { .. } => return None,
-            K::Reserved { node, parent, .. } => {
-                (C::Spawn, Some(*node), format!("reserved under {{{parent}}}"))
-            }
+            K::Reserved { node, parent, .. } => (
+                C::Spawn,
+                Some(*node),
+                format!("reserved under {{{parent}}}"),
+            ),
             K::Spawned {
                 node, parent, kind, ..
             } => (
@@ -143,9 +145,7 @@ impl TraceKind {
                 Some(*node),
                 format!("wiretap {tap} checks {when}"),
             ),
-            K::CallbackSet { name, node, .. } => {
-                (C::Event, *node, format!("callback {name} set"))
-            }
+            K::CallbackSet { name, node, .. } => (C::Event, *node, format!("callback {name} set")),
             K::CallbackRan { name, .. } => (C::Event, None, format!("callback {name} ran")),
             K::Resource {
                 resource,
@@ -193,12 +193,8 @@ impl TraceKind {
                 (C::Resource, None, format!("{resource} unreserved"))
             }
             K::ResourceLocked { resource } => (C::Resource, None, format!("{resource} locked")),
-            K::ResourceUnlocked { resource } => {
-                (C::Resource, None, format!("{resource} unlocked"))
-            }
-            K::Placed { node, agent } => {
-                (C::Spawn, Some(*node), format!("runs on agent {agent}"))
-            }
+            K::ResourceUnlocked { resource } => (C::Resource, None, format!("{resource} unlocked")),
+            K::Placed { node, agent } => (C::Spawn, Some(*node), format!("runs on agent {agent}")),
             K::Warning { node, message } => (C::Warning, *node, format!("warning: {message}")),
         })
     }

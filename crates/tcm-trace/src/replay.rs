@@ -369,14 +369,26 @@ impl Default for Replay {
 }
 
 impl Replay {
-    /// An empty tree: only the implicit root, node 0, with its three facets active.
+    /// An empty tree: only the implicit root, node 0, with its three facets active. It keeps the
+    /// tree's state, not its history: its [`rows`](Replay::rows) stay the root's alone, and it has
+    /// no exception stories (see [`Replay::with_history`]).
     pub fn new() -> Replay {
+        Replay::keeping(false)
+    }
+
+    /// An empty tree that also keeps the run's history: each node's [`Row`] (when it reached each
+    /// point), the exception stories, the external events and the resource restrictions.
+    pub fn with_history() -> Replay {
+        Replay::keeping(true)
+    }
+
+    fn keeping(history: bool) -> Replay {
         let mut nodes = BTreeMap::new();
         nodes.insert(0, ReplayNode::root());
         Replay {
             nodes,
             resources: BTreeMap::new(),
-            history: history::History::new(),
+            history: history::History::new(history),
             run: None,
             n_records: 0,
             last_t: 0,

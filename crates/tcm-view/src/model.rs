@@ -102,7 +102,7 @@ impl RunModel {
             version: None,
             lines: Vec::new(),
             index: Vec::new(),
-            replay: Replay::new(),
+            replay: Replay::with_history(),
             times: Vec::new(),
             problem: None,
             finished: false,

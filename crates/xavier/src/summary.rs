@@ -142,7 +142,7 @@ impl Summary {
 
 /// Exceptions and resource waits from the trace, read from its fold ([`Replay`]).
 fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<RoomException>, Vec<ResourceWait>) {
-    let mut replay = Replay::new();
+    let mut replay = Replay::with_history();
     for ev in trace {
         // A record the fold refuses is left out; the run's trace checker names it.
         let _ = replay.apply(ev);

@@ -8,6 +8,9 @@
 //! Beside the rows: every exception raised with what followed ([`ExceptionStory`]), external
 //! events, and the reservations and locks of resources ([`Restriction`]).
 //!
+//! The history is kept only by a replay made with [`Replay::with_history`]; the checker and the
+//! text log, which read the tree's state alone, do without it.
+//!
 //! Only the point a transition reaches is marked (a facet that skips a point leaves its mark
 //! unset); [`ReplayNode::reached_at`](super::ReplayNode::reached_at) gives the skipped points too.
 
@@ -232,6 +235,8 @@ impl Restriction {
 /// The run-wide part of the history.
 #[derive(Clone, Debug, Default)]
 pub(super) struct History {
+    // Whether records are recorded here (`Replay::with_history`).
+    kept: bool,
     pub(super) rows: Vec<Row>,
     pub(super) externals: Vec<(Mark, String)>,
     pub(super) exceptions: Vec<ExceptionStory>,
@@ -239,8 +244,10 @@ pub(super) struct History {
 }
 
 impl History {
-    pub(super) fn new() -> History {
+    /// A history that records (`kept`), or stays as it is: the root's row alone.
+    pub(super) fn new(kept: bool) -> History {
         History {
+            kept,
             rows: vec![Row::root()],
             ..History::default()
         }
@@ -364,6 +371,9 @@ impl Replay {
     /// Records what an applied record says happened, and when.
     pub(super) fn record_history(&mut self, at: Mark, kind: &TraceKind) {
         use TraceKind as K;
+        if !self.history.kept {
+            return;
+        }
         match kind {
             K::Reserved { node, parent, name } => {
                 self.link(*node, *parent);
@@ -602,3 +612,6 @@ impl Step {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;
