@@ -194,7 +194,11 @@ pub(crate) fn story(trace: &[TraceEvent], filter: &Filter) -> Vec<String> {
 
 /// Whether a record about `node` passes the node filters.
 fn keeps(filter: &Filter, node: u64, replay: &Replay) -> bool {
-    let name = |n: u64| (n != 0).then(|| replay.node(n).map(ReplayNode::name)).flatten();
+    let name = |n: u64| {
+        (n != 0)
+            .then(|| replay.node(n).map(ReplayNode::name))
+            .flatten()
+    };
     // The node and its ancestors up to the top-level task, nearest first.
     let mut chain = vec![node];
     let mut at = node;
@@ -216,7 +220,11 @@ fn keeps(filter: &Filter, node: u64, replay: &Replay) -> bool {
         return false;
     }
     if let Some(path) = &filter.path {
-        let full: Vec<&str> = chain.iter().rev().map(|n| name(*n).unwrap_or("?")).collect();
+        let full: Vec<&str> = chain
+            .iter()
+            .rev()
+            .map(|n| name(*n).unwrap_or("?"))
+            .collect();
         let wanted: Vec<&str> = path.trim_matches('/').split('/').collect();
         if full.len() < wanted.len() || full[..wanted.len()] != wanted[..] {
             return false;

@@ -215,9 +215,10 @@ fn read_trace(setup: &Setup, trace: &[TraceEvent]) -> (Vec<RoomException>, Vec<R
         };
         let mut why = Vec::new();
         for u in uses {
-            let reservation = replay.restrictions().iter().rev().find(|x| {
-                x.resource == u.resource && x.holder.is_some() && x.holds_at(asked.seq)
-            });
+            let reservation =
+                replay.restrictions().iter().rev().find(|x| {
+                    x.resource == u.resource && x.holder.is_some() && x.holds_at(asked.seq)
+                });
             if let Some(holder) = reservation.and_then(|x| x.holder) {
                 why.push(format!("{} reserved for {}", u.resource, label(holder)));
             }
