@@ -630,8 +630,7 @@ mod tests {
             "/// Runs `b` & <i>stops</i>. Then `Oops`, `nothing`.\n///\n/// - one\n/// - two\ngoal a() { spawn b(); }\ncommand b() {}\nexception Oops;",
         );
         assert!(!parse.has_errors(), "{:?}", parse.diagnostics);
-        let files = vec![("t.tdl".to_string(), parse.file)];
-        let program = Program::new(&files);
+        let program = Program::new(&tdl_syntax::hir::Program::new(&[("t.tdl", &parse.file)]));
         let doc = program.tasks[0].task.doc().expect("a doc comment");
         assert_eq!(
             doc_html(&program, &doc),

@@ -624,8 +624,7 @@ mod tests {
     fn graph(src: &str, format: Format, task: Option<&str>) -> String {
         let parse = tdl_syntax::parse_str("t.tdl", src);
         assert!(!parse.has_errors(), "{:?}", parse.diagnostics);
-        let files = vec![("t.tdl".to_string(), parse.file)];
-        let program = Program::new(&files);
+        let program = Program::new(&tdl_syntax::hir::Program::new(&[("t.tdl", &parse.file)]));
         render(&program, format, Options { task, links: false }).expect("a graph")
     }
 

@@ -31,6 +31,8 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 
+#[cfg(test)]
+mod agree;
 mod doc;
 mod export;
 mod graph;
@@ -222,36 +224,41 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     let mut out = std::io::stdout().lock();
     match cli.command {
         Command::Check { files } => {
-            let checked = check_program(&files, stdout_colour())?;
-            out.write_all(checked.rendered.as_bytes())?;
-            Ok(checked.clean)
+            let (rendered, clean) = compile_checked(&files, stdout_colour(), |_| Ok(()))?;
+            out.write_all(rendered.as_bytes())?;
+            Ok(clean.is_some())
         }
         Command::Graph {
             files,
             task,
             format,
         } => {
-            let Some(sources) = checked_sources(&files)? else {
+            let text = with_checked_program(&files, |program| {
+                let program = model::Program::new(program);
+                let options = graph::Options {
+                    task: task.as_deref(),
+                    links: false,
+                };
+                graph::render(&program, format, options).map_err(anyhow::Error::msg)
+            })?;
+            let Some(text) = text else {
                 return Ok(false);
             };
-            let asts = parse_all(&sources);
-            let program = model::Program::new(&asts);
-            let options = graph::Options {
-                task: task.as_deref(),
-                links: false,
-            };
-            let text = graph::render(&program, format, options).map_err(anyhow::Error::msg)?;
             out.write_all(text.as_bytes())?;
             Ok(true)
         }
         Command::Doc { files, out: dir } => {
-            let Some(sources) = checked_sources(&files)? else {
+            let written = with_checked_program(&files, |program| {
+                let names: Vec<String> = program
+                    .files()
+                    .iter()
+                    .map(|it| it.name.to_owned())
+                    .collect();
+                doc::write(&model::Program::new(program), &names, &dir)
+            })?;
+            let Some(written) = written else {
                 return Ok(false);
             };
-            let asts = parse_all(&sources);
-            let program = model::Program::new(&asts);
-            let names: Vec<String> = sources.iter().map(|(name, _)| name.clone()).collect();
-            let written = doc::write(&program, &names, &dir)?;
             writeln!(out, "wrote {} pages to {}", written.len(), dir.display())?;
             Ok(true)
         }
@@ -394,57 +401,47 @@ fn render(diagnostics: &[tdl_syntax::Diagnostic], name: &str, src: &str, colour:
     }
 }
 
-/// The files of a program, checked as one program as `tdl check` does.
-struct Checked {
-    /// `(name, source)` per file.
-    sources: Vec<(String, String)>,
-    /// Every diagnostic, rendered, files separated by a blank line.
-    rendered: String,
-    /// No diagnostic is an error.
-    clean: bool,
-}
-
-fn check_program(files: &[PathBuf], colour: bool) -> anyhow::Result<Checked> {
+/// The files of a program compiled as one program, as `tdl check` does: every diagnostic rendered
+/// (files separated by a blank line), and what `then` makes of the resolved program when no file
+/// has an error.
+fn compile_checked<R>(
+    files: &[PathBuf],
+    colour: bool,
+    then: impl FnOnce(&tdl_syntax::hir::Program<'_>) -> anyhow::Result<R>,
+) -> anyhow::Result<(String, Option<R>)> {
     let sources = files.iter().map(read).collect::<anyhow::Result<Vec<_>>>()?;
     // The files are one program: names resolve across all of them.
-    let program: Vec<(&str, &str)> = sources
+    let named: Vec<(&str, &str)> = sources
         .iter()
         .map(|(name, src)| (name.as_str(), src.as_str()))
         .collect();
-    let results = tdl_syntax::compile_program(&program);
-    let mut clean = true;
-    let mut rendered = String::new();
-    for ((name, src), (_, diagnostics)) in program.iter().zip(&results) {
-        clean &= !diagnostics.iter().any(tdl_syntax::Diagnostic::is_error);
-        if diagnostics.is_empty() {
-            continue;
+    tdl_syntax::compile_program_with(&named, |program, results| {
+        let mut clean = true;
+        let mut rendered = String::new();
+        for ((name, src), (_, diagnostics)) in named.iter().zip(&results) {
+            clean &= !diagnostics.iter().any(tdl_syntax::Diagnostic::is_error);
+            if diagnostics.is_empty() {
+                continue;
+            }
+            if !rendered.is_empty() {
+                rendered.push('\n');
+            }
+            rendered.push_str(&render(diagnostics, name, src, colour));
         }
-        if !rendered.is_empty() {
-            rendered.push('\n');
-        }
-        rendered.push_str(&render(diagnostics, name, src, colour));
-    }
-    Ok(Checked {
-        sources,
-        rendered,
-        clean,
+        let made = if clean { Some(then(program)?) } else { None };
+        Ok((rendered, made))
     })
 }
 
-/// The sources of a program for `graph` and `doc`, after printing its diagnostics on standard
-/// error; `None` when there are errors.
-fn checked_sources(files: &[PathBuf]) -> anyhow::Result<Option<Vec<(String, String)>>> {
-    let checked = check_program(files, stderr_colour())?;
-    eprint!("{}", checked.rendered);
-    Ok(checked.clean.then_some(checked.sources))
-}
-
-/// The syntax tree of every file.
-fn parse_all(sources: &[(String, String)]) -> Vec<(String, tdl_syntax::Ast)> {
-    sources
-        .iter()
-        .map(|(name, src)| (name.clone(), tdl_syntax::parse_str(name, src).file))
-        .collect()
+/// What `then` makes of a program for `graph` and `doc`, after printing its diagnostics on
+/// standard error; `None` when there are errors.
+fn with_checked_program<R>(
+    files: &[PathBuf],
+    then: impl FnOnce(&tdl_syntax::hir::Program<'_>) -> anyhow::Result<R>,
+) -> anyhow::Result<Option<R>> {
+    let (rendered, made) = compile_checked(files, stderr_colour(), then)?;
+    eprint!("{rendered}");
+    Ok(made)
 }
 
 fn read(file: &PathBuf) -> anyhow::Result<(String, String)> {

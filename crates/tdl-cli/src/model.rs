@@ -3,17 +3,18 @@
 //! constraints between those spawns resolved to the spawns their tags name, the exception handlers
 //! attached, the exceptions raised; and the exceptions of the program.
 //!
-//! `previous` is resolved statically: every spawn (or `with` group) that may have run just before,
-//! through `if` branches, `match` arms and loops (a spawn at the start of a loop body may follow
-//! the last spawn of the iteration before).
+//! It is read from the front end's resolved program (`tdl_syntax::hir`): what each tag names, and
+//! `previous` as every spawn that may have run just before (`hir::Previous::may`), through `if`
+//! branches, `match` arms and loops (a spawn at the start of a loop body may follow the last spawn
+//! of the iteration before).
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use quote::{ToTokens, quote};
+use tdl_syntax::hir::{self, BodyScope, Def, Resolution, Tdl};
 use tdl_syntax::{
-    Ast, Block, Constraint, ConstraintKind, Count, Else, Event, ExceptionDecl, ExternalName,
-    HandlerRef, If, Item, RelTime, Stmt, Tag, TagIndex, TagKind, Task, TaskConstraintKind, Then,
-    TimeOfDay, When,
+    Constraint, ConstraintKind, Count, Event, ExceptionDecl, ExternalName, HandlerRef, Item,
+    RelTime, Tag, TagIndex, TagKind, Task, TaskConstraintKind, Then, TimeOfDay, When,
 };
 
 /// A program: the tasks and exceptions of its files, in source order.
@@ -55,6 +56,10 @@ pub(crate) struct TaskInfo<'a> {
     pub(crate) bypasses: bool,
     /// The body says `trigger;`.
     pub(crate) triggers: bool,
+    /// Every tag written in a constraint, `previous` aside, as the drawings resolve it.
+    pub(crate) tags: Vec<hir::ResolvedTag>,
+    /// The place of its file among the program's.
+    pub(crate) file_index: usize,
 }
 
 /// A declared exception.
@@ -175,14 +180,15 @@ pub(crate) struct Relation {
 }
 
 impl<'a> Program<'a> {
-    /// The program of the parsed files, `(file name, tree)`.
-    pub(crate) fn new(files: &'a [(String, Ast)]) -> Program<'a> {
+    /// The structure of a resolved program.
+    pub(crate) fn new(program: &hir::Program<'a>) -> Program<'a> {
         let mut tasks = Vec::new();
         let mut exceptions = Vec::new();
         let mut task_ids = BTreeSet::new();
         let mut exception_ids = BTreeSet::new();
-        for (file, ast) in files {
-            for item in &ast.items {
+        for (file_index, it) in program.files().iter().enumerate() {
+            let file = it.name.to_string();
+            for item in &it.ast.items {
                 match item {
                     Item::Resource(_) => {}
                     Item::Task(task) => {
@@ -201,6 +207,8 @@ impl<'a> Program<'a> {
                             retries: false,
                             bypasses: false,
                             triggers: false,
+                            tags: Vec::new(),
+                            file_index,
                         });
                     }
                     Item::Exception(decl) => {
@@ -218,7 +226,7 @@ impl<'a> Program<'a> {
             }
         }
         for info in &mut tasks {
-            analyse(info);
+            analyse(info, program.body(info.task));
         }
         let mut task_index = BTreeMap::new();
         for (i, t) in tasks.iter().enumerate() {
@@ -349,25 +357,10 @@ pub(crate) fn unique_id(name: &str, used: &mut BTreeSet<String>) -> String {
     id
 }
 
-/// How deep loops are walked twice to find what `previous` is at the start of an iteration.
-const LOOP_DEPTH: usize = 4;
-
-/// Fills in the sites, relations, handlers and notes of a task.
-fn analyse(info: &mut TaskInfo<'_>) {
+/// Fills in the sites, relations, handlers and notes of a task from its resolved body.
+fn analyse(info: &mut TaskInfo<'_>, body: &BodyScope<'_>) {
     let task = info.task;
-    let mut walker = Walker::default();
-    walker.block(&task.body);
-    let Walker {
-        mut sites,
-        labels,
-        spawned,
-        pending,
-        raises,
-        retries,
-        bypasses,
-        triggers,
-        ..
-    } = walker;
+    let (mut sites, spawn_sites, cleanup_sites) = body_sites(body);
     let mut notes = Vec::new();
     for c in &task.constraints {
         let text = |s: String| vec![Piece::Text(s)];
@@ -414,18 +407,23 @@ fn analyse(info: &mut TaskInfo<'_>) {
             }
         }
     }
+    let all_sites = sites.clone();
+    info.tags = Vec::new();
     let scope = Scope {
-        labels: &labels,
-        spawned: &spawned,
-        sites: &sites.clone(),
+        body,
+        spawn_sites: &spawn_sites,
+        cleanup_sites: &cleanup_sites,
+        sites: &all_sites,
     };
     let mut relations = BTreeSet::new();
-    for p in &pending {
+    let pending = pending(&scope);
+    info.tags = resolved_tags(&scope, &pending, info.file_index);
+    for p in pending {
         let targets: Vec<usize> = match p.target {
             Target::Site(i) => vec![i],
             Target::Tag(tag) => match scope.resolve(tag, &p.prev) {
                 Resolved::Sites(sites) => sites,
-                Resolved::Task | Resolved::Own | Resolved::Unknown => {
+                Resolved::Task | Resolved::Own | Resolved::Bound(_) | Resolved::Unknown => {
                     // A constraint on the task itself, or on a node the body holds in Rust.
                     let mut text = scope.tag_text(tag, &p.prev);
                     text.push(Piece::Text(" ".into()));
@@ -436,23 +434,150 @@ fn analyse(info: &mut TaskInfo<'_>) {
             },
         };
         for t in targets {
-            apply(&mut sites, &mut relations, &scope, t, p);
+            apply(&mut sites, &mut relations, &scope, t, &p);
         }
     }
     info.sites = sites;
     info.relations = relations.into_iter().collect();
     info.notes = notes;
-    info.raises = raises;
-    info.retries = retries;
-    info.bypasses = bypasses;
-    info.triggers = triggers;
+    info.raises = body.raises();
+    info.retries = body.stmts.iter().any(|it| matches!(it, Tdl::Retry(_)));
+    info.bypasses = body.stmts.iter().any(|it| matches!(it, Tdl::Bypass(_)));
+    info.triggers = body.stmts.iter().any(|it| matches!(it, Tdl::Trigger(_)));
+}
+
+/// Every tag of the pending constraints, `previous` aside, as [`Scope::resolve`] resolves it.
+fn resolved_tags(
+    scope: &Scope<'_, '_>,
+    pending: &[Pending<'_>],
+    file: usize,
+) -> Vec<hir::ResolvedTag> {
+    let mut out = Vec::new();
+    for p in pending {
+        let mut tags: Vec<&Tag> = Vec::new();
+        if let Target::Tag(tag) = p.target {
+            tags.push(tag);
+        }
+        match &p.constraint.kind {
+            ConstraintKind::Sequential { tag: Some(tag), .. }
+            | ConstraintKind::Serial { tag: Some(tag) } => {
+                tags.push(tag);
+            }
+            ConstraintKind::Trigger { when, .. } => tags.extend(when.event().map(|it| &it.tag)),
+            _ => {}
+        }
+        for tag in tags {
+            let targets = match (&tag.kind, scope.resolve(tag, &p.prev)) {
+                (TagKind::Previous, _) => continue,
+                (_, Resolved::Sites(sites)) => {
+                    sites.iter().filter_map(|&s| scope.target(s)).collect()
+                }
+                (_, Resolved::Task) => vec![hir::TagTarget::Parent],
+                (_, Resolved::Own) => vec![hir::TagTarget::This],
+                (_, Resolved::Bound(name)) => vec![hir::TagTarget::Bound(name)],
+                (_, Resolved::Unknown) => Vec::new(),
+            };
+            out.push(hir::ResolvedTag::new(file, tag, targets));
+        }
+    }
+    out
+}
+
+/// The spawn sites of a body: each spawn followed by its on-terminate tasks, in source order;
+/// with the site of each spawn and of each labelled on-terminate task.
+fn body_sites(body: &BodyScope<'_>) -> (Vec<Site>, Vec<usize>, Vec<usize>) {
+    // Sites are numbered as the body's spawns and their on-terminate tasks come.
+    let mut sites = Vec::new();
+    let mut spawn_sites = Vec::with_capacity(body.spawns.len());
+    let mut cleanup_sites = vec![0; body.cleanups.len()];
+    for def in &body.spawns {
+        let spawn = def.spawn;
+        let i = sites.len();
+        spawn_sites.push(i);
+        let labels: Vec<String> = spawn.labels.iter().map(ToString::to_string).collect();
+        let mut own = vec![Site::new(
+            spawn.task.to_string(),
+            exprs_text(&spawn.args),
+            labels,
+            Origin::Body,
+            spawn.task.span().start().line,
+        )];
+        for c in &spawn.constraints {
+            if let ConstraintKind::OnTerminate(ot) = &c.kind {
+                if let Some(id) = body.cleanup_id(ot) {
+                    cleanup_sites[id] = i + own.len();
+                }
+                let labels: Vec<String> = ot.labels.iter().map(ToString::to_string).collect();
+                own.push(Site::new(
+                    ot.task.to_string(),
+                    exprs_text(&ot.args),
+                    labels,
+                    Origin::OnTerminate(Some(i)),
+                    ot.task.span().start().line,
+                ));
+            }
+        }
+        for site in &mut own {
+            site.repeated = !def.site.loops.is_empty();
+            site.conditional = def.site.branch;
+        }
+        sites.extend(own);
+    }
+    (sites, spawn_sites, cleanup_sites)
+}
+
+/// Every constraint of a body, in source order, with what it applies to and `previous` there:
+/// a spawn's own, then those of its `with` groups, outermost first (for the innermost group,
+/// `previous` is the entity before the spawn; for an outer one, the entity before the group nested
+/// in it); and the constraint statements.
+fn pending<'a>(scope: &Scope<'_, 'a>) -> Vec<Pending<'a>> {
+    let body = scope.body;
+    let mut out = Vec::new();
+    for stmt in &body.stmts {
+        match stmt {
+            Tdl::Spawn(id) => {
+                let def = &body.spawns[*id];
+                let site = scope.spawn_sites[*id];
+                let prev = scope.previous(def.site.position);
+                for c in &def.spawn.constraints {
+                    if !matches!(c.kind, ConstraintKind::OnTerminate(_)) {
+                        out.push(Pending {
+                            target: Target::Site(site),
+                            constraint: c,
+                            prev: prev.clone(),
+                        });
+                    }
+                }
+                for (k, &group) in def.groups.iter().enumerate() {
+                    let prev = match def.groups.get(k + 1) {
+                        Some(&inner) => scope.previous(body.groups[inner].site.position),
+                        None => prev.clone(),
+                    };
+                    for c in &body.groups[group].group.constraints {
+                        out.push(Pending {
+                            target: Target::Site(site),
+                            constraint: c,
+                            prev: prev.clone(),
+                        });
+                    }
+                }
+            }
+            Tdl::Constrain(it, site) => out.push(Pending {
+                target: Target::Tag(&it.tag),
+                constraint: &it.constraint,
+                prev: scope.previous(site.position),
+            }),
+            Tdl::With(_) | Tdl::Fail(_) | Tdl::Bypass(_) | Tdl::Trigger(_) | Tdl::Retry(_) => {}
+        }
+    }
+    out
 }
 
 /// Applies one pending constraint to the spawn site `t`.
 fn apply(
     sites: &mut [Site],
     relations: &mut BTreeSet<Relation>,
-    scope: &Scope<'_>,
+    scope: &Scope<'_, '_>,
     t: usize,
     p: &Pending<'_>,
 ) {
@@ -463,7 +588,7 @@ fn apply(
             None => p.prev.iter().map(|&s| Endpoint::Site(s)).collect(),
             Some(Resolved::Sites(s)) => s.into_iter().map(Endpoint::Site).collect(),
             Some(Resolved::Task) => vec![Endpoint::Task],
-            Some(Resolved::Own | Resolved::Unknown) => Vec::new(),
+            Some(Resolved::Own | Resolved::Bound(_) | Resolved::Unknown) => Vec::new(),
         };
         for from in &from {
             relations.insert(Relation {
@@ -544,7 +669,7 @@ fn handler_use(h: &HandlerRef) -> HandlerUse {
     }
 }
 
-/// What a constraint applies to before the end of the body is known.
+/// What a constraint applies to.
 #[derive(Clone)]
 enum Target<'a> {
     /// The spawn site (a constraint written on the spawn or its group).
@@ -553,208 +678,13 @@ enum Target<'a> {
     Tag(&'a Tag),
 }
 
-/// A constraint to resolve once every label of the body is known.
+/// A constraint to apply.
 #[derive(Clone)]
 struct Pending<'a> {
     target: Target<'a>,
     constraint: &'a Constraint,
-    /// What `previous` may be where the constraint applies.
+    /// The sites `previous` may be where the constraint applies.
     prev: Vec<usize>,
-}
-
-/// An enclosing `with (…) { … }` group.
-#[derive(Clone)]
-struct Group<'a> {
-    constraints: &'a [Constraint],
-    /// `previous` when the group started.
-    entry_prev: Vec<usize>,
-    members: Vec<usize>,
-}
-
-/// The walk of one body, in source order.
-#[derive(Clone, Default)]
-struct Walker<'a> {
-    sites: Vec<Site>,
-    labels: BTreeMap<String, Vec<usize>>,
-    spawned: BTreeMap<String, Vec<usize>>,
-    pending: Vec<Pending<'a>>,
-    /// Every spawn site that may be `previous` here (a group is all its members).
-    prev: Vec<usize>,
-    groups: Vec<Group<'a>>,
-    loops: usize,
-    branches: usize,
-    raises: BTreeSet<String>,
-    retries: bool,
-    bypasses: bool,
-    triggers: bool,
-}
-
-impl<'a> Walker<'a> {
-    fn block(&mut self, block: &'a Block) {
-        for stmt in &block.stmts {
-            self.stmt(stmt);
-        }
-    }
-
-    fn stmt(&mut self, stmt: &'a Stmt) {
-        match stmt {
-            Stmt::Rust(_) | Stmt::Bind(_) | Stmt::Succeed(_) | Stmt::Resource(_) => {}
-            Stmt::Spawn(spawn) => {
-                let labels: Vec<String> = spawn.labels.iter().map(ToString::to_string).collect();
-                let i = self.site(Site::new(
-                    spawn.task.to_string(),
-                    exprs_text(&spawn.args),
-                    labels,
-                    Origin::Body,
-                    spawn.task.span().start().line,
-                ));
-                self.spawned
-                    .entry(spawn.task.to_string())
-                    .or_default()
-                    .push(i);
-                for c in &spawn.constraints {
-                    if let ConstraintKind::OnTerminate(ot) = &c.kind {
-                        let labels: Vec<String> =
-                            ot.labels.iter().map(ToString::to_string).collect();
-                        self.site(Site::new(
-                            ot.task.to_string(),
-                            exprs_text(&ot.args),
-                            labels,
-                            Origin::OnTerminate(Some(i)),
-                            ot.task.span().start().line,
-                        ));
-                    } else {
-                        self.pending.push(Pending {
-                            target: Target::Site(i),
-                            constraint: c,
-                            prev: self.prev.clone(),
-                        });
-                    }
-                }
-                // The constraints of the enclosing groups: for the innermost, `previous` is this
-                // spawn's; for an outer one, what came before the group nested in it.
-                let n = self.groups.len();
-                for k in 0..n {
-                    let prev = if k + 1 == n {
-                        self.prev.clone()
-                    } else {
-                        self.groups[k + 1].entry_prev.clone()
-                    };
-                    for c in self.groups[k].constraints {
-                        self.pending.push(Pending {
-                            target: Target::Site(i),
-                            constraint: c,
-                            prev: prev.clone(),
-                        });
-                    }
-                    self.groups[k].members.push(i);
-                }
-                self.prev = vec![i];
-            }
-            Stmt::With(group) => {
-                self.groups.push(Group {
-                    constraints: &group.constraints,
-                    entry_prev: self.prev.clone(),
-                    members: Vec::new(),
-                });
-                self.block(&group.body);
-                let members = self.groups.pop().map(|g| g.members).unwrap_or_default();
-                for label in &group.labels {
-                    self.labels
-                        .entry(label.to_string())
-                        .or_default()
-                        .extend(&members);
-                }
-                if !members.is_empty() {
-                    self.prev = members;
-                }
-            }
-            Stmt::Constrain(c) => self.pending.push(Pending {
-                target: Target::Tag(&c.tag),
-                constraint: &c.constraint,
-                prev: self.prev.clone(),
-            }),
-            Stmt::Fail(fail) => {
-                let name = fail
-                    .exception
-                    .as_ref()
-                    .map_or_else(|| "Failure".to_string(), ToString::to_string);
-                self.raises.insert(name);
-            }
-            Stmt::Bypass(_) => self.bypasses = true,
-            Stmt::Trigger(_) => self.triggers = true,
-            Stmt::Retry(_) => self.retries = true,
-            Stmt::If(it) => self.if_(it),
-            Stmt::For(it) => self.loop_(&it.body),
-            Stmt::While(it) => self.loop_(&it.body),
-            Stmt::Loop(it) => self.loop_(&it.body),
-            Stmt::Match(m) => {
-                let before = self.prev.clone();
-                let mut after = Vec::new();
-                self.branches += 1;
-                for arm in &m.arms {
-                    self.prev = before.clone();
-                    self.block(&arm.body);
-                    after.extend(self.prev.iter().copied());
-                }
-                self.branches -= 1;
-                if m.arms.is_empty() {
-                    after = before;
-                }
-                self.prev = union(&after, &[]);
-            }
-            Stmt::Block(block) => self.block(block),
-        }
-    }
-
-    fn site(&mut self, mut site: Site) -> usize {
-        site.repeated = self.loops > 0;
-        site.conditional = self.branches > 0;
-        let i = self.sites.len();
-        for label in &site.labels {
-            self.labels.entry(label.clone()).or_default().push(i);
-        }
-        self.sites.push(site);
-        i
-    }
-
-    fn if_(&mut self, it: &'a If) {
-        let before = self.prev.clone();
-        self.branches += 1;
-        self.block(&it.then_branch);
-        let then = std::mem::replace(&mut self.prev, before.clone());
-        match it.else_branch.as_deref() {
-            Some(Else::If(next)) => self.if_(next),
-            Some(Else::Block(block)) => self.block(block),
-            None => {}
-        }
-        self.branches -= 1;
-        self.prev = union(&then, &self.prev);
-    }
-
-    fn loop_(&mut self, body: &'a Block) {
-        let before = self.prev.clone();
-        // What `previous` is at the end of an iteration, found by walking the body once on a
-        // copy: the sites are numbered the same way.
-        let carried = if self.loops < LOOP_DEPTH {
-            let mut dry = self.clone();
-            dry.loops += 1;
-            dry.block(body);
-            dry.prev
-        } else {
-            Vec::new()
-        };
-        self.prev = union(&before, &carried);
-        self.loops += 1;
-        self.block(body);
-        self.loops -= 1;
-        self.prev = union(&before, &self.prev);
-    }
-}
-
-fn union(a: &[usize], b: &[usize]) -> Vec<usize> {
-    let set: BTreeSet<usize> = a.iter().chain(b).copied().collect();
-    set.into_iter().collect()
 }
 
 /// What a tag names.
@@ -765,34 +695,76 @@ enum Resolved {
     Task,
     /// The node being spawned (`self`, `child`).
     Own,
-    /// A node held in Rust (`bind`), or nothing known.
+    /// A node bound in Rust (`bind name = …;`).
+    Bound(String),
+    /// Nothing known.
     Unknown,
 }
 
-/// The names of one body, once walked.
-struct Scope<'s> {
-    labels: &'s BTreeMap<String, Vec<usize>>,
-    spawned: &'s BTreeMap<String, Vec<usize>>,
+/// The names of one body, resolved by the front end, and its spawn sites.
+struct Scope<'s, 'a> {
+    body: &'s BodyScope<'a>,
+    /// The site of each spawn.
+    spawn_sites: &'s [usize],
+    /// The site of each labelled on-terminate task.
+    cleanup_sites: &'s [usize],
     sites: &'s [Site],
 }
 
-impl Scope<'_> {
+impl Scope<'_, '_> {
+    /// What site `s` is: a spawn, or an on-terminate task of one.
+    fn target(&self, s: usize) -> Option<hir::TagTarget> {
+        match self.sites.get(s)?.origin {
+            Origin::Body => self
+                .spawn_sites
+                .iter()
+                .position(|it| *it == s)
+                .map(hir::TagTarget::Spawn),
+            Origin::OnTerminate(Some(of)) => {
+                let spawn = self.spawn_sites.iter().position(|it| *it == of)?;
+                Some(hir::TagTarget::OnTerminate(spawn, s - of - 1))
+            }
+            Origin::OnTerminate(None) => None,
+        }
+    }
+
+    /// The sites `previous` may be at the statement at `position`.
+    fn previous(&self, position: usize) -> Vec<usize> {
+        self.body
+            .previous_at(position)
+            .map(|it| it.may.iter().map(|&id| self.spawn_sites[id]).collect())
+            .unwrap_or_default()
+    }
+
     fn resolve(&self, tag: &Tag, prev: &[usize]) -> Resolved {
         match &tag.kind {
-            TagKind::Named { name, .. } => {
-                let name = name.to_string();
-                match self.labels.get(&name).or_else(|| self.spawned.get(&name)) {
-                    Some(sites) => Resolved::Sites(sites.clone()),
-                    None => Resolved::Unknown,
+            TagKind::Named { .. } => match self.body.resolve(tag) {
+                Resolution::Named(named) => match named.def {
+                    Def::Spawn(id) => Resolved::Sites(vec![self.spawn_sites[id]]),
+                    Def::Group(id) => Resolved::Sites(
+                        self.body
+                            .members(id)
+                            .into_iter()
+                            .map(|it| self.spawn_sites[it])
+                            .collect(),
+                    ),
+                    Def::OnTerminate(id) => Resolved::Sites(vec![self.cleanup_sites[id]]),
+                    Def::Bound(bind) => Resolved::Bound(bind.name.to_string()),
+                },
+                Resolution::Ambiguous(ids) => {
+                    Resolved::Sites(ids.into_iter().map(|it| self.spawn_sites[it]).collect())
                 }
-            }
+                Resolution::Unknown
+                | Resolution::Previous
+                | Resolution::This
+                | Resolution::Parent => Resolved::Unknown,
+            },
             TagKind::Previous if prev.is_empty() => Resolved::Unknown,
             TagKind::Previous => Resolved::Sites(prev.to_vec()),
             TagKind::Child => Resolved::Own,
             TagKind::Parent => Resolved::Task,
         }
     }
-
     /// The tag as written, a reference to the spawn it names; `previous` followed by the spawns
     /// it may be.
     fn tag_text(&self, tag: &Tag, prev: &[usize]) -> Text {
@@ -837,7 +809,7 @@ impl Scope<'_> {
 }
 
 /// A constraint in canonical TDL spelling, tags resolved.
-fn constraint_text(kind: &ConstraintKind, scope: &Scope<'_>, prev: &[usize]) -> Text {
+fn constraint_text(kind: &ConstraintKind, scope: &Scope<'_, '_>, prev: &[usize]) -> Text {
     let text = |s: &str| vec![Piece::Text(s.to_string())];
     let tag_or_previous = |tag: &Option<Tag>| match tag {
         Some(tag) => scope.tag_text(tag, prev),
@@ -894,7 +866,7 @@ fn constraint_text(kind: &ConstraintKind, scope: &Scope<'_>, prev: &[usize]) -> 
 
 /// A trigger: `terminate at X execution completed`, `disable execution until 13:00:00`, …; with
 /// `scope` the tag is written (resolved), without it it is left out (an edge label).
-fn when_text(when: &When, then: Then, scope: Option<(&Scope<'_>, &[usize])>) -> Text {
+fn when_text(when: &When, then: Then, scope: Option<(&Scope<'_, '_>, &[usize])>) -> Text {
     let (verb, at, within) = match then {
         Then::Enable(facet) => (
             match facet {
@@ -1033,10 +1005,14 @@ fn squash(s: &str) -> String {
 mod tests {
     use super::*;
 
-    fn program(src: &str) -> Vec<(String, Ast)> {
+    fn program(src: &str) -> tdl_syntax::Ast {
         let parse = tdl_syntax::parse_str("t.tdl", src);
         assert!(!parse.has_errors(), "{:?}", parse.diagnostics);
-        vec![("t.tdl".to_string(), parse.file)]
+        parse.file
+    }
+
+    fn structure(ast: &tdl_syntax::Ast) -> Program<'_> {
+        Program::new(&hir::Program::new(&[("t.tdl", ast)]))
     }
 
     fn relations(p: &Program<'_>, task: &str) -> Vec<String> {
@@ -1066,7 +1042,7 @@ mod tests {
             handler h(n: u32) handles Oops { bypass; }
             exception Oops;",
         );
-        let p = Program::new(&files);
+        let p = structure(&files);
         assert_eq!(
             relations(&p, "g"),
             [
@@ -1110,7 +1086,7 @@ mod tests {
                 spawn z() with serial previous;
             }",
         );
-        let p = Program::new(&files);
+        let p = structure(&files);
         assert_eq!(
             relations(&p, "g"),
             [
@@ -1143,7 +1119,7 @@ mod tests {
             handler outside() handles Base for leaf { bypass; }
             goal unrelated() {}",
         );
-        let p = Program::new(&files);
+        let p = structure(&files);
         let (tasks, exceptions) = p.reach("mid").expect("mid");
         assert_eq!(
             tasks.into_iter().collect::<Vec<_>>(),
@@ -1168,7 +1144,7 @@ mod tests {
         let files = program(
             "goal g(v: Vec < Option < u32 > >, m: & 'static str) { spawn t(m . len (), v [0] . clone ()); }",
         );
-        let g = Program::new(&files);
+        let g = structure(&files);
         let g = g.task("g").expect("g");
         assert_eq!(type_text(&g.task.args[0].ty), "Vec<Option<u32>>");
         assert_eq!(type_text(&g.task.args[1].ty), "&'static str");

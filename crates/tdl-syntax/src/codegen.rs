@@ -115,6 +115,16 @@ pub fn compile_str(file_name: &str, src: &str) -> (Option<TokenStream>, Vec<Diag
 /// returns for one file: the code (with source markers, to print with [`pretty`]), or `None` when
 /// that file has an error, and its diagnostics.
 pub fn compile_program(files: &[(&str, &str)]) -> Vec<(Option<TokenStream>, Vec<Diagnostic>)> {
+    compile_program_with(files, |_, results| results)
+}
+
+/// As [`compile_program`], then `then` is given the resolved program (its files parsed once) with
+/// what [`compile_program`] returns: for a back end that reads the program the code generator
+/// read, such as `tdl verify`'s.
+pub fn compile_program_with<R>(
+    files: &[(&str, &str)],
+    then: impl FnOnce(&crate::hir::Program<'_>, Vec<(Option<TokenStream>, Vec<Diagnostic>)>) -> R,
+) -> R {
     let parses: Vec<Parse> = files
         .iter()
         .map(|(name, src)| crate::parse_str_syntax(name, src))
@@ -138,6 +148,27 @@ pub fn compile_program(files: &[(&str, &str)]) -> Vec<(Option<TokenStream>, Vec<
             Some(generated.tokens)
         };
         out.push((tokens, diagnostics));
+    }
+    then(&program, out)
+}
+
+/// The tags of every constraint of the program as the code generator resolves them while it
+/// generates each task's body (`previous` left out: the generated code follows it at run time).
+/// For a test that holds the back ends to one answer: what the generator read is what `tdl!`
+/// compiles.
+pub fn generated_tags(program: &crate::hir::Program<'_>) -> Vec<crate::hir::ResolvedTag> {
+    let mut out = Vec::new();
+    for (i, file) in program.files().iter().enumerate() {
+        for item in &file.ast.items {
+            let Item::Task(task) = item else { continue };
+            let resolved = std::cell::RefCell::new(Vec::new());
+            let mut diags = Vec::new();
+            body::task_body(&file.scope, task, None, &mut diags, Some(&resolved));
+            out.extend(resolved.into_inner().into_iter().map(|mut it| {
+                it.file = i;
+                it
+            }));
+        }
     }
     out
 }
@@ -487,7 +518,7 @@ fn task_items(
             each: ::tdl::EachActivation { #each ..::core::default::Default::default() },
         });
     }
-    let action = body::task_body(file, task, source, diags);
+    let action = body::task_body(file, task, source, diags, None);
     let name_str = task.name.to_string();
     let code = if task.blocking.is_some() {
         // A `blocking command`: the body runs on a blocking thread (its `?`, `return` and value

@@ -184,18 +184,7 @@ impl<'a> Program<'a> {
 
     /// The exceptions `task`'s body raises with `fail` ([`BARE_FAIL`] for a bare `fail;`).
     pub fn raises(&self, task: &Task) -> BTreeSet<String> {
-        self.body(task)
-            .stmts
-            .iter()
-            .filter_map(|it| match it {
-                Tdl::Fail(fail) => Some(
-                    fail.exception
-                        .as_ref()
-                        .map_or_else(|| BARE_FAIL.to_owned(), ToString::to_string),
-                ),
-                _ => None,
-            })
-            .collect()
+        self.body(task).raises()
     }
 
     /// The tasks `task` may start, in source order: those its body spawns, their on-terminate

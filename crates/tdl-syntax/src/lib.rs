@@ -76,7 +76,10 @@ use proc_macro2::{Span, TokenStream, TokenTree};
 use syn::parse::{ParseStream, Parser};
 
 pub use ast::*;
-pub use codegen::{Generated, compile_program, compile_str, expand_macro, generate, pretty, stubs};
+pub use codegen::{
+    Generated, compile_program, compile_program_with, compile_str, expand_macro, generate,
+    generated_tags, pretty, stubs,
+};
 pub use diagnostic::{Diagnostic, Label, LineCol, Severity, render_all, render_all_styled};
 pub use dump::dump;
 pub use time::format_nanos;

@@ -319,6 +319,39 @@ pub(crate) struct TagDef {
     pub(crate) loops: Vec<LoopId>,
     /// The name its reservation is made under.
     pub(crate) reserve_as: String,
+    /// What of the body it names.
+    pub(crate) of: TagOf,
+}
+
+/// What a named tag of a body names.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum TagOf {
+    /// A spawn, by its number in the body.
+    Spawn(usize),
+    /// A `with` group, by its number.
+    Group(usize),
+    /// The `k`th on-terminate task of spawn `i`.
+    OnTerminate(usize, usize),
+    /// A tag bound with `bind`.
+    Bound(String),
+}
+
+/// A tag written in a constraint and what the loader made of it, for
+/// [`crate::Program::resolved_tags`].
+#[derive(Clone, Debug)]
+pub(crate) struct TagUse {
+    pub(crate) line: usize,
+    pub(crate) column: usize,
+    pub(crate) tag: TagUseOf,
+}
+
+/// What a tag written in a constraint was taken for.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum TagUseOf {
+    Tag(TagId),
+    Parent,
+    This,
+    Unknown,
 }
 
 #[derive(Clone, Debug)]
@@ -341,5 +374,7 @@ pub(crate) struct Body {
     pub(crate) groups: Vec<GroupIr>,
     pub(crate) stmts: Vec<StmtIr>,
     pub(crate) tags: Vec<TagDef>,
+    /// Every tag written in a constraint, `previous` aside, as it was resolved.
+    pub(crate) tag_uses: Vec<TagUse>,
     pub(crate) n_loops: u16,
 }

@@ -7,12 +7,12 @@ use std::time::Duration;
 
 use proc_macro2::{Delimiter, TokenStream, TokenTree};
 use tcm_core::{EachActivation, Facet, Outcome, Point, Then};
-use tdl_syntax::ast;
+use tdl_syntax::{ast, hir};
 
 use crate::ir::{
     Body, CIr, Call, Callee, EventIr, Exits, GroupId, GroupIr, HandlerUse, IndexIr, Iter, LoopId,
-    MonitorOverride, Op, ResOp, SpawnIr, StmtIr, StmtOp, TagDef, TagId, TagKind, TagRef, TaskId,
-    TimeIr, UsesIr, Wait, WhenIr,
+    MonitorOverride, Op, ResOp, SpawnIr, StmtIr, StmtOp, TagDef, TagId, TagKind, TagOf, TagRef,
+    TagUse, TagUseOf, TaskId, TimeIr, UsesIr, Wait, WhenIr,
 };
 use crate::value::{Sym, VExpr, lower};
 
@@ -108,69 +108,47 @@ impl Program {
             .iter()
             .map(|(n, s)| (n.as_str(), s.as_str()))
             .collect();
-        let mut rendered = String::new();
-        for ((name, src), (_, diags)) in named.iter().zip(tdl_syntax::compile_program(&named)) {
-            if diags.iter().any(tdl_syntax::Diagnostic::is_error) {
-                let errors: Vec<_> = diags.into_iter().filter(|d| d.is_error()).collect();
-                rendered.push_str(&tdl_syntax::render_all(&errors, name, Some(src)));
+        tdl_syntax::compile_program_with(&named, |program, results| {
+            let mut rendered = String::new();
+            for ((name, src), (_, diags)) in named.iter().zip(results) {
+                if diags.iter().any(tdl_syntax::Diagnostic::is_error) {
+                    let errors: Vec<_> = diags.into_iter().filter(|d| d.is_error()).collect();
+                    rendered.push_str(&tdl_syntax::render_all(&errors, name, Some(src)));
+                }
             }
-        }
-        if !rendered.is_empty() {
-            return Err(LoadError::Invalid(rendered));
-        }
-        let asts: Vec<ast::Ast> = files
-            .iter()
-            .map(|(name, src)| tdl_syntax::parse_str(name, src).file)
-            .collect();
+            if !rendered.is_empty() {
+                return Err(LoadError::Invalid(rendered));
+            }
+            Program::build(program, files)
+        })
+    }
+
+    /// Compiles the resolved program for the checker.
+    fn build(program: &hir::Program<'_>, files: &[(String, String)]) -> Result<Program, LoadError> {
         let mut b = Builder::default();
         b.prog.files = files.iter().map(|(n, _)| n.clone()).collect();
         // Pass 1: names.
-        let mut defs: Vec<(usize, &ast::Task)> = Vec::new();
-        for (file, ast) in asts.iter().enumerate() {
-            for item in &ast.items {
-                match item {
-                    ast::Item::Task(t) => {
-                        let id = TaskId::try_from(defs.len())
-                            .map_err(|_| LoadError::NoTask("more than 65535 tasks".into()))?;
-                        b.prog.by_name.entry(t.name.to_string()).or_insert(id);
-                        defs.push((file, t));
-                    }
-                    ast::Item::Exception(e) => {
-                        b.parents
-                            .insert(e.name.to_string(), e.parent.as_ref().map(|p| p.to_string()));
-                    }
-                    ast::Item::Resource(r) => {
-                        let name = r.name.to_string();
-                        if !b.prog.resources.iter().any(|d| d.name == name) {
-                            b.prog.resources.push(ResourceDef {
-                                name: leak(&name),
-                                capacity: r.capacity.base10_parse().unwrap_or(1),
-                                pending: r.pending.as_ref().and_then(|p| p.base10_parse().ok()),
-                            });
-                        }
-                    }
-                    ast::Item::Rust(_) => {}
-                }
-            }
+        let tasks: Vec<hir::TaskRef<'_>> = program.tasks().collect();
+        for (i, t) in tasks.iter().enumerate() {
+            let id = TaskId::try_from(i)
+                .map_err(|_| LoadError::NoTask("more than 65535 tasks".into()))?;
+            b.prog.by_name.entry(t.task.name.to_string()).or_insert(id);
         }
-        let parents = std::mem::take(&mut b.parents);
-        for name in parents.keys() {
-            let mut chain = Vec::new();
-            let mut cur = parents.get(name).cloned().flatten();
-            while let Some(p) = cur {
-                if chain.contains(&p) || &p == name {
-                    break;
-                }
-                cur = parents.get(&p).cloned().flatten();
-                chain.push(p);
-            }
-            b.prog
-                .exceptions
-                .insert(name.clone(), chain.iter().map(|c| leak(c)).collect());
+        for (_, e) in program.exceptions() {
+            let name = e.name.to_string();
+            let ancestry = program.ancestry(&name).iter().map(|c| leak(c)).collect();
+            b.prog.exceptions.insert(name, ancestry);
+        }
+        for r in program.resources() {
+            b.prog.resources.push(ResourceDef {
+                name: leak(&r.name.to_string()),
+                capacity: r.capacity.base10_parse().unwrap_or(1),
+                pending: r.pending.as_ref().and_then(|p| p.base10_parse().ok()),
+            });
         }
         // Pass 2: bodies.
-        for (file, task) in &defs {
-            let def = b.task(*file, task)?;
+        for t in &tasks {
+            let def = b.task(t.file, t.task, program.body(t.task))?;
             b.prog.tasks.push(def);
         }
         let mut raisable: BTreeSet<&'static str> =
@@ -238,6 +216,42 @@ impl Program {
         }
     }
 
+    /// Every tag written in a constraint as the loader resolved it (`previous` left out: the
+    /// checker follows it at run time), with the file of its task; a group names each spawn the
+    /// loader put in it. For a test that holds the back ends to one answer.
+    pub fn resolved_tags(&self) -> Vec<hir::ResolvedTag> {
+        let mut out = Vec::new();
+        for task in &self.tasks {
+            let body = &task.body;
+            for u in &body.tag_uses {
+                let targets: Vec<hir::TagTarget> = match u.tag {
+                    TagUseOf::Parent => vec![hir::TagTarget::Parent],
+                    TagUseOf::This => vec![hir::TagTarget::This],
+                    TagUseOf::Unknown => Vec::new(),
+                    TagUseOf::Tag(id) => match &body.tags[usize::from(id)].of {
+                        TagOf::Spawn(i) => vec![hir::TagTarget::Spawn(*i)],
+                        TagOf::OnTerminate(i, k) => vec![hir::TagTarget::OnTerminate(*i, *k)],
+                        TagOf::Bound(name) => vec![hir::TagTarget::Bound(name.clone())],
+                        TagOf::Group(g) => body
+                            .spawns
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, s)| s.groups.iter().any(|it| usize::from(*it) == *g))
+                            .map(|(i, _)| hir::TagTarget::Spawn(i))
+                            .collect(),
+                    },
+                };
+                out.push(hir::ResolvedTag {
+                    file: task.file,
+                    line: u.line,
+                    column: u.column,
+                    targets: targets.into_iter().collect(),
+                });
+            }
+        }
+        out
+    }
+
     /// What the checker abstracts in this program, each with its place (docs/verification.md).
     pub fn notes(&self) -> &[String] {
         &self.notes
@@ -267,7 +281,6 @@ impl Program {
 #[derive(Default)]
 struct Builder {
     prog: Program,
-    parents: BTreeMap<String, Option<String>>,
     syms: BTreeMap<String, Sym>,
 }
 
@@ -396,7 +409,12 @@ impl Builder {
         })
     }
 
-    fn task(&mut self, file: usize, t: &ast::Task) -> Result<TaskDef, LoadError> {
+    fn task(
+        &mut self,
+        file: usize,
+        t: &ast::Task,
+        scope: &hir::BodyScope<'_>,
+    ) -> Result<TaskDef, LoadError> {
         let line = line_of(t.span);
         let mut def = TaskDef {
             name: leak(&t.name.to_string()),
@@ -476,48 +494,28 @@ impl Builder {
                 ast::TaskConstraintKind::Sequential(_) => def.each.sequential_expansion = true,
             }
         }
-        let mut c = BodyCompiler::new(self, file, def.name);
-        c.prepare(&t.body.stmts);
+        def.raises = scope.raises();
+        let mut c = BodyCompiler::new(self, file, def.name, scope);
         c.block(&t.body.stmts)?;
         c.emit(Op::End, line);
         c.finish();
-        def.raises = std::mem::take(&mut c.raises);
         def.body = std::mem::take(&mut c.body);
         Ok(def)
     }
 }
 
-/// A name a tag may use in one body, and what it names.
-#[derive(Clone, Copy, Debug)]
-enum Named {
-    Spawn(usize),
-    Group(usize),
-    OnTerminate(usize, usize),
-    Bound,
-}
-
 /// Compiles one body.
-struct BodyCompiler<'b> {
+struct BodyCompiler<'b, 's, 'a> {
     b: &'b mut Builder,
     file: usize,
     task: String,
+    /// The body's names, resolved by the front end.
+    scope: &'s hir::BodyScope<'a>,
     body: Body,
-    raises: BTreeSet<String>,
-    /// Names tags may use: labels first, then tasks spawned once.
-    names: BTreeMap<String, Named>,
     /// Tags created, by what they name.
-    spawn_tags: BTreeMap<usize, TagId>,
-    group_tags: BTreeMap<usize, TagId>,
-    cleanup_tags: BTreeMap<(usize, usize), TagId>,
-    bound_tags: BTreeMap<String, TagId>,
-    /// The loops of each spawn site (pre-pass), in source order.
-    spawn_loops: Vec<Vec<LoopId>>,
-    spawn_tasks: Vec<String>,
-    cleanup_tasks: BTreeMap<(usize, usize), String>,
+    tags: BTreeMap<TagOf, TagId>,
     /// Tags named by a statement that terminates their node.
     terminated: BTreeSet<TagId>,
-    /// Every name a tag or `node!` of the body uses.
-    refs: BTreeSet<String>,
     // Compilation state.
     n_spawns: usize,
     n_groups: usize,
@@ -534,24 +532,16 @@ struct LoopFrame {
     breaks: Vec<usize>,
 }
 
-impl<'b> BodyCompiler<'b> {
-    fn new(b: &'b mut Builder, file: usize, task: &str) -> Self {
+impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
+    fn new(b: &'b mut Builder, file: usize, task: &str, scope: &'s hir::BodyScope<'a>) -> Self {
         BodyCompiler {
             b,
             file,
             task: task.to_owned(),
+            scope,
             body: Body::default(),
-            raises: BTreeSet::new(),
-            names: BTreeMap::new(),
-            spawn_tags: BTreeMap::new(),
-            group_tags: BTreeMap::new(),
-            cleanup_tags: BTreeMap::new(),
-            bound_tags: BTreeMap::new(),
-            spawn_loops: Vec::new(),
-            spawn_tasks: Vec::new(),
-            cleanup_tasks: BTreeMap::new(),
+            tags: BTreeMap::new(),
             terminated: BTreeSet::new(),
-            refs: BTreeSet::new(),
             n_spawns: 0,
             n_groups: 0,
             n_loops: 0,
@@ -576,205 +566,83 @@ impl<'b> BodyCompiler<'b> {
         self.b.prog.notes.push(n);
     }
 
-    /// Pre-pass: the names tags may use, in source order, as the resolver does (labels first,
-    /// then tasks spawned exactly once).
-    fn prepare(&mut self, stmts: &[ast::Stmt]) {
-        let mut labels: BTreeMap<String, Named> = BTreeMap::new();
-        let mut by_task: BTreeMap<String, Vec<usize>> = BTreeMap::new();
-        let mut loops: Vec<LoopId> = Vec::new();
-        let mut n_loops: u16 = 0;
-        let mut n_groups = 0usize;
-        self.walk(
-            stmts,
-            &mut labels,
-            &mut by_task,
-            &mut loops,
-            &mut n_loops,
-            &mut n_groups,
-        );
-        let mut names = BTreeMap::new();
-        for (task, sites) in by_task {
-            if let [one] = sites.as_slice() {
-                names.insert(task, Named::Spawn(*one));
+    /// The tag of what `def` names, created on first use.
+    fn tag_of(&mut self, def: hir::Def<'_>) -> TagId {
+        let scope = self.scope;
+        let loops_of = |spawn: usize| -> Vec<LoopId> {
+            scope.spawns.get(spawn).map_or_else(Vec::new, |it| {
+                let loops = it.site.loops.iter();
+                loops
+                    .map(|l| LoopId::try_from(*l).unwrap_or(LoopId::MAX))
+                    .collect()
+            })
+        };
+        let (kind, of, loops, reserve_as) = match def {
+            hir::Def::Spawn(i) => (
+                TagKind::Spawn,
+                TagOf::Spawn(i),
+                loops_of(i),
+                scope.spawns[i].spawn.task.to_string(),
+            ),
+            hir::Def::Group(i) => (TagKind::Group, TagOf::Group(i), Vec::new(), String::new()),
+            hir::Def::OnTerminate(id) => {
+                let cleanup = &scope.cleanups[id];
+                (
+                    TagKind::OnTerminate,
+                    TagOf::OnTerminate(cleanup.spawn, cleanup.index),
+                    loops_of(cleanup.spawn),
+                    cleanup.on_terminate.task.to_string(),
+                )
             }
+            hir::Def::Bound(bind) => (
+                TagKind::Bound,
+                TagOf::Bound(bind.name.to_string()),
+                Vec::new(),
+                String::new(),
+            ),
+        };
+        if let Some(t) = self.tags.get(&of) {
+            return *t;
         }
-        names.extend(labels);
-        self.names = names;
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn walk(
-        &mut self,
-        stmts: &[ast::Stmt],
-        labels: &mut BTreeMap<String, Named>,
-        by_task: &mut BTreeMap<String, Vec<usize>>,
-        loops: &mut Vec<LoopId>,
-        n_loops: &mut u16,
-        n_groups: &mut usize,
-    ) {
-        for s in stmts {
-            collect_refs(s, &mut self.refs);
-            match s {
-                ast::Stmt::Spawn(sp) => {
-                    let i = self.spawn_loops.len();
-                    self.spawn_loops.push(loops.clone());
-                    self.spawn_tasks.push(sp.task.to_string());
-                    for l in &sp.labels {
-                        labels.entry(l.to_string()).or_insert(Named::Spawn(i));
-                    }
-                    by_task.entry(sp.task.to_string()).or_default().push(i);
-                    let mut k = 0;
-                    for c in &sp.constraints {
-                        if let ast::ConstraintKind::OnTerminate(o) = &c.kind {
-                            for l in &o.labels {
-                                labels
-                                    .entry(l.to_string())
-                                    .or_insert(Named::OnTerminate(i, k));
-                            }
-                            self.cleanup_tasks.insert((i, k), o.task.to_string());
-                            k += 1;
-                        }
-                    }
-                }
-                ast::Stmt::With(g) => {
-                    let i = *n_groups;
-                    *n_groups += 1;
-                    for l in &g.labels {
-                        labels.entry(l.to_string()).or_insert(Named::Group(i));
-                    }
-                    self.walk(&g.body.stmts, labels, by_task, loops, n_loops, n_groups);
-                }
-                ast::Stmt::Bind(bd) => {
-                    labels.entry(bd.name.to_string()).or_insert(Named::Bound);
-                }
-                ast::Stmt::If(it) => self.walk_if(it, labels, by_task, loops, n_loops, n_groups),
-                ast::Stmt::For(it) => {
-                    self.walk_loop(&it.body, labels, by_task, loops, n_loops, n_groups);
-                }
-                ast::Stmt::While(it) => {
-                    self.walk_loop(&it.body, labels, by_task, loops, n_loops, n_groups);
-                }
-                ast::Stmt::Loop(it) => {
-                    self.walk_loop(&it.body, labels, by_task, loops, n_loops, n_groups);
-                }
-                ast::Stmt::Match(m) => {
-                    for arm in &m.arms {
-                        self.walk(&arm.body.stmts, labels, by_task, loops, n_loops, n_groups);
-                    }
-                }
-                ast::Stmt::Block(bl) => {
-                    self.walk(&bl.stmts, labels, by_task, loops, n_loops, n_groups);
-                }
-                _ => {}
-            }
-        }
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn walk_if(
-        &mut self,
-        it: &ast::If,
-        labels: &mut BTreeMap<String, Named>,
-        by_task: &mut BTreeMap<String, Vec<usize>>,
-        loops: &mut Vec<LoopId>,
-        n_loops: &mut u16,
-        n_groups: &mut usize,
-    ) {
-        self.walk(
-            &it.then_branch.stmts,
-            labels,
-            by_task,
-            loops,
-            n_loops,
-            n_groups,
-        );
-        match it.else_branch.as_deref() {
-            Some(ast::Else::If(next)) => {
-                self.walk_if(next, labels, by_task, loops, n_loops, n_groups)
-            }
-            Some(ast::Else::Block(bl)) => {
-                self.walk(&bl.stmts, labels, by_task, loops, n_loops, n_groups);
-            }
-            None => {}
-        }
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn walk_loop(
-        &mut self,
-        body: &ast::Block,
-        labels: &mut BTreeMap<String, Named>,
-        by_task: &mut BTreeMap<String, Vec<usize>>,
-        loops: &mut Vec<LoopId>,
-        n_loops: &mut u16,
-        n_groups: &mut usize,
-    ) {
-        loops.push(*n_loops);
-        *n_loops += 1;
-        self.walk(&body.stmts, labels, by_task, loops, n_loops, n_groups);
-        loops.pop();
-    }
-
-    /// The tag a name denotes here, created on first use.
-    fn tag_of(&mut self, name: &str) -> Option<TagId> {
-        let named = *self.names.get(name)?;
         let next = TagId::try_from(self.body.tags.len()).unwrap_or(TagId::MAX);
-        let (map_hit, def) = match named {
-            Named::Spawn(i) => (
-                self.spawn_tags.get(&i).copied(),
-                TagDef {
-                    kind: TagKind::Spawn,
-                    loops: self.spawn_loops.get(i).cloned().unwrap_or_default(),
-                    reserve_as: self.spawn_tasks.get(i).cloned().unwrap_or_default(),
-                },
-            ),
-            Named::Group(i) => (
-                self.group_tags.get(&i).copied(),
-                TagDef {
-                    kind: TagKind::Group,
-                    loops: Vec::new(),
-                    reserve_as: String::new(),
-                },
-            ),
-            Named::OnTerminate(i, k) => (
-                self.cleanup_tags.get(&(i, k)).copied(),
-                TagDef {
-                    kind: TagKind::OnTerminate,
-                    loops: self.spawn_loops.get(i).cloned().unwrap_or_default(),
-                    reserve_as: self.cleanup_tasks.get(&(i, k)).cloned().unwrap_or_default(),
-                },
-            ),
-            Named::Bound => (
-                self.bound_tags.get(name).copied(),
-                TagDef {
-                    kind: TagKind::Bound,
-                    loops: Vec::new(),
-                    reserve_as: String::new(),
-                },
-            ),
-        };
-        if let Some(t) = map_hit {
-            return Some(t);
-        }
-        self.body.tags.push(def);
-        match named {
-            Named::Spawn(i) => self.spawn_tags.insert(i, next),
-            Named::Group(i) => self.group_tags.insert(i, next),
-            Named::OnTerminate(i, k) => self.cleanup_tags.insert((i, k), next),
-            Named::Bound => self.bound_tags.insert(name.to_owned(), next),
-        };
-        Some(next)
+        self.tags.insert(of.clone(), next);
+        self.body.tags.push(TagDef {
+            kind,
+            loops,
+            reserve_as,
+            of,
+        });
+        next
+    }
+
+    /// Keeps what a tag written in a constraint was taken for.
+    fn used(&mut self, tag: &ast::Tag, of: TagUseOf) {
+        let at = tag.span.start();
+        self.body.tag_uses.push(TagUse {
+            line: at.line,
+            column: at.column,
+            tag: of,
+        });
     }
 
     fn tag(&mut self, tag: &ast::Tag) -> TagRef {
         match &tag.kind {
             ast::TagKind::Previous => TagRef::Previous,
-            ast::TagKind::Child => TagRef::This,
-            ast::TagKind::Parent => TagRef::Parent,
-            ast::TagKind::Named { name, indexes } => {
-                let Some(id) = self.tag_of(&name.to_string()) else {
+            ast::TagKind::Child => {
+                self.used(tag, TagUseOf::This);
+                TagRef::This
+            }
+            ast::TagKind::Parent => {
+                self.used(tag, TagUseOf::Parent);
+                TagRef::Parent
+            }
+            ast::TagKind::Named { indexes, .. } => {
+                let Some(named) = self.scope.named(tag) else {
+                    self.used(tag, TagUseOf::Unknown);
                     return TagRef::Opaque;
                 };
+                let id = self.tag_of(named.def);
+                self.used(tag, TagUseOf::Tag(id));
                 let def = &self.body.tags[id as usize];
                 if matches!(def.kind, TagKind::Bound) {
                     return TagRef::Opaque;
@@ -957,7 +825,8 @@ impl<'b> BodyCompiler<'b> {
                         bd.name
                     ),
                 );
-                if let Some(t) = self.tag_of(&bd.name.to_string()) {
+                if let hir::Resolution::Named(named) = self.scope.lookup(&bd.name.to_string()) {
+                    let t = self.tag_of(named.def);
                     self.emit(Op::Bind(t), line);
                 }
             }
@@ -988,8 +857,6 @@ impl<'b> BodyCompiler<'b> {
             }
             ast::Stmt::Fail(f) => {
                 let e = f.exception.as_ref().map(|e| e.to_string());
-                self.raises
-                    .insert(e.clone().unwrap_or_else(|| "Fail".to_owned()));
                 self.emit(Op::Fail(e), line_of(f.span));
             }
             ast::Stmt::Bypass(span) => {
@@ -1262,14 +1129,6 @@ impl<'b> BodyCompiler<'b> {
             remote: false,
             line,
         };
-        // Its own tag, if some reference names it (a label or its task, spawned once).
-        let mine: Vec<String> = sp
-            .labels
-            .iter()
-            .map(ToString::to_string)
-            .chain(std::iter::once(sp.task.to_string()))
-            .collect();
-        let mut ot = 0usize;
         let mut outcome = false;
         let mut wait = false;
         for c in &sp.constraints {
@@ -1295,8 +1154,7 @@ impl<'b> BodyCompiler<'b> {
                 }
                 ast::ConstraintKind::OnTerminate(o) => {
                     let call = self.b.call(&o.task, &o.args);
-                    let tag = self.cleanup_tags_for(index, ot, &o.labels);
-                    ot += 1;
+                    let tag = self.cleanup_tag(o);
                     ir.on_terminate.push((call, tag));
                 }
                 ast::ConstraintKind::Uses(_)
@@ -1325,16 +1183,10 @@ impl<'b> BodyCompiler<'b> {
             ir.propagate |= gi.propagate;
             ir.remote |= gi.remote;
         }
-        // A tag is created when a reference uses one of its names; references may come later in
-        // the body, so every name of this spawn is looked up now and the tag made if it resolves
-        // here.
-        for n in &mine {
-            if matches!(self.names.get(n), Some(Named::Spawn(i)) if *i == index)
-                && self.referenced(n)
-            {
-                ir.tag = self.tag_of(n);
-                break;
-            }
+        // Its own tag, if some tag or `node!` of the body names it (references may come later
+        // in the body: the front end resolved them all).
+        if self.scope.spawn_def(sp).is_some_and(|it| it.var.is_some()) {
+            ir.tag = Some(self.tag_of(hir::Def::Spawn(index)));
         }
         let binds = match &sp.binding {
             Some(b) => match &b.target {
@@ -1361,15 +1213,14 @@ impl<'b> BodyCompiler<'b> {
         Ok(())
     }
 
-    /// Whether some tag or `node!` of the body names `name` (collected by the pre-pass).
-    fn referenced(&self, name: &str) -> bool {
-        self.refs.contains(name)
-    }
-
-    fn cleanup_tags_for(&mut self, spawn: usize, k: usize, labels: &[syn::Ident]) -> Option<TagId> {
-        let l = labels.first()?;
-        match self.names.get(&l.to_string()) {
-            Some(Named::OnTerminate(i, j)) if *i == spawn && *j == k => self.tag_of(&l.to_string()),
+    /// The tag of a labelled on-terminate task, when its first label names it.
+    fn cleanup_tag(&mut self, o: &ast::OnTerminate) -> Option<TagId> {
+        let label = o.labels.first()?;
+        let id = self.scope.cleanup_id(o)?;
+        match self.scope.lookup(&label.to_string()) {
+            hir::Resolution::Named(named) if matches!(named.def, hir::Def::OnTerminate(it) if it == id) => {
+                Some(self.tag_of(named.def))
+            }
             _ => None,
         }
     }
@@ -1410,13 +1261,13 @@ impl<'b> BodyCompiler<'b> {
                 }
             }
         }
-        for l in &g.labels {
-            let name = l.to_string();
-            if matches!(self.names.get(&name), Some(Named::Group(i)) if *i == index)
-                && self.referenced(&name)
-            {
-                ir.tag = self.tag_of(&name);
-            }
+        if self
+            .scope
+            .groups
+            .get(index)
+            .is_some_and(|it| it.var.is_some())
+        {
+            ir.tag = Some(self.tag_of(hir::Def::Group(index)));
         }
         let gid = GroupId::try_from(self.body.groups.len()).unwrap_or(GroupId::MAX);
         self.body.groups.push(ir);
@@ -1430,10 +1281,7 @@ impl<'b> BodyCompiler<'b> {
 
     fn constrain(&mut self, cs: &ast::ConstraintStmt) {
         let line = line_of(cs.span);
-        let target = match &cs.tag.kind {
-            ast::TagKind::Parent => TagRef::Parent,
-            _ => self.tag(&cs.tag),
-        };
+        let target = self.tag(&cs.tag);
         let c = &cs.constraint;
         let op = match &c.kind {
             ast::ConstraintKind::Wait => StmtOp::Wait,
@@ -1457,71 +1305,6 @@ impl<'b> BodyCompiler<'b> {
         let sid = u32::try_from(self.body.stmts.len()).unwrap_or(u32::MAX);
         self.body.stmts.push(StmtIr { target, op });
         self.emit(Op::Stmt(sid), line);
-    }
-}
-
-/// The names the tags of one statement use (not those of the statements inside it), and those
-/// `node!(…)` names in its Rust code.
-fn collect_refs(s: &ast::Stmt, out: &mut BTreeSet<String>) {
-    let mut tag = |t: &ast::Tag| {
-        if let ast::TagKind::Named { name, .. } = &t.kind {
-            out.insert(name.to_string());
-        }
-    };
-    let constraint = |c: &ast::Constraint, tag: &mut dyn FnMut(&ast::Tag)| match &c.kind {
-        ast::ConstraintKind::Sequential { tag: Some(t), .. }
-        | ast::ConstraintKind::Serial { tag: Some(t) } => tag(t),
-        ast::ConstraintKind::Trigger { when, .. } => {
-            if let Some(e) = when.event() {
-                tag(&e.tag);
-            }
-        }
-        _ => {}
-    };
-    let mut tokens = Vec::new();
-    match s {
-        ast::Stmt::Spawn(sp) => {
-            for c in &sp.constraints {
-                constraint(c, &mut tag);
-            }
-            tokens.extend(sp.args.iter().map(quote::ToTokens::to_token_stream));
-        }
-        ast::Stmt::With(g) => {
-            for c in &g.constraints {
-                constraint(c, &mut tag);
-            }
-        }
-        ast::Stmt::Constrain(cs) => {
-            tag(&cs.tag);
-            constraint(&cs.constraint, &mut tag);
-        }
-        ast::Stmt::Rust(r) => tokens.push(r.tokens.clone()),
-        ast::Stmt::If(it) => tokens.push(quote::ToTokens::to_token_stream(&it.cond)),
-        ast::Stmt::While(w) => tokens.push(quote::ToTokens::to_token_stream(&w.cond)),
-        ast::Stmt::For(f) => tokens.push(quote::ToTokens::to_token_stream(&f.expr)),
-        ast::Stmt::Match(m) => tokens.push(quote::ToTokens::to_token_stream(&m.expr)),
-        _ => {}
-    }
-    for t in tokens {
-        node_uses(&t, out);
-    }
-}
-
-/// The tags named by `node!(tag)` in Rust code.
-fn node_uses(tokens: &TokenStream, out: &mut BTreeSet<String>) {
-    let tts: Vec<TokenTree> = tokens.clone().into_iter().collect();
-    for (i, tt) in tts.iter().enumerate() {
-        if let TokenTree::Group(g) = tt {
-            node_uses(&g.stream(), out);
-            let is_node = i >= 2
-                && matches!(&tts[i - 2], TokenTree::Ident(n) if n == "node")
-                && matches!(&tts[i - 1], TokenTree::Punct(p) if p.as_char() == '!');
-            if is_node {
-                if let Some(TokenTree::Ident(name)) = g.stream().into_iter().next() {
-                    out.insert(name.to_string());
-                }
-            }
-        }
     }
 }
 

@@ -28,13 +28,15 @@
 //! 6. `node!(tag)` in Rust code becomes the tag's node expression (its reservation, its entry in
 //!    a loop's map, or `tdl::codegen::bound(..)?` for a tag bound at run time).
 
+use std::cell::RefCell;
+
 use proc_macro2::{Ident, Literal, Span, TokenStream, TokenTree};
 use quote::{format_ident, quote};
 
 use super::spawn::Frame;
 use crate::ast::{Block, Else, Fail, ResourceOp, Stmt, Task, TaskConstraintKind, TaskKind};
 use crate::diagnostic::Diagnostic;
-use crate::hir::{BodyScope, FileScope, LoopId, node_macro};
+use crate::hir::{BodyScope, FileScope, LoopId, ResolvedTag, node_macro};
 
 /// A generated action body.
 pub(super) struct Action {
@@ -51,6 +53,7 @@ pub(super) fn task_body(
     task: &Task,
     source: Option<&str>,
     diags: &mut Vec<Diagnostic>,
+    resolved: Option<&RefCell<Vec<ResolvedTag>>>,
 ) -> Action {
     let mut g = Gen {
         file,
@@ -60,6 +63,7 @@ pub(super) fn task_body(
         diags,
         frames: Vec::new(),
         loops: Vec::new(),
+        resolved,
     };
     let mut code = g.prelude();
     let stmts = &task.body.stmts;
@@ -271,6 +275,8 @@ pub(super) struct Gen<'s, 'a> {
     pub(super) frames: Vec<Frame<'a>>,
     /// The loops around the statement being generated, outermost first.
     pub(super) loops: Vec<LoopId>,
+    /// Where to record what each tag of a constraint resolved to ([`super::generated_tags`]).
+    pub(super) resolved: Option<&'s RefCell<Vec<ResolvedTag>>>,
 }
 
 impl<'a> Gen<'_, 'a> {

@@ -21,7 +21,7 @@ use crate::ast::{
     Constraint, ConstraintKind, Event, ExternalName, Facet, Point, RelTime, Tag, TagIndex, TagKind,
 };
 use crate::ast::{Then, TimeOfDay, When};
-use crate::hir::{Def, Index, LoopId, Named, Resolution, SpawnId};
+use crate::hir::{Def, Index, LoopId, Named, Resolution, ResolvedTag, SpawnId, TagTarget};
 
 /// The nodes a tag denotes at run time.
 pub(super) enum Nodes {
@@ -276,7 +276,22 @@ impl Gen<'_, '_> {
             TagKind::Named { indexes, .. } => indexes.as_slice(),
             _ => &[],
         };
-        match self.scope.resolve(tag) {
+        let resolution = self.scope.resolve(tag);
+        if let Some(resolved) = self.resolved {
+            let targets = match &resolution {
+                Resolution::This => Some(vec![TagTarget::This]),
+                Resolution::Parent => Some(vec![TagTarget::Parent]),
+                Resolution::Named(Named { def, .. }) => Some(self.scope.targets(*def)),
+                Resolution::Unknown | Resolution::Ambiguous(_) => Some(Vec::new()),
+                Resolution::Previous => None,
+            };
+            if let Some(targets) = targets {
+                resolved
+                    .borrow_mut()
+                    .push(ResolvedTag::new(0, tag, targets));
+            }
+        }
+        match resolution {
             Resolution::Previous => Nodes::Entity(quote!(#prev.as_deref())),
             Resolution::This => Nodes::One(quote!(::tdl::NodeRef::This)),
             Resolution::Parent => Nodes::One(quote!(::tdl::NodeRef::Parent)),

@@ -15,7 +15,7 @@ use crate::ast::{
     TagKind, TaskKind, Then, When, WithGroup,
 };
 use crate::diagnostic::Diagnostic;
-use crate::hir::{LoopId, uses_previous};
+use crate::hir::{LoopId, ResolvedTag, TagTarget, uses_previous};
 
 /// Where the spawn's builder chain stands: plain method calls, a loop over an entity's members,
 /// or a method applied only when an entity has no member.
@@ -399,7 +399,15 @@ impl<'a> Gen<'_, 'a> {
     pub(super) fn constrain(&mut self, stmt: &ConstraintStmt) -> TokenStream {
         let prev = Self::prev_ident();
         let target = match &stmt.tag.kind {
-            TagKind::Parent => Nodes::One(quote!(ctx.node())),
+            TagKind::Parent => {
+                if let Some(resolved) = self.resolved {
+                    let parent = [TagTarget::Parent];
+                    resolved
+                        .borrow_mut()
+                        .push(ResolvedTag::new(0, &stmt.tag, parent));
+                }
+                Nodes::One(quote!(ctx.node()))
+            }
             TagKind::Child => {
                 self.diags.push(
                     Diagnostic::error(stmt.span, "a constraint statement cannot name `self`")

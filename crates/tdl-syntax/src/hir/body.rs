@@ -36,6 +36,8 @@ pub struct Site {
     pub position: usize,
     /// Enclosing loops, outermost first.
     pub loops: Vec<LoopId>,
+    /// Inside a branch of an `if` or a `match`: it may not run.
+    pub branch: bool,
 }
 
 /// One TDL statement of a body, in source order.
@@ -77,6 +79,8 @@ pub struct SpawnDef<'a> {
 pub struct CleanupDef<'a> {
     /// The spawn it is attached to.
     pub spawn: SpawnId,
+    /// Its place among the spawn's on-terminate tasks, from 0.
+    pub index: usize,
     /// The constraint.
     pub on_terminate: &'a OnTerminate,
     /// The local holding the reservation it fulfils (a map by iteration in loops), when some tag
@@ -100,6 +104,54 @@ pub struct GroupDef<'a> {
     pub site: Site,
     /// The local collecting its members, when some tag names it.
     pub var: Option<Ident>,
+}
+
+/// A node a tag names, in the terms every back end shares: what the code generator, `tdl
+/// verify`'s loader and `tdl graph` each report they resolved a tag to, so that a test can hold
+/// them to one answer.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum TagTarget {
+    /// A spawn of the body (a group names each of its spawns).
+    Spawn(SpawnId),
+    /// The on-terminate task at this place among a spawn's.
+    OnTerminate(SpawnId, usize),
+    /// A node bound with `bind` under this name.
+    Bound(String),
+    /// The task whose body it is (`parent`, `this`).
+    Parent,
+    /// The node being constrained (`self`, `child`).
+    This,
+}
+
+/// A tag written in a constraint, as one back end resolved it (`previous` is left out: the
+/// generated code and the checker follow it at run time, the drawings statically).
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub struct ResolvedTag {
+    /// The file, by its place among the program's files.
+    pub file: usize,
+    /// The line where the tag is written, from 1.
+    pub line: usize,
+    /// The column where it starts, from 0.
+    pub column: usize,
+    /// What it names (nothing, for a tag the back end cannot follow).
+    pub targets: BTreeSet<TagTarget>,
+}
+
+impl ResolvedTag {
+    /// `tag` of file `file`, resolved to `targets`.
+    pub fn new(
+        file: usize,
+        tag: &Tag,
+        targets: impl IntoIterator<Item = TagTarget>,
+    ) -> ResolvedTag {
+        let at = tag.span.start();
+        ResolvedTag {
+            file,
+            line: at.line,
+            column: at.column,
+            targets: targets.into_iter().collect(),
+        }
+    }
 }
 
 /// What a name used as a tag stands for.
@@ -281,6 +333,7 @@ impl<'a> BodyScope<'a> {
             position: 0,
             loops: Vec::new(),
             groups: Vec::new(),
+            branches: 0,
         };
         walk.block(&task.body);
         let mut scope = walk.scope;
@@ -292,6 +345,21 @@ impl<'a> BodyScope<'a> {
     /// `previous` at the spawn, group or constraint statement at `position` (see [`Site`]).
     pub fn previous_at(&self, position: usize) -> Option<&Previous> {
         self.previous.get(&position)
+    }
+
+    /// What `def` names, as [`TagTarget`]s.
+    pub fn targets(&self, def: Def<'_>) -> Vec<TagTarget> {
+        match def {
+            Def::Spawn(id) => vec![TagTarget::Spawn(id)],
+            Def::Group(id) => self.members(id).into_iter().map(TagTarget::Spawn).collect(),
+            Def::OnTerminate(id) => self
+                .cleanups
+                .get(id)
+                .map(|it| TagTarget::OnTerminate(it.spawn, it.index))
+                .into_iter()
+                .collect(),
+            Def::Bound(bind) => vec![TagTarget::Bound(bind.name.to_string())],
+        }
     }
 
     /// The spawns of group `id`, those of its nested groups included, in source order.
@@ -369,6 +437,26 @@ impl<'a> BodyScope<'a> {
     pub fn cleanup(&self, it: &OnTerminate) -> Option<&CleanupDef<'a>> {
         let id = self.cleanup_ids.get(&std::ptr::from_ref(it))?;
         self.cleanups.get(*id)
+    }
+
+    /// The number of the labelled on-terminate task `it`.
+    pub fn cleanup_id(&self, it: &OnTerminate) -> Option<CleanupId> {
+        self.cleanup_ids.get(&std::ptr::from_ref(it)).copied()
+    }
+
+    /// The exceptions the body raises with `fail` ([`super::BARE_FAIL`] for a bare `fail;`).
+    pub fn raises(&self) -> BTreeSet<String> {
+        self.stmts
+            .iter()
+            .filter_map(|it| match it {
+                Tdl::Fail(fail) => Some(
+                    fail.exception
+                        .as_ref()
+                        .map_or_else(|| super::BARE_FAIL.to_owned(), ToString::to_string),
+                ),
+                _ => None,
+            })
+            .collect()
     }
 
     /// The spawn statement `spawn`.
@@ -533,6 +621,8 @@ struct Walk<'a> {
     position: usize,
     loops: Vec<LoopId>,
     groups: Vec<GroupId>,
+    /// The `if` and `match` branches around the statement.
+    branches: usize,
 }
 
 impl<'a> Walk<'a> {
@@ -547,6 +637,7 @@ impl<'a> Walk<'a> {
         let site = Site {
             position: self.position,
             loops: self.loops.clone(),
+            branch: self.branches > 0,
         };
         match stmt {
             Stmt::Spawn(spawn) => {
@@ -575,12 +666,17 @@ impl<'a> Walk<'a> {
                 for label in &spawn.labels {
                     self.scope.add_label(label, Def::Spawn(id));
                 }
-                for constraint in &spawn.constraints {
-                    if let ConstraintKind::OnTerminate(it) = &constraint.kind {
+                let on_terminate = spawn.constraints.iter().filter_map(|it| match &it.kind {
+                    ConstraintKind::OnTerminate(it) => Some(it),
+                    _ => None,
+                });
+                for (index, it) in on_terminate.enumerate() {
+                    {
                         if !it.labels.is_empty() {
                             let cleanup = self.scope.cleanups.len();
                             self.scope.cleanups.push(CleanupDef {
                                 spawn: id,
+                                index,
                                 on_terminate: it,
                                 var: None,
                             });
@@ -655,7 +751,9 @@ impl<'a> Walk<'a> {
                 self.rust(it.expr.to_token_stream(), &site);
                 for arm in &it.arms {
                     self.rust(arm.guard.to_token_stream(), &site);
+                    self.branches += 1;
                     self.block(&arm.body);
+                    self.branches -= 1;
                 }
             }
             Stmt::Block(it) => self.block(it),
@@ -666,10 +764,16 @@ impl<'a> Walk<'a> {
 
     fn if_stmt(&mut self, it: &'a If, site: &Site) {
         self.rust(it.cond.to_token_stream(), site);
+        self.branches += 1;
         self.block(&it.then_branch);
+        self.branches -= 1;
         match it.else_branch.as_deref() {
             Some(Else::If(next)) => self.if_stmt(next, site),
-            Some(Else::Block(block)) => self.block(block),
+            Some(Else::Block(block)) => {
+                self.branches += 1;
+                self.block(block);
+                self.branches -= 1;
+            }
             None => {}
         }
     }
