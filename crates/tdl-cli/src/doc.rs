@@ -18,7 +18,9 @@ use quote::ToTokens as _;
 use tdl_syntax::TaskKind;
 
 use crate::graph::{self, Format, Options};
-use crate::model::{Origin, Piece, Program, TaskInfo, Text, type_text};
+use tdl_syntax::print::type_text;
+
+use crate::model::{Origin, Piece, Program, TaskInfo, Text};
 
 /// Writes the documentation of `program` (made of `files`) into `dir`, created if needed; returns
 /// the files written.
@@ -604,19 +606,14 @@ fn handler_item(program: &Program<'_>, h: &crate::model::HandlerUse) -> String {
     )
 }
 
-/// The declared exceptions below `name` in the hierarchy.
+/// The declared exceptions below `name` in the hierarchy, in declaration order.
 fn descendants(program: &Program<'_>, name: &str) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut todo = vec![name.to_string()];
-    while let Some(n) = todo.pop() {
-        for e in &program.exceptions {
-            if e.decl.parent.as_ref().is_some_and(|p| *p == n) && !out.contains(&e.name) {
-                out.push(e.name.clone());
-                todo.push(e.name.clone());
-            }
-        }
-    }
-    out
+    program
+        .exceptions
+        .iter()
+        .filter(|e| e.ancestry.iter().any(|it| it == name))
+        .map(|e| e.name.clone())
+        .collect()
 }
 
 #[cfg(test)]

@@ -10,11 +10,11 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use quote::{ToTokens, quote};
 use tdl_syntax::hir::{self, BodyScope, Def, Resolution, Tdl};
+use tdl_syntax::print;
 use tdl_syntax::{
-    Constraint, ConstraintKind, Count, Event, ExceptionDecl, ExternalName, HandlerRef, Item,
-    RelTime, Tag, TagIndex, TagKind, Task, TaskConstraintKind, Then, TimeOfDay, When,
+    Constraint, ConstraintKind, ExceptionDecl, HandlerRef, Item, Tag, TagIndex, TagKind, Task,
+    TaskConstraintKind, Then, When,
 };
 
 /// A program: the tasks and exceptions of its files, in source order.
@@ -74,6 +74,8 @@ pub(crate) struct ExceptionInfo<'a> {
     pub(crate) file: String,
     /// Line of its name.
     pub(crate) line: usize,
+    /// Its ancestors, nearest first, as the front end resolves them.
+    pub(crate) ancestry: Vec<String>,
 }
 
 /// `exception handler h(args) [maximum activate N]`, at a task or a spawn.
@@ -219,6 +221,7 @@ impl<'a> Program<'a> {
                             name,
                             file: file.clone(),
                             line: decl.name.span().start().line,
+                            ancestry: program.ancestry(&decl.name.to_string()),
                         });
                     }
                     Item::Rust(_) => {}
@@ -321,18 +324,12 @@ impl<'a> Program<'a> {
             exceptions.extend(info.task.handles.iter().map(ToString::to_string));
         }
         // The ancestors of every exception reached.
-        let mut todo: Vec<String> = exceptions.iter().cloned().collect();
-        while let Some(name) = todo.pop() {
-            if let Some(parent) = self
-                .exception(&name)
-                .and_then(|e| e.decl.parent.as_ref())
-                .map(ToString::to_string)
-            {
-                if exceptions.insert(parent.clone()) {
-                    todo.push(parent);
-                }
-            }
-        }
+        let ancestors: Vec<String> = exceptions
+            .iter()
+            .filter_map(|it| self.exception(it))
+            .flat_map(|it| it.ancestry.iter().cloned())
+            .collect();
+        exceptions.extend(ancestors);
         exceptions.retain(|e| self.exception(e).is_some());
         Some((tasks, exceptions))
     }
@@ -363,47 +360,21 @@ fn analyse(info: &mut TaskInfo<'_>, body: &BodyScope<'_>) {
     let (mut sites, spawn_sites, cleanup_sites) = body_sites(body);
     let mut notes = Vec::new();
     for c in &task.constraints {
-        let text = |s: String| vec![Piece::Text(s)];
         match &c.kind {
-            TaskConstraintKind::ExpandFirst => notes.push(text("expand first".into())),
-            TaskConstraintKind::Uses(list) => notes.push(text(format!("uses {}", uses(list)))),
-            TaskConstraintKind::Priority(p) => {
-                notes.push(text(format!("priority {}", priority(p))));
-            }
-            TaskConstraintKind::DelayExpansion => notes.push(text("delay expansion".into())),
             TaskConstraintKind::ExceptionHandler(h) => info.handlers.push(handler_use(h)),
             TaskConstraintKind::OnTerminate(ot) => {
                 sites.push(Site::new(
                     ot.task.to_string(),
-                    exprs_text(&ot.args),
+                    print::exprs(&ot.args),
                     Vec::new(),
                     Origin::OnTerminate(None),
                     ot.task.span().start().line,
                 ));
             }
-            TaskConstraintKind::Persistent(p) => {
-                let init = p
-                    .init
-                    .as_ref()
-                    .map(|e| format!(" = {}", expr_text(e)))
-                    .unwrap_or_default();
-                notes.push(text(format!(
-                    "persistent {}: {}{init}",
-                    p.name,
-                    type_text(&p.ty)
-                )));
-            }
-            TaskConstraintKind::MaximumActivate(n) => {
-                notes.push(text(format!("maximum activate {}", count(n))));
-            }
-            TaskConstraintKind::MaximumTrigger(n) => {
-                notes.push(text(format!("maximum trigger {}", count(n))));
-            }
-            TaskConstraintKind::Period(t) => notes.push(text(format!("period {}", rel(t)))),
-            TaskConstraintKind::InitialWait => notes.push(text("initial wait".into())),
-            TaskConstraintKind::Serial => notes.push(text("serial".into())),
-            TaskConstraintKind::Sequential(f) => {
-                notes.push(text(format!("sequential {}", f.as_str())));
+            kind => {
+                let mut text = String::new();
+                print::task_constraint(kind, &mut text);
+                notes.push(vec![Piece::Text(text)]);
             }
         }
     }
@@ -497,7 +468,7 @@ fn body_sites(body: &BodyScope<'_>) -> (Vec<Site>, Vec<usize>, Vec<usize>) {
         let labels: Vec<String> = spawn.labels.iter().map(ToString::to_string).collect();
         let mut own = vec![Site::new(
             spawn.task.to_string(),
-            exprs_text(&spawn.args),
+            print::exprs(&spawn.args),
             labels,
             Origin::Body,
             spawn.task.span().start().line,
@@ -510,7 +481,7 @@ fn body_sites(body: &BodyScope<'_>) -> (Vec<Site>, Vec<usize>, Vec<usize>) {
                 let labels: Vec<String> = ot.labels.iter().map(ToString::to_string).collect();
                 own.push(Site::new(
                     ot.task.to_string(),
-                    exprs_text(&ot.args),
+                    print::exprs(&ot.args),
                     labels,
                     Origin::OnTerminate(Some(i)),
                     ot.task.span().start().line,
@@ -632,7 +603,7 @@ fn apply(
                     Then::Terminate => RelationKind::Terminate,
                     Then::Activate => RelationKind::Activate,
                 };
-                relate(Some(&ev.tag), kind, plain(&when_text(when, *then, None)))
+                relate(Some(&ev.tag), kind, when_label(when, *then))
             });
             if !related {
                 site.notes.push(plain(&text));
@@ -664,8 +635,8 @@ impl Site {
 fn handler_use(h: &HandlerRef) -> HandlerUse {
     HandlerUse {
         name: h.name.to_string(),
-        args: exprs_text(&h.args),
-        max: h.max_activate.as_ref().map(count),
+        args: print::exprs(&h.args),
+        max: h.max_activate.as_ref().map(print::count),
     }
 }
 
@@ -773,7 +744,7 @@ impl Scope<'_, '_> {
                 let mut written = name.to_string();
                 for index in indexes {
                     match index {
-                        TagIndex::Expr(e) => written.push_str(&format!("[{}]", expr_text(e))),
+                        TagIndex::Expr(e) => written.push_str(&format!("[{}]", print::expr(e))),
                         TagIndex::Current => written.push_str("[.]"),
                     }
                 }
@@ -808,197 +779,69 @@ impl Scope<'_, '_> {
     }
 }
 
-/// A constraint in canonical TDL spelling, tags resolved.
+/// A constraint in canonical TDL spelling (`tdl_syntax::print`), tags resolved.
 fn constraint_text(kind: &ConstraintKind, scope: &Scope<'_, '_>, prev: &[usize]) -> Text {
-    let text = |s: &str| vec![Piece::Text(s.to_string())];
-    let tag_or_previous = |tag: &Option<Tag>| match tag {
-        Some(tag) => scope.tag_text(tag, prev),
-        None => scope.previous_text(prev),
+    let mut out = Linked {
+        scope,
+        prev,
+        text: Vec::new(),
     };
-    match kind {
-        ConstraintKind::ExpandFirst => text("expand first"),
-        ConstraintKind::DelayExpansion => text("delay expansion"),
-        ConstraintKind::Sequential { facet, tag } => {
-            let mut t = text(&format!("sequential {} ", facet.as_str()));
-            t.extend(tag_or_previous(tag));
-            t
+    print::constraint(kind, &mut out);
+    out.text
+}
+
+/// A trigger without its tag, for an edge's label: `terminate at execution completed`.
+fn when_label(when: &When, then: Then) -> String {
+    let mut out = Label(String::new());
+    print::trigger(when, then, &mut out);
+    out.0
+}
+
+/// Text with references: a tag names the sites it resolves to, `previous` (written or implied)
+/// the sites it may be, a task its page.
+struct Linked<'x, 's, 'a> {
+    scope: &'x Scope<'s, 'a>,
+    prev: &'x [usize],
+    text: Text,
+}
+
+impl print::Sink for Linked<'_, '_, '_> {
+    fn text(&mut self, text: &str) {
+        match self.text.last_mut() {
+            Some(Piece::Text(last)) => last.push_str(text),
+            _ => self.text.push(Piece::Text(text.to_owned())),
         }
-        ConstraintKind::Serial { tag } => {
-            let mut t = text("serial ");
-            t.extend(tag_or_previous(tag));
-            t
-        }
-        ConstraintKind::Parallel => text("parallel"),
-        ConstraintKind::Wait => text("wait"),
-        ConstraintKind::Outcome => text("outcome"),
-        ConstraintKind::Propagate => text("propagate"),
-        ConstraintKind::Uses(list) => text(&format!("uses {}", uses(list))),
-        ConstraintKind::Priority(p) => text(&format!("priority {}", priority(p))),
-        ConstraintKind::DenyIfBusy => text("deny if busy"),
-        ConstraintKind::Trigger { when, then } => when_text(when, *then, Some((scope, prev))),
-        ConstraintKind::MaximumActivate(n) => text(&format!("maximum activate {}", count(n))),
-        ConstraintKind::MaximumTrigger(n) => text(&format!("maximum trigger {}", count(n))),
-        ConstraintKind::Period(t) => text(&format!("period {}", rel(t))),
-        ConstraintKind::ExceptionHandler(h) => {
-            let mut t = vec![
-                Piece::Text("exception handler ".into()),
-                Piece::Task(h.name.to_string()),
-                Piece::Text(format!("({})", exprs_text(&h.args))),
-            ];
-            if let Some(n) = &h.max_activate {
-                t.push(Piece::Text(format!(" maximum activate {}", count(n))));
-            }
-            t
-        }
-        ConstraintKind::OnTerminate(ot) => {
-            let labels: String = ot.labels.iter().map(|l| format!("{l}: ")).collect();
-            vec![
-                Piece::Text(format!("on terminate {labels}")),
-                Piece::Task(ot.task.to_string()),
-                Piece::Text(format!("({})", exprs_text(&ot.args))),
-            ]
-        }
-        ConstraintKind::Name(e) => text(&format!("name {}", expr_text(e))),
-        ConstraintKind::Parent(e) => text(&format!("parent {}", expr_text(e))),
-        ConstraintKind::OnAgent(e) => text(&format!("on {}", expr_text(e))),
+    }
+
+    fn tag(&mut self, it: &Tag) {
+        let text = self.scope.tag_text(it, self.prev);
+        self.text.extend(text);
+    }
+
+    fn implied_previous(&mut self) {
+        self.text(" ");
+        let text = self.scope.previous_text(self.prev);
+        self.text.extend(text);
+    }
+
+    fn task(&mut self, name: &str) {
+        self.text.push(Piece::Task(name.to_owned()));
     }
 }
 
-/// A trigger: `terminate at X execution completed`, `disable execution until 13:00:00`, …; with
-/// `scope` the tag is written (resolved), without it it is left out (an edge label).
-fn when_text(when: &When, then: Then, scope: Option<(&Scope<'_, '_>, &[usize])>) -> Text {
-    let (verb, at, within) = match then {
-        Then::Enable(facet) => (
-            match facet {
-                Some(f) => format!("disable {}", f.as_str()),
-                None => "disable".to_string(),
-            },
-            "until",
-            "for",
-        ),
-        Then::Terminate => ("terminate".to_string(), "at", "in"),
-        Then::Activate => ("activate".to_string(), "at", "in"),
-    };
-    let event = |ev: &Event| -> Text {
-        let mut t = Vec::new();
-        if let Some((scope, prev)) = scope {
-            t.extend(scope.tag_text(&ev.tag, prev));
-            t.push(Piece::Text(" ".into()));
-        }
-        let facet = ev
-            .facet
-            .map(|f| format!("{} ", f.as_str()))
-            .unwrap_or_default();
-        t.push(Piece::Text(format!("{facet}{}", ev.point.as_str())));
-        t
-    };
-    let mut t = vec![Piece::Text(verb)];
-    match when {
-        When::Now => {}
-        When::At(tod) => t.push(Piece::Text(format!(" {at} {}", time_of_day(*tod)))),
-        When::In(r) => t.push(Piece::Text(format!(" {within} {}", rel(r)))),
-        When::Event(ev) => {
-            t.push(Piece::Text(format!(" {at} ")));
-            t.extend(event(ev));
-        }
-        When::After(r, ev) => {
-            t.push(Piece::Text(format!(" {within} {} after ", rel(r))));
-            t.extend(event(ev));
-        }
-        When::External(name) => {
-            let name = match name {
-                ExternalName::Lit(lit) => format!("{:?}", lit.value()),
-                ExternalName::Expr(e) => format!("({})", expr_text(e)),
-            };
-            t.push(Piece::Text(format!(" {at} external {name}")));
-        }
+/// Plain text with the tags left out.
+struct Label(String);
+
+impl print::Sink for Label {
+    fn text(&mut self, text: &str) {
+        let text = match text.strip_prefix(' ') {
+            Some(rest) if self.0.ends_with(' ') => rest,
+            _ => text,
+        };
+        self.0.push_str(text);
     }
-    t
-}
 
-fn time_of_day(t: TimeOfDay) -> String {
-    let mut s = format!("{}:{:02}:{:02}", t.hour, t.minute, t.second);
-    if t.nanos > 0 {
-        let frac = format!("{:09}", t.nanos);
-        s.push('.');
-        s.push_str(frac.trim_end_matches('0'));
-    }
-    s
-}
-
-fn rel(t: &RelTime) -> String {
-    match t {
-        RelTime::Nanos(n) => tdl_syntax::format_nanos(*n),
-        RelTime::Seconds(e) => format!("({})", expr_text(e)),
-    }
-}
-
-/// `base, arm(2)`.
-fn uses(list: &[tdl_syntax::ResourceAmount]) -> String {
-    let parts: Vec<String> = list
-        .iter()
-        .map(|r| match &r.amount {
-            Some(n) => format!("{}({})", r.name, count(n)),
-            None => r.name.to_string(),
-        })
-        .collect();
-    parts.join(", ")
-}
-
-fn priority(p: &tdl_syntax::Priority) -> String {
-    match p {
-        tdl_syntax::Priority::Const(n) => n.to_string(),
-        tdl_syntax::Priority::Expr(e) => format!("({})", expr_text(e)),
-    }
-}
-
-fn count(n: &Count) -> String {
-    match n {
-        Count::Const(n) => n.to_string(),
-        Count::Expr(e) => format!("({})", expr_text(e)),
-    }
-}
-
-/// A Rust type as rustfmt would write it, on one line.
-pub(crate) fn type_text(ty: &impl ToTokens) -> String {
-    let formatted = squash(&tdl_syntax::pretty(&quote!(type T = #ty;)));
-    formatted
-        .strip_prefix("type T = ")
-        .and_then(|s| s.strip_suffix(';'))
-        .map_or_else(|| squash(&ty.to_token_stream().to_string()), str::to_string)
-}
-
-/// A Rust expression as rustfmt would write it, on one line.
-pub(crate) fn expr_text(e: &impl ToTokens) -> String {
-    exprs_text(std::slice::from_ref(e))
-}
-
-/// Arguments as rustfmt would write them, on one line, without the parentheses.
-pub(crate) fn exprs_text<E: ToTokens>(args: &[E]) -> String {
-    if args.is_empty() {
-        return String::new();
-    }
-    let formatted = squash(&tdl_syntax::pretty(&quote!(fn f() { g(#(#args),*); })));
-    formatted
-        .strip_prefix("fn f() { g(")
-        .and_then(|s| s.strip_suffix("); }"))
-        .map(|s| s.trim_end_matches([',', ' ']).to_string())
-        .unwrap_or_else(|| {
-            args.iter()
-                .map(|a| squash(&a.to_token_stream().to_string()))
-                .collect::<Vec<_>>()
-                .join(", ")
-        })
-}
-
-/// Whitespace runs made one space; no space just inside brackets.
-fn squash(s: &str) -> String {
-    let one = s.split_whitespace().collect::<Vec<_>>().join(" ");
-    one.replace("( ", "(")
-        .replace(" )", ")")
-        .replace(",)", ")")
-        .replace("[ ", "[")
-        .replace(" ]", "]")
+    fn tag(&mut self, _: &Tag) {}
 }
 
 #[cfg(test)]
@@ -1146,8 +989,8 @@ mod tests {
         );
         let g = structure(&files);
         let g = g.task("g").expect("g");
-        assert_eq!(type_text(&g.task.args[0].ty), "Vec<Option<u32>>");
-        assert_eq!(type_text(&g.task.args[1].ty), "&'static str");
+        assert_eq!(print::type_text(&g.task.args[0].ty), "Vec<Option<u32>>");
+        assert_eq!(print::type_text(&g.task.args[1].ty), "&'static str");
         assert_eq!(g.sites[0].args, "m.len(), v[0].clone()");
     }
 }

@@ -1,19 +1,15 @@
 //! A compact, indented text dump of the syntax tree, one node per line.
 //!
 //! Used by the parser snapshot tests (`tests/it/data.rs`) and handy when debugging the parser:
-//! constraints print in canonical TDL spelling (joined keywords and synonyms resolved), times in
-//! nanosecond-exact units, and Rust fragments as their token text.
+//! constraints, tags and times print in the one canonical TDL spelling of `print.rs` (joined
+//! keywords and synonyms resolved), the Rust fragments of statements as their token text.
 
 use std::fmt::Write as _;
 
 use quote::ToTokens;
 
-use crate::ast::{
-    Ast, Block, Constraint, ConstraintKind, Count, Else, Event, ExternalName, HandlerRef, If, Item,
-    Match, OnTerminate, Priority, RelTime, ResourceAmount, Spawn, Stmt, Tag, TagIndex, TagKind,
-    Task, TaskConstraintKind, Then, TimeOfDay, When,
-};
-use crate::time::format_nanos;
+use crate::ast::{Ast, Block, Constraint, Else, If, Item, Match, Spawn, Stmt, Task};
+use crate::print;
 
 /// Dumps the tree as indented text.
 pub fn dump(ast: &Ast) -> String {
@@ -108,28 +104,8 @@ fn dump_task(out: &mut String, task: &Task) {
         args.join(", ")
     );
     for constraint in &task.constraints {
-        let text = match &constraint.kind {
-            TaskConstraintKind::ExpandFirst => "expand first".to_owned(),
-            TaskConstraintKind::DelayExpansion => "delay expansion".to_owned(),
-            TaskConstraintKind::ExceptionHandler(it) => handler(it),
-            TaskConstraintKind::OnTerminate(it) => on_terminate(it),
-            TaskConstraintKind::Persistent(it) => {
-                let init = it
-                    .init
-                    .as_ref()
-                    .map(|it| format!(" = {}", tokens(it)))
-                    .unwrap_or_default();
-                format!("persistent {}: {}{init}", it.name, tokens(&it.ty))
-            }
-            TaskConstraintKind::MaximumActivate(it) => format!("maximum activate {}", count(it)),
-            TaskConstraintKind::MaximumTrigger(it) => format!("maximum trigger {}", count(it)),
-            TaskConstraintKind::Period(it) => format!("period {}", rel(it)),
-            TaskConstraintKind::InitialWait => "initial wait".to_owned(),
-            TaskConstraintKind::Serial => "serial".to_owned(),
-            TaskConstraintKind::Sequential(facet) => format!("sequential {}", facet.as_str()),
-            TaskConstraintKind::Uses(list) => uses(list),
-            TaskConstraintKind::Priority(p) => priority(p),
-        };
+        let mut text = String::new();
+        print::task_constraint(&constraint.kind, &mut text);
         let _ = writeln!(out, "  | {text}");
     }
     dump_block(out, &task.body, 1);
@@ -172,7 +148,11 @@ fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
             line(
                 out,
                 depth,
-                &format!("constrain {} {}", tag(&it.tag), constraint(&it.constraint)),
+                &format!(
+                    "constrain {} {}",
+                    print::tag(&it.tag),
+                    constraint(&it.constraint)
+                ),
             );
         }
         Stmt::Bind(it) => line(
@@ -303,151 +283,9 @@ fn dump_if(out: &mut String, it: &If, depth: usize, keyword: &str) {
     }
 }
 
-fn count(it: &Count) -> String {
-    match it {
-        Count::Const(n) => n.to_string(),
-        Count::Expr(expr @ syn::Expr::Paren(_)) => tokens(expr),
-        Count::Expr(expr) => format!("({})", tokens(expr)),
-    }
-}
-
-fn rel(it: &RelTime) -> String {
-    match it {
-        RelTime::Nanos(nanos) => format_nanos(*nanos),
-        RelTime::Seconds(expr) => format!("({}) s", tokens(expr)),
-    }
-}
-
-fn time_of_day(it: &TimeOfDay) -> String {
-    let frac = if it.nanos == 0 {
-        String::new()
-    } else {
-        format!(".{:09}", it.nanos).trim_end_matches('0').to_owned()
-    };
-    format!("{:02}:{:02}:{:02}{frac}", it.hour, it.minute, it.second)
-}
-
-fn tag(it: &Tag) -> String {
-    match &it.kind {
-        TagKind::Named { name, indexes } => {
-            let mut text = name.to_string();
-            for index in indexes {
-                match index {
-                    TagIndex::Expr(expr) => {
-                        let _ = write!(text, "[{}]", tokens(expr));
-                    }
-                    TagIndex::Current => text.push_str("[.]"),
-                }
-            }
-            text
-        }
-        TagKind::Previous => "previous".to_owned(),
-        TagKind::Child => "self".to_owned(),
-        TagKind::Parent => "parent".to_owned(),
-    }
-}
-
-fn event(it: &Event) -> String {
-    let facet = it
-        .facet
-        .map(|it| format!(" {}", it.as_str()))
-        .unwrap_or_default();
-    format!("{}{facet} {}", tag(&it.tag), it.point.as_str())
-}
-
-/// A trigger in canonical spelling: `disable [facet] until|for …`, `terminate [at|in …]`,
-/// `activate [at|in …]`, with `external "name"` after `until`/`at` for an external event.
-fn trigger(when: &When, then: Then) -> String {
-    let (head, at, within) = match then {
-        Then::Enable(facet) => {
-            let facet = facet
-                .map(|it| format!(" {}", it.as_str()))
-                .unwrap_or_default();
-            (format!("disable{facet}"), "until", "for")
-        }
-        Then::Terminate => ("terminate".to_owned(), "at", "in"),
-        Then::Activate => ("activate".to_owned(), "at", "in"),
-    };
-    match when {
-        When::Now => head,
-        When::At(time) => format!("{head} {at} {}", time_of_day(time)),
-        When::Event(it) => format!("{head} {at} {}", event(it)),
-        When::In(delay) => format!("{head} {within} {}", rel(delay)),
-        When::After(delay, it) => format!("{head} {within} {} after {}", rel(delay), event(it)),
-        When::External(name) => format!("{head} {at} external {}", external(name)),
-    }
-}
-
-fn external(it: &ExternalName) -> String {
-    match it {
-        // The literal's value, escaped as Rust would write it.
-        ExternalName::Lit(lit) => format!("{:?}", lit.value()),
-        ExternalName::Expr(expr) => format!("({})", tokens(expr)),
-    }
-}
-
-fn handler(it: &HandlerRef) -> String {
-    let max = it
-        .max_activate
-        .as_ref()
-        .map(|it| format!(" maximum activate {}", count(it)))
-        .unwrap_or_default();
-    format!("exception handler {}({}){max}", it.name, exprs(&it.args))
-}
-
-fn on_terminate(it: &OnTerminate) -> String {
-    format!(
-        "on terminate {}spawn {}({})",
-        labels(&it.labels),
-        it.task,
-        exprs(&it.args)
-    )
-}
-
-/// A constraint in canonical TDL spelling.
+/// A constraint in canonical TDL spelling (`print.rs`).
 fn constraint(it: &Constraint) -> String {
-    let opt_tag = |it: Option<&Tag>| it.map(|it| format!(" {}", tag(it))).unwrap_or_default();
-    match &it.kind {
-        ConstraintKind::ExpandFirst => "expand first".to_owned(),
-        ConstraintKind::DelayExpansion => "delay expansion".to_owned(),
-        ConstraintKind::Sequential { facet, tag } => {
-            format!("sequential {}{}", facet.as_str(), opt_tag(tag.as_ref()))
-        }
-        ConstraintKind::Serial { tag } => format!("serial{}", opt_tag(tag.as_ref())),
-        ConstraintKind::Parallel => "parallel".to_owned(),
-        ConstraintKind::Wait => "wait".to_owned(),
-        ConstraintKind::Outcome => "outcome".to_owned(),
-        ConstraintKind::Propagate => "propagate".to_owned(),
-        ConstraintKind::Trigger { when, then } => trigger(when, *then),
-        ConstraintKind::MaximumActivate(n) => format!("maximum activate {}", count(n)),
-        ConstraintKind::MaximumTrigger(n) => format!("maximum trigger {}", count(n)),
-        ConstraintKind::Period(t) => format!("period {}", rel(t)),
-        ConstraintKind::ExceptionHandler(h) => handler(h),
-        ConstraintKind::OnTerminate(t) => on_terminate(t),
-        ConstraintKind::Name(e) => format!("name {}", tokens(e)),
-        ConstraintKind::Parent(e) => format!("parent {}", tokens(e)),
-        ConstraintKind::OnAgent(e) => format!("on {}", tokens(e)),
-        ConstraintKind::Uses(list) => uses(list),
-        ConstraintKind::Priority(p) => priority(p),
-        ConstraintKind::DenyIfBusy => "deny if busy".to_owned(),
-    }
-}
-
-fn uses(list: &[ResourceAmount]) -> String {
-    let items: Vec<String> = list
-        .iter()
-        .map(|it| match &it.amount {
-            Some(Count::Const(n)) => format!("{}({n})", it.name),
-            Some(Count::Expr(e)) => format!("{}({})", it.name, tokens(e)),
-            None => it.name.to_string(),
-        })
-        .collect();
-    format!("uses {}", items.join(", "))
-}
-
-fn priority(p: &Priority) -> String {
-    match p {
-        Priority::Const(n) => format!("priority {n}"),
-        Priority::Expr(e) => format!("priority {}", tokens(e)),
-    }
+    let mut out = String::new();
+    print::constraint(&it.kind, &mut out);
+    out
 }

@@ -68,6 +68,7 @@ mod dump;
 pub mod hir;
 mod keyword;
 mod parser;
+pub mod print;
 mod time;
 
 use std::str::FromStr;
