@@ -1,0 +1,149 @@
+//! The model of small programs: sites, relations, `previous`, reach and the text of fragments.
+
+use super::*;
+
+fn program(src: &str) -> tdl_syntax::Ast {
+    let parse = tdl_syntax::parse_str("t.tdl", src);
+    assert!(!parse.has_errors(), "{:?}", parse.diagnostics);
+    parse.file
+}
+
+fn structure(ast: &tdl_syntax::Ast) -> Program<'_> {
+    Program::new(&hir::Program::new(&[("t.tdl", ast)]))
+}
+
+fn relations(p: &Program<'_>, task: &str) -> Vec<String> {
+    let t = p.task(task).expect("the task");
+    t.relations
+        .iter()
+        .map(|r| {
+            let from = match r.from {
+                Endpoint::Task => "this".to_string(),
+                Endpoint::Site(s) => t.sites[s].task.clone(),
+            };
+            format!("{from} -> {}: {}", t.sites[r.to].task, r.label)
+        })
+        .collect()
+}
+
+#[test]
+fn constraints_name_the_spawns_their_tags_resolve_to() {
+    let files = program(
+        "goal g() {
+            spawn a();
+            spawn w() with terminate at a execution completed;
+            spawn b() with sequential execution previous, terminate in 30s after self handling active;
+            l: spawn c() with wait, exception handler h(1) maximum activate 2;
+            spawn d() with serial l, disable until parent handling active, on terminate e();
+        }
+        handler h(n: u32) handles Oops { bypass; }
+        exception Oops;",
+    );
+    let p = structure(&files);
+    assert_eq!(
+        relations(&p, "g"),
+        [
+            "this -> d: disable until handling active",
+            "a -> w: terminate at execution completed",
+            "w -> b: sequential execution",
+            "c -> d: serial",
+        ]
+    );
+    let g = p.task("g").expect("g");
+    let names: Vec<&str> = g.sites.iter().map(|s| s.task.as_str()).collect();
+    assert_eq!(names, ["a", "w", "b", "c", "d", "e"]);
+    assert_eq!(g.sites[5].origin, Origin::OnTerminate(Some(4)));
+    assert_eq!(
+        g.sites[2].notes,
+        ["terminate in 30s after self handling active"]
+    );
+    assert_eq!(g.sites[3].flags, ["wait"]);
+    assert_eq!(g.sites[3].labels, ["l"]);
+    assert_eq!(g.sites[3].handlers[0].name, "h");
+    assert_eq!(g.sites[3].handlers[0].max.as_deref(), Some("2"));
+    assert_eq!(
+        plain(&g.sites[2].constraints[0]),
+        "sequential execution previous (w)"
+    );
+    let h = p.task("h").expect("h");
+    assert!(h.bypasses);
+    assert_eq!(p.handler_users("h").len(), 1);
+}
+
+#[test]
+fn previous_is_every_spawn_that_may_come_just_before() {
+    let files = program(
+        "goal g(n: u32) {
+            spawn p();
+            for i in 0..n {
+                if i > 0 { spawn t() with sequential execution previous; }
+                spawn m() with sequential execution previous;
+            }
+            with (serial previous) { spawn x(); spawn y(); }
+            spawn z() with serial previous;
+        }",
+    );
+    let p = structure(&files);
+    assert_eq!(
+        relations(&p, "g"),
+        [
+            "p -> t: sequential execution",
+            "p -> m: sequential execution",
+            "p -> x: serial",
+            "t -> m: sequential execution",
+            "m -> t: sequential execution",
+            "m -> m: sequential execution",
+            "m -> x: serial",
+            "x -> y: serial",
+            "x -> z: serial",
+            "y -> z: serial",
+        ]
+    );
+    let g = p.task("g").expect("g");
+    assert!(g.sites[1].repeated && g.sites[1].conditional);
+    assert!(g.sites[2].repeated && !g.sites[2].conditional);
+}
+
+#[test]
+fn reach_follows_spawns_handlers_and_exceptions() {
+    let files = program(
+        "exception Base;
+        exception Oops: Base;
+        goal top() with exception handler fix() { spawn mid(); }
+        goal mid() { spawn leaf(); fail Oops; }
+        command leaf() {}
+        handler fix() handles Base { retry; }
+        handler outside() handles Base for leaf { bypass; }
+        goal unrelated() {}",
+    );
+    let p = structure(&files);
+    let (tasks, exceptions) = p.reach("mid").expect("mid");
+    assert_eq!(
+        tasks.into_iter().collect::<Vec<_>>(),
+        ["leaf", "mid", "outside"]
+    );
+    assert_eq!(exceptions.into_iter().collect::<Vec<_>>(), ["Base", "Oops"]);
+    let (tasks, _) = p.reach("top").expect("top");
+    assert_eq!(tasks.len(), 5, "{tasks:?}");
+    assert!(p.reach("nowhere").is_none());
+}
+
+#[test]
+fn ids_are_plain_and_unique() {
+    let mut used = BTreeSet::new();
+    assert_eq!(unique_id("r#type", &mut used), "r_type");
+    assert_eq!(unique_id("r_type", &mut used), "r_type_2");
+    assert_eq!(unique_id("façade", &mut used), "fa_ade");
+}
+
+#[test]
+fn rust_fragments_are_written_as_rustfmt_would() {
+    let files = program(
+        "goal g(v: Vec < Option < u32 > >, m: & 'static str) { spawn t(m . len (), v [0] . clone ()); }",
+    );
+    let g = structure(&files);
+    let g = g.task("g").expect("g");
+    assert_eq!(print::type_text(&g.task.args[0].ty), "Vec<Option<u32>>");
+    assert_eq!(print::type_text(&g.task.args[1].ty), "&'static str");
+    assert_eq!(g.sites[0].args, "m.len(), v[0].clone()");
+}
