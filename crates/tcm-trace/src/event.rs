@@ -16,6 +16,7 @@ pub const OLDEST_READABLE_VERSION: u32 = 1;
 
 /// One trace record.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub struct TraceEvent {
     /// Position in the trace, from 0, without gaps.
     pub seq: u64,
@@ -28,6 +29,11 @@ pub struct TraceEvent {
 
 /// A reference to a node's facet reaching a state, as recorded in the trace.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(
+    feature = "schema",
+    derive(schemars::JsonSchema),
+    schemars(deny_unknown_fields)
+)]
 pub struct TraceEventRef {
     /// Display number of the node.
     pub node: u64,
@@ -50,6 +56,11 @@ pub struct TraceEventRef {
 /// monitor. Version 1 traces wrote one form per combination (`disable_until_event`,
 /// `terminate_at_time`, …); they are read into this shape (`LegacyConstraint`).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(
+    feature = "schema",
+    derive(schemars::JsonSchema),
+    schemars(deny_unknown_fields)
+)]
 #[serde(tag = "form", rename_all = "snake_case", from = "AnyConstraint")]
 pub enum TraceConstraint {
     /// Execution waits for expansion completed.
@@ -82,6 +93,11 @@ impl TraceConstraint {
 
 /// When a trigger fires, as recorded: relative times already made absolute.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(
+    feature = "schema",
+    derive(schemars::JsonSchema),
+    schemars(deny_unknown_fields)
+)]
 #[serde(rename_all = "snake_case")]
 pub enum TraceWhen {
     /// At once.
@@ -122,6 +138,11 @@ impl TraceWhen {
 
 /// An amount of one resource, as a request, grant or release names it.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(
+    feature = "schema",
+    derive(schemars::JsonSchema),
+    schemars(deny_unknown_fields)
+)]
 pub struct ResourceUse {
     /// The resource's name (its `resource` record).
     pub resource: String,
@@ -141,6 +162,7 @@ impl ResourceUse {
 
 /// What a trigger does when it fires.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum TraceThen {
     /// Satisfies one enablement constraint of the facet (`disable <facet> until …`).
@@ -154,6 +176,7 @@ pub enum TraceThen {
 /// A constraint record as either version writes it: the current forms, or version 1's one form per
 /// combination. Only used to read; writing always uses [`TraceConstraint`]'s current forms.
 #[derive(Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(untagged)]
 enum AnyConstraint {
     Current(CurrentConstraint),
@@ -161,6 +184,7 @@ enum AnyConstraint {
 }
 
 #[derive(Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(tag = "form", rename_all = "snake_case")]
 enum CurrentConstraint {
     ExpandFirst,
@@ -170,6 +194,7 @@ enum CurrentConstraint {
 
 /// The constraint forms of trace format version 1, kept so that old traces still read.
 #[derive(Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(tag = "form", rename_all = "snake_case")]
 enum LegacyConstraint {
     DisableUntilEvent {
@@ -259,6 +284,7 @@ impl From<AnyConstraint> for TraceConstraint {
 
 /// The body of a trace record.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(tag = "ev", rename_all = "snake_case")]
 pub enum TraceKind {
     /// A run started; the root node has number 0.
@@ -421,6 +447,7 @@ pub enum TraceKind {
         /// The wiretap's number.
         tap: u32,
         /// `before` (the action has not started) or `after` (it returned successfully).
+        #[cfg_attr(feature = "schema", schemars(extend("enum" = ["before", "after"])))]
         when: String,
     },
     /// A timer callback was set (TCM's `InvokeWhen`, `InvokeAfter`): a function the shell runs at

@@ -9,6 +9,7 @@ use std::fmt;
 
 /// One of the three facets of a node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum Facet {
     /// The node's own action.
@@ -46,6 +47,7 @@ impl fmt::Display for Facet {
 
 /// The state of one facet. States are ordered; a facet only moves forward.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum State {
     /// Some enablement constraint does not hold yet.
@@ -79,6 +81,7 @@ impl fmt::Display for State {
 /// How a node ended, decided when its execution completes: the outcome events `X succeeded`,
 /// `X failed` and `X terminated` (docs/semantics.md, "Outcomes").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
     /// Its action succeeded, or a retry of it did.
@@ -102,6 +105,7 @@ impl Outcome {
 
 /// A state that an event waits for: the point at which a facet reaches it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum Point {
     /// The facet became enabled.
@@ -142,6 +146,7 @@ pub enum Termination {
 
 /// The kind of a node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 #[serde(rename_all = "snake_case")]
 pub enum NodeKind {
     /// The invisible root of a run.

@@ -5,7 +5,8 @@
 //! when the first record of that kind comes; message encoding `json`, each message one record
 //! exactly as the JSON-lines trace writes it (docs/trace-format.md; a trace of an older format
 //! version is written in the current shape); schema `tdl.trace.<ev>`, encoding `jsonschema`, a JSON
-//! Schema of that kind of record. Log and publish time are the record's `t` (nanoseconds of virtual
+//! Schema of that kind of record, derived from the record types by `schemars` (`tcm-trace`'s
+//! `schema` feature). Log and publish time are the record's `t` (nanoseconds of virtual
 //! time since the run started), the sequence number its `seq`.
 //!
 //! The file is written next to its destination under a temporary name and renamed when complete,
@@ -107,339 +108,94 @@ fn write(trace: &[TraceEvent], file: File) -> anyhow::Result<Written> {
     })
 }
 
-/// The JSON Schema (draft 2020-12) of the records of kind `ev`, after docs/trace-format.md.
+/// The JSON Schema (draft 2020-12) of the records of kind `ev`, derived from the record types
+/// (`TraceEvent`, as it serialises: `schemars` follows serde's renames, tags, flattening and
+/// skipped fields): the variant of that kind, with the fields every record has (`seq`, `t`), no
+/// other field allowed, and the definitions it refers to.
 pub(crate) fn schema(ev: &str) -> Option<Value> {
-    let count = || json!({"type": "integer", "minimum": 0});
-    let u32_ = || json!({"type": "integer", "minimum": 0, "maximum": u32::MAX});
-    let node = || json!({"type": "integer", "minimum": 0, "description": "display number of a node ({id} in TCM's log)"});
-    let maybe_node = || json!({"type": ["integer", "null"], "minimum": 0});
-    let string = || json!({"type": "string"});
-    let resource_uses = || {
-        json!({"type": "array", "items": {
-            "type": "object",
-            "properties": {"resource": {"type": "string"}, "amount": {"type": "integer", "minimum": 1, "maximum": u32::MAX}},
-            "required": ["resource", "amount"],
-            "additionalProperties": false,
-        }})
-    };
-    let mut uses_defs = false;
-    let (description, fields): (&str, Vec<(&str, Value)>) = match ev {
-        "run_started" => (
-            "The run began; always the first record.",
-            vec![("version", u32_()), ("run", u32_())],
-        ),
-        "reserved" => (
-            "A display number was allocated for a node the body will spawn later.",
-            vec![("node", node()), ("parent", node()), ("name", string())],
-        ),
-        "spawned" => (
-            "A node was inserted into the tree, every facet disabled (a command-like node's expansion completed).",
-            vec![
-                ("node", node()),
-                ("parent", node()),
-                (
-                    "kind",
-                    json!({"enum": ["goal", "command", "monitor", "handler"]}),
-                ),
-                ("name", string()),
-            ],
-        ),
-        "constrained" => {
-            uses_defs = true;
-            (
-                "A constraint was applied to the node.",
-                vec![
-                    ("node", node()),
-                    ("constraint", json!({"$ref": "#/$defs/constraint"})),
-                ],
-            )
-        }
-        "constraint_void" => (
-            "A constraint on the node was dropped; reason says why.",
-            vec![("node", node()), ("reason", string())],
-        ),
-        "transition" => {
-            uses_defs = true;
-            (
-                "A facet of the node moved from one state to a later one.",
-                vec![
-                    ("node", node()),
-                    ("facet", json!({"$ref": "#/$defs/facet"})),
-                    ("from", json!({"$ref": "#/$defs/state"})),
-                    ("to", json!({"$ref": "#/$defs/state"})),
-                ],
-            )
-        }
-        "terminating" => ("The node was asked to terminate.", vec![("node", node())]),
-        "terminated" => (
-            "The node and its subtree are terminated.",
-            vec![("node", node())],
-        ),
-        "suspended" => ("The node was suspended.", vec![("node", node())]),
-        "unsuspended" => ("The node was resumed.", vec![("node", node())]),
-        "failed" => (
-            "The node's action failed with an exception of type `exception`.",
-            vec![
-                ("node", node()),
-                ("exception", string()),
-                ("message", string()),
-            ],
-        ),
-        "dead" => (
-            "A reserved node will never be spawned.",
-            vec![("node", node())],
-        ),
-        "external" => (
-            "A named external event was raised.",
-            vec![("name", string())],
-        ),
-        "reclaimed" => (
-            "A completed or terminated node was freed; no later record names it.",
-            vec![("node", node())],
-        ),
-        "placed" => (
-            "The node's action runs on another process of a distributed system, the agent named.",
-            vec![("node", node()), ("agent", string())],
-        ),
-        "warning" => (
-            "Something worth a person's attention; the run goes on.",
-            vec![("node", maybe_node()), ("message", string())],
-        ),
-        "monitor_params" => (
-            "A monitor's parameters, after its spawn and whenever they change; null is unlimited (period: not polling).",
-            vec![
-                ("node", node()),
-                (
-                    "max_activations",
-                    json!({"type": ["integer", "null"], "minimum": 0, "maximum": u32::MAX}),
-                ),
-                (
-                    "max_triggers",
-                    json!({"type": ["integer", "null"], "minimum": 0, "maximum": u32::MAX}),
-                ),
-                (
-                    "period_ns",
-                    json!({"type": ["integer", "null"], "minimum": 0}),
-                ),
-                ("initial_wait", json!({"type": "boolean"})),
-            ],
-        ),
-        "activated" => (
-            "A monitor made an activation: node is the new activation node, number counts from 1.",
-            vec![
-                ("monitor", node()),
-                ("node", node()),
-                (
-                    "number",
-                    json!({"type": "integer", "minimum": 1, "maximum": u32::MAX}),
-                ),
-            ],
-        ),
-        "triggered" => (
-            "A monitor counted a trigger (count so far).",
-            vec![("monitor", node()), ("count", u32_())],
-        ),
-        "handler_chosen" => (
-            "The handler search found a handler: node is the new handler node.",
-            vec![
-                ("node", node()),
-                ("failing", node()),
-                ("attached", node()),
-                ("exception", string()),
-                ("handler", string()),
-            ],
-        ),
-        "bypassed" => (
-            "A handler node passed its exception on.",
-            vec![("node", node()), ("exception", string())],
-        ),
-        "retried" => (
-            "A handler asked for a fresh run of the failed task: node is the new node, of the one that failed.",
-            vec![("node", node()), ("of", node())],
-        ),
-        "tapped" => (
-            "A wiretap check started on the node, before its action or after it returned.",
-            vec![
-                ("node", node()),
-                ("tap", u32_()),
-                ("when", json!({"enum": ["before", "after"]})),
-            ],
-        ),
-        "callback_set" => {
-            uses_defs = true;
-            (
-                "A timer callback was set; it runs once, at `when`.",
-                vec![
-                    ("callback", count()),
-                    ("name", string()),
-                    ("node", maybe_node()),
-                    ("when", json!({"$ref": "#/$defs/when"})),
-                ],
-            )
-        }
-        "callback_ran" => (
-            "The callback's event happened or its time came; the shell runs it now.",
-            vec![("callback", count()), ("name", string())],
-        ),
-        "resource" => (
-            "A resource was declared: its capacity, and how many requests may wait for it (null: no limit).",
-            vec![
-                ("resource", string()),
-                ("capacity", u32_()),
-                (
-                    "pending_limit",
-                    json!({"type": ["integer", "null"], "minimum": 0, "maximum": u32::MAX}),
-                ),
-            ],
-        ),
-        "requested" => (
-            "A node asks for resources, all at once: its handling is enabled and it would start.",
-            vec![
-                ("node", node()),
-                ("uses", resource_uses()),
-                (
-                    "priority",
-                    json!({"type": "integer", "minimum": i32::MIN, "maximum": i32::MAX}),
-                ),
-            ],
-        ),
-        "granted" => (
-            "A node's request was granted: it holds the resources until its action ends.",
-            vec![("node", node()), ("uses", resource_uses())],
-        ),
-        "released" => (
-            "A node gave back what it was granted.",
-            vec![("node", node()), ("uses", resource_uses())],
-        ),
-        "withdrawn" => (
-            "A waiting request was withdrawn: its node was terminated before it was granted.",
-            vec![("node", node())],
-        ),
-        "denied" => (
-            "A request was refused; its node fails with ResourceDenied.",
-            vec![("node", node()), ("resource", string())],
-        ),
-        "dropped" => (
-            "A waiting request was dropped past the resource's pending limit; its node fails with ResourceDropped.",
-            vec![("node", node()), ("resource", string())],
-        ),
-        "resource_reserved" => (
-            "A resource was reserved for a node's subtree.",
-            vec![("resource", string()), ("holder", node())],
-        ),
-        "resource_unreserved" => (
-            "A resource's reservation ended.",
-            vec![("resource", string())],
-        ),
-        "resource_locked" => (
-            "A resource was locked: nobody is granted it until it is unlocked.",
-            vec![("resource", string())],
-        ),
-        "resource_unlocked" => ("A resource was unlocked.", vec![("resource", string())]),
-        _ => return None,
-    };
-    let mut properties = serde_json::Map::new();
-    properties.insert(
-        "seq".into(),
-        json!({"type": "integer", "minimum": 0, "description": "position in the trace: 0, 1, 2, ... without gaps"}),
-    );
-    properties.insert(
-        "t".into(),
-        json!({"type": "integer", "minimum": 0, "description": "virtual time in nanoseconds since the run started"}),
-    );
-    properties.insert("ev".into(), json!({"const": ev}));
-    let mut required = vec!["seq", "t", "ev"];
-    for (name, field) in fields {
-        properties.insert(name.into(), field);
-        required.push(name);
-    }
+    let root = schemars::generate::SchemaSettings::draft2020_12()
+        .for_serialize()
+        .into_generator()
+        .into_root_schema_for::<TraceEvent>()
+        .to_value();
+    let variant = root
+        .get("oneOf")?
+        .as_array()?
+        .iter()
+        .find(|v| v.pointer("/properties/ev/const").and_then(Value::as_str) == Some(ev))?;
+    let mut properties = root.get("properties")?.as_object()?.clone();
+    properties.extend(variant.get("properties")?.as_object()?.clone());
+    let mut required = root.get("required")?.as_array()?.clone();
+    required.extend(variant.get("required")?.as_array()?.iter().cloned());
     let mut schema = json!({
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": format!("tdl.trace.{ev}"),
-        "description": description,
+        "description": variant.get("description").cloned().unwrap_or(Value::Null),
         "type": "object",
         "properties": properties,
         "required": required,
         "additionalProperties": false,
     });
-    if uses_defs {
-        schema["$defs"] = defs();
+    // The definitions it refers to, and those they refer to.
+    let all = root.get("$defs").and_then(Value::as_object);
+    let mut defs = serde_json::Map::new();
+    let mut todo = Vec::new();
+    refs(&schema, &mut todo);
+    while let Some(name) = todo.pop() {
+        if defs.contains_key(&name) {
+            continue;
+        }
+        let def = all.and_then(|a| a.get(&name))?.clone();
+        refs(&def, &mut todo);
+        defs.insert(name, def);
     }
+    if !defs.is_empty() {
+        schema["$defs"] = Value::Object(defs);
+    }
+    ranges(&mut schema);
     Some(schema)
 }
 
-/// The shared definitions: facets, states, events, and the constraint forms.
-fn defs() -> Value {
-    let count = json!({"type": "integer", "minimum": 0});
-    let object = |name: &str, value: Value| {
-        json!({
-            "type": "object",
-            "properties": {name: value},
-            "required": [name],
-            "additionalProperties": false,
-        })
-    };
-    json!({
-        "facet": {"enum": ["handling", "expansion", "execution"]},
-        "state": {"enum": ["disabled", "enabled", "active", "completed"]},
-        "event": {
-            "description": "The moment the node's facet reaches the point (with an outcome: only if the execution ends that way).",
-            "type": "object",
-            "properties": {
-                "node": count,
-                "facet": {"$ref": "#/$defs/facet"},
-                "point": {"enum": ["enabled", "active", "completed"]},
-                "outcome": {"enum": ["succeeded", "failed", "terminated"]},
-            },
-            "required": ["node", "facet", "point"],
-            "additionalProperties": false,
-        },
-        "when": {
-            "oneOf": [
-                {"const": "now"},
-                object("at", count.clone()),
-                object("event", json!({"$ref": "#/$defs/event"})),
-                object("after", json!({
-                    "type": "object",
-                    "properties": {"delay_ns": count, "event": {"$ref": "#/$defs/event"}},
-                    "required": ["delay_ns", "event"],
-                    "additionalProperties": false,
-                })),
-                object("external", json!({"type": "string"})),
-                object("all", json!({
-                    "type": "object",
-                    "properties": {
-                        "events": {"type": "array", "items": {"$ref": "#/$defs/event"}},
-                        "delay_ns": count,
-                    },
-                    "required": ["events"],
-                    "additionalProperties": false,
-                })),
-            ],
-        },
-        "then": {
-            "oneOf": [
-                {"enum": ["terminate", "activate"]},
-                object("enable", json!({"$ref": "#/$defs/facet"})),
-            ],
-        },
-        "constraint": {
-            "oneOf": [
-                object("form", json!({"const": "expand_first"})),
-                object("form", json!({"const": "delay_expansion"})),
-                {
-                    "type": "object",
-                    "properties": {
-                        "form": {"const": "trigger"},
-                        "when": {"$ref": "#/$defs/when"},
-                        "then": {"$ref": "#/$defs/then"},
-                    },
-                    "required": ["form", "when", "then"],
-                    "additionalProperties": false,
-                },
-            ],
-        },
-    })
+/// Gives 32-bit integers their range: `schemars` names it only as a `format` (an annotation a
+/// validator need not check).
+fn ranges(schema: &mut Value) {
+    match schema {
+        Value::Object(map) => {
+            match map.get("format").and_then(Value::as_str) {
+                Some("uint32") => {
+                    map.insert("maximum".into(), u32::MAX.into());
+                }
+                Some("int32") => {
+                    map.insert("minimum".into(), i32::MIN.into());
+                    map.insert("maximum".into(), i32::MAX.into());
+                }
+                _ => {}
+            }
+            map.values_mut().for_each(ranges);
+        }
+        Value::Array(items) => items.iter_mut().for_each(ranges),
+        _ => {}
+    }
+}
+
+/// The names of the definitions `schema` refers to (`"$ref": "#/$defs/<name>"`).
+fn refs(schema: &Value, out: &mut Vec<String>) {
+    match schema {
+        Value::Object(map) => {
+            for (key, value) in map {
+                match (key.as_str(), value.as_str()) {
+                    ("$ref", Some(r)) => {
+                        if let Some(name) = r.strip_prefix("#/$defs/") {
+                            out.push(name.to_string());
+                        }
+                    }
+                    _ => refs(value, out),
+                }
+            }
+        }
+        Value::Array(items) => items.iter().for_each(|v| refs(v, out)),
+        _ => {}
+    }
 }
 
 #[cfg(test)]
@@ -447,8 +203,9 @@ mod tests {
     use super::*;
 
     /// A small JSON Schema validator for what [`schema`] uses: `type`, `const`, `enum`,
-    /// `properties`, `required`, `additionalProperties: false`, `items`, `oneOf`, `minimum`,
-    /// `maximum`, and `$ref` to `#/$defs/…`. `Err` says where the value breaks the schema.
+    /// `properties`, `required`, `additionalProperties: false`, `items`, `oneOf`, `anyOf`,
+    /// `minimum`, `maximum`, and `$ref` to `#/$defs/…` (`format` is an annotation). `Err` says
+    /// where the value breaks the schema.
     fn validate(value: &Value, schema: &Value, root: &Value, at: &str) -> Result<(), String> {
         if let Some(r) = schema.get("$ref").and_then(Value::as_str) {
             let name = r
@@ -512,6 +269,11 @@ mod tests {
                 .count();
             if matching != 1 {
                 return Err(format!("{at}: {value} matches {matching} of oneOf"));
+            }
+        }
+        if let Some(options) = schema.get("anyOf").and_then(Value::as_array) {
+            if !options.iter().any(|o| validate(value, o, root, at).is_ok()) {
+                return Err(format!("{at}: {value} matches none of anyOf"));
             }
         }
         if let Some(object) = value.as_object() {
@@ -601,7 +363,7 @@ mod tests {
             ("terminated", json!({"seq": 1, "t": 0, "ev": "terminated"})),
             (
                 "spawned",
-                json!({"seq": 1, "t": 0, "ev": "spawned", "node": 1, "parent": 0, "kind": "root", "name": "r"}),
+                json!({"seq": 1, "t": 0, "ev": "spawned", "node": 1, "parent": 0, "kind": "robot", "name": "r"}),
             ),
             (
                 "transition",
@@ -614,6 +376,22 @@ mod tests {
             (
                 "warning",
                 json!({"seq": -1, "t": 0, "ev": "warning", "node": null, "message": "m"}),
+            ),
+            (
+                "tapped",
+                json!({"seq": 1, "t": 0, "ev": "tapped", "node": 1, "tap": 0, "when": "during"}),
+            ),
+            (
+                "requested",
+                json!({"seq": 1, "t": 0, "ev": "requested", "node": 1, "uses": [{"resource": "base", "amount": 1, "extra": 0}], "priority": 0}),
+            ),
+            (
+                "callback_set",
+                json!({"seq": 1, "t": 0, "ev": "callback_set", "callback": 0, "name": "c", "node": null, "when": {"event": {"node": 1, "facet": "handling", "point": "active", "outcome": "lost"}}}),
+            ),
+            (
+                "monitor_params",
+                json!({"seq": 1, "t": 0, "ev": "monitor_params", "node": 1, "max_activations": 4294967296_u64, "max_triggers": null, "period_ns": null, "initial_wait": false}),
             ),
         ];
         for (ev, value) in bad {

@@ -41,6 +41,13 @@ def check(value, schema, root, at):
                  "array": lambda v: isinstance(v, list)}
         if not any(kinds[t](value) for t in types):
             errors.append(f"{at}: {value!r} is not {types}")
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if "minimum" in schema and value < schema["minimum"]:
+            errors.append(f"{at}: {value!r} is below {schema['minimum']}")
+        if "maximum" in schema and value > schema["maximum"]:
+            errors.append(f"{at}: {value!r} is above {schema['maximum']}")
+    if "anyOf" in schema and not any(not check(value, s, root, at) for s in schema["anyOf"]):
+        errors.append(f"{at}: {value!r} matches none of anyOf")
     if "oneOf" in schema:
         n = sum(1 for s in schema["oneOf"] if not check(value, s, root, at))
         if n != 1:
@@ -256,4 +263,81 @@ fn bad_input_names_the_file_and_line_and_leaves_nothing() {
     // `--mcap` is required.
     let (code, _, _) = tdl(&["trace", "export", "tests/data/run.jsonl"]);
     assert_eq!(code, 2);
+}
+
+/// The trace of a real run: a seeded simulation of the Xavier mission (with failures), written by
+/// `tdl sim` when a property fails at the end of its first delivery. Exported, each record carries
+/// exactly the fields the schema of its channel names (read here, without Python), and fits that
+/// schema as the Python reader checks it.
+#[test]
+fn a_simulated_run_of_the_mission_exports_records_its_schemas_describe() {
+    let dir = work_dir("sim");
+    let sim_out = dir.join("sim").display().to_string();
+    let (code, out, err) = tdl(&[
+        "sim",
+        "-p",
+        "xavier",
+        "--seeds",
+        "20",
+        "--fail",
+        "0.1",
+        "--property",
+        "completed(give_up_door_not_found) before completed(notify_sender)",
+        "--out",
+        &sim_out,
+    ]);
+    assert_eq!(code, 1, "a violation is expected: {out}{err}");
+    let trace_file = std::fs::read_dir(&sim_out)
+        .expect("the simulation's traces")
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|e| e == "jsonl"))
+        .expect("a trace written");
+    let trace = std::fs::read_to_string(&trace_file).expect("the trace");
+    let (code, _, stderr, mcap) = export(&trace_file.display().to_string(), &dir);
+    assert_eq!(code, 0, "{stderr}");
+    let bytes = std::fs::read(&mcap).expect("the MCAP file");
+    let mut seen = std::collections::BTreeSet::new();
+    let mut count = 0;
+    for message in mcap::MessageStream::new(&bytes).expect("an MCAP file") {
+        let message = message.expect("a message");
+        let schema = message.channel.schema.as_ref().expect("a schema");
+        assert_eq!(schema.encoding, "jsonschema");
+        let schema: Value = serde_json::from_slice(&schema.data).expect("a JSON schema");
+        let record: Value = serde_json::from_slice(&message.data).expect("a JSON record");
+        let ev = record["ev"].as_str().expect("an ev").to_string();
+        assert_eq!(schema["title"], format!("tdl.trace.{ev}"));
+        let properties = schema["properties"].as_object().expect("properties");
+        let fields = record.as_object().expect("an object");
+        for name in fields.keys() {
+            assert!(
+                properties.contains_key(name),
+                "`{name}` of {record} is not in the schema of `{ev}`"
+            );
+        }
+        for name in schema["required"].as_array().expect("required") {
+            let name = name.as_str().expect("a name");
+            assert!(
+                fields.contains_key(name),
+                "{record} lacks `{name}`, required by the schema of `{ev}`"
+            );
+        }
+        assert_eq!(properties["ev"]["const"], Value::from(ev.as_str()));
+        seen.insert(ev);
+        count += 1;
+    }
+    assert_eq!(count, kinds(&trace).len());
+    // A run, not a sample: constraints, resources, monitors and a handled failure.
+    for kind in [
+        "constrained",
+        "requested",
+        "granted",
+        "monitor_params",
+        "activated",
+        "failed",
+        "handler_chosen",
+    ] {
+        assert!(seen.contains(kind), "no `{kind}` record in {seen:?}");
+    }
+    assert_read_back(&mcap, &trace);
 }
