@@ -42,7 +42,9 @@
 
 mod body;
 mod previous;
+mod resolve;
 mod scope;
+mod visit;
 
 use std::collections::BTreeSet;
 use std::rc::Rc;
@@ -52,6 +54,7 @@ use proc_macro2::Ident;
 pub use body::*;
 pub use previous::Previous;
 pub use scope::{BUILTIN_EXCEPTIONS, Duplicate, Elsewhere, FileScope};
+pub use visit::{Branch, Visit, walk_stmt};
 
 use crate::ast::{
     Ast, ConstraintKind, ExceptionDecl, Item, ResourceDecl, Task, TaskConstraintKind,

@@ -14,10 +14,10 @@
 use proc_macro2::Span;
 
 use crate::ast::{
-    Block, Constraint, ConstraintKind, Else, Event, Facet, Point, Stmt, Tag, TagKind, Task,
+    Block, Constraint, ConstraintKind, Event, Facet, Point, Stmt, Tag, TagKind, Task,
     TaskConstraintKind, TaskKind, Then, When,
 };
-use crate::hir::{BodyScope, Def, FileScope, GroupId, SpawnId};
+use crate::hir::{BodyScope, Branch, Def, FileScope, GroupId, SpawnId, Visit, walk_stmt};
 
 /// How far a facet got: the stages of `enabled`, `active` and `completed` (an outcome is the
 /// execution's completion).
@@ -390,13 +390,7 @@ struct Walk<'s, 'a> {
     frames: Vec<Frame<'a>>,
 }
 
-impl<'a> Walk<'_, 'a> {
-    fn block(&mut self, block: &'a Block) {
-        for stmt in &block.stmts {
-            self.stmt(stmt);
-        }
-    }
-
+impl<'a> Visit<'a> for Walk<'_, 'a> {
     fn stmt(&mut self, stmt: &'a Stmt) {
         self.position += 1;
         match stmt {
@@ -506,41 +500,17 @@ impl<'a> Walk<'_, 'a> {
                     cond: self.cond,
                 });
             }
-            Stmt::If(it) => self.branches(|walk| walk.if_branches(it)),
-            Stmt::Match(it) => self.branches(|walk| {
-                for arm in &it.arms {
-                    walk.block(&arm.body);
-                }
-            }),
-            Stmt::For(it) => self.looped(&it.body),
-            Stmt::While(it) => self.looped(&it.body),
-            Stmt::Loop(it) => self.looped(&it.body),
-            Stmt::Block(it) => self.block(it),
-            Stmt::Rust(_)
-            | Stmt::Bind(_)
-            | Stmt::Succeed(_)
-            | Stmt::Fail(_)
-            | Stmt::Bypass(_)
-            | Stmt::Trigger(_)
-            | Stmt::Resource(_)
-            | Stmt::Retry(_) => {}
+            _ => walk_stmt(self, stmt),
         }
     }
 
-    fn if_branches(&mut self, it: &'a crate::ast::If) {
-        self.block(&it.then_branch);
-        match it.else_branch.as_deref() {
-            Some(Else::If(next)) => self.if_branches(next),
-            Some(Else::Block(block)) => self.block(block),
-            None => {}
-        }
-    }
-
-    /// Walks the branches of an `if` or a `match`.
-    fn branches(&mut self, walk: impl FnOnce(&mut Self)) {
+    /// The branches of an `if` or a `match`: what runs there may not run.
+    fn branches(&mut self, branches: Vec<Branch<'a>>, _: bool) {
         let outer = self.cond;
         self.cond.branch = true;
-        walk(self);
+        for branch in branches {
+            self.block(branch.block);
+        }
         self.cond = outer;
     }
 

@@ -9,14 +9,14 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use proc_macro2::{Delimiter, Ident, Span, TokenStream, TokenTree};
-use quote::{ToTokens, format_ident};
+use proc_macro2::{Ident, Span};
+use quote::format_ident;
 
 use super::previous::{self, Previous};
+pub use super::resolve::{node_macro, node_uses};
 use crate::ast::{
-    Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Count, Else, Event, ExternalName,
-    Fail, If, OnTerminate, Priority, RelTime, ResourceStmt, Spawn, Stmt, Tag, TagIndex, TagKind,
-    Task, When, WithGroup,
+    Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Event, Fail, OnTerminate,
+    ResourceStmt, Spawn, Tag, TagIndex, TagKind, Task, WithGroup,
 };
 
 /// A spawn of a body, numbered in source order from 0.
@@ -292,51 +292,44 @@ pub struct BodyScope<'a> {
     /// Its `lock`, `unlock`, `reserve` and `unreserve` statements, in source order.
     pub resource_stmts: Vec<&'a ResourceStmt>,
     /// `previous` at each spawn, group and constraint statement, by position.
-    previous: BTreeMap<usize, Previous>,
+    pub(super) previous: BTreeMap<usize, Previous>,
     /// Labels, the first of each.
-    labels: BTreeMap<String, Named<'a>>,
+    pub(super) labels: BTreeMap<String, Named<'a>>,
     /// The spawns of each task.
-    by_task: BTreeMap<String, Vec<SpawnId>>,
-    spawn_ids: BTreeMap<*const Spawn, SpawnId>,
-    group_ids: BTreeMap<*const WithGroup, GroupId>,
-    cleanup_ids: BTreeMap<*const OnTerminate, CleanupId>,
+    pub(super) by_task: BTreeMap<String, Vec<SpawnId>>,
+    pub(super) spawn_ids: BTreeMap<*const Spawn, SpawnId>,
+    pub(super) group_ids: BTreeMap<*const WithGroup, GroupId>,
+    pub(super) cleanup_ids: BTreeMap<*const OnTerminate, CleanupId>,
     /// Loops by their body.
-    loop_ids: BTreeMap<*const Block, LoopId>,
+    pub(super) loop_ids: BTreeMap<*const Block, LoopId>,
     /// Loops that count their iterations, for iteration-indexed tags.
-    counted: BTreeSet<LoopId>,
+    pub(super) counted: BTreeSet<LoopId>,
 }
 
 impl<'a> BodyScope<'a> {
     /// Resolves the body of `task`.
     pub fn new(task: &'a Task) -> BodyScope<'a> {
-        let mut walk = Walk {
-            scope: BodyScope {
-                stmts: Vec::new(),
-                spawns: Vec::new(),
-                groups: Vec::new(),
-                refs: Vec::new(),
-                node_uses: Vec::new(),
-                cleanups: Vec::new(),
-                bound: BTreeMap::new(),
-                duplicate_labels: Vec::new(),
-                uses_previous: false,
-                resource_stmts: Vec::new(),
-                previous: BTreeMap::new(),
-                labels: BTreeMap::new(),
-                by_task: BTreeMap::new(),
-                spawn_ids: BTreeMap::new(),
-                group_ids: BTreeMap::new(),
-                cleanup_ids: BTreeMap::new(),
-                loop_ids: BTreeMap::new(),
-                counted: BTreeSet::new(),
-            },
-            position: 0,
-            loops: Vec::new(),
+        let empty = BodyScope {
+            stmts: Vec::new(),
+            spawns: Vec::new(),
             groups: Vec::new(),
-            branches: 0,
+            refs: Vec::new(),
+            node_uses: Vec::new(),
+            cleanups: Vec::new(),
+            bound: BTreeMap::new(),
+            duplicate_labels: Vec::new(),
+            uses_previous: false,
+            resource_stmts: Vec::new(),
+            previous: BTreeMap::new(),
+            labels: BTreeMap::new(),
+            by_task: BTreeMap::new(),
+            spawn_ids: BTreeMap::new(),
+            group_ids: BTreeMap::new(),
+            cleanup_ids: BTreeMap::new(),
+            loop_ids: BTreeMap::new(),
+            counted: BTreeSet::new(),
         };
-        walk.block(&task.body);
-        let mut scope = walk.scope;
+        let mut scope = super::resolve::walk(task, empty);
         scope.assign_vars();
         scope.previous = previous::compute(&task.body, &scope);
         scope
@@ -518,7 +511,7 @@ impl<'a> BodyScope<'a> {
         Ok(out)
     }
 
-    fn add_label(&mut self, label: &'a Ident, def: Def<'a>) {
+    pub(super) fn add_label(&mut self, label: &'a Ident, def: Def<'a>) {
         let name = label.to_string();
         if let Some(first) = self.labels.get(&name) {
             // Binding a bound name again rebinds it.
@@ -533,7 +526,7 @@ impl<'a> BodyScope<'a> {
 
     /// Marks what the tags name and gives each named spawn, group, labelled on-terminate task
     /// and bound tag its local.
-    fn assign_vars(&mut self) {
+    pub(super) fn assign_vars(&mut self) {
         let mut spawns = BTreeSet::new();
         let mut groups = BTreeSet::new();
         let mut cleanups = BTreeSet::new();
@@ -613,307 +606,4 @@ impl<'a> BodyScope<'a> {
             }
         }
     }
-}
-
-/// The walk that builds a [`BodyScope`].
-struct Walk<'a> {
-    scope: BodyScope<'a>,
-    position: usize,
-    loops: Vec<LoopId>,
-    groups: Vec<GroupId>,
-    /// The `if` and `match` branches around the statement.
-    branches: usize,
-}
-
-impl<'a> Walk<'a> {
-    fn block(&mut self, block: &'a Block) {
-        for stmt in &block.stmts {
-            self.stmt(stmt);
-        }
-    }
-
-    fn stmt(&mut self, stmt: &'a Stmt) {
-        self.position += 1;
-        let site = Site {
-            position: self.position,
-            loops: self.loops.clone(),
-            branch: self.branches > 0,
-        };
-        match stmt {
-            Stmt::Spawn(spawn) => {
-                let id = self.scope.spawns.len();
-                self.scope.spawn_ids.insert(std::ptr::from_ref(spawn), id);
-                self.scope
-                    .by_task
-                    .entry(spawn.task.to_string())
-                    .or_default()
-                    .push(id);
-                let late = spawn
-                    .constraints
-                    .iter()
-                    .any(|it| matches!(it.kind, ConstraintKind::Parent(_)));
-                for arg in &spawn.args {
-                    self.rust(arg.to_token_stream(), &site);
-                }
-                self.scope.spawns.push(SpawnDef {
-                    spawn,
-                    site: site.clone(),
-                    groups: self.groups.clone(),
-                    var: None,
-                    late,
-                });
-                self.scope.stmts.push(Tdl::Spawn(id));
-                for label in &spawn.labels {
-                    self.scope.add_label(label, Def::Spawn(id));
-                }
-                let on_terminate = spawn.constraints.iter().filter_map(|it| match &it.kind {
-                    ConstraintKind::OnTerminate(it) => Some(it),
-                    _ => None,
-                });
-                for (index, it) in on_terminate.enumerate() {
-                    {
-                        if !it.labels.is_empty() {
-                            let cleanup = self.scope.cleanups.len();
-                            self.scope.cleanups.push(CleanupDef {
-                                spawn: id,
-                                index,
-                                on_terminate: it,
-                                var: None,
-                            });
-                            self.scope
-                                .cleanup_ids
-                                .insert(std::ptr::from_ref(it), cleanup);
-                            for label in &it.labels {
-                                self.scope.add_label(label, Def::OnTerminate(cleanup));
-                            }
-                        }
-                    }
-                }
-                self.constraints(&spawn.constraints, &site);
-            }
-            Stmt::With(group) => {
-                let id = self.scope.groups.len();
-                self.scope.group_ids.insert(std::ptr::from_ref(group), id);
-                self.scope.groups.push(GroupDef {
-                    group,
-                    site: site.clone(),
-                    var: None,
-                });
-                self.scope.stmts.push(Tdl::With(id));
-                for label in &group.labels {
-                    self.scope.add_label(label, Def::Group(id));
-                }
-                self.constraints(&group.constraints, &site);
-                self.groups.push(id);
-                self.block(&group.body);
-                self.groups.pop();
-            }
-            Stmt::Constrain(it) => {
-                self.tag(&it.tag);
-                self.constraints(std::slice::from_ref(&it.constraint), &site);
-                self.scope.stmts.push(Tdl::Constrain(it, site));
-            }
-            Stmt::Bind(it) => {
-                self.rust(it.expr.to_token_stream(), &site);
-                let name = it.name.to_string();
-                self.scope
-                    .bound
-                    .entry(name)
-                    .or_insert(BoundDef { site, var: None });
-                self.scope.add_label(&it.name, Def::Bound(it));
-            }
-            Stmt::Fail(it) => {
-                for field in &it.fields {
-                    self.rust(field.to_token_stream(), &site);
-                }
-                self.scope.stmts.push(Tdl::Fail(it));
-            }
-            Stmt::Resource(it) => self.scope.resource_stmts.push(it),
-            Stmt::Bypass(span) => self.scope.stmts.push(Tdl::Bypass(*span)),
-            Stmt::Trigger(span) => self.scope.stmts.push(Tdl::Trigger(*span)),
-            Stmt::Retry(it) => {
-                for arg in it.args.iter().flatten() {
-                    self.rust(arg.to_token_stream(), &site);
-                }
-                self.scope.stmts.push(Tdl::Retry(it));
-            }
-            Stmt::If(it) => self.if_stmt(it, &site),
-            Stmt::For(it) => {
-                self.rust(it.expr.to_token_stream(), &site);
-                self.loop_body(&it.body);
-            }
-            Stmt::While(it) => {
-                self.rust(it.cond.to_token_stream(), &site);
-                self.loop_body(&it.body);
-            }
-            Stmt::Loop(it) => self.loop_body(&it.body),
-            Stmt::Match(it) => {
-                self.rust(it.expr.to_token_stream(), &site);
-                for arm in &it.arms {
-                    self.rust(arm.guard.to_token_stream(), &site);
-                    self.branches += 1;
-                    self.block(&arm.body);
-                    self.branches -= 1;
-                }
-            }
-            Stmt::Block(it) => self.block(it),
-            Stmt::Rust(it) => self.rust(it.tokens.clone(), &site),
-            Stmt::Succeed(_) => {}
-        }
-    }
-
-    fn if_stmt(&mut self, it: &'a If, site: &Site) {
-        self.rust(it.cond.to_token_stream(), site);
-        self.branches += 1;
-        self.block(&it.then_branch);
-        self.branches -= 1;
-        match it.else_branch.as_deref() {
-            Some(Else::If(next)) => self.if_stmt(next, site),
-            Some(Else::Block(block)) => {
-                self.branches += 1;
-                self.block(block);
-                self.branches -= 1;
-            }
-            None => {}
-        }
-    }
-
-    /// Records the `node!(tag)` uses in Rust code at `site`.
-    fn rust(&mut self, tokens: TokenStream, site: &Site) {
-        for (tag, span) in node_uses(tokens) {
-            self.scope.node_uses.push(NodeUse {
-                tag,
-                span,
-                site: site.clone(),
-            });
-        }
-    }
-
-    fn loop_body(&mut self, body: &'a Block) {
-        let id = self.scope.loop_ids.len();
-        self.scope.loop_ids.insert(std::ptr::from_ref(body), id);
-        self.loops.push(id);
-        self.block(body);
-        self.loops.pop();
-    }
-
-    fn constraints(&mut self, constraints: &'a [Constraint], site: &Site) {
-        for constraint in constraints {
-            self.rust(constraint_code(&constraint.kind), site);
-            match refers(&constraint.kind) {
-                Some(Refers::Previous) => self.scope.uses_previous = true,
-                Some(Refers::WaitsOn(tag)) => self.tag(tag),
-                Some(Refers::Event(event)) => self.tag(&event.tag),
-                None => {}
-            }
-        }
-    }
-
-    fn tag(&mut self, tag: &'a Tag) {
-        match &tag.kind {
-            TagKind::Previous => self.scope.uses_previous = true,
-            TagKind::Named { name, .. } => self.scope.refs.push(Ref {
-                tag,
-                name,
-                position: self.position,
-            }),
-            TagKind::Child | TagKind::Parent => {}
-        }
-    }
-}
-
-/// The `node!(tag)` uses in `tokens`, outermost first: the tag parsed from inside the
-/// parentheses (or why it is not one) and the span of `node`.
-pub fn node_uses(tokens: TokenStream) -> Vec<(Result<Tag, syn::Error>, Span)> {
-    let mut out = Vec::new();
-    let tts: Vec<TokenTree> = tokens.into_iter().collect();
-    let mut i = 0;
-    while i < tts.len() {
-        if let Some((inner, span)) = node_macro(&tts[i..]) {
-            out.push((crate::parser::parse_tag_tokens(inner), span));
-            i += 3;
-            continue;
-        }
-        if let TokenTree::Group(group) = &tts[i] {
-            out.extend(node_uses(group.stream()));
-        }
-        i += 1;
-    }
-    out
-}
-
-/// `node ! ( … )` at the start of `tts`: the tokens inside and the span of `node`.
-pub fn node_macro(tts: &[TokenTree]) -> Option<(TokenStream, Span)> {
-    match tts {
-        [
-            TokenTree::Ident(name),
-            TokenTree::Punct(bang),
-            TokenTree::Group(group),
-            ..,
-        ] if name == "node"
-            && bang.as_char() == '!'
-            && group.delimiter() == Delimiter::Parenthesis =>
-        {
-            Some((group.stream(), name.span()))
-        }
-        _ => None,
-    }
-}
-
-/// The Rust expressions of a constraint (a name, a parent, counts, times in seconds, an external
-/// event's name, handler and on-terminate arguments), as one token stream to search for `node!(tag)`.
-fn constraint_code(kind: &ConstraintKind) -> TokenStream {
-    let mut out = TokenStream::new();
-    let count = |it: &Count, out: &mut TokenStream| {
-        if let Count::Expr(expr) = it {
-            expr.to_tokens(out);
-        }
-    };
-    let seconds = |it: &RelTime, out: &mut TokenStream| {
-        if let RelTime::Seconds(expr) = it {
-            expr.to_tokens(out);
-        }
-    };
-    match kind {
-        ConstraintKind::Name(expr)
-        | ConstraintKind::Parent(expr)
-        | ConstraintKind::OnAgent(expr) => {
-            expr.to_tokens(&mut out);
-        }
-        ConstraintKind::MaximumActivate(n) | ConstraintKind::MaximumTrigger(n) => {
-            count(n, &mut out);
-        }
-        ConstraintKind::Period(t) => seconds(t, &mut out),
-        ConstraintKind::ExceptionHandler(it) => {
-            for arg in &it.args {
-                arg.to_tokens(&mut out);
-            }
-            if let Some(n) = &it.max_activate {
-                count(n, &mut out);
-            }
-        }
-        ConstraintKind::OnTerminate(it) => {
-            for arg in &it.args {
-                arg.to_tokens(&mut out);
-            }
-        }
-        ConstraintKind::Trigger {
-            when: When::In(t) | When::After(t, _),
-            ..
-        } => seconds(t, &mut out),
-        ConstraintKind::Trigger {
-            when: When::External(ExternalName::Expr(expr)),
-            ..
-        } => expr.to_tokens(&mut out),
-        ConstraintKind::Uses(list) => {
-            for it in list {
-                if let Some(n) = &it.amount {
-                    count(n, &mut out);
-                }
-            }
-        }
-        ConstraintKind::Priority(Priority::Expr(expr)) => expr.to_tokens(&mut out),
-        _ => {}
-    }
-    out
 }

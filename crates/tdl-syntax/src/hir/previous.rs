@@ -13,7 +13,8 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use super::body::{BodyScope, GroupId, SpawnId};
-use crate::ast::{Block, Else, If, Stmt};
+use super::visit::{Branch, Visit, walk_stmt};
+use crate::ast::{Block, Stmt};
 
 /// `previous` at one TDL statement of a body.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -75,12 +76,6 @@ struct Walk<'s, 'a> {
 }
 
 impl Walk<'_, '_> {
-    fn block(&mut self, block: &Block) {
-        for stmt in &block.stmts {
-            self.stmt(stmt);
-        }
-    }
-
     fn here(&mut self) {
         if self.record {
             let previous = Previous {
@@ -97,7 +92,24 @@ impl Walk<'_, '_> {
         self.now.known = Some(spawns);
     }
 
-    fn stmt(&mut self, stmt: &Stmt) {
+    fn group_members(&self, id: GroupId) -> Vec<SpawnId> {
+        self.members.get(id).cloned().unwrap_or_default()
+    }
+
+    /// After branches or a loop: `may` is `ends`; `known` stays what it was before only if
+    /// nothing in between spawned or ran a group.
+    fn joined(&mut self, before: &State, ends: BTreeSet<SpawnId>) {
+        self.now.may = ends;
+        self.now.known = if self.now.entities == before.entities {
+            before.known.clone()
+        } else {
+            None
+        };
+    }
+}
+
+impl<'a> Visit<'a> for Walk<'_, '_> {
+    fn stmt(&mut self, stmt: &'a Stmt) {
         self.now.position += 1;
         match stmt {
             Stmt::Spawn(spawn) => {
@@ -115,79 +127,28 @@ impl Walk<'_, '_> {
                 }
             }
             Stmt::Constrain(_) => self.here(),
-            Stmt::If(it) => {
-                let before = self.now.clone();
-                let mut ends = BTreeSet::new();
-                let exhaustive = self.if_chain(it, &before, &mut ends);
-                if !exhaustive {
-                    ends.extend(before.may.iter().copied());
-                }
-                self.joined(&before, ends);
-            }
-            Stmt::Match(it) => {
-                let before = self.now.clone();
-                let mut ends = BTreeSet::new();
-                for arm in &it.arms {
-                    self.branch(&arm.body, &before, &mut ends);
-                }
-                if it.arms.is_empty() {
-                    ends.extend(before.may.iter().copied());
-                }
-                self.joined(&before, ends);
-            }
-            Stmt::For(it) => self.looped(&it.body),
-            Stmt::While(it) => self.looped(&it.body),
-            Stmt::Loop(it) => self.looped(&it.body),
-            Stmt::Block(it) => self.block(it),
-            Stmt::Rust(_)
-            | Stmt::Bind(_)
-            | Stmt::Succeed(_)
-            | Stmt::Fail(_)
-            | Stmt::Bypass(_)
-            | Stmt::Trigger(_)
-            | Stmt::Resource(_)
-            | Stmt::Retry(_) => {}
+            _ => walk_stmt(self, stmt),
         }
     }
 
-    fn group_members(&self, id: GroupId) -> Vec<SpawnId> {
-        self.members.get(id).cloned().unwrap_or_default()
-    }
-
-    /// Walks the branches of an `if … else if …` chain from `before`, adding where each ends to
-    /// `ends`; whether the chain ends with an `else` (some branch surely runs).
-    fn if_chain(&mut self, it: &If, before: &State, ends: &mut BTreeSet<SpawnId>) -> bool {
-        self.branch(&it.then_branch, before, ends);
-        match it.else_branch.as_deref() {
-            Some(Else::If(next)) => self.if_chain(next, before, ends),
-            Some(Else::Block(block)) => {
-                self.branch(block, before, ends);
-                true
-            }
-            None => false,
+    /// Each branch starts from what came before; after them, `previous` may be where any ended,
+    /// or what came before when no branch surely runs.
+    fn branches(&mut self, branches: Vec<Branch<'a>>, exhaustive: bool) {
+        let before = self.now.clone();
+        let mut ends = BTreeSet::new();
+        for branch in branches {
+            self.now.may = before.may.clone();
+            self.now.known = before.known.clone();
+            self.block(branch.block);
+            ends.extend(self.now.may.iter().copied());
         }
+        if !exhaustive {
+            ends.extend(before.may.iter().copied());
+        }
+        self.joined(&before, ends);
     }
 
-    /// Walks one branch from `before` (keeping the count of statements and entities).
-    fn branch(&mut self, block: &Block, before: &State, ends: &mut BTreeSet<SpawnId>) {
-        self.now.may = before.may.clone();
-        self.now.known = before.known.clone();
-        self.block(block);
-        ends.extend(self.now.may.iter().copied());
-    }
-
-    /// After branches or a loop: `may` is `ends`; `known` stays what it was before only if
-    /// nothing in between spawned or ran a group.
-    fn joined(&mut self, before: &State, ends: BTreeSet<SpawnId>) {
-        self.now.may = ends;
-        self.now.known = if self.now.entities == before.entities {
-            before.known.clone()
-        } else {
-            None
-        };
-    }
-
-    fn looped(&mut self, body: &Block) {
+    fn looped(&mut self, body: &'a Block) {
         let before = self.now.clone();
         // What an iteration may start from: what came before the loop, or what an iteration
         // ended with; walked without recording until it no longer grows.

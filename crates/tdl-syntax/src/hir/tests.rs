@@ -197,3 +197,68 @@ fn exception_ancestry_follows_declared_parents_and_cuts_cycles() {
     let names: Vec<&str> = file.exception_names().collect();
     assert_eq!(names, ["A", "B", "C", "X", "Y"]);
 }
+
+/// What a visitor met: each spawn's task, and each set of branches with whether one surely runs.
+#[derive(Default)]
+struct Met {
+    seen: Vec<String>,
+}
+
+impl<'a> super::Visit<'a> for Met {
+    fn stmt(&mut self, stmt: &'a crate::ast::Stmt) {
+        if let crate::ast::Stmt::Spawn(spawn) = stmt {
+            self.seen.push(spawn.task.to_string());
+        }
+        super::walk_stmt(self, stmt);
+    }
+
+    fn branches(&mut self, branches: Vec<super::Branch<'a>>, exhaustive: bool) {
+        self.seen.push(format!(
+            "{} branches, exhaustive {exhaustive}",
+            branches.len()
+        ));
+        for branch in branches {
+            self.branch(branch);
+        }
+    }
+
+    fn code(&mut self, code: proc_macro2::TokenStream) {
+        self.seen.push(format!("code {code}"));
+    }
+}
+
+#[test]
+fn the_visitor_meets_every_statement_in_source_order() {
+    let tasks = tasks(
+        "goal g(n: u32) {
+            spawn a();
+            if n > 1 { spawn b(); } else if n > 0 { spawn c(); }
+            match n { 0 => { spawn d(); } m if m > 5 => { spawn e(); } _ => {} }
+            for i in 0..n { with (serial) { spawn f(); } }
+            loop { { spawn h(); } break; }
+        }",
+    );
+    let mut met = Met::default();
+    super::Visit::block(&mut met, &tasks[0].body);
+    assert_eq!(
+        met.seen,
+        [
+            "a",
+            "2 branches, exhaustive false",
+            "code n > 1",
+            "b",
+            "code n > 0",
+            "c",
+            "code n",
+            "3 branches, exhaustive true",
+            "code ",
+            "d",
+            "code m > 5",
+            "e",
+            "code ",
+            "code 0 .. n",
+            "f",
+            "h",
+        ]
+    );
+}
