@@ -4,7 +4,7 @@
 //! The tree is plain data with public fields so a code generator can walk it with `match`.
 //! Rust fragments are kept as `syn` nodes (types, expressions, patterns, items) or, for ordinary
 //! statements, as their token streams with spans intact. Every TDL node carries the [`Span`] used
-//! by diagnostics. The parser that builds it is `parser.rs`; names are resolved in `resolve.rs`
+//! by diagnostics. The parser that builds it is `parser.rs`; names are resolved in `hir` (`hir.rs`, `hir/resolve.rs`)
 //! and the tree is diagnosed in `diagnose.rs`. The constraints and what they are made of (tags,
 //! events, facets, times) are in `ast/constraint.rs`, re-exported here.
 

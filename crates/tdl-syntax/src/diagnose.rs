@@ -1,7 +1,7 @@
 //! The static diagnosis of a parsed [`Ast`] (docs/semantics.md, "Tags and forward references"): what is wrong with a source, as
 //! diagnostics, before any code is generated. It runs as part of parsing.
 //!
-//! It reads the scopes of `resolve.rs` and words what they found: duplicate tasks, exceptions and
+//! It reads the resolved program of `hir` (`hir.rs`) and words what they found: duplicate tasks, exceptions and
 //! labels; unknown and ambiguous tags, wrong iteration index counts, forward references to `with`
 //! groups, `[.]` outside the loop it counts. It also finds, by itself: unknown exceptions
 //! (only when the file declares exceptions, since others may come from Rust), which task-level

@@ -12,9 +12,11 @@
 //!   [`Constraint`]s over [`Tag`]s and [`Event`]s. Every timed or event-driven constraint
 //!   (`disable … until|for`, `terminate …`, `activate …`) is one [`ConstraintKind::Trigger`] of a
 //!   [`When`] and a [`Then`]. A code generator walks it with `match`.
-//! - One scope and resolution pass (`resolve.rs`) works out what every name means: the tasks and
-//!   exceptions of the file, and per body its spawns, groups, loops and what each tag denotes.
-//!   Both consumers read it: the static diagnosis and the code generator.
+//! - [`hir`], the resolved program, works out once what every name means: the tasks,
+//!   exceptions and resources of every file, and per body its spawns, groups, loops, what each
+//!   tag denotes and `previous` at each statement. Every back end reads it: the static diagnosis,
+//!   the code generator, and outside this crate `tdl verify`'s loader, `tdl graph` and `tdl doc`
+//!   ([`compile_program_with`] hands it over). Nothing else resolves a name.
 //! - The static diagnosis of docs/semantics.md, "Tags and forward references" (unknown and ambiguous tags, duplicate labels, `wait`
 //!   on a forward reference, ...) and the static checks of docs/language.md, "Static checks"
 //!   (circular constraints, waits that cannot end, unhandled exceptions, unbounded recursion) run
@@ -24,7 +26,7 @@
 //! - [`Diagnostic::render`] prints a diagnostic as rustc does, with `annotate-snippets`:
 //!   `error: message`, ` --> file:line:col`, the source with the span underlined and a `= help:`
 //!   hint ([`Diagnostic::render_styled`] in colour); [`dump`] prints the tree compactly (used by
-//!   the snapshot tests).
+//!   the snapshot tests), its constraints and times in the one canonical spelling of [`mod@print`].
 //!
 //! ```
 //! let src = "

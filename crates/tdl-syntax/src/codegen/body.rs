@@ -2,7 +2,7 @@
 //! statements, which are copied verbatim. This file assembles the body (its prelude, tail value,
 //! handler locals and persistent variables) and walks its statements; spawns, groups and
 //! constraint statements are in `spawn.rs`, constraints in `lower.rs`. What the names mean comes
-//! from the resolution pass (`resolve.rs`).
+//! from the resolved program (`hir.rs`).
 //!
 //! Run-time bookkeeping, in generated locals (all named `tdl_*`):
 //! 1. Every tag that some constraint names is *reserved* at the top of the body

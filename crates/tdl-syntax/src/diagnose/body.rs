@@ -4,7 +4,7 @@
 //! each constraint allows where it is written (a spawn, a `with` group, a constraint statement),
 //! `wait` on a forward reference, circular constraints on `self`, monitor-only constraints on
 //! other tasks; misused `node!(tag)`, `bind` and `parent`; and the statements that only handlers or
-//! monitors may use. It reads the body's scope of `resolve.rs`.
+//! monitors may use. It reads the body's scope of `hir` (`hir/body.rs`).
 
 use std::collections::BTreeSet;
 

@@ -380,7 +380,7 @@ impl Prev {
     }
 }
 
-/// The walk that builds a [`Flow`]; positions are counted as in `resolve.rs`.
+/// The walk that builds a [`Flow`]; positions are counted as in `hir/resolve.rs`.
 struct Walk<'s, 'a> {
     file: &'s FileScope<'a>,
     scope: &'s BodyScope<'a>,
@@ -395,7 +395,7 @@ impl<'a> Visit<'a> for Walk<'_, 'a> {
         self.position += 1;
         match stmt {
             Stmt::Spawn(spawn) => {
-                // Spawns are numbered in source order by `resolve.rs`, as they are met here.
+                // Spawns are numbered in source order by `hir/resolve.rs`, as they are met here.
                 let Some(id) = self.scope.spawn_id(spawn) else {
                     return;
                 };
