@@ -35,6 +35,44 @@ pub enum RecordClass {
     Warning,
 }
 
+impl RecordClass {
+    /// Every class, in the order above.
+    pub const ALL: [RecordClass; 13] = [
+        RecordClass::Transition,
+        RecordClass::Spawn,
+        RecordClass::Constraint,
+        RecordClass::Terminate,
+        RecordClass::Suspend,
+        RecordClass::Fail,
+        RecordClass::Handler,
+        RecordClass::Retry,
+        RecordClass::Wiretap,
+        RecordClass::Monitor,
+        RecordClass::Event,
+        RecordClass::Resource,
+        RecordClass::Warning,
+    ];
+
+    /// Its name in lowercase, as a filter writes it: `transition`, `spawn`, …
+    pub fn name(self) -> &'static str {
+        match self {
+            RecordClass::Transition => "transition",
+            RecordClass::Spawn => "spawn",
+            RecordClass::Constraint => "constraint",
+            RecordClass::Terminate => "terminate",
+            RecordClass::Suspend => "suspend",
+            RecordClass::Fail => "fail",
+            RecordClass::Handler => "handler",
+            RecordClass::Retry => "retry",
+            RecordClass::Wiretap => "wiretap",
+            RecordClass::Monitor => "monitor",
+            RecordClass::Event => "event",
+            RecordClass::Resource => "resource",
+            RecordClass::Warning => "warning",
+        }
+    }
+}
+
 impl TraceKind {
     /// The record's class, the node it is told about (for a handler chosen, the failing node; for
     /// an activation or a trigger, the monitor), and what it says, e.g. `handling active`,

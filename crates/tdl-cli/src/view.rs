@@ -64,41 +64,33 @@ fn line(out: &mut String, node: &ReplayNode, depth: usize) {
     out.push('\n');
 }
 
-/// A kind of story record, for `--kind`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
-pub(crate) enum Kind {
-    /// Facet transitions.
-    Transition,
-    /// Spawns, reservations, dead reservations, reclamation, placement on an agent.
-    Spawn,
-    /// Constraints applied and void constraints (left out unless asked for).
-    Constraint,
-    /// Termination.
-    Terminate,
-    /// Suspension.
-    Suspend,
-    /// Failures.
-    Fail,
-    /// Handlers chosen and bypasses.
-    Handler,
-    /// Retries.
-    Retry,
-    /// Wiretap checks.
-    Wiretap,
-    /// Monitor parameters, activations and triggers.
-    Monitor,
-    /// External events and timer callbacks.
-    Event,
-    /// Resources: declarations, requests, grants, releases, refusals, reservations and locks.
-    Resource,
-    /// Warnings.
-    Warning,
+/// A kind of story record, for `--kind`: a record class of the fold ([`RecordClass`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Kind(RecordClass);
+
+impl clap::ValueEnum for Kind {
+    fn value_variants<'a>() -> &'a [Self] {
+        const ALL: [Kind; 13] = {
+            let mut all = [Kind(RecordClass::Transition); 13];
+            let mut i = 0;
+            while i < 13 {
+                all[i] = Kind(RecordClass::ALL[i]);
+                i += 1;
+            }
+            all
+        };
+        &ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.0.name()))
+    }
 }
 
 /// What `tdl trace story` keeps.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Filter {
-    /// Only these kinds; every kind but [`Kind::Constraint`] when empty.
+    /// Only these kinds; every kind but constraints when empty.
     pub(crate) kinds: Vec<Kind>,
     /// Only records about nodes of this instance name.
     pub(crate) name: Option<String>,
@@ -111,27 +103,6 @@ pub(crate) struct Filter {
     pub(crate) from: Option<f64>,
     /// Only records at or before this time (seconds since the run started).
     pub(crate) to: Option<f64>,
-}
-
-impl Kind {
-    /// The `--kind` of a record class.
-    fn of(class: RecordClass) -> Kind {
-        match class {
-            RecordClass::Transition => Kind::Transition,
-            RecordClass::Spawn => Kind::Spawn,
-            RecordClass::Constraint => Kind::Constraint,
-            RecordClass::Terminate => Kind::Terminate,
-            RecordClass::Suspend => Kind::Suspend,
-            RecordClass::Fail => Kind::Fail,
-            RecordClass::Handler => Kind::Handler,
-            RecordClass::Retry => Kind::Retry,
-            RecordClass::Wiretap => Kind::Wiretap,
-            RecordClass::Monitor => Kind::Monitor,
-            RecordClass::Event => Kind::Event,
-            RecordClass::Resource => Kind::Resource,
-            RecordClass::Warning => Kind::Warning,
-        }
-    }
 }
 
 impl Filter {
@@ -163,11 +134,10 @@ pub(crate) fn story(trace: &[TraceEvent], filter: &Filter) -> Vec<String> {
         else {
             continue;
         };
-        let kind = Kind::of(class);
         let wanted = if filter.kinds.is_empty() {
-            kind != Kind::Constraint
+            class != RecordClass::Constraint
         } else {
-            filter.kinds.contains(&kind)
+            filter.kinds.contains(&Kind(class))
         };
         let secs = ev.t as f64 / 1e9;
         if !wanted
