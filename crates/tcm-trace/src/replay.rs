@@ -454,8 +454,10 @@ impl Replay {
         }
     }
 
-    /// Applies one record. On error nothing changes.
+    /// Applies one record. On error nothing changes (but [`changed_rows`](Replay::changed_rows),
+    /// which then names no row).
     pub fn apply(&mut self, ev: &TraceEvent) -> Result<(), ReplayError> {
+        self.history.changed.clear();
         let t = ev.t;
         match &ev.kind {
             TraceKind::RunStarted { run, .. } => self.run = Some(*run),

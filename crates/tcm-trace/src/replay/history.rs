@@ -11,6 +11,10 @@
 //! The history is kept only by a replay made with [`Replay::with_history`]; the checker and the
 //! text log, which read the tree's state alone, do without it.
 //!
+//! After each record, [`Replay::changed_rows`] names the rows that record changed, so a reader
+//! that follows a run as it goes (the viewer's live page) takes the rows from here, record by
+//! record, instead of folding the records again.
+//!
 //! Only the point a transition reaches is marked (a facet that skips a point leaves its mark
 //! unset); [`ReplayNode::reached_at`](super::ReplayNode::reached_at) gives the skipped points too.
 
@@ -66,7 +70,7 @@ pub struct Failure {
 }
 
 /// What happened to one node, and when (see the module's documentation).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Row {
     /// Display number.
     pub number: u64,
@@ -241,6 +245,8 @@ pub(super) struct History {
     pub(super) externals: Vec<(Mark, String)>,
     pub(super) exceptions: Vec<ExceptionStory>,
     pub(super) restrictions: Vec<Restriction>,
+    // The rows the last record applied changed, by number, each once, in the order first changed.
+    pub(super) changed: Vec<u64>,
 }
 
 impl History {
@@ -266,6 +272,14 @@ impl Replay {
             .rows
             .get(n as usize)
             .filter(|r| r.number == 0 || r.parent.is_some())
+    }
+
+    /// The rows the last record applied changed, by node number, each once, in the order first
+    /// changed: exactly the rows that differ from what they were before that record (a number the
+    /// record allocated counts from an empty row). Empty after a record that changed no row (an
+    /// external event, a warning), after a refused record, and in a replay that keeps no history.
+    pub fn changed_rows(&self) -> &[u64] {
+        &self.history.changed
     }
 
     /// Each external event raised, with when.
@@ -339,6 +353,14 @@ impl Replay {
         rows.get_mut(i)
     }
 
+    /// Changes node `n`'s row with `f`, which says whether it changed anything; a change is
+    /// reported by [`Replay::changed_rows`].
+    fn edit(&mut self, n: u64, f: impl FnOnce(&mut Row) -> bool) {
+        if self.row_mut(n).is_some_and(f) && !self.history.changed.contains(&n) {
+            self.history.changed.push(n);
+        }
+    }
+
     fn link(&mut self, node: u64, parent: u64) {
         if self
             .history
@@ -351,21 +373,22 @@ impl Replay {
         if self.row_mut(parent).is_none() {
             return;
         }
-        if let Some(row) = self.row_mut(node) {
-            row.parent = Some(parent);
-        }
-        if let Some(p) = self.row_mut(parent) {
+        self.edit(node, |row| assign(&mut row.parent, Some(parent)));
+        self.edit(parent, |p| {
             p.children.push(node);
-        }
+            true
+        });
     }
 
     /// Sets mark `m` of node `n`, unless it is set.
     fn set(&mut self, n: u64, m: usize, at: Mark) {
-        if let Some(row) = self.row_mut(n) {
-            if row.marks[m].is_none() {
+        self.edit(n, |row| {
+            let unset = row.marks[m].is_none();
+            if unset {
                 row.marks[m] = Some(at);
             }
-        }
+            unset
+        });
     }
 
     /// Records what an applied record says happened, and when.
@@ -377,9 +400,7 @@ impl Replay {
         match kind {
             K::Reserved { node, parent, name } => {
                 self.link(*node, *parent);
-                if let Some(row) = self.row_mut(*node) {
-                    row.name = name.clone();
-                }
+                self.edit(*node, |row| assign(&mut row.name, name.clone()));
                 self.set(*node, M_RESERVED, at);
             }
             K::Spawned {
@@ -389,20 +410,18 @@ impl Replay {
                 name,
             } => {
                 self.link(*node, *parent);
-                if let Some(row) = self.row_mut(*node) {
-                    row.name = name.clone();
-                    row.kind = Some(*kind);
-                }
+                self.edit(*node, |row| {
+                    assign(&mut row.name, name.clone()) | assign(&mut row.kind, Some(*kind))
+                });
                 self.set(*node, M_SPAWNED, at);
                 if !kind.expands() {
                     self.set(*node, m_point(Facet::Expansion, Point::Completed), at);
                 }
             }
-            K::Constrained { node, constraint } => {
-                if let Some(row) = self.row_mut(*node) {
-                    row.constraints.push((at, constraint.clone()));
-                }
-            }
+            K::Constrained { node, constraint } => self.edit(*node, |row| {
+                row.constraints.push((at, constraint.clone()));
+                true
+            }),
             K::Transition {
                 node, facet, to, ..
             } => {
@@ -420,32 +439,33 @@ impl Replay {
             K::Terminated { node } => self.set(*node, M_TERMINATED, at),
             K::Reclaimed { node } => self.set(*node, M_RECLAIMED, at),
             K::Dead { node } => self.set(*node, M_DEAD, at),
-            K::Suspended { node } => {
-                if let Some(row) = self.row_mut(*node) {
-                    row.suspensions.push((at, None));
+            K::Suspended { node } => self.edit(*node, |row| {
+                row.suspensions.push((at, None));
+                true
+            }),
+            K::Unsuspended { node } => self.edit(*node, |row| {
+                match row.suspensions.iter_mut().rev().find(|s| s.1.is_none()) {
+                    Some(open) => {
+                        open.1 = Some(at);
+                        true
+                    }
+                    None => false,
                 }
-            }
-            K::Unsuspended { node } => {
-                if let Some(open) = self
-                    .row_mut(*node)
-                    .and_then(|r| r.suspensions.iter_mut().rev().find(|s| s.1.is_none()))
-                {
-                    open.1 = Some(at);
-                }
-            }
+            }),
             K::Failed {
                 node,
                 exception,
                 message,
             } => {
                 self.set(*node, M_FAILED, at);
-                if let Some(row) = self.row_mut(*node) {
+                self.edit(*node, |row| {
                     row.failures.push(Failure {
                         at,
                         exception: exception.clone(),
                         message: message.clone(),
                     });
-                }
+                    true
+                });
                 let path = self.path(*node);
                 self.history.exceptions.push(ExceptionStory {
                     node: *node,
@@ -462,17 +482,11 @@ impl Replay {
                 node,
                 number,
             } => {
-                if let Some(row) = self.row_mut(*monitor) {
-                    row.activations = *number;
-                }
-                if let Some(row) = self.row_mut(*node) {
-                    row.activation_of = Some(*monitor);
-                }
+                self.edit(*monitor, |row| assign(&mut row.activations, *number));
+                self.edit(*node, |row| assign(&mut row.activation_of, Some(*monitor)));
             }
             K::Triggered { monitor, count } => {
-                if let Some(row) = self.row_mut(*monitor) {
-                    row.triggers = *count;
-                }
+                self.edit(*monitor, |row| assign(&mut row.triggers, *count));
             }
             K::HandlerChosen {
                 node,
@@ -481,9 +495,9 @@ impl Replay {
                 handler,
                 ..
             } => {
-                if let Some(row) = self.row_mut(*node) {
-                    row.handles = Some((*failing, handler.clone()));
-                }
+                self.edit(*node, |row| {
+                    assign(&mut row.handles, Some((*failing, handler.clone())))
+                });
                 let step = Step {
                     what: "chosen",
                     node: Some(*node),
@@ -505,28 +519,18 @@ impl Replay {
                 }
             }
             K::Retried { node, of } => {
-                if let Some(row) = self.row_mut(*node) {
-                    row.retry_of = Some(*of);
-                }
+                self.edit(*node, |row| assign(&mut row.retry_of, Some(*of)));
                 self.step_for(*of, Step::new("retried", Some(*node), String::new(), at));
             }
-            K::Requested { node, uses, .. } => {
-                if let Some(row) = self.row_mut(*node) {
-                    row.request = Some((at, uses.clone()));
-                    row.granted = None;
-                    row.released = None;
-                    row.refused = None;
-                }
-            }
-            K::Granted { node, .. } => {
-                if let Some(row) = self.row_mut(*node) {
-                    row.granted = Some(at);
-                }
-            }
+            K::Requested { node, uses, .. } => self.edit(*node, |row| {
+                assign(&mut row.request, Some((at, uses.clone())))
+                    | assign(&mut row.granted, None)
+                    | assign(&mut row.released, None)
+                    | assign(&mut row.refused, None)
+            }),
+            K::Granted { node, .. } => self.edit(*node, |row| assign(&mut row.granted, Some(at))),
             K::Released { node, .. } => {
-                if let Some(row) = self.row_mut(*node) {
-                    row.released = Some(at);
-                }
+                self.edit(*node, |row| assign(&mut row.released, Some(at)));
             }
             K::Withdrawn { node } => self.refuse(*node, at, "withdrawn"),
             K::Denied { node, .. } => self.refuse(*node, at, "denied"),
@@ -554,9 +558,7 @@ impl Replay {
                 }
             }
             K::Placed { node, agent } => {
-                if let Some(row) = self.row_mut(*node) {
-                    row.agent = Some(agent.clone());
-                }
+                self.edit(*node, |row| assign(&mut row.agent, Some(agent.clone())));
             }
             K::Warning {
                 node: Some(node),
@@ -582,9 +584,7 @@ impl Replay {
     }
 
     fn refuse(&mut self, node: u64, at: Mark, how: &'static str) {
-        if let Some(row) = self.row_mut(node) {
-            row.refused = Some((at, how));
-        }
+        self.edit(node, |row| assign(&mut row.refused, Some((at, how))));
     }
 
     /// Adds a step to the last exception raised by `failing`, if it has one.
@@ -599,6 +599,15 @@ impl Replay {
             story.steps.push(step);
         }
     }
+}
+
+/// Sets `slot` to `value`; whether that changed it.
+fn assign<T: PartialEq>(slot: &mut T, value: T) -> bool {
+    let changed = *slot != value;
+    if changed {
+        *slot = value;
+    }
+    changed
 }
 
 impl Step {

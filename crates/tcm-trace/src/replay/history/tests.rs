@@ -1,7 +1,7 @@
 //! Unit tests for `history.rs`: rows, marks, exception stories and resources at a moment.
 
 use crate::event::{ResourceUse, TraceEvent, TraceKind};
-use crate::replay::{M_FAILED, M_RESERVED, M_SPAWNED, Mark, Replay, m_point};
+use crate::replay::{M_FAILED, M_RESERVED, M_SPAWNED, Mark, Replay, Row, m_point};
 use crate::state::{Facet, NodeKind, Point};
 use crate::test_util::*;
 
@@ -174,4 +174,123 @@ fn holders_and_reservations_are_read_at_a_moment() {
         Some(Mark { seq: asked, t: 0 })
     );
     assert_eq!((park.granted, park.refused), (None, None));
+}
+
+/// Applies each record of `trace` and holds `changed_rows` to the rows themselves: exactly the
+/// rows that differ from before the record (a number not allocated before counts as an empty
+/// row), each once.
+fn changed_rows_are_exact(trace: &[TraceEvent]) {
+    let mut r = Replay::with_history();
+    for ev in trace {
+        let before = r.rows().to_vec();
+        assert_eq!(r.apply(ev), Ok(()), "record {ev:?}");
+        let differ: Vec<u64> = r
+            .rows()
+            .iter()
+            .filter(|row| match before.get(row.number as usize) {
+                Some(was) => was != *row,
+                None => **row != Row::new(row.number),
+            })
+            .map(|row| row.number)
+            .collect();
+        let mut changed = r.changed_rows().to_vec();
+        changed.sort_unstable();
+        changed.dedup();
+        assert_eq!(
+            changed.len(),
+            r.changed_rows().len(),
+            "each row once: {ev:?}"
+        );
+        assert_eq!(changed, differ, "record {ev:?}");
+    }
+}
+
+#[test]
+fn the_rows_a_record_changed_are_named_after_it() {
+    changed_rows_are_exact(&small_run());
+
+    let base = || vec![ResourceUse::new("base", 1)];
+    let mut b = Tb::new();
+    b.push(TraceKind::Resource {
+        resource: "base".into(),
+        capacity: 1,
+        pending_limit: None,
+    });
+    b.goal(1, 0, "mission").start_goal(1);
+    b.push(TraceKind::Reserved {
+        node: 2,
+        parent: 1,
+        name: "later".into(),
+    });
+    b.command(3, 1, "move");
+    b.push(TraceKind::Requested {
+        node: 3,
+        uses: base(),
+        priority: 0,
+    });
+    b.push(TraceKind::Granted {
+        node: 3,
+        uses: base(),
+    });
+    b.push(TraceKind::Placed {
+        node: 3,
+        agent: "arm".into(),
+    });
+    b.start_command(3);
+    b.push(TraceKind::Suspended { node: 3 });
+    b.push(TraceKind::Unsuspended { node: 3 });
+    b.push(TraceKind::External { name: "go".into() });
+    b.at(S).push(TraceKind::Failed {
+        node: 3,
+        exception: "Blocked".into(),
+        message: "no way".into(),
+    });
+    b.push(TraceKind::Released {
+        node: 3,
+        uses: base(),
+    });
+    b.spawn(4, 3, NodeKind::Handler, "detour");
+    b.push(TraceKind::HandlerChosen {
+        node: 4,
+        failing: 3,
+        attached: 1,
+        exception: "Blocked".into(),
+        handler: "detour".into(),
+    });
+    b.command(5, 4, "move");
+    b.push(TraceKind::Retried { node: 5, of: 3 });
+    b.push(TraceKind::Dead { node: 2 });
+    b.push(TraceKind::Terminating { node: 5 });
+    b.push(TraceKind::Terminated { node: 5 });
+    b.push(TraceKind::Reclaimed { node: 5 });
+    let trace = b.build();
+    changed_rows_are_exact(&trace);
+
+    // What the rows of a few records are: a spawn changes the node and its parent, an external
+    // event no row, a refused record none.
+    let mut r = Replay::with_history();
+    let spawn_move = trace
+        .iter()
+        .position(|ev| matches!(ev.kind, TraceKind::Spawned { node: 3, .. }))
+        .expect("move's spawn");
+    for ev in &trace[..=spawn_move] {
+        assert_eq!(r.apply(ev), Ok(()));
+    }
+    assert_eq!(r.changed_rows(), [3, 1]);
+    let external = TraceEvent {
+        seq: spawn_move as u64 + 1,
+        t: 0,
+        kind: TraceKind::External { name: "go".into() },
+    };
+    assert_eq!(r.apply(&external), Ok(()));
+    assert!(r.changed_rows().is_empty());
+    let spawn_again = trace[spawn_move].clone();
+    assert!(r.apply(&spawn_again).is_err());
+    assert!(r.changed_rows().is_empty());
+    // Without the history, no row is ever named.
+    let mut bare = Replay::new();
+    for ev in &trace[..=spawn_move] {
+        assert_eq!(bare.apply(ev), Ok(()));
+    }
+    assert!(bare.changed_rows().is_empty());
 }
