@@ -1,6 +1,8 @@
-// The viewer's page. It holds one row per node (the snapshot of docs/viewer.md, then each trace
-// record applied as it comes), draws only the rows in sight, and asks the server for the rest
-// (a node's details and waits, exceptions, counts, the event list). Plain JavaScript, no build.
+// The viewer's page. It holds one row per node as the server's fold of the trace has it (the
+// snapshot of docs/viewer.md, then, with each record, the rows that record changed), draws only
+// the rows in sight, and asks the server for the rest (a node's details and waits, exceptions,
+// counts, the event list). It never reads what a record says happened: a new record kind needs
+// no change here. Plain JavaScript, no build.
 'use strict';
 
 const ROW = 20;
@@ -44,12 +46,14 @@ function reset() {
   S.cursor = 0; S.follow = true; S.collapsed = new Set(); S.dirty = true;
 }
 
+// One row of the server's fold: [number, parent, kind, name, m0 … m15, agent?] (docs/viewer.md).
+function rowNode(r) {
+  return { n: r[0], p: r[1], k: r[2], name: r[3], m: r.slice(4, 4 + MARKS), kids: [], agent: r[4 + MARKS] || null };
+}
+
 function loadSnapshot(s) {
   S.nodes = [];
-  for (const r of s.nodes) {
-    const m = r.slice(4, 4 + MARKS);
-    S.nodes[r[0]] = { n: r[0], p: r[1], k: r[2], name: r[3], m, kids: [], agent: r[4 + MARKS] || null };
-  }
+  for (const r of s.nodes) S.nodes[r[0]] = rowNode(r);
   for (const node of S.nodes) if (node && node.p >= 0 && S.nodes[node.p]) S.nodes[node.p].kids.push(node.n);
   S.times = s.times; S.records = s.records; S.finished = s.finished; S.problem = s.problem;
   const last = lastT();
@@ -58,43 +62,24 @@ function loadSnapshot(s) {
   S.dirty = true;
 }
 
-function ensure(n) {
-  if (!S.nodes[n]) S.nodes[n] = { n, p: -1, k: 'reserved', name: '', m: new Array(MARKS).fill(-1), kids: [] };
-  return S.nodes[n];
-}
-function link(n, p) {
-  const node = ensure(n);
-  if (node.p === p) return;
-  node.p = p;
-  ensure(p).kids.push(n);
-}
-function mark(node, i, seq) { if (node.m[i] < 0) node.m[i] = seq; }
-
-// One trace record (docs/trace-format.md), as the server's model applies it.
-function apply(r) {
-  if (r.seq !== S.records) { resync(); return; }
-  const n = r.node;
-  switch (r.ev) {
-    case 'reserved': link(n, r.parent); S.nodes[n].name = r.name; mark(S.nodes[n], M_RESERVED, r.seq); break;
-    case 'spawned': {
-      link(n, r.parent);
-      const node = S.nodes[n];
-      node.name = r.name; node.k = r.kind; mark(node, M_SPAWNED, r.seq);
-      if (r.kind === 'command' || r.kind === 'monitor') mark(node, mPoint(1, 2), r.seq);
-      break;
-    }
-    case 'transition': {
-      const p = POINTS.indexOf(r.to);
-      if (p >= 0) mark(ensure(n), mPoint(FACETS.indexOf(r.facet), p), r.seq);
-      break;
-    }
-    case 'terminating': mark(ensure(n), M_TERMINATING, r.seq); break;
-    case 'terminated': mark(ensure(n), M_TERMINATED, r.seq); break;
-    case 'reclaimed': mark(ensure(n), M_RECLAIMED, r.seq); break;
-    case 'dead': mark(ensure(n), M_DEAD, r.seq); break;
-    case 'failed': mark(ensure(n), M_FAILED, r.seq); break;
-    case 'placed': ensure(n).agent = r.agent; break;
+// The rows a record changed, as the fold has them after it: each replaces the page's node; a node
+// new to its parent is added to the parent's children, after those it has (the snapshot's order).
+function putRows(rows) {
+  for (const r of rows) {
+    const node = rowNode(r), was = S.nodes[node.n];
+    if (was) node.kids = was.kids;
+    S.nodes[node.n] = node;
+    if (was && was.p === node.p) continue;
+    if (was && S.nodes[was.p]) S.nodes[was.p].kids = S.nodes[was.p].kids.filter((k) => k !== node.n);
+    if (node.p >= 0 && S.nodes[node.p]) S.nodes[node.p].kids.push(node.n);
   }
+}
+
+// One live message: a record (docs/trace-format.md), the next one, with the rows it changed.
+function apply(m) {
+  const r = m.record;
+  if (r.seq !== S.records) { resync(); return; }
+  putRows(m.rows);
   const tl = S.times.length;
   if (tl === 0 || S.times[tl - 1] !== r.t) S.times.push(r.seq, r.t);
   S.records = r.seq + 1;
@@ -339,7 +324,7 @@ function connect() {
     }
     else if (m.type === 'finished') { S.finished = true; status(); refreshPanels(); }
     else if (m.type === 'resync') resync();
-    else if (m.ev) { apply(m); status(); }
+    else if (m.type === 'record') { apply(m); status(); }
     schedule();
   };
   ws.onclose = () => {

@@ -5,7 +5,9 @@
 //! The page (served from the binary, no build step) shows the task tree coloured by its facets'
 //! states, a timeline with a time cursor that replays the tree as it was, why a node waits,
 //! each exception's story, counts and durations per task, and the records themselves, filtered.
-//! Its wire format is the trace schema (docs/trace-format.md), framed as `docs/viewer.md` says.
+//! It folds no record itself: the model and the page read the rows of the one fold of the trace,
+//! [`tcm_trace::Replay`]; a live page gets each record (docs/trace-format.md) with the rows it
+//! changed, framed as `docs/viewer.md` says.
 
 mod model;
 mod server;
@@ -16,5 +18,7 @@ pub use model::{
     M_TERMINATED, M_TERMINATING, MARKS, Mark, NameStats, Problem, Restriction, Row, RunModel, Step,
     m_point,
 };
-pub use server::{DEFAULT_ADDR, LiveSink, ViewError, Viewer, exposure_warning, snapshot_json};
+pub use server::{
+    DEFAULT_ADDR, LiveSink, ViewError, Viewer, exposure_warning, record_json, snapshot_json,
+};
 pub use why::{EventView, NodeView, Wait};

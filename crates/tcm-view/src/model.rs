@@ -302,6 +302,12 @@ impl RunModel {
         self.replay.label(n)
     }
 
+    /// The rows the last record applied changed, by node number (the fold's
+    /// [`Replay::changed_rows`]): what a live page is sent with the record.
+    pub fn changed_rows(&self) -> &[u64] {
+        self.replay.changed_rows()
+    }
+
     /// The record lines, for the event list.
     pub fn line(&self, seq: u64) -> Option<&str> {
         self.lines.get(seq as usize).map(|l| &**l)

@@ -3,7 +3,9 @@
 //! its own thread and tokio runtime, so a program on virtual time, or one that blocks, never
 //! slows it, and it never slows the program: a live run's records go to each page through a
 //! bounded channel, and a page that falls behind is sent a fresh snapshot. Read-only.
-//! The API and the page's messages are in `docs/viewer.md`.
+//! The API and the page's messages are in `docs/viewer.md`: a live page gets a snapshot of the
+//! fold's rows, then each record with the rows it changed as the fold has them after it
+//! ([`record_json`]), so the page folds nothing itself.
 
 use std::net::{SocketAddr, TcpListener};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock};
@@ -18,7 +20,7 @@ use serde::Deserialize;
 use tcm_trace::TraceEvent;
 use tokio::sync::{broadcast, oneshot};
 
-use crate::model::{EventFilter, MARKS, RunModel};
+use crate::model::{EventFilter, MARKS, Row, RunModel};
 
 /// Records a page may fall behind by before it is sent a fresh snapshot instead.
 const LAG: usize = 4096;
@@ -219,15 +221,17 @@ impl LiveSink {
 
 impl tcm::TraceSink for LiveSink {
     fn record(&mut self, ev: &TraceEvent) {
-        let line: Arc<str> = Arc::from(tcm_trace::to_line(ev));
+        let line = tcm_trace::to_line(ev).into_boxed_str();
         let mut model = self.run.lock();
         if model.problem.is_some() {
             return;
         }
-        match model.apply_line(ev, Box::from(&*line)) {
+        match model.apply_line(ev, line) {
             Ok(()) => {
+                let message: Arc<str> = Arc::from(record_json(&model));
+                drop(model);
                 // No page listening is not an error.
-                let _ = self.run.tx.send(line);
+                let _ = self.run.tx.send(message);
             }
             Err(message) => {
                 let name = model.name.clone();
@@ -342,8 +346,35 @@ pub fn snapshot_json(id: usize, m: &RunModel) -> String {
         let _ = write!(out, "{s},{t}");
     }
     out.push_str(r#"],"nodes":["#);
+    write_rows(&mut out, m.rows());
+    out.push_str("]}");
+    out
+}
+
+/// The live message of the last record applied to `m` (`docs/viewer.md`, "Live messages"): the
+/// record as its trace line, and the rows it changed, as the fold has them after it
+/// ([`tcm_trace::Replay::changed_rows`]), in the snapshot's format.
+pub fn record_json(m: &RunModel) -> String {
+    let record = m.len().checked_sub(1).and_then(|seq| m.line(seq));
+    let changed = m.changed_rows();
+    let mut out = String::with_capacity(64 + record.map_or(0, str::len) + 80 * changed.len());
+    out.push_str(r#"{"type":"record","record":"#);
+    out.push_str(record.unwrap_or("null"));
+    out.push_str(r#","rows":["#);
+    write_rows(
+        &mut out,
+        changed.iter().filter_map(|&n| m.rows().get(n as usize)),
+    );
+    out.push_str("]}");
+    out
+}
+
+/// Rows as the snapshot writes them, separated by commas: `[number, parent, kind, name, m0 …
+/// m15]`, then the agent for a node placed on one. A number no record allocated is left out.
+fn write_rows<'a>(out: &mut String, rows: impl IntoIterator<Item = &'a Row>) {
+    use std::fmt::Write as _;
     let mut first = true;
-    for r in m.rows() {
+    for r in rows {
         if r.number != 0 && r.parent.is_none() {
             continue;
         }
@@ -373,8 +404,6 @@ pub fn snapshot_json(id: usize, m: &RunModel) -> String {
         }
         out.push(']');
     }
-    out.push_str("]}");
-    out
 }
 
 async fn snapshot(State(shared): State<Arc<Shared>>, Path(id): Path<usize>) -> Response {
@@ -398,7 +427,7 @@ async fn live(
 async fn live_socket(mut socket: WebSocket, id: usize, run: Arc<Run>) {
     loop {
         // Subscribing under the model's lock: no record falls between the snapshot and the
-        // first delta.
+        // first record's message.
         let (snapshot, mut rx) = {
             let model = run.lock();
             (snapshot_json(id, &model), run.tx.subscribe())

@@ -1,9 +1,11 @@
 //! The viewer's model and server on real runs (tcm on tokio's paused clock, every trace through
 //! the checker): why a node waits and when it stops waiting, an exception's story, counts and
 //! durations, the event filter, bad files named by line with what came before kept; and the
-//! server: the snapshot, live deltas over a WebSocket, and a page that falls behind being sent a
-//! fresh snapshot instead of slowing the run.
+//! server: the snapshot, each live record with the rows it changed over a WebSocket (the rows a
+//! page builds from them being the snapshot's), and a page that falls behind being sent a fresh
+//! snapshot instead of slowing the run.
 
+use std::collections::BTreeMap;
 use std::time::Duration;
 
 use futures_util::StreamExt;
@@ -281,6 +283,56 @@ fn a_bad_line_is_named_with_its_file_and_line_and_what_came_before_is_kept() {
     assert!(p.message.contains("record number 5"), "{p}");
 }
 
+/// A snapshot's or a live message's rows, by node number.
+fn rows_of(rows: &serde_json::Value) -> BTreeMap<u64, serde_json::Value> {
+    rows.as_array()
+        .expect("rows")
+        .iter()
+        .map(|r| (r[0].as_u64().expect("a node number"), r.clone()))
+        .collect()
+}
+
+fn snapshot_rows(m: &RunModel) -> BTreeMap<u64, serde_json::Value> {
+    let snapshot: serde_json::Value =
+        serde_json::from_str(&tcm_view::snapshot_json(0, m)).expect("the snapshot is JSON");
+    rows_of(&snapshot["nodes"])
+}
+
+/// After each record of a run, its live message carries the record and the rows it changed, as
+/// the snapshot then has them, and every row of the snapshot that the record changed.
+#[tokio::test(start_paused = true)]
+async fn each_live_message_carries_the_record_and_the_rows_it_changed() {
+    let trace = mission().await;
+    let mut m = RunModel::new("mission");
+    let mut before = snapshot_rows(&m);
+    let mut built = before.clone();
+    let mut carried = 0;
+    for ev in &trace {
+        m.apply(ev).expect("a checked trace applies");
+        let msg: serde_json::Value =
+            serde_json::from_str(&tcm_view::record_json(&m)).expect("the message is JSON");
+        assert_eq!(msg["type"], "record");
+        let line: serde_json::Value = serde_json::from_str(&tcm_trace::to_line(ev)).expect("JSON");
+        assert_eq!(msg["record"], line);
+        let after = snapshot_rows(&m);
+        let rows = rows_of(&msg["rows"]);
+        for (n, row) in &rows {
+            assert_eq!(Some(row), after.get(n), "record {}: row {n}", ev.seq);
+        }
+        for (n, row) in &after {
+            if before.get(n) != Some(row) {
+                assert!(rows.contains_key(n), "record {}: row {n} not sent", ev.seq);
+            }
+        }
+        carried += rows.len();
+        built.extend(rows);
+        before = after;
+    }
+    // The rows built from the messages alone are the snapshot's at the end.
+    assert_eq!(built, before);
+    assert!(carried >= trace.len() / 2, "{carried} rows in all");
+}
+
 async fn next_json(
     ws: &mut tokio_tungstenite::WebSocketStream<
         tokio_tungstenite::MaybeTlsStream<tokio::net::TcpStream>,
@@ -327,16 +379,30 @@ fn a_live_page_gets_a_snapshot_then_records_and_a_fresh_snapshot_when_it_falls_b
         assert_eq!(snap["type"], "snapshot");
         assert_eq!(snap["records"], half as u64);
         assert_eq!(snap["finished"], false);
-        // …then each record, as the trace schema writes it.
+        assert_eq!(
+            rows_of(&snap["nodes"]),
+            snapshot_rows(&model_of(&trace[..half]))
+        );
+        // …then each record, as the trace schema writes it, with the rows it changed: the rows
+        // the page builds are those of the snapshot after them.
+        let mut rows = rows_of(&snap["nodes"]);
         for ev in &trace[half..half + 3] {
             sink.record(ev);
         }
-        for ev in &trace[half..half + 3] {
+        for (i, ev) in trace[half..half + 3].iter().enumerate() {
             let got = next_json(&mut ws).await;
+            assert_eq!(got["type"], "record");
             assert_eq!(
-                got,
+                got["record"],
                 serde_json::from_str::<serde_json::Value>(&tcm_trace::to_line(ev)).expect("JSON")
             );
+            let changed = rows_of(&got["rows"]);
+            let fold = snapshot_rows(&model_of(&trace[..half + i + 1]));
+            for (n, row) in &changed {
+                assert_eq!(Some(row), fold.get(n), "record {}: row {n}", ev.seq);
+            }
+            rows.extend(changed);
+            assert_eq!(rows, fold, "the rows after record {}", ev.seq);
         }
         // A page that does not read while the run goes on never holds the run up: it falls
         // behind and is sent a fresh snapshot with everything, then the records after it.
@@ -348,16 +414,20 @@ fn a_live_page_gets_a_snapshot_then_records_and_a_fresh_snapshot_when_it_falls_b
         }
         // 20 MB: more than the socket buffers on both sides hold.
         let name = "tick".repeat(250);
+        let mut all = trace.clone();
         for _ in 0..20_000 {
-            sink.record(&TraceEvent {
+            let tick = TraceEvent {
                 seq,
                 t,
                 kind: tcm_trace::TraceKind::External { name: name.clone() },
-            });
+            };
+            sink.record(&tick);
+            all.push(tick);
             seq += 1;
         }
         sink.flush();
-        // Read on: a fresh snapshot comes, and from it on, every record in order to the end.
+        // Read on: a fresh snapshot comes, and from it on, every record in order to the end; the
+        // rows built from it are the fold's at the end.
         let (mut last, mut finished, mut snapshots) = (0u64, false, 0);
         while !(snapshots > 0 && last == seq && finished) {
             let m = next_json(&mut ws).await;
@@ -365,14 +435,21 @@ fn a_live_page_gets_a_snapshot_then_records_and_a_fresh_snapshot_when_it_falls_b
                 snapshots += 1;
                 last = m["records"].as_u64().expect("records");
                 finished = m["finished"] == true;
+                rows = rows_of(&m["nodes"]);
             } else if m["type"] == "finished" {
                 finished = true;
             } else if snapshots > 0 {
-                assert_eq!(m["seq"], last, "records after the snapshot come in order");
+                assert_eq!(m["type"], "record");
+                assert_eq!(
+                    m["record"]["seq"], last,
+                    "records after the snapshot come in order"
+                );
+                rows.extend(rows_of(&m["rows"]));
                 last += 1;
             }
         }
         assert!(seq > start as u64);
+        assert_eq!(rows, snapshot_rows(&model_of(&all)));
     });
     viewer.stop();
 }
