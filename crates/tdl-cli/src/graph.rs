@@ -403,7 +403,7 @@ fn dot(g: &Graph) -> String {
     let mut out = String::new();
     out.push_str("digraph \"tdl\" {\n");
     out.push_str(
-        "    graph [rankdir=TB, fontname=\"Helvetica\", fontsize=10, nodesep=0.3, ranksep=0.45];\n",
+        "    graph [rankdir=TB, ordering=out, fontname=\"Helvetica\", fontsize=10, nodesep=0.3, ranksep=0.45];\n",
     );
     out.push_str("    node [fontname=\"Helvetica\", fontsize=10, margin=\"0.1,0.04\"];\n");
     out.push_str("    edge [fontname=\"Helvetica\", fontsize=8, arrowsize=0.7];\n");

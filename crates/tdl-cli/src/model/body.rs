@@ -67,6 +67,7 @@ pub(super) fn analyse(info: &mut TaskInfo<'_>, body: &BodyScope<'_>) {
             apply(&mut sites, &mut relations, &scope, t, &p);
         }
     }
+    waits(&scope, &mut relations);
     info.sites = sites;
     info.relations = relations.into_iter().collect();
     info.notes = notes;
@@ -74,6 +75,54 @@ pub(super) fn analyse(info: &mut TaskInfo<'_>, body: &BodyScope<'_>) {
     info.retries = body.stmts.iter().any(|it| matches!(it, Tdl::Retry(_)));
     info.bypasses = body.stmts.iter().any(|it| matches!(it, Tdl::Bypass(_)));
     info.triggers = body.stmts.iter().any(|it| matches!(it, Tdl::Trigger(_)));
+}
+
+/// The order a body's waits make: a body waits for a waited spawn (`with wait`, `with outcome`, a
+/// value taken, or a spawn of a `with (wait)` group) to end before it goes on, so each spawn that
+/// may come just after it (`previous`) starts after its end, unless a constraint orders the two
+/// already. Drawn in body order, a sequence of waited spawns is a sequence, not a fan-out.
+fn waits(scope: &Scope<'_, '_>, relations: &mut BTreeSet<Relation>) {
+    let body = scope.body;
+    let waited = |id: usize| {
+        let def = &body.spawns[id];
+        let on_spawn = def.spawn.binding.is_some()
+            || def
+                .spawn
+                .constraints
+                .iter()
+                .any(|c| matches!(c.kind, ConstraintKind::Wait | ConstraintKind::Outcome));
+        let in_group = def.groups.iter().any(|&g| {
+            body.groups[g]
+                .group
+                .constraints
+                .iter()
+                .any(|c| matches!(c.kind, ConstraintKind::Wait))
+        });
+        on_spawn || in_group
+    };
+    for (to, def) in body.spawns.iter().enumerate() {
+        let Some(previous) = body.previous_at(def.site.position) else {
+            continue;
+        };
+        for &from in previous.may.iter().filter(|it| waited(**it)) {
+            let (from, to) = (
+                Endpoint::Site(scope.spawn_sites[from]),
+                scope.spawn_sites[to],
+            );
+            // A constraint that orders them already says it.
+            let ordered = relations
+                .iter()
+                .any(|r| r.from == from && r.to == to && r.kind == RelationKind::Order);
+            if !ordered {
+                relations.insert(Relation {
+                    from,
+                    to,
+                    kind: RelationKind::Order,
+                    label: "after its end".into(),
+                });
+            }
+        }
+    }
 }
 
 /// Every tag of the pending constraints, `previous` aside, as [`Scope::resolve`] resolves it.

@@ -147,3 +147,36 @@ fn rust_fragments_are_written_as_rustfmt_would() {
     assert_eq!(print::type_text(&g.task.args[1].ty), "&'static str");
     assert_eq!(g.sites[0].args, "m.len(), v[0].clone()");
 }
+
+#[test]
+fn a_body_that_waits_orders_what_comes_next_after_the_end_of_what_it_waited_for() {
+    let files = program(
+        "goal g(n: u32) {
+            spawn a() with wait;
+            let v = spawn b() with wait;
+            if n > v { let o = spawn c() with outcome; } else { spawn d(); }
+            spawn e();
+            with (wait) { spawn f(); spawn h(); }
+            spawn i();
+        }
+        command b() -> u32 { 0 }",
+    );
+    let p = structure(&files);
+    let after: Vec<String> = relations(&p, "g")
+        .into_iter()
+        .filter(|it| it.ends_with("after its end"))
+        .collect();
+    assert_eq!(
+        after,
+        [
+            "a -> b: after its end",
+            "b -> c: after its end",
+            "b -> d: after its end",
+            "c -> e: after its end",
+            // A group's `wait` is each member's: `f` ends before `h` starts, both before `i`.
+            "f -> h: after its end",
+            "f -> i: after its end",
+            "h -> i: after its end",
+        ]
+    );
+}
