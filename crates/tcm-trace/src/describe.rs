@@ -1,7 +1,7 @@
 //! Each record kind's class and its text for people: what `tdl trace story` prints, kept with the
 //! record type so that a new kind is described where it is defined.
 
-use crate::event::TraceKind;
+use crate::event::{TraceConstraint, TraceEventRef, TraceKind, TraceThen, TraceWhen};
 use crate::story::uses_text;
 
 /// The class of a record, for filters (`tdl trace story --kind`).
@@ -73,6 +73,65 @@ impl RecordClass {
     }
 }
 
+impl TraceConstraint {
+    /// The constraint as TDL writes it, its nodes named by `name` with their numbers and its times
+    /// since the run started: `disable execution until plan_path {7} execution completed`,
+    /// `terminate in 30s after speak {9} handling active`, `terminate at 124s (run time)`.
+    pub fn text(&self, name: impl Fn(u64) -> String) -> String {
+        let event = |e: &TraceEventRef| {
+            let point = match e.outcome {
+                Some(outcome) => outcome.as_str().to_owned(),
+                None => format!("{} {}", e.facet, e.point.as_str()),
+            };
+            format!("{} {{{}}} {point}", name(e.node), e.node)
+        };
+        let (head, at, within) = match self {
+            TraceConstraint::ExpandFirst => return "expand first".into(),
+            TraceConstraint::DelayExpansion => return "delay expansion".into(),
+            TraceConstraint::Trigger { then, .. } => match then {
+                TraceThen::Enable(facet) => (format!("disable {facet}"), "until", "for"),
+                TraceThen::Terminate => ("terminate".to_owned(), "at", "in"),
+                TraceThen::Activate => ("activate".to_owned(), "at", "in"),
+            },
+        };
+        let TraceConstraint::Trigger { when, .. } = self else {
+            return head;
+        };
+        match when {
+            TraceWhen::Now => head,
+            TraceWhen::At(t) => format!("{head} {at} {} (run time)", seconds(*t)),
+            TraceWhen::Event(e) => format!("{head} {at} {}", event(e)),
+            TraceWhen::After { delay_ns, event: e } => {
+                format!("{head} {within} {} after {}", seconds(*delay_ns), event(e))
+            }
+            TraceWhen::External(name) => format!("{head} {at} external {name:?}"),
+            TraceWhen::All { events, delay_ns } => {
+                let all: Vec<String> = events.iter().map(event).collect();
+                let all = if all.is_empty() {
+                    "nothing".to_owned()
+                } else {
+                    all.join(" and ")
+                };
+                match delay_ns {
+                    Some(d) => format!("{head} {within} {} after all of {all}", seconds(*d)),
+                    None => format!("{head} {at} all of {all}"),
+                }
+            }
+        }
+    }
+}
+
+/// Nanoseconds as seconds, as short as exact: `30s`, `1.5s`, `0.000001s`.
+fn seconds(ns: u64) -> String {
+    let whole = ns / 1_000_000_000;
+    let frac = ns % 1_000_000_000;
+    if frac == 0 {
+        return format!("{whole}s");
+    }
+    let frac = format!("{frac:09}");
+    format!("{whole}.{}s", frac.trim_end_matches('0'))
+}
+
 impl TraceKind {
     /// The record's class, the node it is told about (for a handler chosen, the failing node; for
     /// an activation or a trigger, the monitor), and what it says, e.g. `handling active`,
@@ -102,7 +161,7 @@ impl TraceKind {
             K::Constrained { node, constraint } => (
                 C::Constraint,
                 Some(*node),
-                format!("constrained {constraint:?}"),
+                format!("constrained: {}", constraint.text(|n| name(&n))),
             ),
             K::ConstraintVoid { node, reason } => (
                 C::Constraint,
@@ -261,5 +320,70 @@ mod tests {
         );
         let start = TraceKind::RunStarted { version: 6, run: 0 };
         assert_eq!(start.describe(|_| String::new()), None);
+    }
+
+    #[test]
+    fn a_constraint_is_told_as_tdl_writes_it() {
+        use crate::state::{Facet, Outcome, Point};
+        let done = |node| TraceEventRef {
+            node,
+            facet: Facet::Execution,
+            point: Point::Completed,
+            outcome: None,
+        };
+        let name = |n: u64| format!("n{n}");
+        let cases = [
+            (
+                TraceConstraint::trigger(
+                    TraceWhen::Event(done(7)),
+                    TraceThen::Enable(Facet::Execution),
+                ),
+                "disable execution until n7 {7} execution completed",
+            ),
+            (
+                TraceConstraint::trigger(
+                    TraceWhen::After {
+                        delay_ns: 1_500_000_000,
+                        event: TraceEventRef {
+                            outcome: Some(Outcome::Failed),
+                            ..done(3)
+                        },
+                    },
+                    TraceThen::Terminate,
+                ),
+                "terminate in 1.5s after n3 {3} failed",
+            ),
+            (
+                TraceConstraint::trigger(TraceWhen::At(124_000_000_000), TraceThen::Terminate),
+                "terminate at 124s (run time)",
+            ),
+            (
+                TraceConstraint::trigger(
+                    TraceWhen::External("door open".into()),
+                    TraceThen::Activate,
+                ),
+                "activate at external \"door open\"",
+            ),
+            (
+                TraceConstraint::trigger(
+                    TraceWhen::All {
+                        events: vec![done(4), done(5)],
+                        delay_ns: None,
+                    },
+                    TraceThen::Terminate,
+                ),
+                "terminate at all of n4 {4} execution completed and n5 {5} execution completed",
+            ),
+            (TraceConstraint::ExpandFirst, "expand first"),
+        ];
+        for (constraint, text) in cases {
+            assert_eq!(constraint.text(name), text);
+        }
+        let record = TraceKind::Constrained {
+            node: 8,
+            constraint: TraceConstraint::trigger(TraceWhen::Now, TraceThen::Terminate),
+        };
+        let (_, _, text) = record.describe(name).expect("described");
+        assert_eq!(text, "constrained: terminate");
     }
 }
