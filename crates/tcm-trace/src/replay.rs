@@ -414,6 +414,20 @@ impl Replay {
         self.nodes.values()
     }
 
+    /// The nodes spawned whose execution had not completed at the last record, by number: none
+    /// when the run ended (every top-level task done), some when it was stuck or cut.
+    pub fn unfinished(&self) -> Vec<&ReplayNode> {
+        self.nodes
+            .values()
+            .filter(|it| {
+                it.number() != 0
+                    && it.is_spawned()
+                    && !it.is_reclaimed()
+                    && it.state(Facet::Execution) != State::Completed
+            })
+            .collect()
+    }
+
     /// The run number of the `run_started` record, if one was applied.
     pub fn run(&self) -> Option<u32> {
         self.run

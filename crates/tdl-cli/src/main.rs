@@ -125,7 +125,9 @@ enum Command {
 
 #[derive(Subcommand)]
 enum TraceCommand {
-    /// Verify the trace with the trace checker; exit 1 and list the violations if any.
+    /// Verify the trace with the trace checker; exit 1 and list the violations if any. A valid
+    /// trace of a run that did not end (stuck, or cut) is said to be so, with the innermost nodes
+    /// still open.
     Check {
         /// The trace file.
         file: PathBuf,
@@ -295,26 +297,30 @@ fn trace(what: TraceCommand, out: &mut impl Write) -> anyhow::Result<bool> {
             .map_err(|e| anyhow::anyhow!("{} is not a trace: {e}", file.display()))
     };
     match what {
-        TraceCommand::Check { file } => match tcm_trace::check(&load(&file)?) {
-            Ok(r) => {
-                writeln!(
-                    out,
-                    "{}: ok ({} records, {} nodes, {} transitions, {} constraints)",
-                    file.display(),
-                    r.n_records,
-                    r.n_nodes,
-                    r.n_transitions,
-                    r.n_constraints
-                )?;
-                Ok(true)
-            }
-            Err(violations) => {
-                for v in &violations {
-                    writeln!(out, "{}: {v}", file.display())?;
+        TraceCommand::Check { file } => {
+            let trace = load(&file)?;
+            match tcm_trace::check(&trace) {
+                Ok(r) => {
+                    writeln!(
+                        out,
+                        "{}: ok ({} records, {} nodes, {} transitions, {} constraints)",
+                        file.display(),
+                        r.n_records,
+                        r.n_nodes,
+                        r.n_transitions,
+                        r.n_constraints
+                    )?;
+                    out.write_all(view::unfinished(&trace).as_bytes())?;
+                    Ok(true)
                 }
-                Ok(false)
+                Err(violations) => {
+                    for v in &violations {
+                        writeln!(out, "{}: {v}", file.display())?;
+                    }
+                    Ok(false)
+                }
             }
-        },
+        }
         TraceCommand::Export { file, mcap } => {
             let trace = load(&file)?;
             let written = export::mcap(&trace, &mcap)?;

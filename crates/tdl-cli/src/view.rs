@@ -111,6 +111,53 @@ impl Filter {
     }
 }
 
+/// What a valid trace of a run that did not end leaves: which nodes had not completed at its
+/// last record, the innermost of them (those none of whose children are unfinished) with their
+/// paths and facets; empty when the run ended.
+pub(crate) fn unfinished(trace: &[TraceEvent]) -> String {
+    let mut replay = Replay::with_history();
+    for ev in trace {
+        // A valid trace: the checker said so.
+        let _ = replay.apply(ev);
+    }
+    let unfinished = replay.unfinished();
+    if unfinished.is_empty() {
+        return String::new();
+    }
+    let open: std::collections::BTreeSet<u64> = unfinished.iter().map(|it| it.number()).collect();
+    let innermost: Vec<_> = unfinished
+        .iter()
+        .filter(|it| !it.children().iter().any(|c| open.contains(c)))
+        .collect();
+    let mut out = format!(
+        "the run did not end: at its last record ({:.3} s) {} node(s) had not completed; the innermost:\n",
+        replay.last_t() as f64 / 1e9,
+        unfinished.len()
+    );
+    const SHOWN: usize = 10;
+    for node in innermost.iter().take(SHOWN) {
+        let facets: Vec<String> = [Facet::Handling, Facet::Expansion, Facet::Execution]
+            .iter()
+            .map(|f| format!("{f} {}", node.state(*f)))
+            .collect();
+        let terminating = if node.termination() == tcm_trace::Termination::Alive {
+            ""
+        } else {
+            ", terminating"
+        };
+        out.push_str(&format!(
+            "  {} {{{}}}: {}{terminating}\n",
+            replay.path(node.number()),
+            node.number(),
+            facets.join(", ")
+        ));
+    }
+    if innermost.len() > SHOWN {
+        out.push_str(&format!("  … and {} more\n", innermost.len() - SHOWN));
+    }
+    out
+}
+
 /// The story lines of `trace` that `filter` keeps: `<seconds> {id} <name> <what>`, or
 /// `<seconds> <what>` for records about no node (external events, callbacks, run-wide warnings).
 /// Names and parents are the fold's ([`Replay`]) as of each record; the text is the record's own

@@ -226,6 +226,22 @@ fn trace_check_accepts_a_good_trace_and_names_the_violations_of_a_bad_one() {
         out.starts_with("tests/data/run.jsonl: ok (60 records"),
         "{out}"
     );
+    // The run was cut while the mail was being delivered: valid, and said not to have ended,
+    // with the innermost nodes still open.
+    assert!(
+        out.contains(
+            "the run did not end: at its last record (0.000 s) 10 node(s) had not completed"
+        ),
+        "{out}"
+    );
+    assert!(
+        out.contains("  deliver_all/deliver_mail/center_on_door {4}: handling disabled, expansion disabled, execution disabled\n"),
+        "{out}"
+    );
+    // A run that ended says nothing more.
+    let (code, out, _) = tdl(&["trace", "check", "tests/data/handled_run.jsonl"]);
+    assert_eq!(code, 0, "{out}");
+    assert!(!out.contains("did not end"), "{out}");
     let (code, out, _) = tdl(&["trace", "check", "tests/data/broken_run.jsonl"]);
     assert_eq!(code, 1, "{out}");
     assert!(out.contains("[transition-from]"), "{out}");
