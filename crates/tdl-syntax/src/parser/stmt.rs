@@ -632,6 +632,16 @@ fn arm(input: ParseStream, cx: &mut Cx) -> syn::Result<Arm> {
         cx.hint = Some("write `pat => { spawn task(args); }`");
         return Err(input.error("a spawn in a match arm needs braces"));
     }
+    if let Some(word) = tdl_arm_statement(input.cursor()) {
+        cx.hint = Some(match word {
+            "fail" => "write `pat => { fail E; }`: a TDL statement in an arm goes in braces",
+            "bypass" => "write `pat => { bypass; }`",
+            "retry" => "write `pat => { retry; }`",
+            "succeed" => "write `pat => { succeed; }`",
+            _ => "write `pat => { trigger; }`",
+        });
+        return Err(input.error(format!("a `{word}` in a match arm needs braces")));
+    }
     let body = if input.peek(syn::token::Brace) {
         let body = block(input, cx)?;
         if input.peek(Token![,]) {
@@ -653,6 +663,19 @@ fn arm(input: ParseStream, cx: &mut Cx) -> syn::Result<Arm> {
         }
     };
     Ok(Arm { pat, guard, body })
+}
+
+/// A TDL statement written as a match arm's expression: `fail E`, `fail E { .. }`, or `fail`,
+/// `bypass`, `retry`, `succeed` or `trigger` alone before the arm's `,` (or the end of the
+/// arms). Those words as Rust (`fail_count`, `retry(3)`, `bypass.len()`) are left alone.
+fn tdl_arm_statement(cursor: Cursor<'_>) -> Option<&'static str> {
+    let (word, rest) = first_ident(cursor)?;
+    let word = ["fail", "bypass", "retry", "succeed", "trigger"]
+        .into_iter()
+        .find(|it| word == *it)?;
+    let alone = rest.eof() || rest.punct().is_some_and(|(p, _)| p.as_char() == ',');
+    let fail_with = word == "fail" && rest.ident().is_some();
+    (alone || fail_with).then_some(word)
 }
 
 /// The tokens from `start` up to (not including) `end`, which must come after `start` in the
