@@ -8,24 +8,33 @@
 //! it), with the command line that runs its seed again; a seed gives the same run, and the same
 //! trace file, every time. Progress goes to standard error: a bar on a terminal (`indicatif`), a
 //! plain line every second otherwise. Ctrl-C stops after the current run and prints what was
-//! found so far (a second one exits at once). Exit status as `tdl verify`: 0 when no run broke a
-//! property, 1 when one did, the program has errors or the runs were interrupted, 2 on usage or
-//! I/O errors.
+//! found so far (a second one exits at once). Exit status ([`EXIT_STATUS`]), as `tdl verify`'s:
+//! 0 no run broke a property, 1 one did, 3 the runs were interrupted (or none was made) and none
+//! broke one, 2 an error (bad input, the program has errors, I/O, a checker failure).
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use tdl_verify::{Control, Options, SimOptions, SimProgress, SimReport};
+use tdl_verify::{Builtin, Control, Options, SimOptions, SimProgress, SimReport};
 
 use crate::verify::{
-    load_program, load_properties, print_counterexample, print_errors_and_notes, slug,
-    stop_on_ctrl_c, write_trace,
+    builtin, finish, load_program, load_properties, print_counterexample, print_errors_and_notes,
+    print_unchecked, slug, stop_on_ctrl_c, write_trace,
 };
+
+/// The exit statuses of `tdl sim`, as `--help` gives them.
+const EXIT_STATUS: &str = "Exit status (for CI), as tdl verify's:
+  0  ok: no run of the seeds broke a property (a simulation proves nothing beyond its runs)
+  1  violated: some run broke a property
+  3  undecided: Ctrl-C stopped the runs (or none was made), and none broke a property
+  2  error: bad input (options, a property that does not parse or names no node, a program with
+     errors), I/O, or a failure of the checker itself";
 
 /// Options of `tdl sim`.
 #[derive(clap::Args)]
+#[command(after_help = EXIT_STATUS)]
 pub(crate) struct Args {
     /// The `.tdl` files of the program, checked as one program.
     #[arg(required_unless_present = "package", conflicts_with = "package")]
@@ -89,6 +98,11 @@ pub(crate) struct Args {
     /// Commands written in Rust may also fail with an exception nobody declares.
     #[arg(long)]
     unknown_exception: bool,
+    /// A built-in property not to check (repeat, or separate with commas), as for `tdl verify`:
+    /// no-stuck-state, no-unhandled-exception, every-run-ends (a run going on past `--depth` or
+    /// `--max-time` then ends at a bound), trace-checker.
+    #[arg(long = "no-builtin", value_name = "PROPERTY", value_delimiter = ',', value_parser = builtin)]
+    no_builtin: Vec<Builtin>,
     /// A property to check besides the built-in ones (repeat), as for `tdl verify`.
     #[arg(short = 'P', long = "property", value_name = "PROPERTY")]
     property: Vec<String>,
@@ -100,14 +114,13 @@ pub(crate) struct Args {
     out: PathBuf,
 }
 
-/// Runs `tdl sim`; Ok(true) when no run broke a property.
+/// Runs `tdl sim`: as [`crate::verify::run`] ([`EXIT_STATUS`]).
 pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
     let options = options(&args)?;
-    let Some((files, program)) = load_program(&args.files, args.package.as_deref(), out)? else {
-        return Ok(false);
-    };
+    let (files, program) = load_program(&args.files, args.package.as_deref(), out)?;
     let task = program.root_task(args.task.as_deref())?;
     let properties = load_properties(&args.property, args.properties.as_deref())?;
+    tdl_verify::check_names(&program, &task, &properties)?;
     let seeds = match args.seed {
         Some(s) => s..s.saturating_add(1),
         None => args.from..args.from.saturating_add(args.seeds),
@@ -135,6 +148,7 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
         b.depth,
         args.max_time
     )?;
+    print_unchecked(b, out)?;
     out.flush()?;
     let control = Arc::new(Control::default());
     stop_on_ctrl_c(&control);
@@ -152,7 +166,7 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
         )
     };
     print_report(&report, &args.out, out)?;
-    Ok(report.ok() && !report.interrupted)
+    finish(report.status(), true, out)
 }
 
 fn seconds(what: &str, s: f64) -> anyhow::Result<Duration> {
@@ -183,6 +197,7 @@ fn options(args: &Args) -> anyhow::Result<SimOptions> {
             hangs: args.hangs.unwrap_or(d.hangs),
             allowed: args.allow.clone(),
             unknown_exception: args.unknown_exception,
+            unchecked: args.no_builtin.clone(),
             ..d
         },
         min_duration,

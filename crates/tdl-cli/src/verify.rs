@@ -6,10 +6,14 @@
 //! task verified is `--task`, else the only goal no task of the program spawns. Progress goes to
 //! standard error: a spinner on a terminal (`indicatif`), a plain line every second otherwise.
 //! Ctrl-C stops the search and prints what was found so far (a second one exits at once).
-//! Each counterexample is written as a trace file (JSON lines) under `--out`, which
-//! `tdl trace story FILE` replays; its story is printed too. Exit status: 0 when every property
-//! holds (or is undecided), 1 when one is broken, the program has errors or the search was
-//! interrupted, 2 on usage or I/O errors.
+//! Each counterexample is written as a trace file (JSON lines) under `--out` as soon as it is
+//! found, and printed (its path in words and the story of its trace, which `tdl trace story FILE`
+//! replays): a search cut short later, or killed, keeps it. The search stops at `--max-states`
+//! distinct states or when it uses `--max-memory` (default: half of the machine's memory), as
+//! at a bound: what it did not decide is undecided. Exit status ([`EXIT_STATUS`]): 0 every
+//! property decided and holds, 1 one is broken, 3 none is broken but some was not decided (a bound
+//! cut the search, or Ctrl-C), 2 an error (bad input, the program has errors, I/O, a checker
+//! failure).
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -17,10 +21,33 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use tdl_verify::{Control, Counterexample, Options, Program, Property, Report, Verdict};
+use tdl_verify::{
+    Builtin, Control, Counterexample, Options, Program, Property, PropertyResult, Report, Status,
+    Verdict,
+};
+
+/// The exit statuses of `tdl verify` (and `tdl sim`), as `--help` gives them.
+pub(crate) const EXIT_STATUS: &str = "Exit status (for CI):
+  0  ok: every property checked was decided and holds within the bounds
+  1  violated: a property is broken (its counterexample is written as soon as it is found)
+  3  undecided: nothing is broken, but a bound (--max-states, --max-memory, --depth) or Ctrl-C
+     cut the search, or liveness met a cycle: some property was not decided
+  2  error: bad input (options, a property that does not parse or names no node, a program with
+     errors), I/O, or a failure of the checker itself";
+
+/// A built-in property by its command-line name.
+pub(crate) fn builtin(id: &str) -> Result<Builtin, String> {
+    Builtin::from_id(id).ok_or_else(|| {
+        format!(
+            "`{id}` is no built-in property: the built-in properties are {}",
+            Builtin::ALL.map(Builtin::id).join(", ")
+        )
+    })
+}
 
 /// Options of `tdl verify`.
 #[derive(clap::Args)]
+#[command(after_help = EXIT_STATUS)]
 pub(crate) struct Args {
     /// The `.tdl` files of the program, checked as one program.
     #[arg(required_unless_present = "package", conflicts_with = "package")]
@@ -53,6 +80,15 @@ pub(crate) struct Args {
     /// Stop after this many distinct states [default: 20000000].
     #[arg(long, value_name = "N")]
     max_states: Option<u64>,
+    /// Stop when the search uses this much memory (the process's resident set), e.g. 512M, 8G
+    /// [default: half of the machine's memory].
+    #[arg(long, value_name = "SIZE", value_parser = tdl_verify::parse_size)]
+    max_memory: Option<u64>,
+    /// A built-in property not to check (repeat, or separate with commas): no-stuck-state,
+    /// no-unhandled-exception, every-run-ends (for a program meant to run until it is shut
+    /// down), trace-checker.
+    #[arg(long = "no-builtin", value_name = "PROPERTY", value_delimiter = ',', value_parser = builtin)]
+    no_builtin: Vec<Builtin>,
     /// An exception allowed to go unhandled (repeat, or separate with commas).
     #[arg(long = "allow", value_name = "EXCEPTION", value_delimiter = ',')]
     allow: Vec<String>,
@@ -71,17 +107,17 @@ pub(crate) struct Args {
     out: PathBuf,
 }
 
-/// Runs `tdl verify`; Ok(true) when nothing is broken.
+/// Runs `tdl verify`: Ok(true) ok, Ok(false) violated, an error (exit 2, main's), or it exits with
+/// 3, undecided ([`EXIT_STATUS`], [`finish`]).
 pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
-    let Some((files, program)) = load_program(&args.files, args.package.as_deref(), out)? else {
-        return Ok(false);
-    };
+    let (files, program) = load_program(&args.files, args.package.as_deref(), out)?;
     let task = program.root_task(args.task.as_deref())?;
     let properties = load_properties(&args.property, args.properties.as_deref())?;
+    tdl_verify::check_names(&program, &task, &properties)?;
     let options = options(&args);
     writeln!(
         out,
-        "verifying `{task}` of {} (loops {}, recursion {}, ticks {}, events {}, hangs {}, depth {})",
+        "verifying `{task}` of {} (loops {}, recursion {}, ticks {}, events {}, hangs {}, depth {}, max states {}, max memory {})",
         files
             .iter()
             .map(|f| f.display().to_string())
@@ -92,36 +128,106 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
         options.ticks,
         options.events,
         options.hangs,
-        options.depth
+        options.depth,
+        options.max_states,
+        tdl_verify::fmt_bytes(options.max_memory)
     )?;
+    print_unchecked(&options, out)?;
     out.flush()?;
     let control = Arc::new(Control::default());
     stop_on_ctrl_c(&control);
+    let mut written: Vec<(String, PathBuf)> = Vec::new();
+    let mut failed: Option<anyhow::Error> = None;
     let report = {
         let mut display = Display::new();
-        tdl_verify::verify_with_progress(
+        let bar = display.bar.clone();
+        let mut on_violation = |r: &PropertyResult| {
+            if failed.is_some() {
+                return;
+            }
+            let Verdict::Violated(c) = &r.verdict else {
+                return;
+            };
+            let file = args.out.join(slug(&task, &r.property));
+            let mut print = || -> anyhow::Result<()> {
+                write_trace(c, &file)?;
+                writeln!(out, "  VIOLATED   {}: {}", r.property, c.summary)?;
+                print_counterexample(c, &file, out)?;
+                out.flush()?;
+                Ok(())
+            };
+            let printed = match &bar {
+                Some(bar) => bar.suspend(print),
+                None => print(),
+            };
+            match printed {
+                Ok(()) => written.push((r.property.clone(), file)),
+                Err(e) => failed = Some(e),
+            }
+        };
+        tdl_verify::verify_observed(
             &program,
             &task,
             &options,
             &properties,
             None,
             &control,
-            &mut |p| {
-                display.update(p);
-            },
+            &mut |p| display.update(p),
+            &mut on_violation,
         )
     };
-    print_report(&report, &args.out, out)?;
-    Ok(report.ok() && !report.interrupted)
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    print_report(&report, &written, out)?;
+    finish(report.status(), false, out)
 }
 
-/// The program of `tdl verify` and `tdl sim`: the files given, or a crate's; None (after
+/// Ends `tdl verify` or `tdl sim` (`sim`) with `status` ([`EXIT_STATUS`]) after a line that says it: main
+/// maps Ok(true) to 0, Ok(false) to 1 and an error to 2, as for every command; the status 3,
+/// undecided, which only these two commands give, exits here once the output is flushed.
+pub(crate) fn finish(status: Status, sim: bool, out: &mut impl Write) -> anyhow::Result<bool> {
+    writeln!(out, "{}", status_line(status, sim))?;
+    match status {
+        Status::Ok => Ok(true),
+        Status::Violated => Ok(false),
+        Status::Error => anyhow::bail!("the checker failed: see its errors above"),
+        Status::Undecided => {
+            out.flush()?;
+            std::io::stderr().flush()?;
+            std::process::exit(i32::from(Status::Undecided.code()))
+        }
+    }
+}
+
+/// The last line of a report: the verdict as a whole and its exit status.
+fn status_line(status: Status, sim: bool) -> String {
+    let words = match status {
+        Status::Ok if sim => "ok: no run broke a property",
+        Status::Ok => "ok: every property checked holds within the bounds",
+        Status::Violated => "violated: a property is broken",
+        Status::Undecided => "undecided: nothing is broken, but not every property was decided",
+        Status::Error => "error: nothing can be concluded",
+    };
+    format!("{words} (exit status {})", status.code())
+}
+
+/// The built-in properties left unchecked, one line, if any.
+pub(crate) fn print_unchecked(options: &Options, out: &mut impl Write) -> anyhow::Result<()> {
+    let off: Vec<&str> = options.unchecked.iter().map(|b| b.property()).collect();
+    if !off.is_empty() {
+        writeln!(out, "not checked (--no-builtin): {}", off.join(", "))?;
+    }
+    Ok(())
+}
+
+/// The program of `tdl verify` and `tdl sim`: the files given, or a crate's; an error (after
 /// printing the diagnostics) when it has errors.
 pub(crate) fn load_program(
     files: &[PathBuf],
     package: Option<&str>,
     out: &mut impl Write,
-) -> anyhow::Result<Option<(Vec<PathBuf>, Program)>> {
+) -> anyhow::Result<(Vec<PathBuf>, Program)> {
     let files = match package {
         Some(name) => package_files(name)?,
         None => files.to_vec(),
@@ -133,11 +239,10 @@ pub(crate) fn load_program(
         sources.push((f.display().to_string(), src));
     }
     match Program::load(&sources) {
-        Ok(p) => Ok(Some((files, p))),
+        Ok(p) => Ok((files, p)),
         Err(tdl_verify::LoadError::Invalid(rendered)) => {
             out.write_all(rendered.as_bytes())?;
-            writeln!(out, "the program has errors (see `tdl check`)")?;
-            Ok(None)
+            anyhow::bail!("the program has errors (see `tdl check`)")
         }
         Err(e) => Err(e.into()),
     }
@@ -182,6 +287,8 @@ fn options(args: &Args) -> Options {
         recursion: args.recursion.unwrap_or(d.recursion),
         depth: args.depth.unwrap_or(d.depth),
         max_states: args.max_states.unwrap_or(d.max_states),
+        max_memory: args.max_memory.unwrap_or(d.max_memory),
+        unchecked: args.no_builtin.clone(),
         ticks: args.ticks.unwrap_or(d.ticks),
         events: args.events.unwrap_or(d.events),
         hangs: args.hangs.unwrap_or(d.hangs),
@@ -255,7 +362,13 @@ pub(crate) fn slug(task: &str, property: &str) -> String {
     format!("{}.jsonl", s.trim_end_matches('-'))
 }
 
-fn print_report(report: &Report, dir: &Path, out: &mut impl Write) -> anyhow::Result<()> {
+/// The report once the search is over; the counterexamples were printed when found, and their
+/// files are in `written`.
+fn print_report(
+    report: &Report,
+    written: &[(String, PathBuf)],
+    out: &mut impl Write,
+) -> anyhow::Result<()> {
     writeln!(
         out,
         "{} states explored ({} distinct), depth {}, {:.2} s, {:.0} states/s",
@@ -267,13 +380,14 @@ fn print_report(report: &Report, dir: &Path, out: &mut impl Write) -> anyhow::Re
     )?;
     if report.interrupted {
         writeln!(out, "interrupted: what was found so far")?;
-    } else if report.complete {
+    }
+    if report.complete {
         writeln!(out, "every state within the bounds was explored")?;
-    } else {
-        writeln!(
-            out,
-            "the search stopped before the end (--max-states or --depth)"
-        )?;
+    }
+    for cut in &report.cuts {
+        if *cut != tdl_verify::Cut::Interrupted {
+            writeln!(out, "not every state was explored: {cut}")?;
+        }
     }
     if report.cut > 0 {
         writeln!(
@@ -298,9 +412,14 @@ fn print_report(report: &Report, dir: &Path, out: &mut impl Write) -> anyhow::Re
             Verdict::Unknown(why) => writeln!(out, "  undecided  {}: {why}", r.property)?,
             Verdict::Violated(c) => {
                 writeln!(out, "  VIOLATED   {}: {}", r.property, c.summary)?;
-                let file = dir.join(slug(&report.task, &r.property));
-                write_trace(c, &file)?;
-                print_counterexample(c, &file, out)?;
+                if let Some((_, file)) = written.iter().find(|(p, _)| *p == r.property) {
+                    writeln!(
+                        out,
+                        "             a path of {} transitions, printed above; trace: {}",
+                        c.len(),
+                        file.display()
+                    )?;
+                }
             }
         }
     }

@@ -38,7 +38,9 @@
 
 mod ir;
 mod machine;
+mod memory;
 mod model;
+mod names;
 mod program;
 mod property;
 mod search;
@@ -51,7 +53,9 @@ use std::io::Write;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
+pub use memory::{default_max_memory, fmt_bytes, parse_size};
 pub use model::{Arg, CommandModel, Ending};
+pub use names::{UnknownName, check_names};
 pub use program::{LoadError, Program};
 pub use property::{Property, PropertyError};
 pub use search::Progress;
@@ -60,7 +64,7 @@ use tcm_trace::TraceEvent;
 
 use machine::{Action, Ctx, State};
 use property::Props;
-use search::{Found, path_to};
+use search::{Found, Key, path_to};
 
 /// The exception a command of Rust may raise beyond those the program declares, with
 /// [`Options::unknown_exception`].
@@ -70,7 +74,8 @@ pub const UNKNOWN_EXCEPTION: &str = "UnknownException";
 /// ran the task (`tcm_zenoh::AgentLost`).
 pub const AGENT_LOST: &str = "AgentLost";
 
-/// The bounds and choices of a verification (docs/verification.md, "Bounds").
+/// The bounds and choices of a verification (docs/verification.md, "Bounds, memory, and a search
+/// cut short").
 #[derive(Clone, Debug)]
 pub struct Options {
     /// How many times a loop over a collection the checker cannot see may run (0 to this).
@@ -83,6 +88,14 @@ pub struct Options {
     pub depth: u32,
     /// The most distinct states explored before the search stops (incomplete).
     pub max_states: u64,
+    /// The most memory the search may use, in bytes, before it stops (incomplete): the process's
+    /// resident set where the system says (Linux), else an estimate of the state store
+    /// (docs/verification.md, "Bounds, memory, and a search cut short"). Default:
+    /// [`default_max_memory`], half of the machine's.
+    pub max_memory: u64,
+    /// Built-in properties not checked (e.g. [`Builtin::RunsEnd`] for a program meant to run
+    /// until it is shut down).
+    pub unchecked: Vec<Builtin>,
     /// How many deadlines (timers firing) a running command may outlast: time advances past
     /// the next one only while every running command has outlasted fewer (commands left running
     /// until terminated aside).
@@ -103,6 +116,130 @@ pub struct Options {
     pub samples: usize,
 }
 
+impl Options {
+    /// Whether the built-in property `b` is checked.
+    pub fn checks(&self, b: Builtin) -> bool {
+        !self.unchecked.contains(&b)
+    }
+}
+
+/// A built-in property, each of which can be left unchecked ([`Options::unchecked`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Builtin {
+    /// [`NO_STUCK`].
+    NoStuck,
+    /// [`NO_UNHANDLED`].
+    NoUnhandled,
+    /// [`RUNS_END`].
+    RunsEnd,
+    /// [`TRACES_CHECK`].
+    TracesCheck,
+}
+
+impl Builtin {
+    /// Every built-in property, in the order of a report.
+    pub const ALL: [Builtin; 4] = [
+        Builtin::NoStuck,
+        Builtin::NoUnhandled,
+        Builtin::RunsEnd,
+        Builtin::TracesCheck,
+    ];
+
+    /// The property's name in a report ([`PropertyResult::property`]).
+    pub fn property(self) -> &'static str {
+        match self {
+            Builtin::NoStuck => NO_STUCK,
+            Builtin::NoUnhandled => NO_UNHANDLED,
+            Builtin::RunsEnd => RUNS_END,
+            Builtin::TracesCheck => TRACES_CHECK,
+        }
+    }
+
+    /// Its name on a command line: `no-stuck-state`, `no-unhandled-exception`, `every-run-ends`,
+    /// `trace-checker`.
+    pub fn id(self) -> &'static str {
+        match self {
+            Builtin::NoStuck => "no-stuck-state",
+            Builtin::NoUnhandled => "no-unhandled-exception",
+            Builtin::RunsEnd => "every-run-ends",
+            Builtin::TracesCheck => "trace-checker",
+        }
+    }
+
+    /// The built-in property of a command-line name ([`Builtin::id`]).
+    pub fn from_id(id: &str) -> Option<Builtin> {
+        Builtin::ALL.into_iter().find(|b| b.id() == id)
+    }
+}
+
+/// What made a search incomplete: its properties not broken are then undecided.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cut {
+    /// Stopped from outside ([`Control::stop`], Ctrl-C).
+    Interrupted,
+    /// [`Options::max_states`] distinct states were reached.
+    MaxStates(u64),
+    /// The memory in use reached [`Options::max_memory`].
+    MaxMemory {
+        /// The memory in use, in bytes, when the search stopped.
+        used: u64,
+        /// The bound.
+        limit: u64,
+    },
+    /// Some run was still going at [`Options::depth`] transitions (the search went on with the
+    /// others).
+    Depth(u32),
+}
+
+impl std::fmt::Display for Cut {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Cut::Interrupted => write!(f, "the search was interrupted"),
+            Cut::MaxStates(n) => write!(
+                f,
+                "the search stopped at the bound of {n} distinct states (--max-states)"
+            ),
+            Cut::MaxMemory { used, limit } => write!(
+                f,
+                "the search stopped at the memory bound of {} ({} in use; --max-memory)",
+                fmt_bytes(*limit),
+                fmt_bytes(*used)
+            ),
+            Cut::Depth(n) => write!(
+                f,
+                "a run was still going at the bound of {n} transitions (--depth)"
+            ),
+        }
+    }
+}
+
+/// The outcome of a verification as a whole, for a shell or a CI step (docs/verification.md,
+/// "Exit status").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Status {
+    /// Every property checked was decided and holds within the bounds.
+    Ok,
+    /// Some property is broken.
+    Violated,
+    /// Nothing is broken, but some property was not decided (a bound cut the search, it was
+    /// interrupted, or liveness on a graph with a cycle).
+    Undecided,
+    /// The input or the checker failed: nothing can be concluded.
+    Error,
+}
+
+impl Status {
+    /// The exit status of `tdl verify` and `tdl sim`: 0 ok, 1 violated, 2 error, 3 undecided.
+    pub fn code(self) -> u8 {
+        match self {
+            Status::Ok => 0,
+            Status::Violated => 1,
+            Status::Error => 2,
+            Status::Undecided => 3,
+        }
+    }
+}
+
 impl Default for Options {
     fn default() -> Self {
         Options {
@@ -110,6 +247,8 @@ impl Default for Options {
             recursion: 1,
             depth: 10_000,
             max_states: 20_000_000,
+            max_memory: default_max_memory(),
+            unchecked: Vec::new(),
             ticks: 1,
             events: 1,
             hangs: 1,
@@ -228,6 +367,8 @@ pub struct Report {
     pub complete: bool,
     /// Stopped from outside (Ctrl-C).
     pub interrupted: bool,
+    /// What made the search incomplete (empty when it is complete).
+    pub cuts: Vec<Cut>,
     /// Paths ended by the loop or recursion bound, and one of them in words.
     pub cut: u64,
     /// Why a path was cut, for the first one.
@@ -253,6 +394,25 @@ impl Report {
     /// Whether every property holds (or was not decided) and nothing broke.
     pub fn ok(&self) -> bool {
         self.results.iter().all(|r| !r.is_violated()) && self.errors.is_empty()
+    }
+
+    /// Violated if some property is broken, else error if the checker failed, else undecided if
+    /// some property was not decided, else ok.
+    pub fn status(&self) -> Status {
+        if self.results.iter().any(PropertyResult::is_violated) {
+            Status::Violated
+        } else if !self.errors.is_empty() {
+            Status::Error
+        } else if self.interrupted
+            || self
+                .results
+                .iter()
+                .any(|r| matches!(r.verdict, Verdict::Unknown(_)))
+        {
+            Status::Undecided
+        } else {
+            Status::Ok
+        }
     }
 
     /// States explored per second.
@@ -301,26 +461,55 @@ pub fn verify_with_progress(
     control: &Control,
     progress: &mut dyn FnMut(&Progress),
 ) -> Report {
+    verify_observed(
+        program,
+        task,
+        options,
+        properties,
+        model,
+        control,
+        progress,
+        &mut |_| {},
+    )
+}
+
+/// [`verify_with_progress`], also calling `violated` with each property broken as soon as its
+/// counterexample is found (during the search: a search cut short later, or a process killed,
+/// keeps it), before the report gives it again.
+#[allow(clippy::too_many_arguments)]
+pub fn verify_observed(
+    program: &Program,
+    task: &str,
+    options: &Options,
+    properties: &[Property],
+    model: Option<&dyn CommandModel>,
+    control: &Control,
+    progress: &mut dyn FnMut(&Progress),
+    violated: &mut dyn FnMut(&PropertyResult),
+) -> Report {
+    let failed = |e: String| Report {
+        task: task.to_owned(),
+        explored: 0,
+        unique: 0,
+        depth: 0,
+        elapsed: Duration::ZERO,
+        complete: false,
+        interrupted: false,
+        cuts: Vec::new(),
+        cut: 0,
+        cut_example: None,
+        ended: 0,
+        traces_checked: 0,
+        results: Vec::new(),
+        notes: Vec::new(),
+        errors: vec![e],
+    };
+    if let Err(e) = check_names(program, task, properties) {
+        return failed(e.to_string());
+    }
     let props = match Props::new(properties.to_vec()) {
         Ok(p) => p,
-        Err(e) => {
-            return Report {
-                task: task.to_owned(),
-                explored: 0,
-                unique: 0,
-                depth: 0,
-                elapsed: Duration::ZERO,
-                complete: false,
-                interrupted: false,
-                cut: 0,
-                cut_example: None,
-                ended: 0,
-                traces_checked: 0,
-                results: Vec::new(),
-                notes: Vec::new(),
-                errors: vec![e],
-            };
-        }
+        Err(e) => return failed(e),
     };
     let cx = Ctx {
         prog: program,
@@ -329,114 +518,125 @@ pub fn verify_with_progress(
         props: &props,
         sim: false,
     };
-    let out = search::run(&cx, task, &control.stop, progress);
-    let mut results: Vec<PropertyResult> = Vec::new();
-    let undecided = |out: &search::Outcome| {
-        if out.interrupted {
-            "not decided: the search was interrupted".to_owned()
-        } else {
-            format!(
-                "not decided: the search stopped at {} distinct states (--max-states)",
-                out.unique()
-            )
-        }
-    };
+    let traces = options.checks(Builtin::TracesCheck);
+    // The violations, in the order found, each reported at once.
+    let mut found: Vec<(Key, PropertyResult)> = Vec::new();
     let mut traces_checked = 0;
-    let mut bad_traces: Vec<Counterexample> = Vec::new();
-    let mut cex = |found: &Found, what: String, traces_checked: &mut usize| {
-        let (path, repeats_from) = match found {
+    let out = search::run(&cx, task, &control.stop, progress, &mut |f, seen| {
+        let key = f.property();
+        let (property, summary) = match key {
+            Key::Builtin(Builtin::NoStuck) => (
+                NO_STUCK.to_owned(),
+                "stuck: nothing can happen any more, and the task has not completed".to_owned(),
+            ),
+            Key::Builtin(Builtin::NoUnhandled) => {
+                (NO_UNHANDLED.to_owned(), "a failure no handler takes".into())
+            }
+            Key::Builtin(b) => (
+                b.property().to_owned(),
+                "a run that never ends: the last transitions repeat forever".into(),
+            ),
+            Key::User(k) => {
+                let text = props.list[k].text();
+                (text.to_owned(), format!("`{text}` is broken"))
+            }
+        };
+        let (path, repeats_from) = match f {
             Found::Stuck(id)
             | Found::Unhandled(id)
             | Found::User(_, id)
-            | Found::TooLong(id)
-            | Found::NotEventually(_, id) => (path_to(&out.seen, *id), None),
+            | Found::NotEventually(_, id) => (path_to(seen, *id), None),
             Found::Cycle { entry, cycle } => {
-                let mut p = path_to(&out.seen, *entry);
+                let mut p = path_to(seen, *entry);
                 let from = p.len();
                 p.extend(cycle.iter().copied());
                 (p, Some(from))
             }
         };
-        let mut c = replay(&cx, task, &path, what);
+        let mut c = replay(&cx, task, &path, summary);
         c.repeats_from = repeats_from;
-        if matches!(found, Found::TooLong(_)) {
-            c.details.push(format!(
-                "the run is still going after {} transitions (--depth)",
-                options.depth
-            ));
+        traces_checked += 1;
+        let bad_trace = traces
+            && !c.trace_violations.is_empty()
+            && !found
+                .iter()
+                .any(|(k, _)| *k == Key::Builtin(Builtin::TracesCheck));
+        let first = c.summary.clone();
+        let result = PropertyResult {
+            property,
+            verdict: Verdict::Violated(Box::new(c)),
+        };
+        violated(&result);
+        if bad_trace {
+            if let Verdict::Violated(c) = &result.verdict {
+                let mut c = c.clone();
+                c.summary = format!("the trace checker rejects the trace of {first}");
+                let r = PropertyResult {
+                    property: TRACES_CHECK.into(),
+                    verdict: Verdict::Violated(c),
+                };
+                violated(&r);
+                found.push((Key::Builtin(Builtin::TracesCheck), r));
+            }
         }
-        *traces_checked += 1;
-        if !c.trace_violations.is_empty() {
-            bad_traces.push(c.clone());
-        }
-        c
+        found.push((key, result));
+    });
+    let undecided = |out: &search::Outcome| {
+        let why: Vec<String> = out.cuts.iter().map(ToString::to_string).collect();
+        format!("not decided: {}", why.join("; "))
     };
-    // No stuck state.
-    let stuck = out.found.iter().find(|f| matches!(f, Found::Stuck(_)));
-    results.push(PropertyResult {
-        property: NO_STUCK.into(),
-        verdict: match stuck {
-            Some(f) => Verdict::Violated(Box::new(cex(
-                f,
-                "stuck: nothing can happen any more, and the task has not completed".into(),
-                &mut traces_checked,
-            ))),
-            None if out.complete => Verdict::Holds,
-            None => Verdict::Unknown(undecided(&out)),
-        },
-    });
-    let unhandled = out.found.iter().find(|f| matches!(f, Found::Unhandled(_)));
-    results.push(PropertyResult {
-        property: NO_UNHANDLED.into(),
-        verdict: match unhandled {
-            Some(f) => Verdict::Violated(Box::new(cex(
-                f,
-                "a failure no handler takes".into(),
-                &mut traces_checked,
-            ))),
-            None if out.complete => Verdict::Holds,
-            None => Verdict::Unknown(undecided(&out)),
-        },
-    });
-    let never_ends = out
-        .found
-        .iter()
-        .find(|f| matches!(f, Found::Cycle { .. }))
-        .or_else(|| out.found.iter().find(|f| matches!(f, Found::TooLong(_))));
-    results.push(PropertyResult {
-        property: RUNS_END.into(),
-        verdict: match never_ends {
-            Some(f @ Found::Cycle { .. }) => Verdict::Violated(Box::new(cex(
-                f,
-                "a run that never ends: the last transitions repeat forever".into(),
-                &mut traces_checked,
-            ))),
-            Some(f) => Verdict::Violated(Box::new(cex(
-                f,
-                format!(
-                    "a run longer than the bound of {} transitions",
-                    options.depth
-                ),
-                &mut traces_checked,
-            ))),
-            None if out.complete => Verdict::Holds,
-            None => Verdict::Unknown(undecided(&out)),
-        },
-    });
-    for (k, p) in props.list.iter().enumerate() {
-        let f = out
-            .found
+    // Sampled runs through the trace checker.
+    if traces {
+        for id in &out.samples {
+            let path = path_to(&out.seen, *id);
+            let mut c = replay(&cx, task, &path, "a sampled run".into());
+            traces_checked += 1;
+            let first = !found
+                .iter()
+                .any(|(k, _)| *k == Key::Builtin(Builtin::TracesCheck));
+            if !c.trace_violations.is_empty() && first {
+                c.summary = format!("the trace checker rejects the trace of {}", c.summary);
+                let r = PropertyResult {
+                    property: TRACES_CHECK.into(),
+                    verdict: Verdict::Violated(Box::new(c)),
+                };
+                violated(&r);
+                found.push((Key::Builtin(Builtin::TracesCheck), r));
+            }
+        }
+    }
+    let mut take = |key: Key| {
+        found
             .iter()
-            .find(|f| matches!(f, Found::User(j, _) | Found::NotEventually(j, _) if *j == k));
-        let verdict = match f {
-            Some(f) => Verdict::Violated(Box::new(cex(
-                f,
-                format!("`{}` is broken", p.text()),
-                &mut traces_checked,
-            ))),
-            None if p.is_liveness() && out.cyclic => Verdict::Unknown(
-                "refused: the state graph has a cycle (a run that never ends), on which `eventually` cannot be decided soundly; fix `every run ends` first".into(),
-            ),
+            .position(|(k, _)| *k == key)
+            .map(|i| found.remove(i).1.verdict)
+    };
+    let mut results: Vec<PropertyResult> = Vec::new();
+    for b in Builtin::ALL {
+        if !options.checks(b) {
+            continue;
+        }
+        let verdict = match take(Key::Builtin(b)) {
+            Some(v) => v,
+            None if out.complete || b == Builtin::TracesCheck => Verdict::Holds,
+            None => Verdict::Unknown(undecided(&out)),
+        };
+        results.push(PropertyResult {
+            property: b.property().into(),
+            verdict,
+        });
+    }
+    for (k, p) in props.list.iter().enumerate() {
+        let verdict = match take(Key::User(k)) {
+            Some(v) => v,
+            None if p.is_liveness() && out.cyclic => Verdict::Unknown(format!(
+                "refused: the state graph has a cycle (a run that never ends), on which `eventually` cannot be decided soundly{}",
+                if options.checks(Builtin::RunsEnd) {
+                    "; fix `every run ends` first"
+                } else {
+                    ""
+                }
+            )),
             None if out.complete => Verdict::Holds,
             None => Verdict::Unknown(undecided(&out)),
         };
@@ -445,28 +645,6 @@ pub fn verify_with_progress(
             verdict,
         });
     }
-    // Sampled runs through the trace checker.
-    for id in &out.samples {
-        let path = path_to(&out.seen, *id);
-        let c = replay(&cx, task, &path, "a sampled run".into());
-        traces_checked += 1;
-        if !c.trace_violations.is_empty() {
-            bad_traces.push(c);
-        }
-    }
-    results.insert(
-        3,
-        PropertyResult {
-            property: TRACES_CHECK.into(),
-            verdict: match bad_traces.into_iter().next() {
-                Some(mut c) => {
-                    c.summary = format!("the trace checker rejects the trace of {}", c.summary);
-                    Verdict::Violated(Box::new(c))
-                }
-                None => Verdict::Holds,
-            },
-        },
-    );
     Report {
         task: task.to_owned(),
         explored: out.progress.explored,
@@ -475,6 +653,7 @@ pub fn verify_with_progress(
         elapsed: out.progress.elapsed,
         complete: out.complete,
         interrupted: out.interrupted,
+        cuts: out.cuts.clone(),
         cut: out.cut,
         cut_example: out.cut_example.clone(),
         ended: out.ended,
@@ -482,12 +661,6 @@ pub fn verify_with_progress(
         results,
         notes: program.notes.clone(),
         errors: out.errors.clone(),
-    }
-}
-
-impl search::Outcome {
-    fn unique(&self) -> usize {
-        self.seen.len()
     }
 }
 

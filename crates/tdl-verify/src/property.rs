@@ -103,6 +103,27 @@ impl Property {
         &self.text
     }
 
+    /// The node names the property uses, in order of appearance.
+    pub fn names(&self) -> Vec<&str> {
+        fn formula<'a>(f: &'a Formula, out: &mut Vec<&'a str>) {
+            match f {
+                Formula::Active(n) => out.push(n),
+                Formula::Not(f) => formula(f, out),
+                Formula::And(a, b) | Formula::Or(a, b) => {
+                    formula(a, out);
+                    formula(b, out);
+                }
+            }
+        }
+        let mut out = Vec::new();
+        match &self.kind {
+            Kind::Never(f) => formula(f, &mut out),
+            Kind::Before(a, b) => out.extend([a.name.as_str(), b.name.as_str()]),
+            Kind::Eventually(e) => out.push(&e.name),
+        }
+        out
+    }
+
     /// A liveness property (`eventually`): decided only on a state graph without cycles.
     pub fn is_liveness(&self) -> bool {
         matches!(self.kind, Kind::Eventually(_))
@@ -454,8 +475,10 @@ mod tests {
                 Box::new(Formula::Active("guarded_move".into()))
             ))
         );
+        assert_eq!(p.names(), ["turn", "guarded_move"]);
         let p = Property::parse("completed(plan) before active(move)").expect("parses");
         assert!(matches!(p.kind, Kind::Before(..)));
+        assert_eq!(p.names(), ["plan", "move"]);
         assert!(
             Property::parse("always eventually completed(deliver_mail)")
                 .expect("parses")

@@ -23,6 +23,7 @@ use std::time::{Duration, Instant};
 use petgraph::graph::{DiGraph, NodeIndex};
 
 use crate::machine::{Ctx, Fault, State};
+use crate::{Builtin, Cut, memory};
 
 /// A hasher for keys that are already hashes.
 #[derive(Default)]
@@ -129,8 +130,6 @@ pub(crate) enum Found {
     Stuck(u32),
     Unhandled(u32),
     User(usize, u32),
-    /// A run longer than the depth bound: the first state at the bound that could go on.
-    TooLong(u32),
     /// A run that never ends: a path to `entry`, then `cycle` (transitions) back to it.
     Cycle {
         entry: u32,
@@ -138,6 +137,25 @@ pub(crate) enum Found {
     },
     /// A user liveness property broken at the end of a run.
     NotEventually(usize, u32),
+}
+
+impl Found {
+    /// The property it breaks.
+    pub(crate) fn property(&self) -> Key {
+        match self {
+            Found::Stuck(_) => Key::Builtin(Builtin::NoStuck),
+            Found::Unhandled(_) => Key::Builtin(Builtin::NoUnhandled),
+            Found::Cycle { .. } => Key::Builtin(Builtin::RunsEnd),
+            Found::User(k, _) | Found::NotEventually(k, _) => Key::User(*k),
+        }
+    }
+}
+
+/// A property: built in, or the user's by number.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Key {
+    Builtin(Builtin),
+    User(usize),
 }
 
 /// Progress of a search, for a display.
@@ -163,6 +181,8 @@ pub(crate) struct Outcome {
     pub(crate) progress: Progress,
     pub(crate) complete: bool,
     pub(crate) interrupted: bool,
+    /// What made the search incomplete, each bound once.
+    pub(crate) cuts: Vec<Cut>,
     pub(crate) cut: u64,
     pub(crate) cut_example: Option<String>,
     pub(crate) ended: u64,
@@ -176,11 +196,14 @@ pub(crate) struct Outcome {
 /// How often the progress callback is called, at most.
 const PROGRESS_EVERY: Duration = Duration::from_millis(200);
 
+/// Searches from `task`, calling `progress` now and then and `on_found` with each violation as
+/// soon as it is found (with the states seen so far, from which its path is rebuilt).
 pub(crate) fn run(
     cx: &Ctx<'_>,
     task: &str,
     stop: &AtomicBool,
     progress: &mut dyn FnMut(&Progress),
+    on_found: &mut dyn FnMut(&Found, &[Seen]),
 ) -> Outcome {
     let started = Instant::now();
     let tracing = !cx.props.is_empty();
@@ -202,6 +225,7 @@ pub(crate) fn run(
         progress: Progress::default(),
         complete: false,
         interrupted: false,
+        cuts: Vec::new(),
         cut: 0,
         cut_example: None,
         ended: 0,
@@ -210,6 +234,7 @@ pub(crate) fn run(
         errors: Vec::new(),
     };
     check_new(&init, 0, cx, &mut have, &mut found);
+    let mut reported = 0;
     let mut frontier: VecDeque<(u32, State)> = VecDeque::new();
     frontier.push_back((0, init));
     let mut explored: u64 = 0;
@@ -217,11 +242,29 @@ pub(crate) fn run(
     let mut last_report = Instant::now();
     let mut deepest = 0u32;
     let mut complete = true;
+    let mut popped: u64 = 0;
     while let Some((id, state)) = frontier.pop_front() {
+        while reported < found.len() {
+            on_found(&found[reported], &seen);
+            reported += 1;
+        }
         if stop.load(Ordering::Relaxed) {
             out.interrupted = true;
+            out.cuts.push(Cut::Interrupted);
             complete = false;
             break;
+        }
+        popped += 1;
+        if popped % memory::CHECK_EVERY == 0 {
+            let used = memory::used(seen.len(), edges.len(), frontier.len());
+            if used >= cx.opts.max_memory {
+                out.cuts.push(Cut::MaxMemory {
+                    used,
+                    limit: cx.opts.max_memory,
+                });
+                complete = false;
+                break;
+            }
         }
         if last_report.elapsed() >= PROGRESS_EVERY {
             last_report = Instant::now();
@@ -262,7 +305,7 @@ pub(crate) fn run(
                     if out.samples.len() < cx.opts.samples {
                         out.samples.push(id);
                     }
-                } else if !have.stuck {
+                } else if !have.stuck && cx.opts.checks(Builtin::NoStuck) {
                     have.stuck = true;
                     found.push(Found::Stuck(id));
                 }
@@ -275,11 +318,12 @@ pub(crate) fn run(
                 complete = false;
                 if !have.too_long {
                     have.too_long = true;
-                    found.push(Found::TooLong(id));
+                    out.cuts.push(Cut::Depth(cx.opts.depth));
                 }
             }
             Expanded::Next(next) => {
                 if seen.len() as u64 >= cx.opts.max_states {
+                    out.cuts.push(Cut::MaxStates(cx.opts.max_states));
                     complete = false;
                     break;
                 }
@@ -319,18 +363,35 @@ pub(crate) fn run(
             }
         }
     }
-    // Runs that never end: cycles of the state graph (meaningful only on the whole graph).
-    if complete {
+    while reported < found.len() {
+        on_found(&found[reported], &seen);
+        reported += 1;
+    }
+    // Runs that never end: cycles of the state graph. Every edge kept is a transition, so a cycle
+    // of a graph cut by `--max-states` or `--depth` is one too (only its absence needs the whole
+    // graph); after Ctrl-C or at the memory bound, the graph is not built.
+    let wanted = cx.opts.checks(Builtin::RunsEnd) || cx.props.list.iter().any(|p| p.is_liveness());
+    let cut_short = out
+        .cuts
+        .iter()
+        .any(|c| matches!(c, Cut::Interrupted | Cut::MaxMemory { .. }));
+    let queued = frontier.len();
+    drop(frontier);
+    drop(visited);
+    if wanted && !cut_short {
         if let Some((entry, cycle)) = find_cycle(seen.len(), &edges, &seen) {
             out.cyclic = true;
-            found.push(Found::Cycle { entry, cycle });
+            if cx.opts.checks(Builtin::RunsEnd) {
+                found.push(Found::Cycle { entry, cycle });
+                on_found(&found[reported], &seen);
+            }
         }
     }
     out.progress = Progress {
         explored,
         unique: seen.len() as u64,
         depth: max_depth,
-        frontier: frontier.len(),
+        frontier: queued,
         elapsed: started.elapsed(),
         violations: found.len(),
     };
@@ -413,8 +474,10 @@ struct Have {
 /// The violations a newly found state shows.
 fn check_new(s: &State, id: u32, cx: &Ctx<'_>, have: &mut Have, found: &mut Vec<Found>) {
     if let (Some(Fault::Unhandled { .. }), false) = (&s.fault, have.unhandled) {
-        have.unhandled = true;
-        found.push(Found::Unhandled(id));
+        if cx.opts.checks(Builtin::NoUnhandled) {
+            have.unhandled = true;
+            found.push(Found::Unhandled(id));
+        }
     }
     if let Some(k) = s.broken {
         if !have.user.contains(&k) {
@@ -422,7 +485,6 @@ fn check_new(s: &State, id: u32, cx: &Ctx<'_>, have: &mut Have, found: &mut Vec<
             found.push(Found::User(k, id));
         }
     }
-    let _ = cx;
 }
 
 /// A cycle of the state graph through a quiet state (no command running, but those left running

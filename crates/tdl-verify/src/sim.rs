@@ -28,8 +28,8 @@ use crate::machine::{Action, Ctx, Fault, State, fmt_secs};
 use crate::model::{CommandModel, Ending};
 use crate::property::Props;
 use crate::{
-    Control, Counterexample, NO_STUCK, NO_UNHANDLED, Options, Program, Property, RUNS_END,
-    TRACES_CHECK,
+    Builtin, Control, Counterexample, NO_STUCK, NO_UNHANDLED, Options, Program, Property, RUNS_END,
+    Status, TRACES_CHECK, check_names,
 };
 
 /// What a simulation draws, and its bounds (docs/verification.md, "Seeded simulation").
@@ -152,6 +152,21 @@ impl SimReport {
         self.results.iter().all(|r| r.failures == 0) && self.errors.is_empty()
     }
 
+    /// Violated if some run broke a property, else error if the input or the checker failed,
+    /// else undecided if the runs were interrupted (or none was made), else ok: no run of the
+    /// seeds broke a property (a simulation proves nothing beyond its runs).
+    pub fn status(&self) -> Status {
+        if self.results.iter().any(|r| r.failures > 0) {
+            Status::Violated
+        } else if !self.errors.is_empty() {
+            Status::Error
+        } else if self.interrupted || self.runs == 0 {
+            Status::Undecided
+        } else {
+            Status::Ok
+        }
+    }
+
     /// The result of the property named `name`.
     pub fn result(&self, name: &str) -> Option<&SimResult> {
         self.results.iter().find(|r| r.property == name)
@@ -199,6 +214,10 @@ pub fn simulate(
         notes: program.notes.clone(),
         errors: Vec::new(),
     };
+    if let Err(e) = check_names(program, task, properties) {
+        report.errors.push(e.to_string());
+        return report;
+    }
     let props = match Props::new(properties.to_vec()) {
         Ok(p) => p,
         Err(e) => {
@@ -213,9 +232,10 @@ pub fn simulate(
         props: &props,
         sim: true,
     };
-    let mut names: Vec<String> = [NO_STUCK, NO_UNHANDLED, RUNS_END, TRACES_CHECK]
-        .iter()
-        .map(|s| (*s).to_owned())
+    let mut names: Vec<String> = Builtin::ALL
+        .into_iter()
+        .filter(|b| options.bounds.checks(*b))
+        .map(|b| b.property().to_owned())
         .collect();
     names.extend(props.list.iter().map(|p| p.text().to_owned()));
     report.results = names
@@ -304,6 +324,7 @@ pub fn simulate_seed(
     model: Option<&dyn CommandModel>,
     seed: u64,
 ) -> Result<SimRun, String> {
+    check_names(program, task, properties).map_err(|e| e.to_string())?;
     let props = Props::new(properties.to_vec())?;
     let cx = Ctx {
         prog: program,
@@ -476,40 +497,49 @@ fn walk(
         Err(v) => v.iter().map(ToString::to_string).collect(),
     };
     let mut details = Vec::new();
-    let violation: Option<(&str, String)> =
-        if let Some(Fault::Unhandled { exception, path }) = &s.fault {
-            details.push(format!(
-                "{exception} raised at {path} is taken by no handler"
-            ));
-            Some((NO_UNHANDLED, "a failure no handler takes".into()))
-        } else if let Some(k) = s.broken {
-            let text = cx.props.list[k].text();
-            Some((text, format!("`{text}` is broken")))
-        } else if let Some(why) = too_long.take() {
-            details.push(why);
-            Some((RUNS_END, "a run that does not end within the bounds".into()))
-        } else if stopped_outside || s.cut.is_some() || s.error.is_some() {
-            None
-        } else if !finished {
-            details.extend(s.stuck_report());
-            Some((
-                NO_STUCK,
-                "stuck: nothing can happen any more, and the task has not completed".into(),
-            ))
-        } else if let Some(k) = s.watch.as_ref().and_then(|w| cx.props.at_end(w)) {
-            let text = cx.props.list[k].text();
-            Some((
-                text,
-                format!("`{text}` is broken: the run ended without it"),
-            ))
-        } else if !trace_violations.is_empty() {
-            Some((
-                TRACES_CHECK,
-                "the trace checker rejects the trace of the run".into(),
-            ))
-        } else {
-            None
-        };
+    let checks = |b: Builtin| cx.opts.checks(b);
+    // A run `every run ends` is not checked on ends at the bound, as a run cut by one.
+    let mut cut = s.cut.clone();
+    if !checks(Builtin::RunsEnd) {
+        if let Some(why) = too_long.take() {
+            cut.get_or_insert(why);
+        }
+    }
+    let violation: Option<(&str, String)> = if let Some(Fault::Unhandled { exception, path }) =
+        s.fault.as_ref().filter(|_| checks(Builtin::NoUnhandled))
+    {
+        details.push(format!(
+            "{exception} raised at {path} is taken by no handler"
+        ));
+        Some((NO_UNHANDLED, "a failure no handler takes".into()))
+    } else if let Some(k) = s.broken {
+        let text = cx.props.list[k].text();
+        Some((text, format!("`{text}` is broken")))
+    } else if let Some(why) = too_long.take() {
+        details.push(why);
+        Some((RUNS_END, "a run that does not end within the bounds".into()))
+    } else if stopped_outside || cut.is_some() || s.error.is_some() {
+        None
+    } else if !finished && s.fault.is_none() && checks(Builtin::NoStuck) {
+        details.extend(s.stuck_report());
+        Some((
+            NO_STUCK,
+            "stuck: nothing can happen any more, and the task has not completed".into(),
+        ))
+    } else if let Some(k) = s.watch.as_ref().and_then(|w| cx.props.at_end(w)) {
+        let text = cx.props.list[k].text();
+        Some((
+            text,
+            format!("`{text}` is broken: the run ended without it"),
+        ))
+    } else if !trace_violations.is_empty() && checks(Builtin::TracesCheck) {
+        Some((
+            TRACES_CHECK,
+            "the trace checker rejects the trace of the run".into(),
+        ))
+    } else {
+        None
+    };
     let violation = violation.map(|(property, summary)| {
         (
             property.to_owned(),
@@ -530,7 +560,7 @@ fn walk(
         transitions,
         end_time: s.engine.now().since_start(),
         finished,
-        cut: s.cut.clone(),
+        cut,
         violation,
         error: s.error.clone(),
         interrupted: stopped_outside,

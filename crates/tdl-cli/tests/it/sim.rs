@@ -112,14 +112,14 @@ fn bad_probabilities_are_usage_errors() {
 }
 
 /// Ctrl-C, as a real SIGINT: the runs stop after the current one, the report gives the runs made,
-/// and the exit status is 1.
+/// and the exit status is 3 (undecided).
 #[cfg(unix)]
 #[test]
 fn sigint_stops_the_runs_with_what_was_found() {
     let dir = out_dir("sigint");
     let (code, out, took) =
         super::interrupted(&["sim", "-p", "xavier", "--seeds", "100000000", "--out", &dir]);
-    assert_eq!(code, 1, "{out}");
+    assert_eq!(code, 3, "{out}");
     assert!(took < std::time::Duration::from_secs(20), "{took:?}");
     assert!(out.contains("interrupted: what was found so far"), "{out}");
     let runs: u64 = out
@@ -131,4 +131,61 @@ fn sigint_stops_the_runs_with_what_was_found() {
     assert!(runs > 0 && runs < 100_000_000, "{out}");
     assert!(out.contains("  ok         no stuck state"), "{out}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A program meant to run until it is shut down: every run goes on to `--depth`, a violation of
+/// `every run ends` unless it is left unchecked; then the runs end at the bound.
+#[test]
+fn a_built_in_property_can_be_left_unchecked() {
+    let dir = out_dir("forever");
+    std::fs::create_dir_all(&dir).expect("a directory");
+    let file = format!("{dir}/forever.tdl");
+    std::fs::write(
+        &file,
+        "monitor watchdog() with period 1s { spawn read_sensor(); }\ngoal guard() { spawn watchdog(); }\n",
+    )
+    .expect("written");
+    let base = [
+        "sim", &file, "--seeds", "3", "--depth", "300", "--out", &dir,
+    ];
+    let (code, out, err) = tdl(&base);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(
+        out.contains("  VIOLATED   every run ends: in 3 of 3 runs"),
+        "{out}"
+    );
+    let mut args = base.to_vec();
+    args.extend(["--no-builtin", "every-run-ends"]);
+    let (code, out, err) = tdl(&args);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(
+        out.contains("3 runs (0 ended, 3 ended at a bound)"),
+        "{out}"
+    );
+    assert!(
+        out.contains("not checked (--no-builtin): every run ends"),
+        "{out}"
+    );
+    assert!(!out.contains("  ok         every run ends"), "{out}");
+    assert!(
+        out.ends_with("ok: no run broke a property (exit status 0)\n"),
+        "{out}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_name_no_node_has_is_an_error() {
+    let (code, out, err) = tdl(&[
+        "sim",
+        "-p",
+        "xavier",
+        "--property",
+        "eventually completed(nobody)",
+    ]);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(
+        err.contains("names `nobody`, which no node of the program is named"),
+        "{err}"
+    );
 }

@@ -9,3 +9,4 @@
 mod agents;
 mod mission;
 mod sim;
+mod status;
