@@ -2,7 +2,11 @@
 //! system on 127.0.0.1, offers a few tasks, and prints one line per event on stdout (`ready`,
 //! `start <task> <node>`, `cleanup <task> <node>`), until it is killed.
 //!
-//! Usage: `tcm-zenoh-agent <system> <agent> <executive port>`. Offered tasks:
+//! Its log (`tracing`: the messages it ignores, a link it cannot use) goes to stderr, filtered by
+//! `RUST_LOG` (default `warn`).
+//!
+//! Usage: `tcm-zenoh-agent <system> <agent> <executive port> [<port>...]` (the other ports: peers
+//! on 127.0.0.1 to connect to as well). Offered tasks:
 //! - `sleep` (milliseconds): a command that sleeps, then returns the milliseconds;
 //! - `echo` (any JSON): a command that returns its arguments;
 //! - `noop` (null): a command that returns at once.
@@ -19,20 +23,35 @@ fn say(line: &str) {
 }
 
 fn usage() -> ! {
-    eprintln!("usage: tcm-zenoh-agent <system> <agent> <executive port>");
+    eprintln!("usage: tcm-zenoh-agent <system> <agent> <executive port> [<port>...]");
     std::process::exit(2)
 }
 
 #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
 async fn main() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    // Set only if none is (`try_init`): nothing else of the process sets one.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(false)
+        .try_init();
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let [system, name, port] = args.as_slice() else {
+    let [system, name, ports @ ..] = args.as_slice() else {
         usage()
     };
-    let Ok(port) = port.parse::<u16>() else {
+    let Ok(ports) = ports
+        .iter()
+        .map(|p| p.parse::<u16>().map(tcm_zenoh::config::endpoint))
+        .collect::<Result<Vec<_>, _>>()
+    else {
         usage()
     };
-    let config = match tcm_zenoh::config::loopback_connect(port) {
+    if ports.is_empty() {
+        usage()
+    }
+    let config = match tcm_zenoh::config::peer(&[], &ports) {
         Ok(c) => c,
         Err(e) => {
             eprintln!("tcm-zenoh-agent: {e}");
