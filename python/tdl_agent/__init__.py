@@ -43,8 +43,11 @@ What a Python agent offers:
   the node is terminated while its body runs (after the body is cancelled, before the
   cancellation is confirmed), and when the executive that started it goes away.
 
-Messages are applied once, in order: a duplicated or late message is counted
-(:class:`AgentStats`) and logged (logger ``tdl_agent``), never applied twice.
+Messages are applied once, in order: a task's message is applied only when it is numbered one more
+than the last one applied of that task (its start is number 1; zenoh delivers one publisher's
+messages in order). A duplicated, late or out-of-order message, or one of a kind the agent does
+not know, is counted (:class:`AgentStats`) and logged (logger ``tdl_agent``), never applied, and
+does not change what the agent expects next.
 """
 
 from __future__ import annotations
@@ -160,6 +163,8 @@ class AgentStats:
     cancelled: int = 0
     orphaned: int = 0
     duplicates: int = 0
+    #: Messages numbered past the next one expected, and starts not numbered 1: refused.
+    refused: int = 0
     late: int = 0
     malformed: int = 0
 
@@ -461,6 +466,11 @@ class Agent:
             log.warning("agent %s: malformed message ignored: %s", self.name, e)
             return
         key = (executive, msg.task)
+        if msg.kind not in wire.TO_AGENT:
+            # Not a message an executive sends: it says nothing about the task's sequence.
+            self.stats.malformed += 1
+            log.warning("agent %s: message of unknown kind %r ignored", self.name, msg.kind)
+            return
         if msg.kind == "start":
             try:
                 node, name, kind, args = wire.start_fields(msg)
@@ -484,6 +494,14 @@ class Agent:
             self.stats.duplicates += 1
             log.warning("agent %s: duplicate %s of task %d ignored", self.name, msg.kind, msg.task)
             return
+        if msg.seq != r.last_seq + 1:
+            # A gap, or a forged huge number that would make the executive's cancel a duplicate.
+            self.stats.refused += 1
+            log.warning(
+                "agent %s: out-of-order %s %d of task %d refused (expected %d)",
+                self.name, msg.kind, msg.seq, msg.task, r.last_seq + 1,
+            )
+            return
         r.last_seq = msg.seq
         if msg.kind == "cancel":
             self._end(key)
@@ -500,6 +518,11 @@ class Agent:
         if key in self._running or key in self._ended:
             self.stats.duplicates += 1
             log.warning("agent %s: duplicate start of task %d ignored", self.name, key[1])
+            return
+        if seq != 1:
+            # A task's first message is its start, number 1.
+            self.stats.refused += 1
+            log.warning("agent %s: start %d of task %d refused (a start is number 1)", self.name, seq, key[1])
             return
         ctx = TaskContext(self, key[0], key[1], node, name)
         offer = self._offers.get(name)

@@ -57,6 +57,10 @@ def executive_inbox(system: str, executive: str) -> str:
     return f"tdl/{system}/to-exec/{executive}"
 
 
+#: The kinds of message an executive sends to an agent.
+TO_AGENT = ("start", "cancel", "reply")
+
+
 class MalformedMessage(ValueError):
     """A message that does not read as the wire says."""
 

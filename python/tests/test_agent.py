@@ -179,6 +179,48 @@ class ExactlyOnce(unittest.TestCase):
         self.assertIn("does not offer nothing", errs[4]["message"])
         self.assertIn("another kind", errs[5]["message"])
 
+    def test_a_huge_sequence_number_cannot_hide_the_executives_cancel(self) -> None:
+        # A forged reply numbered 2^64-1 would make every later message a duplicate.
+        self.deliver(7, 1, wire.start(11, "slow", "command", 30_000))
+        self.settle()
+        self.deliver(7, 2**64 - 1, {"kind": "reply", "call": 1, "result": {"Ok": {"answer": "done"}}})
+        self.assertEqual((self.agent.stats.refused, self.agent.running()), (1, 1))
+        self.deliver(7, 2, wire.cancel())
+        self.settle()
+        self.assertEqual(self.cleanups, [30_000])
+        self.assertEqual(self.out.sent, [(7, 1, {"kind": "started"}), (7, 2, {"kind": "cancelled"})])
+        self.assertEqual((self.agent.stats.cancelled, self.agent.stats.duplicates), (1, 0))
+
+    def test_a_gap_in_the_numbers_is_refused_and_changes_nothing(self) -> None:
+        self.deliver(8, 1, wire.start(12, "slow", "command", 30_000))
+        self.settle()
+        self.deliver(8, 3, wire.cancel())
+        self.settle()
+        self.assertEqual((self.agent.stats.refused, self.agent.running(), self.cleanups), (1, 1, []))
+        self.deliver(8, 2, wire.cancel())
+        self.settle()
+        self.assertEqual((self.agent.stats.cancelled, self.cleanups), (1, [30_000]))
+
+    def test_a_message_of_unknown_kind_does_not_advance_the_sequence(self) -> None:
+        self.deliver(9, 1, wire.start(13, "slow", "command", 30_000))
+        self.settle()
+        self.deliver(9, 2, {"kind": "bogus"})
+        self.assertEqual((self.agent.stats.malformed, self.agent.running()), (1, 1))
+        # The executive's cancel, number 2, is still the next one.
+        self.deliver(9, 2, wire.cancel())
+        self.settle()
+        self.assertEqual((self.agent.stats.cancelled, self.agent.stats.duplicates), (1, 0))
+        self.assertEqual(self.cleanups, [30_000])
+
+    def test_a_start_not_numbered_1_is_refused_and_the_task_stays_unknown(self) -> None:
+        self.deliver(10, 2**64 - 1, wire.start(14, "slow", "command", 1))
+        self.settle()
+        self.assertEqual((self.agent.stats.refused, self.runs, self.out.sent), (1, 0, []))
+        self.deliver(10, 1, wire.start(14, "slow", "command", 1))
+        self.settle()
+        self.assertEqual(self.runs, 1)
+        self.assertEqual(self.out.sent, [(10, 1, {"kind": "started"}), (10, 2, {"kind": "done", "result": {"Ok": 1}})])
+
     def test_an_executive_that_goes_orphans_its_bodies_with_cleanup(self) -> None:
         self.deliver(6, 1, wire.start(10, "slow", "command", 20_000))
         self.settle()

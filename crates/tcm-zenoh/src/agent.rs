@@ -7,6 +7,7 @@
 use crate::Error;
 use crate::body::{Link, RemoteCtx};
 use crate::failure::{RemoteError, RemoteFailure};
+use crate::noise::{Ignored, Noise, Noted};
 use crate::wire::{self, Json, Kind, Msg, ToAgent, ToExec};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
@@ -16,6 +17,7 @@ use std::pin::Pin;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::task::{Context, Poll, Waker};
 use tokio::task::AbortHandle;
+use tokio::time::Instant;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
@@ -48,6 +50,9 @@ pub struct AgentStats {
     pub orphaned: u64,
     /// Messages received twice, ignored.
     pub duplicates: u64,
+    /// Messages of a running task numbered past the next one expected (a gap, a forged sequence
+    /// number), and starts not numbered 1: refused.
+    pub refused: u64,
     /// Messages about a task that ended, or that this agent never had, ignored.
     pub late: u64,
     /// Messages that could not be read, ignored.
@@ -324,6 +329,8 @@ struct AgentState {
     ended_order: std::collections::VecDeque<(String, u64)>,
     publishers: BTreeMap<String, Arc<Publisher<'static>>>,
     stats: AgentStats,
+    // The ignored messages not logged yet, by executive.
+    noise: Noise,
 }
 
 impl AgentState {
@@ -384,17 +391,21 @@ impl AgentInner {
             .clone())
     }
 
-    /// A message from executive `exec` arrived: applied once, in order; duplicates and messages
-    /// of ended tasks are counted and dropped.
+    /// A message from executive `exec` arrived: applied once, in order (numbered one more than
+    /// the last of its task: a start is number 1); duplicates, messages out of order and messages
+    /// of ended tasks are counted, logged (see [`crate::noise`]) and dropped.
     fn receive(self: &Arc<Self>, exec: &str, bytes: &[u8]) {
         let msg: Msg<ToAgent> = match serde_json::from_slice(bytes) {
             Ok(m) => m,
             Err(e) => {
                 self.lock().stats.malformed += 1;
-                tracing::warn!(target: "tcm_zenoh", agent = self.name, "malformed message ignored: {e}");
+                self.ignored(exec, Ignored::Malformed, || {
+                    format!("malformed message ignored: {e}")
+                });
                 return;
             }
         };
+        let kind = msg.body.name();
         match msg.body {
             ToAgent::Start {
                 node,
@@ -415,15 +426,45 @@ impl AgentInner {
                 let mut s = self.lock();
                 let Some(r) = s.running.get_mut(&key) else {
                     let dup = s.ended.get(&key).is_some_and(|last| msg.seq <= *last);
-                    if dup {
+                    let what = if dup {
                         s.stats.duplicates += 1;
+                        Ignored::Duplicate
                     } else {
                         s.stats.late += 1;
-                    }
+                        Ignored::Late
+                    };
+                    drop(s);
+                    self.ignored(exec, what, || {
+                        format!(
+                            "{} {kind} {} of ended task {} ignored",
+                            if dup { "duplicate" } else { "late" },
+                            msg.seq,
+                            msg.task
+                        )
+                    });
                     return;
                 };
                 if msg.seq <= r.last_seq {
                     s.stats.duplicates += 1;
+                    drop(s);
+                    self.ignored(exec, Ignored::Duplicate, || {
+                        format!("duplicate {kind} {} of task {} ignored", msg.seq, msg.task)
+                    });
+                    return;
+                }
+                // Zenoh delivers one publisher's messages in order: anything but the next number
+                // (a gap, a forged 2^64-1 that would make the executive's cancel a duplicate) is
+                // refused and changes nothing.
+                if r.last_seq.checked_add(1) != Some(msg.seq) {
+                    let expected = r.last_seq.saturating_add(1);
+                    s.stats.refused += 1;
+                    drop(s);
+                    self.ignored(exec, Ignored::Refused, || {
+                        format!(
+                            "out-of-order {kind} {} of task {} refused (expected {expected})",
+                            msg.seq, msg.task
+                        )
+                    });
                     return;
                 }
                 r.last_seq = msg.seq;
@@ -454,6 +495,30 @@ impl AgentInner {
         }
     }
 
+    /// A message from `exec` was ignored: logged at once if it is the first from there in a
+    /// while (`detail` says what it was), else counted for the line at the end of the interval.
+    fn ignored(self: &Arc<Self>, exec: &str, what: Ignored, detail: impl FnOnce() -> String) {
+        let (noted, peer) = {
+            let mut s = self.lock();
+            let peer = s.noise.counted_as(exec).to_string();
+            (s.noise.note(exec, what, Instant::now()), peer)
+        };
+        let Noted::Log(at) = noted else { return };
+        tracing::warn!(target: "tcm_zenoh", agent = self.name, executive = exec, "{}", detail());
+        let weak = Arc::downgrade(self);
+        self.rt.spawn(async move {
+            let mut at = at;
+            loop {
+                tokio::time::sleep_until(at).await;
+                let Some(me) = weak.upgrade() else { break };
+                let flushed = me.lock().noise.flush(&peer, Instant::now());
+                let Some((line, next)) = flushed else { break };
+                tracing::warn!(target: "tcm_zenoh", agent = me.name, "{line}");
+                at = next;
+            }
+        });
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn start(
         self: &Arc<Self>,
@@ -469,6 +534,21 @@ impl AgentInner {
         let mut s = self.lock();
         if s.running.contains_key(&key) || s.ended.contains_key(&key) {
             s.stats.duplicates += 1;
+            drop(s);
+            self.ignored(&exec, Ignored::Duplicate, || {
+                format!("duplicate start {seq} of task {task} ignored")
+            });
+            return;
+        }
+        // A task's first message is its start, number 1: a start numbered otherwise (a forged
+        // 2^64-1 would make every later message of the task a duplicate) is refused, and the
+        // task stays unknown.
+        if seq != 1 {
+            s.stats.refused += 1;
+            drop(s);
+            self.ignored(&exec, Ignored::Refused, || {
+                format!("start {seq} of task {task} refused (a start is number 1)")
+            });
             return;
         }
         let link = Arc::new(Link::new(self.clone(), exec, task, node));

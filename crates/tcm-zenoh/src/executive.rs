@@ -387,8 +387,9 @@ impl Inner {
         self.locals.read().ok()?.get(name).cloned()
     }
 
-    /// A message arrived on the inbox: handed to its task's action once, in order; duplicates and
-    /// messages of ended tasks are counted and dropped.
+    /// A message arrived on the inbox: handed to its task's action once, in order (numbered one
+    /// more than the task's last); duplicates, messages out of order and messages of ended tasks
+    /// are counted and dropped.
     fn receive(&self, bytes: &[u8]) {
         let msg: Msg<ToExec> = match serde_json::from_slice(bytes) {
             Ok(m) => m,
@@ -418,6 +419,18 @@ impl Inner {
             s.stats.duplicates += 1;
             drop(s);
             ignored(&msg, "duplicate message", "remote task", Some(ctx));
+            return;
+        }
+        // Zenoh delivers one publisher's messages in order: the agent's next message is numbered
+        // one more than the last. Any other number (a gap, or a forged 2^64-1 that would make the
+        // real messages look like duplicates) is refused and changes nothing.
+        if p.last_seq.checked_add(1) != Some(msg.seq) {
+            let ctx = p.ctx.clone();
+            let expected = p.last_seq.saturating_add(1);
+            s.stats.refused += 1;
+            drop(s);
+            let what = format!("out-of-order message (expected {expected})");
+            ignored(&msg, &what, "remote task", Some(ctx));
             return;
         }
         p.last_seq = msg.seq;

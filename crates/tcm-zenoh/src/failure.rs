@@ -1,6 +1,6 @@
 //! Failures across processes: a remote body's typed failure as it travels ([`RemoteFailure`]), and
 //! the exceptions of the distribution layer itself ([`RemoteError`], [`AgentLost`],
-//! [`RemoteTimeout`]), real `tcm` exception types that handlers name like any other.
+//! [`RemoteTimeout`], [`RemoteCancelled`]), real `tcm` exception types that handlers name like any other.
 //!
 //! On the executive a remote failure becomes a [`tcm::Failure`] with the remote exception's name
 //! and ancestry, so the tree's handler search by type works across processes; its data is the
@@ -83,6 +83,8 @@ impl RemoteFailure {
             serde_json::to_value(&*e).unwrap_or(Json::Null)
         } else if let Some(e) = f.data::<RemoteTimeout>() {
             serde_json::to_value(&*e).unwrap_or(Json::Null)
+        } else if let Some(e) = f.data::<RemoteCancelled>() {
+            serde_json::to_value(&*e).unwrap_or(Json::Null)
         } else if let Some(e) = f.data::<RemoteError>() {
             serde_json::to_value(&*e).unwrap_or(Json::Null)
         } else {
@@ -120,7 +122,8 @@ pub fn caught<E: Clone + Send + Sync + DeserializeOwned + 'static>(ctx: &Ctx) ->
 
 /// The common ancestor of the distribution layer's exceptions, and the exception of its other
 /// failures: a task nobody registered, arguments that do not serialise, a message that could not
-/// be sent. A handler of `RemoteError` takes [`AgentLost`] and [`RemoteTimeout`] too.
+/// be sent. A handler of `RemoteError` takes [`AgentLost`], [`RemoteTimeout`] and
+/// [`RemoteCancelled`] too.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
 #[error("{message}")]
 pub struct RemoteError {
@@ -204,6 +207,25 @@ impl Exception for RemoteTimeout {
     }
 }
 
+/// The agent running a remote task said the body was cancelled (`cancelled`) though the executive
+/// never sent it a `cancel`: the body was aborted on the agent by someone else (a forged cancel,
+/// or an agent that cancels on its own), so the node has no value. The node fails with this
+/// rather than succeed with nothing (docs/distributed.md, "Exactly once").
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
+#[error("agent {agent} cancelled {task}, which the executive never asked it to cancel")]
+pub struct RemoteCancelled {
+    /// The agent.
+    pub agent: String,
+    /// The task it ran.
+    pub task: String,
+}
+
+impl Exception for RemoteCancelled {
+    fn ancestry() -> &'static [&'static str] {
+        &["RemoteError"]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -246,6 +268,18 @@ mod tests {
         assert_eq!(
             r.data_as::<AgentLost>().map(|e| e.agent),
             Some("arm".into())
+        );
+        let f = RemoteCancelled {
+            agent: "arm".into(),
+            task: "grasp".into(),
+        }
+        .raise();
+        assert_eq!(f.exception, "RemoteCancelled");
+        assert!(f.is_a("RemoteError"));
+        let r = RemoteFailure::from_failure(&f);
+        assert_eq!(
+            r.data_as::<RemoteCancelled>().map(|e| e.task),
+            Some("grasp".into())
         );
     }
 }

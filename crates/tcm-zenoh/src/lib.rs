@@ -9,8 +9,10 @@
 //! works across processes; terminating it cancels the body on the agent, which runs its cleanup
 //! and confirms; a remote goal's body spawns children in the tree through calls to the executive.
 //!
-//! Every message carries its task's id and a sequence number: each is applied once, in order,
-//! and duplicates and late messages are counted ([`Stats`]) and logged through `tracing`. A lost
+//! Every message carries its task's id and a sequence number: each is applied once, in order
+//! (numbered one more than the last of its task and direction), and duplicates, messages out of
+//! order and late messages are counted ([`Stats`], [`AgentStats`]) and logged through `tracing`;
+//! a `cancelled` the executive never asked for fails the node with [`RemoteCancelled`]. A lost
 //! agent (its token deleted: its process died, or its link broke) fails each task it ran with
 //! [`AgentLost`] as soon as the executive sees it; timeouts in the style of durable workflows
 //! (schedule-to-start, start-to-close, heartbeat; [`RemoteOptions`]) fail it with
@@ -42,13 +44,16 @@ mod body;
 pub mod config;
 mod executive;
 mod failure;
+mod noise;
 mod remote;
 mod wire;
 
 pub use agent::{Agent, AgentBuilder, AgentStats};
 pub use body::{Child, ChildId, RemoteCtx, RemoteSpawn};
 pub use executive::{Executive, Placement};
-pub use failure::{AgentLost, RemoteError, RemoteFailure, RemoteTimeout, TimeoutKind, caught};
+pub use failure::{
+    AgentLost, RemoteCancelled, RemoteError, RemoteFailure, RemoteTimeout, TimeoutKind, caught,
+};
 pub use remote::{At, Remote, RemoteOptions};
 pub use wire::{ChildEnded, ChildRef, Json, Kind};
 
@@ -127,6 +132,9 @@ pub struct Stats {
     pub timeouts: u64,
     /// Messages received twice, ignored.
     pub duplicates: u64,
+    /// Messages of a running task numbered past the next one expected (a gap, a forged
+    /// sequence number), refused.
+    pub refused: u64,
     /// Messages of a task that had ended (or that this executive never had), ignored.
     pub late: u64,
     /// Messages that could not be read, ignored.

@@ -5,7 +5,9 @@
 //! confirms once its cleanup ran (docs/distributed.md, "A remote task's life").
 
 use crate::executive::{Executive, Incoming, Inner};
-use crate::failure::{AgentLost, RemoteError, RemoteFailure, RemoteTimeout, TimeoutKind};
+use crate::failure::{
+    AgentLost, RemoteCancelled, RemoteError, RemoteFailure, RemoteTimeout, TimeoutKind,
+};
 use crate::wire::{
     self, Answer, ChildAt, ChildEnded, ChildRef, ChildSpec, Constraint, Json, Kind, Msg, Op,
     ToAgent, ToExec,
@@ -467,8 +469,22 @@ async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
                     }
                     Incoming::Msg(ToExec::Cancelled) => {
                         link.ended = true;
-                        exec.count(|s| s.cancelled += 1);
-                        return Ok(Json::Null);
+                        if link.cancelled {
+                            exec.count(|s| s.cancelled += 1);
+                            return Ok(Json::Null);
+                        }
+                        // A cancel this executive never sent aborted the body (a forged one, or
+                        // an agent that cancels on its own): the node has no value to succeed
+                        // with.
+                        let text = format!(
+                            "remote task {task} ({}) on agent {agent} was cancelled, but no cancel \
+                             was sent to it: the node fails with RemoteCancelled",
+                            spec.name
+                        );
+                        tracing::warn!(target: "tcm_zenoh", task, agent, "{text}");
+                        let _ = ctx.warn(text);
+                        exec.count(|s| s.failed += 1);
+                        return Err(RemoteCancelled { agent, task: spec.name.clone() }.raise());
                     }
                     Incoming::Msg(ToExec::Call { call, op }) => {
                         if let Some(result) = body.call(call, op) {

@@ -2,8 +2,9 @@
 //! executive and its agents, as JSON (docs/distributed.md, "Messages").
 //!
 //! Every message names its remote task (`task`, unique per executive) and carries a sequence
-//! number (`seq`, from 1, per task and direction): the receiver applies each message once, in
-//! order, and counts the rest as duplicates or late arrivals.
+//! number (`seq`, from 1, per task and direction): the receiver applies a message only when it is
+//! numbered one more than the last it applied of that task (zenoh delivers one publisher's
+//! messages in order), and counts the rest as duplicates, refused (out of order) or late.
 
 use crate::failure::RemoteFailure;
 use serde::{Deserialize, Serialize};
@@ -112,6 +113,17 @@ pub(crate) enum ToExec {
     Cancelled,
     /// A request of a goal's body to the executive's tree.
     Call { call: u64, op: Op },
+}
+
+impl ToAgent {
+    /// What the message is, for people (a warning about it).
+    pub(crate) fn name(&self) -> &'static str {
+        match self {
+            ToAgent::Start { .. } => "start",
+            ToAgent::Cancel => "cancel",
+            ToAgent::Reply { .. } => "reply",
+        }
+    }
 }
 
 impl ToExec {

@@ -5,6 +5,7 @@
 mod agent_loss;
 mod exactly_once;
 mod exceptions;
+mod forgery;
 mod goals;
 mod python;
 mod reach;

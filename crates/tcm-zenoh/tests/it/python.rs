@@ -1,11 +1,12 @@
 //! The Python agent (`python/tdl_agent`, on the `eclipse-zenoh` package from PyPI): a process of
 //! its own, made from `python_agent.py` beside this file, serves remote tasks of the executive's
 //! tree: a command's and a goal's values, a typed Python exception handled by the tree's handler
-//! of its ancestor, termination cancelling the Python body and running its cleanup, and the
-//! process killed surfacing as `AgentLost`. The venv comes from `test_support::python_venv`;
+//! of its ancestor, termination cancelling the Python body and running its cleanup, a cancel
+//! forged by a stranger failing the node with `RemoteCancelled`, and the process killed surfacing
+//! as `AgentLost`. The venv comes from `test_support::python_venv`;
 //! where Python 3 is absent, each test prints why and returns.
 
-use crate::util::{Log, Net, bounded, untimed};
+use crate::util::{Log, Net, Stranger, bounded, untimed};
 use serde::Deserialize;
 use serde_json::json;
 use std::io::{BufRead, BufReader};
@@ -15,7 +16,7 @@ use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 use tcm::testing::{assert_order, handler_choices, run_checked};
 use tcm::{Handler, RunOutcome, Runtime, Task};
-use tcm_zenoh::{AgentLost, At, Json, RemoteError};
+use tcm_zenoh::{AgentLost, At, Json, RemoteCancelled, RemoteError};
 
 /// The zenoh release the Rust side is built with, which the Python side must match.
 const ZENOH: &str = "eclipse-zenoh==1.10.2";
@@ -45,11 +46,13 @@ struct PythonAgent {
 }
 
 impl PythonAgent {
-    fn spawn(python: &Path, system: &str, name: &str, port: u16) -> PythonAgent {
+    /// Starts the agent, connected to the executive's `ports[0]` and the other `ports`.
+    fn spawn(python: &Path, system: &str, name: &str, ports: &[u16]) -> PythonAgent {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/it/python_agent.py");
         let mut child = Command::new(python)
             .arg(script)
-            .args([system, name, &port.to_string()])
+            .args([system, name])
+            .args(ports.iter().map(u16::to_string))
             .env("PYTHONPATH", repo().join("python"))
             .env("PYTHONUNBUFFERED", "1")
             .stdout(Stdio::piped())
@@ -72,7 +75,18 @@ impl PythonAgent {
 
     /// Starts the agent and waits until the executive sees it offer `task`.
     async fn join(python: &Path, net: &Net, name: &str, task: &str) -> PythonAgent {
-        let agent = PythonAgent::spawn(python, &net.system, name, net.port);
+        PythonAgent::join_with(python, net, name, task, &[net.port]).await
+    }
+
+    /// As [`PythonAgent::join`], connected to `ports` (the executive's first).
+    async fn join_with(
+        python: &Path,
+        net: &Net,
+        name: &str,
+        task: &str,
+        ports: &[u16],
+    ) -> PythonAgent {
+        let agent = PythonAgent::spawn(python, &net.system, name, ports);
         agent.expect("ready", READY).await;
         net.exec
             .wait_for(name, Some(task), crate::util::JOIN)
@@ -287,6 +301,74 @@ async fn terminating_a_python_body_cancels_it_and_runs_its_cleanup() {
         agent.expect("cleanup spin 60000", READY).await;
         let stats = net.exec.stats();
         assert_eq!((stats.cancels, stats.cancelled), (2, 2), "{stats:?}");
+    })
+    .await;
+}
+
+/// A stranger linked with the Python agent forges the executive's `cancel`: the agent cannot tell
+/// and cancels the body, but the executive, which sent no cancel, fails the node with
+/// `RemoteCancelled` rather than make it a success.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_forged_cancel_to_a_python_agent_fails_the_node_with_remote_cancelled() {
+    let Some(python) = python() else { return };
+    bounded(async {
+        let net = Net::new("py-forge").await;
+        let stranger = Arc::new(Stranger::new().await);
+        let agent = Arc::new(
+            PythonAgent::join_with(&python, &net, "py", "sleep", &[net.port, stranger.port]).await,
+        );
+        let caught: Arc<Mutex<Option<RemoteCancelled>>> = Arc::default();
+        let c = caught.clone();
+        let on_cancelled = Handler::on::<RemoteError, _, _, _>("on_remote", move |ctx| {
+            let c = c.clone();
+            async move {
+                *c.lock().expect("caught") = tcm_zenoh::caught::<RemoteCancelled>(&ctx);
+                Ok(())
+            }
+        });
+        let exec = net.exec.clone();
+        let key = format!("tdl/{}/to-agent/py/{}", net.system, net.exec.id());
+        let a = agent.clone();
+        let main = Task::goal("main", move |ctx| async move {
+            ctx.hold_children(false)?;
+            let sleep = ctx
+                .spawn(exec.remote("py", "sleep", 60_000).task())
+                .handler(on_cancelled)
+                .start()?;
+            a.expect("start sleep", READY).await;
+            // The start was message 1 of task 1; the forged cancel is number 2.
+            stranger
+                .forge(
+                    key,
+                    json!({"task": 1, "seq": 2, "body": {"kind": "cancel"}}),
+                )
+                .await;
+            ctx.wait(sleep).await?;
+            Ok(())
+        });
+        let (report, trace) = run_checked(Runtime::new(), main).await;
+        assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
+        assert!(report.unhandled.is_empty(), "{report}");
+        assert_eq!(handler_choices(&trace), ["on_remote<-RemoteCancelled"]);
+        assert_eq!(
+            *caught.lock().expect("caught"),
+            Some(RemoteCancelled {
+                agent: "py".into(),
+                task: "sleep".into()
+            })
+        );
+        agent.expect("cleanup sleep 60000", READY).await;
+        let stats = net.exec.stats();
+        assert_eq!(
+            (
+                stats.cancels,
+                stats.cancelled,
+                stats.succeeded,
+                stats.failed
+            ),
+            (0, 0, 0, 1),
+            "{stats:?}"
+        );
     })
     .await;
 }

@@ -1,6 +1,7 @@
 """A Python agent for the tests of crates/tcm-zenoh/tests/it/python.rs, built on tdl_agent.
 
-Usage: python_agent.py <system> <agent> <executive port>
+Usage: python_agent.py <system> <agent> <executive port> [<port>...] (other peers on 127.0.0.1 to
+connect to as well)
 
 It joins the system on 127.0.0.1 and prints one line per event on stdout (``ready``,
 ``start <task> <node>``, ``cleanup <task> <args>``) until it is killed or gets SIGTERM. Offered:
@@ -47,10 +48,10 @@ class NoGrasp(ArmFailure):
 
 
 def main(argv: List[str]) -> int:
-    if len(argv) != 3:
-        print("usage: python_agent.py <system> <agent> <executive port>", file=sys.stderr)
+    if len(argv) < 3:
+        print("usage: python_agent.py <system> <agent> <executive port> [<port>...]", file=sys.stderr)
         return 2
-    system, name, port = argv[0], argv[1], int(argv[2])
+    system, name, ports = argv[0], argv[1], [int(p) for p in argv[2:]]
     agent = tdl_agent.Agent(system, name)
 
     @agent.command("add")
@@ -93,7 +94,7 @@ def main(argv: List[str]) -> int:
 
     agent.command("spin", spin, on_terminate=lambda ms: say(f"cleanup spin {ms}"))
 
-    agent.start(tdl_agent.loopback_config(port))
+    agent.start(tdl_agent.peer_config([], [f"tcp/127.0.0.1:{p}" for p in ports]))
     say("ready")
     agent.run()
     return 0

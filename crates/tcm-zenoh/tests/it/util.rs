@@ -58,12 +58,76 @@ impl Net {
     /// Starts `agent` (connected to the executive) and waits until the executive sees it.
     pub(crate) async fn join(&self, agent: AgentBuilder, name: &str) -> Agent {
         let config = tcm_zenoh::config::loopback_connect(self.port).expect("config");
+        self.join_with(agent, name, config).await
+    }
+
+    /// As [`Net::join`], the agent linked with `stranger` too.
+    pub(crate) async fn join_beside(
+        &self,
+        agent: AgentBuilder,
+        name: &str,
+        stranger: &Stranger,
+    ) -> Agent {
+        let endpoints = [self.port, stranger.port].map(tcm_zenoh::config::endpoint);
+        let config = tcm_zenoh::config::peer(&[], &endpoints).expect("config");
+        self.join_with(agent, name, config).await
+    }
+
+    async fn join_with(&self, agent: AgentBuilder, name: &str, config: zenoh::Config) -> Agent {
         let agent = agent.start(config).await.expect("agent starts");
         self.exec
             .wait_for(name, None, JOIN)
             .await
             .expect("the executive sees the agent");
         agent
+    }
+}
+
+/// A stranger on the system's network: a bare zenoh session listening on a free port of 127.0.0.1
+/// (multicast scouting off) that agents are linked with (as every client of a shared router is
+/// with every other), and that speaks the wire by hand: it forges messages.
+pub(crate) struct Stranger {
+    pub(crate) session: zenoh::Session,
+    pub(crate) port: u16,
+}
+
+impl Stranger {
+    pub(crate) async fn new() -> Stranger {
+        for _ in 0..5 {
+            let port = tcm_zenoh::config::free_port().expect("a free port");
+            let config = tcm_zenoh::config::loopback_listen(port).expect("config");
+            if let Ok(session) = zenoh::open(config).await {
+                return Stranger { session, port };
+            }
+        }
+        panic!("the stranger's session does not open")
+    }
+
+    /// Puts `msg` on `key` once a subscriber of it is known (at most [`JOIN`]).
+    pub(crate) async fn forge(&self, key: String, msg: serde_json::Value) {
+        let publisher = self
+            .session
+            .declare_publisher(key)
+            .await
+            .expect("a publisher");
+        let deadline = tokio::time::Instant::now() + JOIN;
+        while !publisher
+            .matching_status()
+            .await
+            .expect("a status")
+            .matching()
+        {
+            assert!(
+                tokio::time::Instant::now() < deadline,
+                "no subscriber of {} within {JOIN:?}",
+                publisher.key_expr()
+            );
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        publisher
+            .put(serde_json::to_vec(&msg).expect("JSON"))
+            .await
+            .expect("a put");
     }
 }
 
