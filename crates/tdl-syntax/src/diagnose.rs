@@ -17,6 +17,7 @@
 //! file checks the names of the program and each task's header.
 
 mod body;
+mod caught;
 mod cycles;
 mod flow;
 mod graph;
@@ -212,6 +213,7 @@ fn task_header(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
     if let Some(handles) = &task.handles {
         exception(file, handles, diags);
     }
+    caught::check(task, diags);
     if let Some(target) = &task.for_task {
         attached_to(file, task, target, diags);
     }
