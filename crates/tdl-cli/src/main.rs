@@ -205,8 +205,7 @@ fn main() -> ExitCode {
         }
     };
     match run(cli) {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) => ExitCode::from(1),
+        Ok(status) => ExitCode::from(status),
         Err(err) => {
             if err
                 .downcast_ref::<std::io::Error>()
@@ -221,14 +220,17 @@ fn main() -> ExitCode {
     }
 }
 
-/// Ok(true) when no file has errors.
-fn run(cli: Cli) -> anyhow::Result<bool> {
+/// The exit status: 0 when the command found nothing wrong, 1 when it did (errors in a program, a
+/// bad trace, a violated property), 3 when `tdl verify` or `tdl sim` decided nothing wrong but not
+/// everything; an error is 2 (main's).
+fn run(cli: Cli) -> anyhow::Result<u8> {
+    let found = |clean: bool| if clean { 0 } else { 1 };
     let mut out = std::io::stdout().lock();
     match cli.command {
         Command::Check { files } => {
             let (rendered, clean) = compile_checked(&files, stdout_colour(), |_| Ok(()))?;
             out.write_all(rendered.as_bytes())?;
-            Ok(clean.is_some())
+            Ok(found(clean.is_some()))
         }
         Command::Graph {
             files,
@@ -244,10 +246,10 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 graph::render(&program, format, options).map_err(anyhow::Error::msg)
             })?;
             let Some(text) = text else {
-                return Ok(false);
+                return Ok(1);
             };
             out.write_all(text.as_bytes())?;
-            Ok(true)
+            Ok(0)
         }
         Command::Doc { files, out: dir } => {
             let written = with_checked_program(&files, |program| {
@@ -259,15 +261,15 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 doc::write(&model::Program::new(program), &names, &dir)
             })?;
             let Some(written) = written else {
-                return Ok(false);
+                return Ok(1);
             };
             writeln!(out, "wrote {} pages to {}", written.len(), dir.display())?;
-            Ok(true)
+            Ok(0)
         }
-        Command::Trace { what } => trace(what, &mut out),
+        Command::Trace { what } => trace(what, &mut out).map(found),
         Command::Verify(args) => verify::run(args, &mut out),
         Command::Sim(args) => sim::run(args, &mut out),
-        Command::View { files, listen } => serve::view(&files, listen),
+        Command::View { files, listen } => serve::view(&files, listen).map(found),
         Command::Expand { file } => {
             let (name, src) = read(&file)?;
             let (code, diagnostics) = tdl_syntax::compile_str(&name, &src);
@@ -276,11 +278,11 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 Some(code) => {
                     eprint!("{rendered}");
                     out.write_all(tdl_syntax::pretty(&code).as_bytes())?;
-                    Ok(true)
+                    Ok(0)
                 }
                 None => {
                     out.write_all(rendered.as_bytes())?;
-                    Ok(false)
+                    Ok(1)
                 }
             }
         }

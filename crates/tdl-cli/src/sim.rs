@@ -115,7 +115,7 @@ pub(crate) struct Args {
 }
 
 /// Runs `tdl sim`: as [`crate::verify::run`] ([`EXIT_STATUS`]).
-pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
+pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<u8> {
     let options = options(&args)?;
     let (files, program) = load_program(&args.files, args.package.as_deref(), out)?;
     let task = program.root_task(args.task.as_deref())?;

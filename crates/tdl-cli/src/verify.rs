@@ -107,9 +107,9 @@ pub(crate) struct Args {
     out: PathBuf,
 }
 
-/// Runs `tdl verify`: Ok(true) ok, Ok(false) violated, an error (exit 2, main's), or it exits with
-/// 3, undecided ([`EXIT_STATUS`], [`finish`]).
-pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
+/// Runs `tdl verify`: the exit status, 0 ok, 1 violated or 3 undecided, or an error (exit 2,
+/// main's) ([`EXIT_STATUS`], [`finish`]).
+pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<u8> {
     let (files, program) = load_program(&args.files, args.package.as_deref(), out)?;
     let task = program.root_task(args.task.as_deref())?;
     let properties = load_properties(&args.property, args.properties.as_deref())?;
@@ -183,20 +183,13 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<bool> {
     finish(report.status(), false, out)
 }
 
-/// Ends `tdl verify` or `tdl sim` (`sim`) with `status` ([`EXIT_STATUS`]) after a line that says it: main
-/// maps Ok(true) to 0, Ok(false) to 1 and an error to 2, as for every command; the status 3,
-/// undecided, which only these two commands give, exits here once the output is flushed.
-pub(crate) fn finish(status: Status, sim: bool, out: &mut impl Write) -> anyhow::Result<bool> {
+/// Ends `tdl verify` or `tdl sim` (`sim`) with `status` ([`EXIT_STATUS`]) after a line that says it:
+/// the exit status, or an error (exit 2, main's, as for every command).
+pub(crate) fn finish(status: Status, sim: bool, out: &mut impl Write) -> anyhow::Result<u8> {
     writeln!(out, "{}", status_line(status, sim))?;
     match status {
-        Status::Ok => Ok(true),
-        Status::Violated => Ok(false),
         Status::Error => anyhow::bail!("the checker failed: see its errors above"),
-        Status::Undecided => {
-            out.flush()?;
-            std::io::stderr().flush()?;
-            std::process::exit(i32::from(Status::Undecided.code()))
-        }
+        Status::Ok | Status::Violated | Status::Undecided => Ok(status.code()),
     }
 }
 
