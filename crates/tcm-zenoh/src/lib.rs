@@ -57,6 +57,19 @@ pub use failure::{
 pub use remote::{At, Remote, RemoteOptions};
 pub use wire::{ChildEnded, ChildRef, Json, Kind};
 
+/// Sends the log of `tracing` (this crate's warnings: messages ignored or refused, a peer not
+/// reached) to stderr, filtered by `RUST_LOG`, `warn` by default: for a program that runs an
+/// executive or an agent. Does nothing when the process has a subscriber already.
+pub fn log_to_stderr() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(false)
+        .try_init();
+}
+
 /// Errors of the distribution layer's API (a remote task's own failures are `tcm` failures).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

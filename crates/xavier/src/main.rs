@@ -126,21 +126,9 @@ fn create(path: &PathBuf) -> anyhow::Result<BufWriter<File>> {
     Ok(BufWriter::new(file))
 }
 
-/// The log of `tracing` (tcm-zenoh's warnings: messages ignored, a peer not reached) on stderr,
-/// filtered by `RUST_LOG`, `warn` by default; for this process and the robot agent alike.
-fn log_to_stderr() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
-    // Set only if none is (`try_init`): nothing else of the process sets one.
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_ansi(false)
-        .try_init();
-}
-
 fn main() -> ExitCode {
-    log_to_stderr();
+    // tcm-zenoh's warnings, for this process and the robot agent alike.
+    tcm_zenoh::log_to_stderr();
     let mut args = std::env::args_os();
     if std::env::args_os()
         .nth(1)

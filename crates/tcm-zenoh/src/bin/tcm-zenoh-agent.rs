@@ -29,14 +29,7 @@ fn usage() -> ! {
 
 #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
 async fn main() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
-    // Set only if none is (`try_init`): nothing else of the process sets one.
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_ansi(false)
-        .try_init();
+    tcm_zenoh::log_to_stderr();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let [system, name, ports @ ..] = args.as_slice() else {
         usage()
