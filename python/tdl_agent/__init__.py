@@ -207,7 +207,7 @@ class _Running:
 
 
 #: How long the first messages to an executive wait for its inbox to be known (seconds).
-REACH = 10.0
+REACH = 3.0
 
 
 class _Outlet:

@@ -92,8 +92,10 @@ impl Error {
     }
 }
 
-/// How long a sender waits for the first subscriber of a key it publishes to.
-const REACH: std::time::Duration = std::time::Duration::from_secs(10);
+/// How long a sender waits for the first subscriber of a key it publishes to: a subscriber's
+/// declaration follows its peer's token within milliseconds on a working link; well under the
+/// default schedule-to-start (10 s), so that a start held for the whole wait is still in time.
+const REACH: std::time::Duration = std::time::Duration::from_secs(3);
 
 /// Waits until this session knows a subscriber matching `publisher`'s key, at most [`REACH`];
 /// whether it does. Zenoh drops a publication that matches no subscriber the session knows of,
