@@ -21,8 +21,10 @@
 //! - `tdl sim FILE.tdl...` / `tdl sim -p CRATE` runs a program once per seed on virtual time with
 //!   random durations, outcomes and events, and checks every run (`sim.rs`).
 //!
-//! Exit codes (after ripgrep): 0 ok (warnings only or nothing), 1 errors found, 2 usage or I/O
-//! error. The front end is `tdl-syntax`.
+//! Exit codes (after ripgrep): 0 ok (warnings only or nothing), 1 errors found (or a property
+//! violated), 2 usage or I/O error, 3 undecided (`tdl verify` and `tdl sim` only: nothing broken,
+//! but a bound cut the search; docs/verification.md, "Exit status"). The front end is
+//! `tdl-syntax`.
 
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
