@@ -3,52 +3,18 @@
 //! messages alone, and they are the rows the page reads from the snapshot when it opens the run
 //! again after its end; both look the same. Screenshots go to `target/viewer/`.
 
+mod common;
+
 use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::ensure;
-use tcm::testing::run_checked;
-use tcm::{Facet, Failure, Handler, NodeKind, NodeRef, Runtime, Task, TraceSink};
+use tcm::TraceSink;
 use tcm_trace::TraceEvent;
 use test_support::browser::Browser;
 
-fn secs(s: u64) -> Duration {
-    Duration::from_secs(s)
-}
-
-/// `drive` then `park` (serial), `honk` failing with `Jammed` (handled by `shrug`), `grasp`
-/// placed on the agent `arm`: spawns, transitions, a failure, a handler, a placement,
-/// reclamations.
 async fn mission() -> Vec<TraceEvent> {
-    let task = Task::goal("mission", |ctx| async move {
-        ctx.spawn(Task::command("drive", |_| async {
-            tokio::time::sleep(secs(5)).await;
-            Ok(())
-        }))
-        .start()?;
-        ctx.spawn(Task::command("park", |_| async {
-            tokio::time::sleep(secs(1)).await;
-            Ok(())
-        }))
-        .sequential(Facet::Execution, NodeRef::Previous)
-        .start()?;
-        ctx.spawn(
-            Task::retryable(NodeKind::Command, "honk", |_| async {
-                tokio::time::sleep(secs(2)).await;
-                Err::<(), _>(Failure::new("Jammed", "the horn is stuck"))
-            })
-            .handler(Handler::new("shrug", "Jammed", |_| async { Ok(()) })),
-        )
-        .start()?;
-        ctx.spawn(Task::command("grasp", |ctx| async move {
-            ctx.placed("arm")?;
-            tokio::time::sleep(secs(3)).await;
-            Ok(())
-        }))
-        .start()?;
-        Ok(())
-    });
-    run_checked(Runtime::new(), task).await.1
+    common::mission(true).await
 }
 
 /// Every node the page holds: number, parent, kind, name, marks, agent, children.

@@ -5,46 +5,22 @@
 //! page builds from them being the snapshot's), and a page that falls behind being sent a fresh
 //! snapshot instead of slowing the run.
 
+mod common;
+
+use common::secs;
+
 use std::collections::BTreeMap;
 use std::time::Duration;
 
 use futures_util::StreamExt;
 use tcm::testing::run_checked;
-use tcm::{Facet, Failure, Handler, NodeKind, NodeRef, Runtime, Task, TraceSink};
+use tcm::{Facet, Runtime, Task, TraceSink};
 use tcm_trace::TraceEvent;
 use tcm_view::{EventFilter, RunModel, Viewer, m_point};
 use tokio_tungstenite::tungstenite::Message;
 
-fn secs(s: u64) -> Duration {
-    Duration::from_secs(s)
-}
-
-/// `mission` runs `drive` (5 s), then `park` (1 s, serial on `drive`), beside `honk` (2 s) which
-/// fails with `Jammed`, handled by `shrug`.
 async fn mission() -> Vec<TraceEvent> {
-    let task = Task::goal("mission", |ctx| async move {
-        ctx.spawn(Task::command("drive", |_| async {
-            tokio::time::sleep(secs(5)).await;
-            Ok(())
-        }))
-        .start()?;
-        ctx.spawn(Task::command("park", |_| async {
-            tokio::time::sleep(secs(1)).await;
-            Ok(())
-        }))
-        .sequential(Facet::Execution, NodeRef::Previous)
-        .start()?;
-        ctx.spawn(
-            Task::retryable(NodeKind::Command, "honk", |_| async {
-                tokio::time::sleep(secs(2)).await;
-                Err::<(), _>(Failure::new("Jammed", "the horn is stuck"))
-            })
-            .handler(Handler::new("shrug", "Jammed", |_| async { Ok(()) })),
-        )
-        .start()?;
-        Ok(())
-    });
-    run_checked(Runtime::new(), task).await.1
+    common::mission(false).await
 }
 
 fn model_of(trace: &[TraceEvent]) -> RunModel {
