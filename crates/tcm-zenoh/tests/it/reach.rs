@@ -4,7 +4,7 @@
 //! declares its inbox only after the other side has seen its token, and speaks the wire format by
 //! hand.
 
-use crate::util::{JOIN, Net, bounded};
+use crate::util::{JOIN, Net, bounded, put};
 use serde_json::{Value, json};
 use std::time::Duration;
 use tcm::testing::run_checked;
@@ -33,29 +33,6 @@ async fn inbox(
         .await
         .expect("a subscriber");
     (sub, rx)
-}
-
-/// Puts `msg` on `key` once the bare session knows a subscriber of it.
-async fn put(session: &zenoh::Session, key: String, msg: Value) {
-    let publisher = session.declare_publisher(key).await.expect("a publisher");
-    let deadline = tokio::time::Instant::now() + JOIN;
-    while !publisher
-        .matching_status()
-        .await
-        .expect("a status")
-        .matching()
-    {
-        assert!(
-            tokio::time::Instant::now() < deadline,
-            "no subscriber of {} within {JOIN:?}",
-            publisher.key_expr()
-        );
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    }
-    publisher
-        .put(serde_json::to_vec(&msg).expect("JSON"))
-        .await
-        .expect("a put");
 }
 
 async fn next(rx: &mut mpsc::UnboundedReceiver<(String, Value)>, what: &str) -> (String, Value) {

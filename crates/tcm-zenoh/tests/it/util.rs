@@ -105,30 +105,31 @@ impl Stranger {
 
     /// Puts `msg` on `key` once a subscriber of it is known (at most [`JOIN`]).
     pub(crate) async fn forge(&self, key: String, msg: serde_json::Value) {
-        let publisher = self
-            .session
-            .declare_publisher(key)
-            .await
-            .expect("a publisher");
-        let deadline = tokio::time::Instant::now() + JOIN;
-        while !publisher
-            .matching_status()
-            .await
-            .expect("a status")
-            .matching()
-        {
-            assert!(
-                tokio::time::Instant::now() < deadline,
-                "no subscriber of {} within {JOIN:?}",
-                publisher.key_expr()
-            );
-            tokio::time::sleep(Duration::from_millis(10)).await;
-        }
-        publisher
-            .put(serde_json::to_vec(&msg).expect("JSON"))
-            .await
-            .expect("a put");
+        put(&self.session, key, msg).await;
     }
+}
+
+/// Puts `msg` on `key` once `session` knows a subscriber of it (at most [`JOIN`]).
+pub(crate) async fn put(session: &zenoh::Session, key: String, msg: serde_json::Value) {
+    let publisher = session.declare_publisher(key).await.expect("a publisher");
+    let deadline = tokio::time::Instant::now() + JOIN;
+    while !publisher
+        .matching_status()
+        .await
+        .expect("a status")
+        .matching()
+    {
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "no subscriber of {} within {JOIN:?}",
+            publisher.key_expr()
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    publisher
+        .put(serde_json::to_vec(&msg).expect("JSON"))
+        .await
+        .expect("a put");
 }
 
 /// The story of a run without the times (real time differs from run to run).
