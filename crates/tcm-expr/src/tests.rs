@@ -26,7 +26,7 @@ fn types(name: &str) -> Option<Type> {
 #[test]
 fn three_valued_logic() {
     let u = || Expr::var("u");
-    let eval = |e: Expr| e.eval(&vars).unwrap();
+    let eval = |e: Expr| e.eval(&vars).expect("no error");
     assert_eq!(eval(Expr::and(u(), Expr::var("f"))), Value::Bool(false));
     assert_eq!(eval(Expr::and(u(), Expr::var("b"))), Value::Unknown);
     assert_eq!(eval(Expr::or(Expr::var("b"), u())), Value::Bool(true));
@@ -35,13 +35,13 @@ fn three_valued_logic() {
     assert_eq!(eval(Expr::known(u())), Value::Bool(false));
     assert_eq!(eval(Expr::known(Expr::var("i"))), Value::Bool(true));
     // Neither a condition nor its negation holds while it is unknown.
-    assert!(!Expr::not(u()).holds(&vars).unwrap());
-    assert!(!u().holds(&vars).unwrap());
+    assert!(!Expr::not(u()).holds(&vars).expect("no error"));
+    assert!(!u().holds(&vars).expect("no error"));
 }
 
 #[test]
 fn numbers_mix_and_overflow_is_unknown() {
-    let eval = |e: Expr| e.eval(&vars).unwrap();
+    let eval = |e: Expr| e.eval(&vars).expect("no error");
     assert_eq!(
         eval(Expr::bin(BinOp::Add, Expr::var("i"), Expr::var("x"))),
         Value::Float(9.5)
@@ -80,7 +80,7 @@ fn numbers_mix_and_overflow_is_unknown() {
 fn type_errors_are_named() {
     let e = Expr::bin(BinOp::Lt, Expr::var("i"), Expr::var("s"));
     assert_eq!(
-        e.type_of(&types).unwrap_err().to_string(),
+        e.type_of(&types).expect_err("an error").to_string(),
         "`<` cannot be applied to `int` and `string`"
     );
     assert!(matches!(
@@ -146,13 +146,14 @@ fn json_form() {
         Expr::var("ok"),
         Expr::bin(BinOp::Ge, Expr::var("t"), Expr::lit(2.0)),
     );
-    let json = serde_json::to_string(&e).unwrap();
+    let json = serde_json::to_string(&e).expect("no error");
     assert_eq!(
         json,
         r#"{"bin":{"op":"and","l":{"var":"ok"},"r":{"bin":{"op":"ge","l":{"var":"t"},"r":{"lit":2.0}}}}}"#
     );
-    assert_eq!(serde_json::from_str::<Expr>(&json).unwrap(), e);
-    let values: Vec<Value> = serde_json::from_str(r#"[null, true, 3, 3.0, "s"]"#).unwrap();
+    assert_eq!(serde_json::from_str::<Expr>(&json).expect("no error"), e);
+    let values: Vec<Value> =
+        serde_json::from_str(r#"[null, true, 3, 3.0, "s"]"#).expect("no error");
     assert_eq!(
         values,
         [
@@ -169,7 +170,9 @@ fn json_form() {
 fn coercion() {
     assert_eq!(Value::Int(3).coerce(Type::Float), Ok(Value::Float(3.0)));
     assert_eq!(Value::Unknown.coerce(Type::Str), Ok(Value::Unknown));
-    let err = Value::Str("x".into()).coerce(Type::Bool).unwrap_err();
+    let err = Value::Str("x".into())
+        .coerce(Type::Bool)
+        .expect_err("an error");
     assert_eq!(
         err.to_string(),
         "expected a value of type `bool`, found `\"x\"` of type `string`"
