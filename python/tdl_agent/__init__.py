@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import concurrent.futures
 import functools
 import inspect
 import logging
@@ -167,6 +168,8 @@ class AgentStats:
     refused: int = 0
     late: int = 0
     malformed: int = 0
+    #: Starts refused because a bound was reached (the node fails with ``RemoteRefused``).
+    over_limit: int = 0
 
 
 @dataclass
@@ -247,9 +250,26 @@ class _Outlet:
 
 
 class Agent:
-    """An agent named ``name`` of system ``system``; offer tasks, then :meth:`start` it."""
+    """An agent named ``name`` of system ``system``; offer tasks, then :meth:`start` it.
 
-    def __init__(self, system: str, name: str) -> None:
+    Its bounds (docs/distributed.md, "Bounds"): at most ``max_bodies_per_executive`` bodies
+    running for one executive and ``max_bodies`` in all; at most ``max_threads`` plain-function
+    bodies running in worker threads (a thread counts until its function returns, cancelled or
+    not); a publisher kept for at most ``max_executives`` executives, each live (its token seen)
+    and released when its token goes. A start past a bound is refused: the body does not run and
+    the executive's node fails at once with ``RemoteRefused``.
+    """
+
+    def __init__(
+        self,
+        system: str,
+        name: str,
+        *,
+        max_bodies_per_executive: int = 256,
+        max_bodies: int = 1024,
+        max_threads: int = 16,
+        max_executives: int = 16,
+    ) -> None:
         for n in (system, name):
             if not wire.valid_name(n):
                 raise ValueError(f"bad name {n!r}: use ASCII letters, digits, `_`, `-` and `.`")
@@ -260,6 +280,18 @@ class Agent:
         self._running: Dict[Tuple[str, int], _Running] = {}
         self._ended: "collections.OrderedDict[Tuple[str, int], int]" = collections.OrderedDict()
         self._publishers: Dict[str, _Outlet] = {}
+        # The executives whose token is live.
+        self._live: "set[str]" = set()
+        self.max_bodies_per_executive = max_bodies_per_executive
+        self.max_bodies = max_bodies
+        self.max_threads = max_threads
+        self.max_executives = max_executives
+        # Worker threads running a body's function now (cancelled ones included).
+        self._threads = 0
+        # Bodies' functions and cleanups; a few more threads than bodies, for the cleanups.
+        self._executor = concurrent.futures.ThreadPoolExecutor(
+            max_workers=max_threads + 2, thread_name_prefix=f"tdl-agent-{name}"
+        )
         self._keep: List[Any] = []
         self._tasks: "set[asyncio.Task[None]]" = set()
         self._session: Optional[zenoh.Session] = None
@@ -362,6 +394,7 @@ class Agent:
         loop.call_soon_threadsafe(stop)
         if self._thread is not None:
             self._thread.join(timeout=5)
+        self._executor.shutdown(wait=False)
         for k in reversed(self._keep):
             try:
                 k.undeclare()
@@ -399,13 +432,25 @@ class Agent:
         if sample.kind == zenoh.SampleKind.DELETE:
             self._from_any_thread(self._executive_gone, executive)
         else:
-            self._from_any_thread(self._publisher, executive)
+            self._from_any_thread(self._executive_up, executive)
 
     # --- the agent's loop ---------------------------------------------------------------------
 
+    def _executive_up(self, executive: str) -> None:
+        self._live.add(executive)
+        self._publisher(executive)
+
     def _publisher(self, executive: str) -> Optional[_Outlet]:
+        """The outlet to a live executive's inbox, declared on first use; ``None`` for an
+        executive whose token is not live, or past ``max_executives`` (its messages then go
+        out as puts of the session, keeping nothing)."""
         p = self._publishers.get(executive)
-        if p is None and self._session is not None:
+        if (
+            p is None
+            and self._session is not None
+            and executive in self._live
+            and len(self._publishers) < self.max_executives
+        ):
             p = _Outlet(
                 self._session.declare_publisher(
                     wire.executive_inbox(self.system, executive),
@@ -455,6 +500,12 @@ class Agent:
             p = self._publisher(key[0])
             if p is not None:
                 p.put(data)
+            elif self._session is not None:
+                self._session.put(
+                    wire.executive_inbox(self.system, key[0]),
+                    data,
+                    congestion_control=zenoh.CongestionControl.BLOCK,
+                )
         except Exception as e:
             log.warning("agent %s cannot reach executive %s: %s", self.name, key[0], e)
 
@@ -536,11 +587,30 @@ class Agent:
             self._remember_ended(key, seq)
             self._send(key, r, wire.failed(wire.remote_error(why)))
             return
+        why = self._over_limit(key[0], offer)
+        if why is not None:
+            self.stats.over_limit += 1
+            log.warning("agent %s: start of %s (task %d) refused: %s", self.name, name, key[1], why)
+            r = _Running(_Offer(kind, lambda c, a: None), args, ctx, seq)
+            self._remember_ended(key, seq)
+            self._send(key, r, wire.failed(wire.refused(self.name, name, why)))
+            return
         r = _Running(offer, args, ctx, seq)
         self._running[key] = r
         self.stats.started += 1
         self._send(key, r, wire.started())
         r.task = self._spawn(self._run_body(key, r))
+
+    def _over_limit(self, executive: str, offer: _Offer) -> Optional[str]:
+        """Why a start of ``offer`` from ``executive`` is refused, if a bound is reached."""
+        if len(self._running) >= self.max_bodies:
+            return f"{len(self._running)} bodies run already, the agent's bound"
+        mine = sum(1 for k in self._running if k[0] == executive)
+        if mine >= self.max_bodies_per_executive:
+            return f"{mine} bodies run already for this executive, the agent's bound"
+        if not inspect.iscoroutinefunction(offer.body) and self._threads >= self.max_threads:
+            return f"{self._threads} worker threads are busy, the agent's bound"
+        return None
 
     def _spawn(self, coro: Awaitable[None]) -> "asyncio.Task[None]":
         assert self._loop is not None
@@ -556,8 +626,7 @@ class Agent:
             if inspect.iscoroutinefunction(body):
                 value = await body(r.ctx, r.args)
             else:
-                assert self._loop is not None
-                value = await self._loop.run_in_executor(None, functools.partial(body, r.ctx, r.args))
+                value = await self._in_thread(functools.partial(body, r.ctx, r.args))
                 if inspect.isawaitable(value):
                     value = await value
             result = wire.done(value)
@@ -580,13 +649,28 @@ class Agent:
                     await cleanup(r.args)
                 else:
                     assert self._loop is not None
-                    out = await self._loop.run_in_executor(None, cleanup, r.args)
+                    out = await self._loop.run_in_executor(self._executor, cleanup, r.args)
                     if inspect.isawaitable(out):
                         await out
             except Exception as e:
                 log.warning("agent %s: the cleanup of %s raised %r", self.name, r.ctx.task, e)
         if confirm:
             self._send(key, r, wire.cancelled())
+
+    async def _in_thread(self, f: Callable[[], Json]) -> Json:
+        """Runs a body's function in a worker thread, counted until the function returns (a
+        cancelled body's thread runs on: it still counts against ``max_threads``)."""
+        self._threads += 1
+        try:
+            done = self._executor.submit(f)
+        except RuntimeError:  # the executor was shut down: the agent closed
+            self._threads -= 1
+            raise
+        done.add_done_callback(lambda _: self._from_any_thread(self._thread_done))
+        return await asyncio.wrap_future(done)
+
+    def _thread_done(self) -> None:
+        self._threads -= 1
 
     def _heartbeat(self, key: Tuple[str, int]) -> None:
         r = self._running.get(key)
@@ -612,6 +696,7 @@ class Agent:
             if r.task is not None:
                 r.task.cancel()
             self._spawn(self._clean_up(key, r, confirm=False))
+        self._live.discard(executive)
         p = self._publishers.pop(executive, None)
         if p is not None:
             try:

@@ -105,6 +105,18 @@ def remote_error(message: str) -> Failure:
     return Failure("RemoteError", message, [], {"message": message})
 
 
+def refused(agent: str, task: str, reason: str) -> Failure:
+    """The failure of a start an agent refused because one of its bounds was reached: the
+    exception ``RemoteRefused`` (a ``RemoteError``), whose value is ``{"agent", "task",
+    "reason"}``, as the Rust side makes it."""
+    return Failure(
+        "RemoteRefused",
+        f"agent {agent} refused to start {task}: {reason}",
+        ["RemoteError"],
+        {"agent": agent, "task": task, "reason": reason},
+    )
+
+
 def encode(task: int, seq: int, body: Dict[str, Json]) -> bytes:
     """A message as bytes (compact JSON). Raises :class:`TypeError` or :class:`ValueError` when
     the body holds something JSON cannot say (``NaN`` included)."""
@@ -121,6 +133,9 @@ def decode(data: bytes) -> Message:
         obj = json.loads(data)
     except (ValueError, UnicodeDecodeError) as e:
         raise MalformedMessage(f"not JSON: {e}") from e
+    except RecursionError as e:
+        # Nested deeper than the interpreter's recursion limit (a forged payload).
+        raise MalformedMessage("nested too deep") from e
     if not isinstance(obj, dict):
         raise MalformedMessage("not a JSON object")
     task, seq, body = obj.get("task"), obj.get("seq"), obj.get("body")

@@ -72,6 +72,18 @@ class Encoding(unittest.TestCase):
         self.assertEqual(wire.start_fields(m), (12, "speak", "command", "hello"))
         self.assertEqual(wire.decode(b'{"task":3,"seq":2,"body":{"kind":"cancel"}}').kind, "cancel")
 
+    def test_json_nested_past_the_recursion_limit_is_malformed(self) -> None:
+        deep = b'{"task":1,"seq":1,"body":' + b"[" * 200_000 + b"]" * 200_000 + b"}"
+        with self.assertRaises(wire.MalformedMessage):
+            wire.decode(deep)
+
+    def test_a_refusal_has_the_rust_shape(self) -> None:
+        self.assertEqual(
+            wire.refused("py", "slow", "too many").to_json(),
+            {"exception": "RemoteRefused", "message": "agent py refused to start slow: too many",
+             "ancestry": ["RemoteError"], "data": {"agent": "py", "task": "slow", "reason": "too many"}},
+        )
+
     def test_malformed_messages_are_refused(self) -> None:
         for bad in [b"", b"[]", b"{", b'{"task":-1,"seq":1,"body":{"kind":"cancel"}}',
                     b'{"task":1,"seq":true,"body":{"kind":"cancel"}}', b'{"task":1,"seq":1,"body":{}}',
@@ -212,6 +224,10 @@ class ExactlyOnce(unittest.TestCase):
         self.assertEqual((self.agent.stats.cancelled, self.agent.stats.duplicates), (1, 0))
         self.assertEqual(self.cleanups, [30_000])
 
+    def test_json_nested_too_deep_is_counted_as_malformed(self) -> None:
+        self.agent._receive("exec1", b"[" * 200_000 + b"]" * 200_000)
+        self.assertEqual((self.agent.stats.malformed, self.out.sent), (1, []))
+
     def test_a_start_not_numbered_1_is_refused_and_the_task_stays_unknown(self) -> None:
         self.deliver(10, 2**64 - 1, wire.start(14, "slow", "command", 1))
         self.settle()
@@ -228,6 +244,140 @@ class ExactlyOnce(unittest.TestCase):
         self.settle()
         self.assertEqual((self.agent.stats.orphaned, self.cleanups), (1, [20_000]))
         self.assertEqual(self.out.sent, [(6, 1, {"kind": "started"})])
+
+
+class Bounds(unittest.TestCase):
+    """Starts past a bound are refused with ``RemoteRefused``; publishers are kept only for live
+    executives, at most so many, and released when their token goes."""
+
+    def setUp(self) -> None:
+        self.loop = asyncio.new_event_loop()
+        self.agent = tdl_agent.Agent(
+            "sys", "py", max_bodies_per_executive=2, max_bodies=3, max_threads=1, max_executives=1
+        )
+        self.gate = __import__("threading").Event()
+
+        async def slow(ctx: tdl_agent.TaskContext, ms: int) -> int:
+            await asyncio.sleep(ms / 1000)
+            return ms
+
+        def blocking(ctx: tdl_agent.TaskContext, _: Any) -> str:
+            self.gate.wait(10)
+            return "unblocked"
+
+        self.agent.command("slow", slow)
+        self.agent.command("blocking", blocking)
+        self.agent._loop = self.loop
+        # What leaves, by executive: through a publisher (`out`) or a put of the session (`put`).
+        self.sent: List[Any] = []
+        self.declared: List[str] = []
+        test = self
+
+        class Pub(FakePublisher):
+            def __init__(self, key: str) -> None:
+                super().__init__(True)
+                self.key = key
+
+            def put(self, data: bytes) -> None:
+                test.sent.append(("out", self.key, json.loads(data)))
+
+            def undeclare(self) -> None:
+                test.declared.remove(self.key)
+
+        def declare(key: str, congestion_control: Any) -> Any:
+            self.declared.append(key)
+            return Pub(key)
+
+        def put(key: str, data: bytes, congestion_control: Any) -> None:
+            self.sent.append(("put", key, json.loads(data)))
+
+        self.agent._session = types.SimpleNamespace(declare_publisher=declare, put=put)  # type: ignore[assignment]
+
+    def tearDown(self) -> None:
+        self.gate.set()
+        for r in self.agent._running.values():
+            if r.task is not None:
+                r.task.cancel()
+        self.loop.run_until_complete(asyncio.sleep(0.01))
+        self.agent._session = None
+        self.agent._executor.shutdown(wait=True)
+        self.loop.close()
+
+    def deliver(self, executive: str, task: int, body: Any) -> None:
+        self.agent._receive(executive, wire.encode(task, 1, body))
+
+    def settle(self) -> None:
+        self.loop.run_until_complete(asyncio.sleep(0.05))
+
+    def refusals(self) -> List[Any]:
+        return [(k.rsplit("/", 1)[-1], m["task"], m["body"]["result"]["Err"]["data"]["reason"])
+                for (_, k, m) in self.sent
+                if m["body"]["kind"] == "done" and "Err" in m["body"]["result"]
+                and m["body"]["result"]["Err"]["exception"] == "RemoteRefused"]
+
+    def test_starts_past_the_bounds_on_bodies_are_refused_with_remote_refused(self) -> None:
+        for task in (1, 2, 3):
+            self.deliver("e1", task, wire.start(task, "slow", "command", 60_000))
+        self.settle()
+        self.assertEqual(self.agent.running(), 2)
+        self.assertEqual([(e, t) for (e, t, _) in self.refusals()], [("e1", 3)])
+        self.assertIn("for this executive", self.refusals()[0][2])
+        # Another executive may still start one; then the agent's total bound is reached.
+        self.deliver("e2", 1, wire.start(1, "slow", "command", 60_000))
+        self.deliver("e3", 1, wire.start(1, "slow", "command", 60_000))
+        self.settle()
+        self.assertEqual(self.agent.running(), 3)
+        self.assertEqual([(e, t) for (e, t, _) in self.refusals()], [("e1", 3), ("e3", 1)])
+        self.assertEqual(self.agent.stats.over_limit, 2)
+        # A refused start is remembered: sent again, it is a duplicate, not a second refusal.
+        self.deliver("e3", 1, wire.start(1, "slow", "command", 60_000))
+        self.assertEqual((self.agent.stats.duplicates, self.agent.stats.over_limit), (1, 2))
+
+    def test_threads_are_bounded_and_a_cancelled_threads_body_counts_until_it_returns(self) -> None:
+        self.deliver("e1", 1, wire.start(1, "blocking", "command", None))
+        self.settle()
+        self.agent._receive("e1", wire.encode(1, 2, wire.cancel()))
+        self.settle()
+        # Cancelled, but its function still runs in its thread: no thread for another.
+        self.assertEqual(self.agent.running(), 0)
+        self.deliver("e1", 2, wire.start(2, "blocking", "command", None))
+        self.settle()
+        self.assertEqual([(e, t) for (e, t, _) in self.refusals()], [("e1", 2)])
+        self.assertIn("worker threads", self.refusals()[0][2])
+        # A coroutine body needs no thread.
+        self.deliver("e1", 3, wire.start(3, "slow", "command", 1))
+        self.gate.set()
+        for _ in range(40):
+            self.settle()
+            if self.agent._threads == 0:
+                break
+        self.assertEqual(self.agent._threads, 0)
+        self.deliver("e1", 4, wire.start(4, "blocking", "command", None))
+        self.settle()
+        self.settle()
+        done = [m["body"] for (_, _, m) in self.sent if m["task"] == 4 and m["body"]["kind"] == "done"]
+        self.assertEqual(done, [{"kind": "done", "result": {"Ok": "unblocked"}}])
+
+    def test_publishers_are_kept_for_live_executives_only_at_most_so_many_and_released(self) -> None:
+        # A start from an executive whose token was never seen: its messages go out as puts.
+        self.deliver("made-up", 1, wire.start(1, "slow", "command", 1))
+        self.settle()
+        self.assertEqual(self.declared, [])
+        self.assertEqual({how for (how, _, _) in self.sent}, {"put"})
+        self.agent._executive_up("e1")
+        self.agent._executive_up("e2")
+        # One publisher at most.
+        self.assertEqual(self.declared, ["tdl/sys/to-exec/e1"])
+        self.assertIsNone(self.agent._publisher("e2"))
+        self.sent.clear()
+        self.deliver("e1", 1, wire.start(1, "slow", "command", 1))
+        self.deliver("e2", 1, wire.start(1, "slow", "command", 1))
+        self.settle()
+        self.assertEqual({(how, k.rsplit("/", 1)[-1]) for (how, k, _) in self.sent},
+                         {("out", "e1"), ("put", "e2")})
+        self.agent._executive_gone("e1")
+        self.assertEqual(self.declared, [])
+        self.assertEqual(self.agent._publishers, {})
 
 
 class FakePublisher:
@@ -272,6 +422,7 @@ class Reach(unittest.TestCase):
         self.loop.close()
 
     def test_messages_wait_until_the_executives_inbox_is_known_then_go_in_order(self) -> None:
+        self.agent._executive_up("exec1")
         out = self.agent._publisher("exec1")
         assert out is not None
         out.put(b"1")
@@ -288,6 +439,7 @@ class Reach(unittest.TestCase):
 
     def test_an_inbox_known_at_once_sends_at_once(self) -> None:
         self.known = True
+        self.agent._executive_up("exec1")
         out = self.agent._publisher("exec1")
         assert out is not None
         out.put(b"1")

@@ -6,12 +6,12 @@
 
 use crate::Error;
 use crate::body::{Link, RemoteCtx};
-use crate::failure::{RemoteError, RemoteFailure};
+use crate::failure::{RemoteError, RemoteFailure, RemoteRefused};
 use crate::noise::{Ignored, Noise, Noted};
 use crate::wire::{self, Json, Kind, Msg, ToAgent, ToExec};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -57,6 +57,33 @@ pub struct AgentStats {
     pub late: u64,
     /// Messages that could not be read, ignored.
     pub malformed: u64,
+    /// Starts refused because a bound was reached ([`Limits`]): the node fails with
+    /// [`RemoteRefused`](crate::RemoteRefused).
+    pub over_limit: u64,
+}
+
+/// The bounds of an agent (docs/distributed.md, "Bounds"). A start past one is refused: the body
+/// does not run, and the executive's node fails at once with
+/// [`RemoteRefused`](crate::RemoteRefused), a `RemoteError`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Bodies running at once for one executive. Default 256.
+    pub bodies_per_executive: usize,
+    /// Bodies running at once in all. Default 1024.
+    pub bodies: usize,
+    /// Executives a publisher is kept for at once (one per live executive, released when its
+    /// token goes); messages to any other go out without one. Default 16.
+    pub executives: usize,
+}
+
+impl Default for Limits {
+    fn default() -> Limits {
+        Limits {
+            bodies_per_executive: 256,
+            bodies: 1024,
+            executives: 16,
+        }
+    }
 }
 
 /// An agent being built: the tasks it offers.
@@ -65,9 +92,16 @@ pub struct AgentBuilder {
     name: String,
     offers: BTreeMap<String, Offer>,
     duplicate: bool,
+    limits: Limits,
 }
 
 impl AgentBuilder {
+    /// Sets the agent's bounds (default: [`Limits::default`]).
+    pub fn limits(mut self, limits: Limits) -> AgentBuilder {
+        self.limits = limits;
+        self
+    }
+
     /// Offers the command `name`: `body` runs with the arguments the executive sent, read as an
     /// `A` (arguments that do not read fail the node with `RemoteError`); its value travels back
     /// as JSON, its failure typed ([`RemoteFailure::raise`]).
@@ -175,6 +209,7 @@ impl AgentBuilder {
             offers: self.offers,
             rt,
             duplicate: self.duplicate,
+            limits: self.limits,
             state: Mutex::new(AgentState::default()),
         });
         let weak = Arc::downgrade(&inner);
@@ -203,11 +238,12 @@ impl AgentBuilder {
                 if sample.kind() == SampleKind::Delete {
                     inner.executive_gone(exec);
                 } else {
+                    inner.lock().live.insert(exec.to_string());
                     // Declared now, so the first `Done` to it can leave from the receiving thread.
                     let exec = exec.to_string();
                     let me = inner.clone();
                     inner.rt.spawn(async move {
-                        if let Err(e) = me.publisher(&exec).await {
+                        if let Err(e) = me.outlet(&exec).await {
                             tracing::warn!(target: "tcm_zenoh", agent = me.name, "no publisher to {exec}: {e}");
                         }
                     });
@@ -261,6 +297,7 @@ impl Agent {
             name: name.into(),
             offers: BTreeMap::new(),
             duplicate: false,
+            limits: Limits::default(),
         }
     }
 
@@ -327,6 +364,9 @@ struct AgentState {
     running: BTreeMap<(String, u64), Running>,
     ended: BTreeMap<(String, u64), u64>,
     ended_order: std::collections::VecDeque<(String, u64)>,
+    // The executives whose token is live.
+    live: BTreeSet<String>,
+    // One per live executive, at most `Limits::executives`.
     publishers: BTreeMap<String, Arc<Publisher<'static>>>,
     stats: AgentStats,
     // The ignored messages not logged yet, by executive.
@@ -345,6 +385,27 @@ impl AgentState {
             }
         }
     }
+
+    /// How many bodies run for executive `exec`.
+    fn running_for(&self, exec: &str) -> usize {
+        let exec = exec.to_string();
+        self.running
+            .range((exec.clone(), 0)..=(exec, u64::MAX))
+            .count()
+    }
+
+    /// Why a start from `exec` is refused, if a bound is reached.
+    fn over_limit(&self, exec: &str, limits: &Limits) -> Option<String> {
+        if self.running.len() >= limits.bodies {
+            return Some(format!(
+                "{} bodies run already, the agent's bound",
+                self.running.len()
+            ));
+        }
+        let mine = self.running_for(exec);
+        (mine >= limits.bodies_per_executive)
+            .then(|| format!("{mine} bodies run already for this executive, the agent's bound"))
+    }
 }
 
 pub(crate) struct AgentInner {
@@ -354,6 +415,7 @@ pub(crate) struct AgentInner {
     offers: BTreeMap<String, Offer>,
     rt: tokio::runtime::Handle,
     pub(crate) duplicate: bool,
+    limits: Limits,
     state: Mutex<AgentState>,
 }
 
@@ -368,10 +430,20 @@ impl AgentInner {
     }
 
     /// The publisher to executive `exec`'s inbox, declared and matched (see [`crate::matched`])
-    /// before it is kept.
-    pub(crate) async fn publisher(&self, exec: &str) -> Result<Arc<Publisher<'static>>, Error> {
-        if let Some(p) = self.lock().publishers.get(exec) {
-            return Ok(p.clone());
+    /// before it is kept; `None` for an executive whose token is not live, or past
+    /// [`Limits::executives`] (its messages go out with [`AgentInner::put_once`]).
+    pub(crate) async fn outlet(
+        &self,
+        exec: &str,
+    ) -> Result<Option<Arc<Publisher<'static>>>, Error> {
+        {
+            let s = self.lock();
+            if let Some(p) = s.publishers.get(exec) {
+                return Ok(Some(p.clone()));
+            }
+            if !s.live.contains(exec) || s.publishers.len() >= self.limits.executives {
+                return Ok(None);
+            }
         }
         let p = self
             .session
@@ -383,12 +455,41 @@ impl AgentInner {
             tracing::warn!(target: "tcm_zenoh", agent = self.name, "no subscriber of {exec}'s inbox is known: sending anyway");
         }
         let p = Arc::new(p);
-        Ok(self
-            .lock()
-            .publishers
-            .entry(exec.to_string())
-            .or_insert(p)
-            .clone())
+        let mut s = self.lock();
+        // Gone meanwhile: not kept.
+        if !s.live.contains(exec) {
+            return Ok(Some(p));
+        }
+        Ok(Some(
+            s.publishers.entry(exec.to_string()).or_insert(p).clone(),
+        ))
+    }
+
+    /// Sends `bytes` to executive `exec`'s inbox, through `publisher` or, without one, as a put
+    /// of the session that keeps nothing (twice with fault injection on).
+    pub(crate) async fn put(
+        &self,
+        exec: &str,
+        publisher: Option<&Publisher<'static>>,
+        bytes: Vec<u8>,
+    ) -> Result<(), Error> {
+        let copies = if self.duplicate { 2 } else { 1 };
+        for _ in 0..copies {
+            match publisher {
+                Some(p) => p.put(bytes.clone()).await.map_err(Error::zenoh)?,
+                None => self.put_once(exec, bytes.clone()).await?,
+            }
+        }
+        Ok(())
+    }
+
+    /// Sends `bytes` to executive `exec`'s inbox without a publisher.
+    async fn put_once(&self, exec: &str, bytes: Vec<u8>) -> Result<(), Error> {
+        self.session
+            .put(wire::executive_inbox(&self.system, exec), bytes)
+            .congestion_control(CongestionControl::Block)
+            .await
+            .map_err(Error::zenoh)
     }
 
     /// A message from executive `exec` arrived: applied once, in order (numbered one more than
@@ -500,8 +601,9 @@ impl AgentInner {
     fn ignored(self: &Arc<Self>, exec: &str, what: Ignored, detail: impl FnOnce() -> String) {
         let (noted, peer) = {
             let mut s = self.lock();
-            let peer = s.noise.counted_as(exec).to_string();
-            (s.noise.note(exec, what, Instant::now()), peer)
+            let exec = exec.to_string();
+            let peer = s.noise.counted_as(&exec).clone();
+            (s.noise.note(&exec, what, Instant::now()), peer)
         };
         let Noted::Log(at) = noted else { return };
         tracing::warn!(target: "tcm_zenoh", agent = self.name, executive = exec, "{}", detail());
@@ -512,7 +614,10 @@ impl AgentInner {
                 tokio::time::sleep_until(at).await;
                 let Some(me) = weak.upgrade() else { break };
                 let flushed = me.lock().noise.flush(&peer, Instant::now());
-                let Some((line, next)) = flushed else { break };
+                let Some((held, over, next)) = flushed else {
+                    break;
+                };
+                let line = crate::noise::line(&held, &peer, over);
                 tracing::warn!(target: "tcm_zenoh", agent = me.name, "{line}");
                 at = next;
             }
@@ -570,6 +675,27 @@ impl AgentInner {
                 return;
             }
         };
+        if let Some(reason) = s.over_limit(&key.0, &self.limits) {
+            let exec = key.0.clone();
+            s.end(key, seq);
+            s.stats.over_limit += 1;
+            drop(s);
+            self.ignored(&exec, Ignored::OverLimit, || {
+                format!("start of {name} (task {task}) refused: {reason}")
+            });
+            let failure = RemoteFailure::raise(RemoteRefused {
+                agent: self.name.clone(),
+                task: name,
+                reason,
+            });
+            self.rt.spawn(async move {
+                link.send(ToExec::Done {
+                    result: Err(failure),
+                })
+                .await;
+            });
+            return;
+        }
         s.stats.started += 1;
         s.running.insert(
             key.clone(),
@@ -659,6 +785,7 @@ impl AgentInner {
                 s.end(key, r.last_seq);
             }
         }
+        s.live.remove(exec);
         s.publishers.remove(exec);
     }
 }

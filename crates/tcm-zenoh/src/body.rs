@@ -88,7 +88,7 @@ impl Link {
     }
 
     async fn try_send(&self, body: ToExec) -> Result<(), Error> {
-        let publisher = self.agent.publisher(&self.exec).await?;
+        let publisher = self.agent.outlet(&self.exec).await?;
         let mut seq = self.seq.lock().await;
         *seq += 1;
         let bytes = Msg {
@@ -97,10 +97,9 @@ impl Link {
             body,
         }
         .encode();
-        if self.agent.duplicate {
-            publisher.put(bytes.clone()).await.map_err(Error::zenoh)?;
-        }
-        publisher.put(bytes).await.map_err(Error::zenoh)
+        self.agent
+            .put(&self.exec, publisher.as_deref(), bytes)
+            .await
     }
 
     /// The executive answered call `call`.

@@ -1,6 +1,6 @@
 //! Failures across processes: a remote body's typed failure as it travels ([`RemoteFailure`]), and
 //! the exceptions of the distribution layer itself ([`RemoteError`], [`AgentLost`],
-//! [`RemoteTimeout`], [`RemoteCancelled`]), real `tcm` exception types that handlers name like any other.
+//! [`RemoteTimeout`], [`RemoteCancelled`], [`RemoteRefused`]), real `tcm` exception types that handlers name like any other.
 //!
 //! On the executive a remote failure becomes a [`tcm::Failure`] with the remote exception's name
 //! and ancestry, so the tree's handler search by type works across processes; its data is the
@@ -85,6 +85,8 @@ impl RemoteFailure {
             serde_json::to_value(&*e).unwrap_or(Json::Null)
         } else if let Some(e) = f.data::<RemoteCancelled>() {
             serde_json::to_value(&*e).unwrap_or(Json::Null)
+        } else if let Some(e) = f.data::<RemoteRefused>() {
+            serde_json::to_value(&*e).unwrap_or(Json::Null)
         } else if let Some(e) = f.data::<RemoteError>() {
             serde_json::to_value(&*e).unwrap_or(Json::Null)
         } else {
@@ -122,8 +124,8 @@ pub fn caught<E: Clone + Send + Sync + DeserializeOwned + 'static>(ctx: &Ctx) ->
 
 /// The common ancestor of the distribution layer's exceptions, and the exception of its other
 /// failures: a task nobody registered, arguments that do not serialise, a message that could not
-/// be sent. A handler of `RemoteError` takes [`AgentLost`], [`RemoteTimeout`] and
-/// [`RemoteCancelled`] too.
+/// be sent. A handler of `RemoteError` takes [`AgentLost`], [`RemoteTimeout`],
+/// [`RemoteCancelled`] and [`RemoteRefused`] too.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
 #[error("{message}")]
 pub struct RemoteError {
@@ -221,6 +223,27 @@ pub struct RemoteCancelled {
 }
 
 impl Exception for RemoteCancelled {
+    fn ancestry() -> &'static [&'static str] {
+        &["RemoteError"]
+    }
+}
+
+/// An agent refused to start a remote task because one of its bounds was reached: too many
+/// bodies running for the executive that asked, or in all, or too many threads busy (a Python
+/// agent's plain-function bodies). The node fails with this at once instead of waiting for a body
+/// that will never run (docs/distributed.md, "Bounds").
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, thiserror::Error)]
+#[error("agent {agent} refused to start {task}: {reason}")]
+pub struct RemoteRefused {
+    /// The agent.
+    pub agent: String,
+    /// The task it was asked to start.
+    pub task: String,
+    /// Which bound was reached.
+    pub reason: String,
+}
+
+impl Exception for RemoteRefused {
     fn ancestry() -> &'static [&'static str] {
         &["RemoteError"]
     }

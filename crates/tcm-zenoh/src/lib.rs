@@ -48,11 +48,12 @@ mod noise;
 mod remote;
 mod wire;
 
-pub use agent::{Agent, AgentBuilder, AgentStats};
+pub use agent::{Agent, AgentBuilder, AgentStats, Limits};
 pub use body::{Child, ChildId, RemoteCtx, RemoteSpawn};
 pub use executive::{Executive, Placement};
 pub use failure::{
-    AgentLost, RemoteCancelled, RemoteError, RemoteFailure, RemoteTimeout, TimeoutKind, caught,
+    AgentLost, RemoteCancelled, RemoteError, RemoteFailure, RemoteRefused, RemoteTimeout,
+    TimeoutKind, caught,
 };
 pub use remote::{At, Remote, RemoteOptions};
 pub use wire::{ChildEnded, ChildRef, Json, Kind};

@@ -1,19 +1,20 @@
-//! The messages an agent ignores (duplicates, late ones, ones out of order, ones that do not read),
-//! logged without flooding the log: per peer (the executive a message's key names), the first one
-//! is logged at once with what it was, and what follows within [`INTERVAL`] is counted and logged
-//! as one line when the interval ends (docs/distributed.md, "Exactly once"). A peer with nothing
-//! held when its interval ends is forgotten; past [`PEERS`] peers at once (forged keys name any
-//! executive), the others share one line.
+//! The messages a receiver ignores (duplicates, late ones, ones out of order, ones that do not read,
+//! starts past a bound), reported without flooding: per key (on an agent the executive a message's
+//! key names, on the executive the remote task it is about), the first one is reported at once
+//! with what it was, and what follows within the interval is counted and reported as one line
+//! when the interval ends (docs/distributed.md, "Exactly once"). A key with nothing held when its
+//! interval ends is forgotten; past so many keys at once (forged messages name any executive and
+//! any task), the others share one line.
 
 use std::collections::BTreeMap;
 use std::fmt;
 use std::time::Duration;
 use tokio::time::Instant;
 
-/// At most one line per peer per interval.
+/// At most one line per peer per interval, on an agent.
 pub(crate) const INTERVAL: Duration = Duration::from_secs(10);
 
-/// How many peers are followed one by one; the others are counted together.
+/// How many peers an agent follows one by one; the others are counted together.
 pub(crate) const PEERS: usize = 64;
 
 /// The name the peers past [`PEERS`] are counted under.
@@ -30,14 +31,18 @@ pub(crate) enum Ignored {
     Refused,
     /// Did not read.
     Malformed,
+    /// A start past one of the agent's bounds.
+    OverLimit,
 }
 
+/// How many messages of each kind were held.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct Counts {
+pub(crate) struct Counts {
     duplicate: u64,
     late: u64,
     refused: u64,
     malformed: u64,
+    over_limit: u64,
 }
 
 impl Counts {
@@ -47,6 +52,7 @@ impl Counts {
             Ignored::Late => &mut self.late,
             Ignored::Refused => &mut self.refused,
             Ignored::Malformed => &mut self.malformed,
+            Ignored::OverLimit => &mut self.over_limit,
         };
         *n = n.saturating_add(1);
     }
@@ -63,6 +69,7 @@ impl fmt::Display for Counts {
             (self.late, "late"),
             (self.refused, "out of order"),
             (self.malformed, "malformed"),
+            (self.over_limit, "over a bound"),
         ]
         .into_iter()
         .filter(|(n, _)| *n > 0)
@@ -86,62 +93,87 @@ pub(crate) enum Noted {
     Held,
 }
 
-/// The ignored messages of each peer not logged yet. A peer is here exactly while a flush of it
+/// The ignored messages of each key not reported yet. A key is here exactly while a flush of it
 /// is due.
-#[derive(Default)]
-pub(crate) struct Noise {
-    peers: BTreeMap<String, Peer>,
+pub(crate) struct Noise<K = String> {
+    peers: BTreeMap<K, Peer>,
+    // The key past `cap` keys at once count under.
+    others: K,
+    cap: usize,
+    interval: Duration,
 }
 
-impl Noise {
-    /// A message from `peer` was ignored, at `now`.
-    pub(crate) fn note(&mut self, peer: &str, what: Ignored, now: Instant) -> Noted {
-        let peer = self.counted_as(peer);
-        match self.peers.get_mut(peer) {
+impl Default for Noise<String> {
+    /// An agent's: per executive, [`PEERS`] at once, one line per [`INTERVAL`].
+    fn default() -> Noise<String> {
+        Noise::new(OTHERS.to_string(), PEERS, INTERVAL)
+    }
+}
+
+impl<K: Ord + Clone> Noise<K> {
+    /// Follows `cap` keys at once (the others count under `others`), reporting each at most
+    /// once per `interval`.
+    pub(crate) fn new(others: K, cap: usize, interval: Duration) -> Noise<K> {
+        Noise {
+            peers: BTreeMap::new(),
+            others,
+            cap,
+            interval,
+        }
+    }
+
+    /// A message about `peer` was ignored, at `now`.
+    pub(crate) fn note(&mut self, peer: &K, what: Ignored, now: Instant) -> Noted {
+        let peer = self.counted_as(peer).clone();
+        match self.peers.get_mut(&peer) {
             Some(p) => {
                 p.held.add(what);
                 Noted::Held
             }
             None => {
                 self.peers.insert(
-                    peer.to_string(),
+                    peer,
                     Peer {
                         last_line: now,
                         held: Counts::default(),
                     },
                 );
-                Noted::Log(now + INTERVAL)
+                Noted::Log(now + self.interval)
             }
         }
     }
 
-    /// The peer's interval ended at `now`: the line of what was held since its last line, and
-    /// when to flush it again; `None` when nothing was held (the peer is forgotten: its next
-    /// ignored message is logged at once).
-    pub(crate) fn flush(&mut self, peer: &str, now: Instant) -> Option<(String, Instant)> {
+    /// The key's interval ended at `now`: what was held since its last report, over how long,
+    /// and when to flush it again; `None` when nothing was held (the key is forgotten: its next
+    /// ignored message is reported at once).
+    pub(crate) fn flush(&mut self, peer: &K, now: Instant) -> Option<(Counts, Duration, Instant)> {
         let p = self.peers.get_mut(peer)?;
         if !p.held.any() {
             self.peers.remove(peer);
             return None;
         }
-        let line = format!(
-            "{} message(s) from {peer} ignored in the last {} ms",
-            p.held,
-            now.saturating_duration_since(p.last_line).as_millis()
-        );
-        p.held = Counts::default();
+        let held = std::mem::take(&mut p.held);
+        let over = now.saturating_duration_since(p.last_line);
         p.last_line = now;
-        Some((line, now + INTERVAL))
+        Some((held, over, now + self.interval))
     }
 
-    /// The peer a message from `peer` is counted under (itself, or [`OTHERS`]).
-    pub(crate) fn counted_as<'a>(&self, peer: &'a str) -> &'a str {
-        if self.peers.contains_key(peer) || self.peers.len() < PEERS {
+    /// The key a message about `peer` is counted under (itself, or the others' key).
+    pub(crate) fn counted_as<'a>(&'a self, peer: &'a K) -> &'a K {
+        if self.peers.contains_key(peer) || self.peers.len() < self.cap {
             peer
         } else {
-            OTHERS
+            &self.others
         }
     }
+}
+
+/// An agent's line for what `peer` sent that was ignored over `over`.
+pub(crate) fn line(held: &Counts, peer: &str, over: Duration) -> String {
+    format!(
+        "{held} message(s) from {peer} ignored in the last {} ms",
+        over.as_millis()
+    )
 }
 
 #[cfg(test)]
@@ -153,33 +185,31 @@ mod tests {
         let mut n = Noise::default();
         let t0 = Instant::now();
         let due = t0 + INTERVAL;
-        assert_eq!(n.note("e1", Ignored::Refused, t0), Noted::Log(due));
+        assert_eq!(n.note(&"e1".into(), Ignored::Refused, t0), Noted::Log(due));
         for _ in 0..1000 {
-            assert_eq!(n.note("e1", Ignored::Duplicate, t0), Noted::Held);
+            assert_eq!(n.note(&"e1".into(), Ignored::Duplicate, t0), Noted::Held);
         }
-        assert_eq!(n.note("e1", Ignored::Late, t0), Noted::Held);
-        assert_eq!(n.note("e1", Ignored::Malformed, t0), Noted::Held);
+        assert_eq!(n.note(&"e1".into(), Ignored::Late, t0), Noted::Held);
+        assert_eq!(n.note(&"e1".into(), Ignored::Malformed, t0), Noted::Held);
         // Another peer has lines of its own.
-        assert_eq!(n.note("e2", Ignored::Late, t0), Noted::Log(due));
-        let (line, next) = n.flush("e1", due).expect("a line");
+        assert_eq!(n.note(&"e2".into(), Ignored::Late, t0), Noted::Log(due));
+        let (held, over, next) = n.flush(&"e1".into(), due).expect("a line");
         assert_eq!(
-            line,
+            line(&held, "e1", over),
             "1000 duplicate, 1 late, 1 malformed message(s) from e1 ignored in the last 10000 ms"
         );
         assert_eq!(next, due + INTERVAL);
         // Still within the next interval: held.
-        assert_eq!(n.note("e1", Ignored::Refused, due), Noted::Held);
-        let (line, _) = n.flush("e1", next).expect("a line");
-        assert!(
-            line.starts_with("1 out of order message(s) from e1"),
-            "{line}"
-        );
+        assert_eq!(n.note(&"e1".into(), Ignored::Refused, due), Noted::Held);
+        let (held, over, _) = n.flush(&"e1".into(), next).expect("a line");
+        let l = line(&held, "e1", over);
+        assert!(l.starts_with("1 out of order message(s) from e1"), "{l}");
         // A quiet interval forgets the peer; its next message is logged at once.
-        assert_eq!(n.flush("e1", next + INTERVAL), None);
-        assert_eq!(n.flush("e2", due), None);
+        assert_eq!(n.flush(&"e1".into(), next + INTERVAL), None);
+        assert_eq!(n.flush(&"e2".into(), due), None);
         let later = next + INTERVAL * 3;
         assert_eq!(
-            n.note("e1", Ignored::Late, later),
+            n.note(&"e1".into(), Ignored::Late, later),
             Noted::Log(later + INTERVAL)
         );
     }
@@ -194,17 +224,18 @@ mod tests {
                 Noted::Log(_)
             ));
         }
-        assert_eq!(n.counted_as("forged-1"), OTHERS);
+        assert_eq!(n.counted_as(&"forged-1".into()), OTHERS);
         assert!(matches!(
-            n.note("forged-1", Ignored::Late, t0),
+            n.note(&"forged-1".into(), Ignored::Late, t0),
             Noted::Log(_)
         ));
-        assert_eq!(n.note("forged-2", Ignored::Late, t0), Noted::Held);
+        assert_eq!(n.note(&"forged-2".into(), Ignored::Late, t0), Noted::Held);
         assert_eq!(n.peers.len(), PEERS + 1);
-        let (line, _) = n.flush(OTHERS, t0 + INTERVAL).expect("a line");
+        let (held, over, _) = n.flush(&OTHERS.into(), t0 + INTERVAL).expect("a line");
+        let l = line(&held, OTHERS, over);
         assert!(
-            line.contains("1 late message(s) from (other executives)"),
-            "{line}"
+            l.contains("1 late message(s) from (other executives)"),
+            "{l}"
         );
     }
 }

@@ -463,6 +463,16 @@ async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
                             }
                             Err(f) => {
                                 exec.count(|s| s.failed += 1);
+                                if f.exception == "RemoteRefused" {
+                                    // A bound of the agent was reached: said in the log and
+                                    // the trace, as a start nobody ran.
+                                    let text = format!(
+                                        "remote task {task} ({}) refused by agent {agent}: {}",
+                                        spec.name, f.message
+                                    );
+                                    tracing::warn!(target: "tcm_zenoh", task, agent, "{text}");
+                                    let _ = ctx.warn(text);
+                                }
                                 Err(f.into_failure())
                             }
                         };

@@ -3,6 +3,7 @@
 //! process of its own. Every test is bounded in time, and every run's trace is checked.
 
 mod agent_loss;
+mod bounds;
 mod exactly_once;
 mod exceptions;
 mod forgery;
