@@ -8,8 +8,12 @@
 const ROW = 20;
 const FACETS = ['handling', 'expansion', 'execution'];
 const POINTS = ['enabled', 'active', 'completed'];
-const M_SPAWNED = 0, M_TERMINATING = 10, M_TERMINATED = 11, M_RECLAIMED = 12, M_DEAD = 13, M_RESERVED = 14, M_FAILED = 15, MARKS = 16;
+const M_SPAWNED = 0, M_TERMINATING = 10, M_TERMINATED = 11, M_RECLAIMED = 12, M_DEAD = 13, M_RESERVED = 14, M_FAILED = 15;
+// Marks per row: the snapshot's `marks` (a newer server may send more than the page reads).
+let MARKS = 16;
 const mPoint = (f, p) => 1 + 3 * f + p;
+// A monitor with more activations than this lists them folded into one row, unless unfolded.
+const FOLD_AT = 3;
 const KIND_LETTER = { goal: 'G', command: 'C', monitor: 'M', handler: 'H', reserved: 'R', root: '·' };
 const COLOURS = {};
 for (const s of ['disabled', 'enabled', 'active', 'completed', 'failed']) {
@@ -36,6 +40,8 @@ const S = {
   cursor: 0, follow: true,
   view: [0, 1],       // time range shown, ns
   collapsed: new Set(), selected: null,
+  folds: new Map(),   // monitor number → folded (true) or not, as the user chose
+  groups: new Map(),  // monitor number → its activations listed under its folded row, at the cursor
   query: '', matches: [], matchIdx: -1,
   rows: [],           // node numbers in display order
   dirty: true,
@@ -43,15 +49,18 @@ const S = {
 
 function reset() {
   S.nodes = []; S.times = []; S.records = 0; S.finished = false; S.problem = null;
-  S.cursor = 0; S.follow = true; S.collapsed = new Set(); S.dirty = true;
+  S.cursor = 0; S.follow = true; S.collapsed = new Set(); S.folds = new Map(); S.dirty = true;
 }
 
-// One row of the server's fold: [number, parent, kind, name, m0 … m15, agent?] (docs/viewer.md).
+// One row of the server's fold: [number, parent, kind, name, marks…, agent?, monitor?]
+// (docs/viewer.md); `of` is the monitor of an activation, -1 for another node.
 function rowNode(r) {
-  return { n: r[0], p: r[1], k: r[2], name: r[3], m: r.slice(4, 4 + MARKS), kids: [], agent: r[4 + MARKS] || null };
+  const of = r[5 + MARKS];
+  return { n: r[0], p: r[1], k: r[2], name: r[3], m: r.slice(4, 4 + MARKS), kids: [], agent: r[4 + MARKS] || null, of: typeof of === 'number' ? of : -1 };
 }
 
 function loadSnapshot(s) {
+  if (typeof s.marks === 'number') MARKS = s.marks;
   S.nodes = [];
   for (const r of s.nodes) S.nodes[r[0]] = rowNode(r);
   for (const node of S.nodes) if (node && node.p >= 0 && S.nodes[node.p]) S.nodes[node.p].kids.push(node.n);
@@ -136,23 +145,72 @@ function computeRows() {
   } else {
     $('matches').textContent = '';
   }
+  // Whether node n has a row at the cursor (the group row of folded activations aside).
+  const listed = (n) => {
+    const node = S.nodes[n];
+    if (!node) return false;
+    if (node.m[M_SPAWNED] < 0 && node.m[M_DEAD] < 0 && !reached(node, M_RESERVED, seq)) return false;
+    if (onlyAlive && (!reached(node, M_SPAWNED, seq) || reached(node, M_RECLAIMED, seq))) return false;
+    return !keep || keep.has(n);
+  };
   const rows = [];
+  S.groups = new Map();
+  // The stack holds [n, depth] for a node, [-1 - monitor, depth] for a monitor's group row.
   const stack = [];
+  const pushKids = (node, depth) => {
+    let kids = node.kids;
+    if (node.k === 'monitor') {
+      const acts = kids.filter((k) => S.nodes[k] && S.nodes[k].of === node.n);
+      if (acts.length > FOLD_AT) {
+        const shown = acts.filter(listed);
+        const first = acts[0];
+        kids = [];
+        for (const k of node.kids) {
+          if (k === first && shown.length) kids.push(-1 - node.n);
+          if (!S.nodes[k] || S.nodes[k].of !== node.n) kids.push(k);
+        }
+        S.groups.set(node.n, shown);
+      }
+    }
+    for (let i = kids.length - 1; i >= 0; i--) stack.push([kids[i], depth]);
+  };
   const root = S.nodes[0];
-  if (root) for (let i = root.kids.length - 1; i >= 0; i--) stack.push([root.kids[i], 0]);
+  if (root) pushKids(root, 0);
   while (stack.length) {
     const [n, depth] = stack.pop();
+    if (n < 0) {
+      const monitor = -1 - n;
+      rows.push(n, depth);
+      // A search that matches an activation shows the activations it kept.
+      if (!folded(monitor) || keep) {
+        const shown = S.groups.get(monitor);
+        for (let i = shown.length - 1; i >= 0; i--) stack.push([shown[i], depth + 1]);
+      }
+      continue;
+    }
     const node = S.nodes[n];
-    if (!node) continue;
-    const spawned = reached(node, M_SPAWNED, seq);
-    if (node.m[M_SPAWNED] < 0 && node.m[M_DEAD] < 0 && !reached(node, M_RESERVED, seq)) continue;
-    if (onlyAlive && (!spawned || reached(node, M_RECLAIMED, seq))) continue;
-    if (keep && !keep.has(n)) continue;
+    if (!listed(n)) continue;
     rows.push(n, depth);
-    if (!S.collapsed.has(n)) for (let i = node.kids.length - 1; i >= 0; i--) stack.push([node.kids[i], depth + 1]);
+    if (!S.collapsed.has(n)) pushKids(node, depth + 1);
   }
   S.rows = rows;
   $('spacer').style.height = (rows.length / 2) * ROW + 'px';
+}
+
+// Whether a monitor's activations are folded into one row: as the user chose, else folded.
+function folded(monitor) {
+  return S.folds.has(monitor) ? S.folds.get(monitor) : true;
+}
+
+// Unfolds and expands what hides node n's row: its ancestors, and the groups of activations it
+// or an ancestor is in.
+function showPath(n) {
+  let a = S.nodes[n], guard = 0;
+  while (a && guard++ < 10000) {
+    if (a.n !== n) S.collapsed.delete(a.n);
+    if (a.of >= 0) S.folds.set(a.of, false);
+    a = S.nodes[a.p];
+  }
 }
 
 // --- Drawing --------------------------------------------------------------------------------
@@ -175,8 +233,11 @@ function render() {
     if (i >= count || idx * 2 >= S.rows.length) { d.hidden = true; continue; }
     d.hidden = false;
     const n = S.rows[idx * 2], depth = S.rows[idx * 2 + 1];
-    const node = S.nodes[n];
     d.style.top = (shift + i * ROW) + 'px';
+    if (n < 0) { groupRow(d, -1 - n, depth, seq); continue; }
+    delete d.dataset.group;
+    d.title = '';
+    const node = S.nodes[n];
     d.dataset.n = n;
     const states = [0, 1, 2].map((f) => stateAt(node, f, seq));
     d.dataset.h = states[0]; d.dataset.x = states[1]; d.dataset.e = states[2];
@@ -208,6 +269,32 @@ function render() {
   pb.textContent = S.problem ? 'This trace could not be read to its end; everything before is shown.\n' + S.problem : '';
 }
 
+// The row of a monitor's activations folded into one: the last one's kind and states at the
+// cursor, its name, and how many there are by the cursor; a click lists them, or folds them again.
+function groupRow(d, monitor, depth, seq) {
+  const shown = S.groups.get(monitor);
+  const made = shown.filter((a) => reached(S.nodes[a], M_SPAWNED, seq));
+  const last = S.nodes[made.length ? made[made.length - 1] : shown[0]];
+  const open = !folded(monitor) || !!S.query;
+  const states = [0, 1, 2].map((f) => stateAt(last, f, seq));
+  const failed = reached(last, M_FAILED, seq);
+  d.dataset.n = '';
+  d.dataset.group = monitor;
+  delete d.dataset.h; delete d.dataset.x; delete d.dataset.e;
+  d.className = 'row group' + (reached(last, M_SPAWNED, seq) ? '' : ' future') + (reached(last, M_RECLAIMED, seq) ? ' gone' : '');
+  const what = made.length + ' activation' + (made.length === 1 ? '' : 's') + ' of ' + S.nodes[monitor].name + ' {' + monitor + '} by the cursor'
+    + (made.length < shown.length ? ', ' + shown.length + ' in all' : '');
+  d.title = what + (open ? ': click to fold them into this row' : ': click to list them');
+  d.replaceChildren(
+    el('span', { style: 'display:inline-block;width:' + (depth * 14) + 'px' }),
+    el('span', { class: 'tog' }, open ? '▾' : '▸'),
+    el('span', { class: 'kind k-' + last.k, title: last.k }, KIND_LETTER[last.k] || '?'),
+    ...states.map((s, f) => el('span', { class: 'sq s-' + (failed && f === 0 && s === 'completed' ? 'failed' : s), title: 'the last one\'s ' + FACETS[f] + ': ' + s })),
+    el('span', { class: 'name' }, last.name),
+    el('span', { class: 'count', title: what }, '×' + made.length),
+  );
+}
+
 function fitCanvas(c) {
   const r = c.getBoundingClientRect();
   const dpr = window.devicePixelRatio || 1;
@@ -228,34 +315,44 @@ function drawBars(first, count, shift) {
   for (let i = 0; i < count; i++) {
     const idx = first + i;
     if (idx * 2 >= S.rows.length) break;
-    const node = S.nodes[S.rows[idx * 2]];
+    const n = S.rows[idx * 2];
     const y = shift + i * ROW;
     if (i % 2) { g.fillStyle = '#fafafa'; g.fillRect(0, y, w, ROW); }
-    for (let f = 0; f < 3; f++) {
-      const e = node.m[mPoint(f, 0)], a = node.m[mPoint(f, 1)], c = node.m[mPoint(f, 2)];
-      const yy = y + 3 + f * 5;
-      const te = e >= 0 && e <= seq ? tOf(e) : null;
-      const ta = a >= 0 && a <= seq ? tOf(a) : null;
-      const tc = c >= 0 && c <= seq ? tOf(c) : null;
-      if (te !== null) {
-        g.fillStyle = COLOURS.enabled;
-        const stop = ta !== null ? ta : tc !== null ? tc : end;
-        g.fillRect(xOf(te, w), yy, Math.max(1, xOf(stop, w) - xOf(te, w)), 4);
-      }
-      if (ta !== null) {
-        g.fillStyle = f === 0 && reached(node, M_FAILED, seq) ? COLOURS.failed : COLOURS.active;
-        const stop = tc !== null ? tc : end;
-        g.fillRect(xOf(ta, w), yy, Math.max(2, xOf(stop, w) - xOf(ta, w)), 4);
-      }
-      if (tc !== null) { g.fillStyle = COLOURS.completed; g.fillRect(xOf(tc, w) - 1, yy, 2, 4); }
-    }
-    if (reached(node, M_TERMINATING, seq)) {
-      g.fillStyle = '#333';
-      g.fillRect(xOf(tOf(node.m[M_TERMINATING]), w) - 1, y + 2, 2, ROW - 4);
+    if (n < 0) {
+      // A folded group: every activation's bars on one row.
+      for (const a of S.groups.get(-1 - n)) nodeBars(g, S.nodes[a], y, w, seq, end);
+    } else {
+      nodeBars(g, S.nodes[n], y, w, seq, end);
     }
   }
   g.fillStyle = '#d33b3b';
   g.fillRect(xOf(end, w) - 0.5, 0, 1, h);
+}
+
+// One node's bars at height y: per facet, enabled, active and completed up to the cursor.
+function nodeBars(g, node, y, w, seq, end) {
+  for (let f = 0; f < 3; f++) {
+    const e = node.m[mPoint(f, 0)], a = node.m[mPoint(f, 1)], c = node.m[mPoint(f, 2)];
+    const yy = y + 3 + f * 5;
+    const te = e >= 0 && e <= seq ? tOf(e) : null;
+    const ta = a >= 0 && a <= seq ? tOf(a) : null;
+    const tc = c >= 0 && c <= seq ? tOf(c) : null;
+    if (te !== null) {
+      g.fillStyle = COLOURS.enabled;
+      const stop = ta !== null ? ta : tc !== null ? tc : end;
+      g.fillRect(xOf(te, w), yy, Math.max(1, xOf(stop, w) - xOf(te, w)), 4);
+    }
+    if (ta !== null) {
+      g.fillStyle = f === 0 && reached(node, M_FAILED, seq) ? COLOURS.failed : COLOURS.active;
+      const stop = tc !== null ? tc : end;
+      g.fillRect(xOf(ta, w), yy, Math.max(2, xOf(stop, w) - xOf(ta, w)), 4);
+    }
+    if (tc !== null) { g.fillStyle = COLOURS.completed; g.fillRect(xOf(tc, w) - 1, yy, 2, 4); }
+  }
+  if (reached(node, M_TERMINATING, seq)) {
+    g.fillStyle = '#333';
+    g.fillRect(xOf(tOf(node.m[M_TERMINATING]), w) - 1, y + 2, 2, ROW - 4);
+  }
 }
 
 function drawAxis() {
@@ -363,15 +460,15 @@ function nodeLink(n, text) {
 
 function select(n, scroll) {
   S.selected = n;
-  let a = S.nodes[n] && S.nodes[S.nodes[n].p], guard = 0;
-  while (a && guard++ < 10000) { S.collapsed.delete(a.n); a = S.nodes[a.p]; }
+  showPath(n);
   S.dirty = true; render();
   if (scroll) reveal(n);
   document.querySelector('#tabs [data-tab=node]').click();
 }
 
-// Scrolls the tree so that node n's row is in sight (if it is listed).
+// Scrolls the tree so that node n's row is in sight (if it is listed), unfolding what hides it.
 function reveal(n) {
+  showPath(n);
   computeRows();
   for (let i = 0; i < S.rows.length; i += 2) if (S.rows[i] === n) {
     const box = $('rows'), y = (i / 2) * ROW;
@@ -492,6 +589,11 @@ window.onresize = schedule;
 $('tree').onclick = (e) => {
   const row = e.target.closest('.row');
   if (!row) return;
+  if (row.dataset.group) {
+    const monitor = Number(row.dataset.group);
+    S.folds.set(monitor, !folded(monitor));
+    schedule(); return;
+  }
   const n = Number(row.dataset.n);
   if (e.target.classList.contains('tog')) {
     if (S.collapsed.has(n)) S.collapsed.delete(n); else S.collapsed.add(n);
@@ -533,7 +635,7 @@ window.onmouseup = (e) => {
     const r = bars.getBoundingClientRect();
     setCursor(seqAt(tAtX(e.clientX - r.left, r.width)));
     const i = Math.floor((e.clientY - r.top + $('rows').scrollTop % ROW) / ROW) + Math.floor($('rows').scrollTop / ROW);
-    if (i * 2 < S.rows.length) select(S.rows[i * 2], false);
+    if (i * 2 < S.rows.length && S.rows[i * 2] >= 0) select(S.rows[i * 2], false);
   }
   drag = null;
 };

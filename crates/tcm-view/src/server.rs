@@ -331,7 +331,7 @@ pub fn snapshot_json(id: usize, m: &RunModel) -> String {
     let problem = m.problem.as_ref().map(ToString::to_string);
     let _ = write!(
         out,
-        r#"{{"type":"snapshot","run":{id},"name":{},"version":{},"records":{},"last_t":{},"finished":{},"problem":{},"times":["#,
+        r#"{{"type":"snapshot","run":{id},"name":{},"version":{},"records":{},"last_t":{},"finished":{},"problem":{},"marks":{MARKS},"times":["#,
         serde_json::Value::from(m.name.as_str()),
         m.version.map_or("null".to_string(), |v| v.to_string()),
         m.len(),
@@ -370,7 +370,8 @@ pub fn record_json(m: &RunModel) -> String {
 }
 
 /// Rows as the snapshot writes them, separated by commas: `[number, parent, kind, name, m0 …
-/// m15]`, then the agent for a node placed on one. A number no record allocated is left out.
+/// m15]`, then the agent for a node placed on one (`null` for none, when a monitor follows), then
+/// for an activation its monitor's number. A number no record allocated is left out.
 fn write_rows<'a>(out: &mut String, rows: impl IntoIterator<Item = &'a Row>) {
     use std::fmt::Write as _;
     let mut first = true;
@@ -399,8 +400,15 @@ fn write_rows<'a>(out: &mut String, rows: impl IntoIterator<Item = &'a Row>) {
                 None => out.push_str(",-1"),
             }
         }
-        if let Some(agent) = &r.agent {
-            let _ = write!(out, ",{}", serde_json::Value::from(agent.as_str()));
+        match (&r.agent, r.activation_of) {
+            (Some(agent), _) => {
+                let _ = write!(out, ",{}", serde_json::Value::from(agent.as_str()));
+            }
+            (None, Some(_)) => out.push_str(",null"),
+            (None, None) => {}
+        }
+        if let Some(monitor) = r.activation_of {
+            let _ = write!(out, ",{monitor}");
         }
         out.push(']');
     }

@@ -1,7 +1,9 @@
 //! The page in a real headless browser (Debian's `chromium`, installed by the test setup when
 //! missing): a page opened before a live run's first record builds its rows from the live
 //! messages alone, and they are the rows the page reads from the snapshot when it opens the run
-//! again after its end; both look the same. Screenshots go to `target/viewer/`.
+//! again after its end; both look the same. On a run with monitors, served as a trace file is:
+//! a monitor's many activations fold into one row with their count, listed by a click.
+//! Screenshots go to `target/viewer/`.
 
 mod common;
 
@@ -11,6 +13,7 @@ use std::time::Duration;
 use anyhow::ensure;
 use tcm::TraceSink;
 use tcm_trace::TraceEvent;
+use tcm_view::{RunModel, Viewer};
 use test_support::browser::Browser;
 
 async fn mission() -> Vec<TraceEvent> {
@@ -82,6 +85,139 @@ fn a_live_page_builds_the_rows_a_page_reads_from_the_snapshot() -> anyhow::Resul
                 live == fresh,
                 "the live page's rows differ from the snapshot's:\nlive:  {live}\nfresh: {fresh}"
             );
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+fn shots() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/viewer")
+}
+
+fn paused(
+    f: impl std::future::Future<Output = Vec<TraceEvent>>,
+) -> anyhow::Result<Vec<TraceEvent>> {
+    Ok(tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .start_paused(true)
+        .build()?
+        .block_on(f))
+}
+
+/// The patrol's trace served whole, as `tdl view` serves a file; the viewer and the records.
+fn serve_patrol() -> anyhow::Result<(Viewer, usize)> {
+    let trace = paused(common::patrol())?;
+    let mut model = RunModel::new("patrol.jsonl");
+    for ev in &trace {
+        model.apply(ev).map_err(anyhow::Error::msg)?;
+    }
+    model.finished = true;
+    let viewer = Viewer::serve(([127, 0, 0, 1], 0).into())?;
+    viewer.add(model);
+    Ok((viewer, trace.len()))
+}
+
+/// A browser on the viewer's page, once the run's `records` records are shown.
+async fn open_page(url: &str, records: usize) -> anyhow::Result<Browser> {
+    let chromium =
+        test_support::ensure_tool("chromium", "chromium").map_err(|e| anyhow::anyhow!(e))?;
+    let mut b = Browser::start(&chromium, 1200, 700).await?;
+    b.goto(url).await?;
+    let shown = format!(
+        "S.finished && S.records === {records} && document.querySelectorAll('#tree .row:not([hidden])').length > 3"
+    );
+    b.wait_for(&shown, Duration::from_secs(20)).await?;
+    Ok(b)
+}
+
+/// The rows in sight, top to bottom: a node's name, or a folded group as `name ×count`.
+const ROWS: &str = "[...document.querySelectorAll('#tree .row:not([hidden])')]\
+    .sort((a, b) => parseFloat(a.style.top) - parseFloat(b.style.top))\
+    .map((r) => r.querySelector('.name').textContent \
+        + (r.dataset.group ? ' ' + r.querySelector('.count').textContent : ''))";
+
+async fn rows(b: &mut Browser) -> anyhow::Result<Vec<String>> {
+    let v = b.eval(ROWS).await?;
+    Ok(v.as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|s| s.as_str().map(String::from))
+                .collect()
+        })
+        .unwrap_or_default())
+}
+
+/// Moves the time cursor with the slider, as a person drags it.
+fn set_cursor(seq: u64) -> String {
+    format!(
+        "(() => {{ const c = document.getElementById('cursor'); c.value = {seq}; \
+         c.dispatchEvent(new Event('input')); return Number(c.value); }})()"
+    )
+}
+
+#[test]
+fn a_monitors_many_activations_fold_into_one_row_with_their_count() -> anyhow::Result<()> {
+    let (viewer, records) = serve_patrol()?;
+    let url = viewer.url();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = open_page(&url, records).await?;
+            // `tick`'s ten activations are one row; `watch`'s three are listed, as few as they
+            // are; the whole mission is on the first screen.
+            let first = rows(&mut b).await?;
+            b.screenshot(&shots().join("patrol-folded.png")).await?;
+            let want = [
+                "patrol", "watch", "ACT-watch", "ACT-watch", "ACT-watch", "tick", "ACT-tick ×10",
+                "drive", "fetch", "probe",
+            ];
+            ensure!(first == want, "rows in sight: {first:?}");
+
+            // A click lists them under the folded row; another folds them again.
+            b.click("#tree .row[data-group]").await?;
+            let listed = b
+                .wait_for(
+                    &format!("(() => {{ const r = {ROWS}; return r.filter((n) => n === 'ACT-tick').length === 10 ? r : null; }})()"),
+                    Duration::from_secs(5),
+                )
+                .await?;
+            ensure!(
+                listed[6] == "ACT-tick ×10" && listed[7] == "ACT-tick" && listed[17] == "drive",
+                "unfolded: {listed}"
+            );
+            b.screenshot(&shots().join("patrol-unfolded.png")).await?;
+            b.click("#tree .row[data-group]").await?;
+            b.wait_for(
+                &format!("!{ROWS}.includes('ACT-tick')"),
+                Duration::from_secs(5),
+            )
+            .await?;
+
+            // At the second activation's spawn, the row counts two.
+            let second = b
+                .eval("S.nodes.filter((n) => n && n.name === 'ACT-tick').map((n) => n.m[0]).sort((a, b) => a - b)[1]")
+                .await?;
+            let second = second.as_u64().ok_or_else(|| anyhow::anyhow!("no second tick"))?;
+            b.eval(&set_cursor(second)).await?;
+            b.wait_for(
+                &format!("{ROWS}.includes('ACT-tick ×2')"),
+                Duration::from_secs(5),
+            )
+            .await?;
+
+            // Revealing one activation (as the event list's links do) unfolds its group.
+            b.eval(&set_cursor(1_000_000)).await?;
+            let fifth = b
+                .eval("S.nodes.filter((n) => n && n.name === 'ACT-tick')[4].n")
+                .await?;
+            b.eval(&format!("select({fifth}, true)")).await?;
+            b.wait_for(
+                &format!("!!document.querySelector('#tree .row.sel[data-n=\"{fifth}\"]')"),
+                Duration::from_secs(5),
+            )
+            .await?;
             anyhow::Ok(())
         })?;
     viewer.stop();

@@ -213,6 +213,32 @@ async fn a_node_placed_on_an_agent_shows_the_agent() {
     assert_eq!(entry(look).len(), 4 + tcm_view::MARKS);
 }
 
+/// An activation's row names its monitor after the agent's place (`null` when it runs here), so
+/// the page can fold a monitor's activations into one row; another node's row has no such entry.
+#[tokio::test(start_paused = true)]
+async fn an_activations_row_names_its_monitor() {
+    let m = model_of(&common::patrol().await);
+    let rows = snapshot_rows(&m);
+    let tick = number(&m, "tick");
+    let acts: Vec<_> = rows
+        .values()
+        .filter(|r| r[3] == "ACT-tick")
+        .map(|r| r.as_array().expect("a row"))
+        .collect();
+    assert_eq!(acts.len(), 10);
+    for r in acts {
+        assert_eq!(r.len(), 4 + tcm_view::MARKS + 2, "{r:?}");
+        assert_eq!(r[4 + tcm_view::MARKS], serde_json::Value::Null);
+        assert_eq!(r[5 + tcm_view::MARKS], tick);
+    }
+    let drive = &rows[&number(&m, "drive")];
+    assert_eq!(drive.as_array().expect("a row").len(), 4 + tcm_view::MARKS);
+    assert_eq!(
+        rows[&tick].as_array().expect("a row").len(),
+        4 + tcm_view::MARKS
+    );
+}
+
 #[test]
 fn a_bad_line_is_named_with_its_file_and_line_and_what_came_before_is_kept() {
     let good = [
@@ -278,12 +304,16 @@ fn snapshot_rows(m: &RunModel) -> BTreeMap<u64, serde_json::Value> {
 /// the snapshot then has them, and every row of the snapshot that the record changed.
 #[tokio::test(start_paused = true)]
 async fn each_live_message_carries_the_record_and_the_rows_it_changed() {
-    let trace = mission().await;
+    live_messages_carry_the_rows(&mission().await);
+    live_messages_carry_the_rows(&common::patrol().await);
+}
+
+fn live_messages_carry_the_rows(trace: &[TraceEvent]) {
     let mut m = RunModel::new("mission");
     let mut before = snapshot_rows(&m);
     let mut built = before.clone();
     let mut carried = 0;
-    for ev in &trace {
+    for ev in trace {
         m.apply(ev).expect("a checked trace applies");
         let msg: serde_json::Value =
             serde_json::from_str(&tcm_view::record_json(&m)).expect("the message is JSON");
