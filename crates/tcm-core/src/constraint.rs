@@ -8,7 +8,7 @@
 //! - `serial X` = disable expansion and execution until X's execution completed;
 //! - `parallel` = nothing.
 
-use crate::ids::{ExternalId, NodeId};
+use crate::ids::{CondId, ExternalId, NodeId, StateId};
 use std::time::Duration;
 use tcm_trace::{Facet, Outcome, Point};
 
@@ -106,6 +106,13 @@ pub enum When {
     /// When a named external event is raised. Enabling and terminating are latched (a raise before
     /// the constraint counts); activation happens on every raise after it.
     External(ExternalId),
+    /// When a condition over state variables holds (`Engine::condition`). Enabling and
+    /// terminating fire once it is true (at once if it already is); activation each time it
+    /// becomes true; [`Then::Skip`], [`Then::Invariant`] and [`Then::Pause`] read it at their own
+    /// moments (docs/semantics.md, "State and conditions").
+    Condition(CondId),
+    /// Each time a state variable changes value (`activate on change of v`; monitors only).
+    Changed(StateId),
 }
 
 impl When {
@@ -129,6 +136,14 @@ pub enum Then {
     /// Activates the monitor: `activate <when>` (monitors only). Fires also when the event's node
     /// reaches the event by termination.
     Activate,
+    /// `skip if <condition>`: when the node's turn comes (it would start), it completes without
+    /// running if the condition holds; its outcome is `skipped`.
+    Skip,
+    /// `with invariant <condition>`: the node fails with `InvariantFailed` when the condition is
+    /// false while it runs (from its handling's activation to its execution's completion).
+    Invariant,
+    /// `pause while <condition>`: the node's subtree is suspended while the condition holds.
+    Pause,
 }
 
 /// The constraints of one spawn, kept inline up to two (most spawns carry none, one or two), so a
@@ -173,20 +188,41 @@ impl Constraint {
         Constraint::Trigger(when, Then::Activate)
     }
 
+    /// `skip if <condition>`.
+    pub fn skip_if(cond: CondId) -> Constraint {
+        Constraint::Trigger(When::Condition(cond), Then::Skip)
+    }
+
+    /// `with invariant <condition>`.
+    pub fn invariant(cond: CondId) -> Constraint {
+        Constraint::Trigger(When::Condition(cond), Then::Invariant)
+    }
+
+    /// `pause while <condition>`.
+    pub fn pause_while(cond: CondId) -> Constraint {
+        Constraint::Trigger(When::Condition(cond), Then::Pause)
+    }
+
     /// Whether this constraint may still be applied to a node whose handling has started.
     pub fn applies_after_start(&self) -> bool {
         matches!(
             self,
-            Constraint::Trigger(_, Then::Terminate | Then::Activate) | Constraint::Parallel
+            Constraint::Trigger(
+                _,
+                Then::Terminate | Then::Activate | Then::Invariant | Then::Pause
+            ) | Constraint::Parallel
         )
     }
 
-    /// Whether it is applied after the node is linked under its parent (terminate and activate forms
-    /// may fire at once, which needs the node in the tree).
+    /// Whether it is applied after the node is linked under its parent (terminate, activate and
+    /// pause forms may act at once, which needs the node in the tree).
     pub(crate) fn applies_after_link(&self) -> bool {
         matches!(
             self,
-            Constraint::Trigger(_, Then::Terminate | Then::Activate)
+            Constraint::Trigger(
+                _,
+                Then::Terminate | Then::Activate | Then::Invariant | Then::Pause
+            )
         )
     }
 }

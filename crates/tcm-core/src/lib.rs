@@ -49,12 +49,13 @@ pub use arena::{Keep, Owned, Shared};
 pub use constraint::{Constraint, Constraints, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{
-    Blocked, Canonical, EachActivation, Effect, Engine, EngineError, HandlerSpec, Job, MonitorInfo,
-    MonitorSpec, NodeInfo, OnTerminate, Purpose, ResourceDenied, ResourceDropped, ResourceInfo,
-    Spawn, Stats, Uses, WatchOutcome,
+    Blocked, Canonical, EachActivation, Effect, Engine, EngineError, HandlerSpec, InvariantFailed,
+    Job, MonitorInfo, MonitorSpec, NodeInfo, OnTerminate, Purpose, ResourceDenied, ResourceDropped,
+    ResourceInfo, Spawn, Stats, Uses, WatchOutcome,
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
-pub use ids::{ExternalId, NodeId, ResourceId, TapWhen, WatchToken, WiretapId};
+pub use ids::{CondId, ExternalId, NodeId, ResourceId, StateId, TapWhen, WatchToken, WiretapId};
+pub use tcm_expr::{BinOp, Expr, ExprError, Type, TypeMismatch, Value};
 pub use tcm_trace::{Facet, NodeKind, Outcome, Point, State, Termination};
 pub use time::{Clock, Time};
 

@@ -10,6 +10,8 @@
 //! By subject:
 //! - `constraints`: ordering (sequential, serial, disable … until, expand first, cycles);
 //! - `triggers`: the one trigger concept, every "when" with every "then";
+//! - `conditions`: state variables and every trigger on a condition (enable, terminate, activate,
+//!   on change of, skip, invariant, pause);
 //! - `termination`: terminate constraints, cascades, on-terminate tasks, suspension;
 //! - `references`: reservations, forward and dead references, `previous`, held children;
 //! - `resources`: capacity, priority, all or nothing, reserve, lock, pending limit, denial, release, wait cycles;
@@ -18,6 +20,7 @@
 
 mod api;
 mod canon;
+mod conditions;
 mod constraints;
 mod exceptions;
 mod monitor_limits;

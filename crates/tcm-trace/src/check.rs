@@ -19,6 +19,7 @@ use crate::state::{Facet, State, Termination};
 use std::cmp::Reverse;
 use std::collections::{BTreeMap, BTreeSet, BinaryHeap};
 
+mod conditions;
 mod facets;
 mod resources;
 mod rule;
@@ -71,6 +72,8 @@ pub struct Checker {
     callbacks: BTreeMap<u64, (TraceWhen, bool)>,
     // Checking a prefix: the end of the records is not the end of the run (`finish_prefix`).
     prefix: bool,
+    // Triggers on conditions over state variables (`conditions.rs`).
+    conditions: Vec<conditions::CondTrigger>,
 }
 
 fn ref_text(r: &TraceEventRef) -> String {
@@ -185,6 +188,7 @@ impl Checker {
         }
         if self.subject_ok(ev) {
             self.check_record(ev);
+            self.check_condition_record(ev);
         }
         // The checker reported anything the replay refuses; keep going with the state it has.
         let _ = self.replay.apply(ev);
@@ -445,7 +449,7 @@ impl Checker {
             Some((_, true)) => Some("it already ran".to_string()),
             Some((when, false)) => {
                 self.callbacks.insert(callback, (when.clone(), true));
-                self.trigger_pending(ev, &when, false)
+                self.trigger_pending(ev, None, &when, false)
             }
         };
         if let Some(problem) = problem {

@@ -31,13 +31,15 @@ pub enum RecordClass {
     Event,
     /// Resources: declarations, requests, grants, releases, refusals, reservations and locks.
     Resource,
+    /// State variables declared and set, and skipped nodes.
+    State,
     /// Warnings.
     Warning,
 }
 
 impl RecordClass {
     /// Every class, in the order above.
-    pub const ALL: [RecordClass; 13] = [
+    pub const ALL: [RecordClass; 14] = [
         RecordClass::Transition,
         RecordClass::Spawn,
         RecordClass::Constraint,
@@ -50,6 +52,7 @@ impl RecordClass {
         RecordClass::Monitor,
         RecordClass::Event,
         RecordClass::Resource,
+        RecordClass::State,
         RecordClass::Warning,
     ];
 
@@ -68,6 +71,7 @@ impl RecordClass {
             RecordClass::Monitor => "monitor",
             RecordClass::Event => "event",
             RecordClass::Resource => "resource",
+            RecordClass::State => "state",
             RecordClass::Warning => "warning",
         }
     }
@@ -92,6 +96,9 @@ impl TraceConstraint {
                 TraceThen::Enable(facet) => (format!("disable {facet}"), "until", "for"),
                 TraceThen::Terminate => ("terminate".to_owned(), "at", "in"),
                 TraceThen::Activate => ("activate".to_owned(), "at", "in"),
+                TraceThen::Skip => ("skip".to_owned(), "if", "in"),
+                TraceThen::Invariant => ("with invariant".to_owned(), "", "in"),
+                TraceThen::Pause => ("pause".to_owned(), "while", "in"),
             },
         };
         let TraceConstraint::Trigger { when, .. } = self else {
@@ -105,6 +112,18 @@ impl TraceConstraint {
                 format!("{head} {within} {} after {}", seconds(*delay_ns), event(e))
             }
             TraceWhen::External(name) => format!("{head} {at} external {name:?}"),
+            TraceWhen::Condition(cond) => match self {
+                TraceConstraint::Trigger {
+                    then: TraceThen::Invariant,
+                    ..
+                } => format!("{head} {cond}"),
+                TraceConstraint::Trigger {
+                    then: TraceThen::Enable(_) | TraceThen::Terminate | TraceThen::Activate,
+                    ..
+                } => format!("{head} when {cond}"),
+                _ => format!("{head} {at} {cond}"),
+            },
+            TraceWhen::Changed(var) => format!("{head} on change of {var}"),
             TraceWhen::All { events, delay_ns } => {
                 let all: Vec<String> = events.iter().map(event).collect();
                 let all = if all.is_empty() {
@@ -187,6 +206,11 @@ impl TraceKind {
             K::Dead { node } => (C::Spawn, Some(*node), "dead".into()),
             K::Reclaimed { node } => (C::Spawn, Some(*node), "reclaimed".into()),
             K::External { name } => (C::Event, None, format!("external event {name}")),
+            K::StateDeclared { var, ty, value } => {
+                (C::State, None, format!("state {var}: {ty} = {value}"))
+            }
+            K::StateSet { var, value } => (C::State, None, format!("set {var} = {value}")),
+            K::Skipped { node } => (C::State, Some(*node), "skipped".into()),
             K::MonitorParams {
                 node,
                 max_activations,

@@ -9,7 +9,7 @@ use crate::state::{Facet, NodeKind, Outcome, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 6;
+pub const TRACE_FORMAT_VERSION: u32 = 7;
 
 /// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
 pub const OLDEST_READABLE_VERSION: u32 = 1;
@@ -115,6 +115,13 @@ pub enum TraceWhen {
     },
     /// When the named external event is raised.
     External(String),
+    /// When a condition over state variables holds (docs/semantics.md, "State and conditions").
+    /// What "holds" means depends on what it does: an enabling or terminating trigger fires once
+    /// it is true, an activation each time it becomes true; a skip, an invariant or a pause reads
+    /// it at their own moments (see [`TraceThen`]).
+    Condition(tcm_expr::Expr),
+    /// Each time the named state variable changes value (`activate on change of v`).
+    Changed(String),
     /// When every one of these events happened (a `with` group's event: each member reached
     /// it), after a delay if any. With no event, at once.
     All {
@@ -171,6 +178,15 @@ pub enum TraceThen {
     Terminate,
     /// Activates the monitor (`activate …`).
     Activate,
+    /// Completes the node without running it if the condition holds when its turn comes
+    /// (`skip if …`): a `skipped` record, outcome `skipped`.
+    Skip,
+    /// Fails the node with `InvariantFailed` when the condition is false while it runs, from
+    /// its handling's activation to its execution's completion (`with invariant …`).
+    Invariant,
+    /// Suspends the node's subtree while the condition holds, unsuspends it when it stops
+    /// holding (`pause while …`).
+    Pause,
 }
 
 /// A constraint record as either version writes it: the current forms, or version 1's one form per
@@ -373,6 +389,30 @@ pub enum TraceKind {
         /// Node.
         node: u64,
     },
+    /// A state variable was declared, with its type and initial value; before any record names
+    /// it (docs/semantics.md, "State and conditions").
+    StateDeclared {
+        /// The variable.
+        var: String,
+        /// Its type.
+        ty: tcm_expr::Type,
+        /// Its initial value.
+        value: tcm_expr::Value,
+    },
+    /// A state variable was set (an input: from the program, the shell, an agent). Recorded even
+    /// when the value is the one it had; only a different value is a change.
+    StateSet {
+        /// The variable.
+        var: String,
+        /// Its new value.
+        value: tcm_expr::Value,
+    },
+    /// The node's turn came while its `skip if` condition held: it completes without running
+    /// (its handling goes from enabled to completed), with outcome `skipped`.
+    Skipped {
+        /// Node.
+        node: u64,
+    },
     /// A named external event was raised.
     External {
         /// Name of the event.
@@ -570,6 +610,8 @@ impl TraceKind {
         match self {
             TraceKind::RunStarted { .. }
             | TraceKind::External { .. }
+            | TraceKind::StateDeclared { .. }
+            | TraceKind::StateSet { .. }
             | TraceKind::CallbackRan { .. }
             | TraceKind::Resource { .. }
             | TraceKind::ResourceUnreserved { .. }
@@ -587,6 +629,7 @@ impl TraceKind {
             | TraceKind::Unsuspended { node }
             | TraceKind::Failed { node, .. }
             | TraceKind::Dead { node }
+            | TraceKind::Skipped { node }
             | TraceKind::Reclaimed { node }
             | TraceKind::Placed { node, .. }
             | TraceKind::MonitorParams { node, .. }

@@ -60,9 +60,9 @@ pub use event::{
 };
 pub use jsonl::{JsonlReader, ReadError, read_jsonl, to_line, write_line};
 pub use replay::{
-    ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SPAWNED, M_TERMINATED,
-    M_TERMINATING, MARKS, Mark, MonitorInfo, NUMBER_SLACK, ROOT_NAME, Replay, ReplayError,
-    ReplayNode, ReplayResource, Restriction, Row, Step, m_point,
+    ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SKIPPED, M_SPAWNED,
+    M_TERMINATED, M_TERMINATING, MARKS, Mark, MonitorInfo, NUMBER_SLACK, ROOT_NAME, Replay,
+    ReplayError, ReplayNode, ReplayResource, Restriction, Row, Step, m_point,
 };
 pub use state::{Facet, NodeKind, Outcome, Point, State, Termination};
 pub use textlog::{TextLog, TextLogOptions, tcm_state_word, time_suffix};

@@ -23,8 +23,8 @@ mod resources;
 mod tests;
 
 pub use history::{
-    ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SPAWNED, M_TERMINATED,
-    M_TERMINATING, MARKS, Mark, NUMBER_SLACK, Restriction, Row, Step, m_point,
+    ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SKIPPED, M_SPAWNED,
+    M_TERMINATED, M_TERMINATING, MARKS, Mark, NUMBER_SLACK, Restriction, Row, Step, m_point,
 };
 pub use resources::ReplayResource;
 
@@ -68,6 +68,10 @@ pub enum ReplayError {
     /// twice declared resource, a grant without a request, a release without a grant).
     #[error("{0}")]
     Resource(String),
+    /// A state record does not fit the variables declared so far (declared twice, set before it
+    /// is declared, a value of another type).
+    #[error("{0}")]
+    State(String),
     /// A facet would move backwards or stay in place.
     #[error("node {node}: {facet} cannot move from {from} to {to}")]
     Backwards {
@@ -105,6 +109,7 @@ pub struct ReplayNode {
     termination: Termination,
     suspended: bool,
     failed: bool,
+    skipped: bool,
     reclaimed: bool,
     reserved: bool,
     dead: bool,
@@ -181,6 +186,7 @@ impl ReplayNode {
             termination: Termination::Alive,
             suspended: false,
             failed: false,
+            skipped: false,
             reclaimed: false,
             reserved: false,
             dead: false,
@@ -254,9 +260,16 @@ impl ReplayNode {
             Outcome::Terminated
         } else if self.failed && !self.recovered {
             Outcome::Failed
+        } else if self.skipped {
+            Outcome::Skipped
         } else {
             Outcome::Succeeded
         }
+    }
+
+    /// Whether it was skipped (a `skipped` record).
+    pub fn is_skipped(&self) -> bool {
+        self.skipped
     }
 
     /// Termination state.
@@ -355,6 +368,8 @@ pub struct Replay {
     nodes: BTreeMap<u64, ReplayNode>,
     // Declared resources, by name.
     resources: BTreeMap<String, ReplayResource>,
+    // Declared state variables, by name: their type and current value.
+    states: BTreeMap<String, (tcm_expr::Type, tcm_expr::Value)>,
     // What happened to each node, and when (`history.rs`).
     history: history::History,
     run: Option<u32>,
@@ -388,6 +403,7 @@ impl Replay {
         Replay {
             nodes,
             resources: BTreeMap::new(),
+            states: BTreeMap::new(),
             history: history::History::new(history),
             run: None,
             n_records: 0,
@@ -436,6 +452,21 @@ impl Replay {
     /// How many records were applied successfully.
     pub fn n_records(&self) -> u64 {
         self.n_records
+    }
+
+    /// A state variable's current value (after the records applied so far).
+    pub fn state_value(&self, var: &str) -> Option<&tcm_expr::Value> {
+        self.states.get(var).map(|(_, v)| v)
+    }
+
+    /// Every state variable declared so far: its name, type and current value, by name.
+    pub fn states(&self) -> impl Iterator<Item = (&str, tcm_expr::Type, &tcm_expr::Value)> {
+        self.states.iter().map(|(n, (t, v))| (n.as_str(), *t, v))
+    }
+
+    /// Evaluates `cond` on the state variables' current values.
+    pub fn eval(&self, cond: &tcm_expr::Expr) -> Result<tcm_expr::Value, tcm_expr::ExprError> {
+        cond.eval(&|n| self.state_value(n).cloned())
     }
 
     /// Time of the last record applied.
@@ -544,6 +575,25 @@ impl Replay {
             TraceKind::Placed { node, agent } => {
                 self.node_mut(*node)?.agent = Some(agent.clone());
             }
+            TraceKind::StateDeclared { var, ty, value } => {
+                if self.states.contains_key(var) {
+                    return Err(ReplayError::State(format!(
+                        "state variable `{var}` is declared twice"
+                    )));
+                }
+                check_value(var, *ty, value)?;
+                self.states.insert(var.clone(), (*ty, value.clone()));
+            }
+            TraceKind::StateSet { var, value } => {
+                let Some((ty, v)) = self.states.get_mut(var) else {
+                    return Err(ReplayError::State(format!(
+                        "state variable `{var}` is set before it is declared"
+                    )));
+                };
+                check_value(var, *ty, value)?;
+                *v = value.clone();
+            }
+            TraceKind::Skipped { node } => self.node_mut(*node)?.skipped = true,
             TraceKind::External { .. }
             | TraceKind::Warning { .. }
             | TraceKind::Tapped { .. }
@@ -785,5 +835,15 @@ impl Replay {
             cur = parent;
             before = parent_before;
         }
+    }
+}
+
+/// A recorded value must be of its variable's type (an unknown is of every type).
+fn check_value(var: &str, ty: tcm_expr::Type, value: &tcm_expr::Value) -> Result<(), ReplayError> {
+    match value.type_of() {
+        Some(t) if t != ty => Err(ReplayError::State(format!(
+            "state variable `{var}` is a `{ty}`, but the record gives it `{value}`"
+        ))),
+        _ => Ok(()),
     }
 }

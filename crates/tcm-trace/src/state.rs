@@ -90,6 +90,9 @@ pub enum Outcome {
     Failed,
     /// It was terminated.
     Terminated,
+    /// It was skipped: its `skip if` condition held when its turn came, and it completed without
+    /// running (docs/semantics.md, "State and conditions").
+    Skipped,
 }
 
 impl Outcome {
@@ -99,6 +102,7 @@ impl Outcome {
             Outcome::Succeeded => "succeeded",
             Outcome::Failed => "failed",
             Outcome::Terminated => "terminated",
+            Outcome::Skipped => "skipped",
         }
     }
 }

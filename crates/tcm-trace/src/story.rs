@@ -13,7 +13,9 @@ use std::collections::BTreeMap;
 /// suspension, timer callbacks run (`callback <name> ran`) and resources (`drive requests base,
 /// arm(2)`, `drive granted …`, `drive released …`, `drive withdrawn`, `drive denied base`,
 /// `drive dropped base`, `base reserved for plan`, `base unreserved`, `base locked`, `base
-/// unlocked`). Other records (constraints, reclamation, …) are left out.
+/// unlocked`), state variables set (`set battery_ok = false`, also to the value they had) and
+/// skipped nodes (`step3 skipped`). Other records (constraints, reclamation, state variables
+/// declared, …) are left out.
 pub fn story(trace: &[TraceEvent]) -> Vec<String> {
     let mut names: BTreeMap<u64, String> = BTreeMap::new();
     let mut out = Vec::new();
@@ -64,6 +66,8 @@ pub fn story(trace: &[TraceEvent]) -> Vec<String> {
             TraceKind::Placed { node, agent } => {
                 format!("{} runs on agent {agent}", name(&names, node))
             }
+            TraceKind::StateSet { var, value } => format!("set {var} = {value}"),
+            TraceKind::Skipped { node } => format!("{} skipped", name(&names, node)),
             _ => continue,
         };
         out.push(format!("{} {line}", ev.t as f64 / 1e9));

@@ -249,6 +249,38 @@ pub enum EngineError {
     /// No resource is declared under this name.
     #[error("no resource `{0}` is declared")]
     UnknownResource(String),
+    /// No state variable is declared under this name.
+    #[error("no state variable `{0}` is declared")]
+    UnknownState(String),
+    /// A state variable declared again with another type.
+    #[error("state variable `{var}` is declared as `{was}`, not `{now}`")]
+    StateRedeclared {
+        /// The variable.
+        var: String,
+        /// Its type.
+        was: tcm_expr::Type,
+        /// The type asked for now.
+        now: tcm_expr::Type,
+    },
+    /// A value of the wrong type for a state variable.
+    #[error("state variable `{0}`: {1}")]
+    StateType(String, tcm_expr::TypeMismatch),
+    /// A condition that cannot be evaluated (a type error, an undeclared variable).
+    #[error("condition `{condition}`: {error}")]
+    BadCondition {
+        /// The condition, as TDL writes it.
+        condition: String,
+        /// What is wrong.
+        error: tcm_expr::ExprError,
+    },
+    /// A condition that is not a `bool`.
+    #[error("condition `{condition}` is a `{ty}`, not a `bool`")]
+    NotACondition {
+        /// The condition.
+        condition: String,
+        /// Its type.
+        ty: tcm_expr::Type,
+    },
 }
 
 /// Counters for benchmarks and tests.

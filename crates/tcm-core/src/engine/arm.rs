@@ -42,11 +42,14 @@ pub(super) use group::Join;
 
 impl Then {
     /// How the trace writes it.
-    fn traced(self) -> TraceThen {
+    pub(super) fn traced(self) -> TraceThen {
         match self {
             Then::Enable(f) => TraceThen::Enable(f),
             Then::Terminate => TraceThen::Terminate,
             Then::Activate => TraceThen::Activate,
+            Then::Skip => TraceThen::Skip,
+            Then::Invariant => TraceThen::Invariant,
+            Then::Pause => TraceThen::Pause,
         }
     }
 
@@ -56,6 +59,9 @@ impl Then {
             Then::Enable(f) => f.to_string(),
             Then::Terminate => "terminate".into(),
             Then::Activate => "activate".into(),
+            Then::Skip => "skip".into(),
+            Then::Invariant => "invariant".into(),
+            Then::Pause => "pause".into(),
         }
     }
 }
@@ -91,7 +97,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 Facet::Execution => &[Facet::Execution],
             },
             Constraint::Serial(_) => &[Facet::Expansion, Facet::Execution],
-            Constraint::Parallel | Constraint::Trigger(_, Then::Terminate | Then::Activate) => &[],
+            Constraint::Parallel
+            | Constraint::Trigger(
+                _,
+                Then::Terminate | Then::Activate | Then::Skip | Then::Invariant | Then::Pause,
+            ) => &[],
         };
         for &f in gated {
             if f == Facet::Expansion && !n.kind.expands() {
@@ -147,7 +157,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// Traces a constraint that was dropped; the reason is only built when someone reads the trace.
-    fn void(&mut self, node: NodeId, reason: impl FnOnce() -> String) {
+    pub(super) fn void(&mut self, node: NodeId, reason: impl FnOnce() -> String) {
         if !self.tracing {
             return;
         }
@@ -162,7 +172,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// Traces a constraint as applied.
-    fn constrained(&mut self, node: NodeId, constraint: impl FnOnce() -> TraceConstraint) {
+    pub(super) fn constrained(
+        &mut self,
+        node: NodeId,
+        constraint: impl FnOnce() -> TraceConstraint,
+    ) {
         if !self.tracing {
             return;
         }
@@ -232,6 +246,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             Then::Activate if self.node(node).monitor().is_none() => {
                 return self.void(node, || "`activate` applies to monitors only".into());
             }
+            Then::Skip | Then::Invariant | Then::Pause if !matches!(when, When::Condition(_)) => {
+                return self.void(node, || {
+                    format!("`{}` takes a condition over state variables", then.word())
+                });
+            }
             _ => {}
         }
         let traced = then.traced();
@@ -253,6 +272,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 let now = self.time();
                 self.arm_at(node, now + d, then)
             }
+            When::Condition(c) => self.arm_condition(node, c, then),
+            When::Changed(v) => self.arm_changed(node, v, then),
             When::External(x) => {
                 let Some(ext) = self.externals.get(x.0 as usize) else {
                     return self.void(node, || "unknown external event".into());
@@ -350,7 +371,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// `when` is an event of a live node: fires now if the node already reached it, else waits.
-    fn arm_event(
+    pub(super) fn arm_event(
         &mut self,
         node: NodeId,
         watched: NodeId,
@@ -403,7 +424,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// An enabling trigger counts against its facet until it fires.
-    fn block(&mut self, node: NodeId, then: Then) {
+    pub(super) fn block(&mut self, node: NodeId, then: Then) {
         if let Then::Enable(facet) = then {
             self.node_mut(node).blocks[facet.index()] += 1;
         }
@@ -424,6 +445,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 explicit: false,
             }),
             Then::Activate => self.activation_due(target),
+            // Never armed as a waiter or a timer: `state.rs` acts on these itself.
+            Then::Skip | Then::Invariant | Then::Pause => {}
         }
     }
 
@@ -513,6 +536,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             Outcome::Terminated
         } else if n.failure().is_some() && n.recovered_by().is_none() {
             Outcome::Failed
+        } else if n.skipped() {
+            Outcome::Skipped
         } else {
             Outcome::Succeeded
         }

@@ -176,6 +176,10 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 c.node_ref(*a, h);
             }
         }
+        // State variables by name (ids are numbered in the order they were declared), with their
+        // watches.
+        self.states
+            .hash_canonical(h, &mut |id, h| c.node_ref(id, h));
         // A run of children is hashed as the entries it stands for (those of its children still
         // linked; an unlinked child's entry is a no-op, and the queue is empty between inputs).
         let mut work: Vec<Work> = Vec::with_capacity(self.work.len());
@@ -299,6 +303,9 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
                 0u8.hash(h);
                 f.hash(h);
             }
+            Then::Skip => 3u8.hash(h),
+            Then::Invariant => 4u8.hash(h),
+            Then::Pause => 5u8.hash(h),
             Then::Terminate => 1u8.hash(h),
             Then::Activate => 2u8.hash(h),
         }
@@ -363,6 +370,17 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
                         5u8.hash(h);
                         let name = self.engine.externals.get(id.0 as usize).map(|e| &e.name);
                         name.hash(h);
+                    }
+                    When::Condition(c) => {
+                        6u8.hash(h);
+                        self.engine
+                            .condition_expr(*c)
+                            .map(ToString::to_string)
+                            .hash(h);
+                    }
+                    When::Changed(v) => {
+                        7u8.hash(h);
+                        self.engine.state(*v).map(|s| s.0).hash(h);
                     }
                 }
                 self.then(*then, h);
@@ -644,6 +662,17 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
             self.constraint(c, h);
         }
         cold.propagate.hash(h);
+        // Its conditions, by text (ids are numbered in the order conditions were registered).
+        for conds in [&cold.skip_if, &cold.invariants] {
+            conds.len().hash(h);
+            for c in conds.iter() {
+                self.engine
+                    .condition_expr(*c)
+                    .map(ToString::to_string)
+                    .hash(h);
+            }
+        }
+        cold.skipped.hash(h);
         // The resources it uses and where it stands with them.
         match cold.uses.as_deref() {
             None => 0u8.hash(h),

@@ -248,16 +248,29 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// children are terminated, its action, if it runs, is stopped and its handling completes,
     /// and the failure is the parent's own (step 1 from the parent).
     fn fail_parent(&mut self, child: NodeId, parent: NodeId, failure: Failure) {
-        let p = self.node(parent);
+        self.fail_from_outside(parent, failure, Some(child));
+    }
+
+    /// `node` fails from outside its action (a child's failure propagated to it, an invariant
+    /// that no longer holds): its children but `spare` are terminated, its action, if it runs,
+    /// is stopped and its handling completes, and the failure is its own (step 1). A node already
+    /// failed or terminating is left alone.
+    pub(super) fn fail_from_outside(
+        &mut self,
+        node: NodeId,
+        failure: Failure,
+        spare: Option<NodeId>,
+    ) {
+        let p = self.node(node);
         if !p.alive() || p.failure().is_some() {
             return;
         }
         let monitor = p.monitor().is_some();
         let running =
             p.state(Facet::Handling) == State::Active && !monitor && p.taps_pending() == 0;
-        let mut c = self.first_child(parent);
+        let mut c = self.first_child(node);
         while let Some(ch) = c {
-            if ch != child {
+            if Some(ch) != spare {
                 self.work.push_back(Work::Terminate {
                     node: ch,
                     explicit: false,
@@ -265,15 +278,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             c = self.next_sibling(ch);
         }
-        if running && !self.cancel_action(parent) {
-            self.node_mut(parent).stopping = true;
+        if running && !self.cancel_action(node) {
+            self.node_mut(node).stopping = true;
         }
-        self.fail(parent, failure);
+        self.fail(node, failure);
         if running {
-            self.complete_handling(parent);
+            self.complete_handling(node);
         } else if monitor {
             // A failed monitor activates no more.
-            self.monitor_done(parent);
+            self.monitor_done(node);
         }
     }
 

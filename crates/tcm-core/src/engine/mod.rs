@@ -13,6 +13,7 @@
 //! |---|---|---|
 //! | inputs | [`Engine::handle_action_finished`], [`Engine::handle_action_stopped`], [`Engine::handle_timeout`] | `progress.rs` |
 //! | | [`Engine::handle_external`] | `arm/external.rs` |
+//! | | [`Engine::set_state`] | `state.rs` |
 //! | commands: the tree | [`Engine::spawn`], [`Engine::reserve`], [`Engine::hold_children`] | `tree.rs` |
 //! | commands: constraints | [`Engine::constrain`] | `arm.rs` |
 //! | | [`Engine::trigger_group`] | `arm/group.rs` |
@@ -21,6 +22,7 @@
 //! | commands: monitors | [`Engine::activate`], [`Engine::trigger`], [`Engine::set_max_activations`], [`Engine::set_max_triggers`], [`Engine::set_period`] | `monitor.rs` |
 //! | commands: exceptions | [`Engine::request_bypass`], [`Engine::retry`] | `exception.rs` |
 //! | commands: wiretaps | [`Engine::wiretap`] | `wiretap.rs` |
+//! | commands: state | [`Engine::declare_state`], [`Engine::condition`] | `state.rs` |
 //! | commands: resources | [`Engine::declare_resource`], [`Engine::reserve_resource`], [`Engine::unreserve_resource`], [`Engine::lock_resource`], [`Engine::unlock_resource`] | `resource.rs` |
 //! | commands: timer callbacks | [`Engine::invoke_when`], [`Engine::invoke_at`], [`Engine::notify_at`], [`Engine::callback_ran`] | `callback.rs` |
 //! | outputs | [`Engine::poll_effect`], [`Engine::poll_trace`], [`Engine::poll_timeout`] | here |
@@ -89,6 +91,7 @@ pub(crate) mod node;
 mod progress;
 mod report;
 mod resource;
+mod state;
 mod terminate;
 mod timers;
 mod tree;
@@ -109,6 +112,7 @@ pub use node::{OnTerminate, Purpose};
 use progress::timer_is_live;
 pub use report::{Blocked, MonitorInfo, NodeInfo};
 pub use resource::{ResourceDenied, ResourceDropped, ResourceInfo, Uses};
+pub use state::InvariantFailed;
 use std::collections::{BTreeMap, VecDeque};
 use tcm_trace::{State, TRACE_FORMAT_VERSION, TraceEvent, TraceKind};
 use timers::Timers;
@@ -199,6 +203,8 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     class_handlers: BTreeMap<Name, Vec<HandlerSpec<F>>>,
     // Resources and the requests waiting for them (`resource.rs`).
     res: resource::Resources,
+    // State variables, conditions and their watches (`state.rs`).
+    states: state::States,
 }
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
@@ -240,6 +246,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             taps: Vec::new(),
             class_handlers: BTreeMap::new(),
             res: resource::Resources::default(),
+            states: state::States::default(),
         };
         engine.push_trace(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,

@@ -256,6 +256,10 @@ pub(crate) struct Cold<A, F> {
     // The resources it uses (`resource.rs`), and where it stands with them.
     pub(crate) uses: Option<Box<super::resource::Uses>>,
     pub(crate) grant: super::resource::Grant,
+    // Its `skip if` and `with invariant` conditions (`state.rs`), and whether it was skipped.
+    pub(crate) skip_if: ThinVec<crate::ids::CondId>,
+    pub(crate) invariants: ThinVec<crate::ids::CondId>,
+    pub(crate) skipped: bool,
 }
 
 /// Where a node's failure goes when no handler on the node takes it.
@@ -295,6 +299,9 @@ impl<A, F> Default for Cold<A, F> {
             propagate: Propagate::Up,
             uses: None,
             grant: super::resource::Grant::None,
+            skip_if: ThinVec::new(),
+            invariants: ThinVec::new(),
+            skipped: false,
         }
     }
 }
@@ -459,6 +466,18 @@ impl<A, F> Node<A, F> {
 
     pub(crate) fn retry(&self) -> Option<&F> {
         self.cold.as_ref().and_then(|c| c.retry.as_ref())
+    }
+
+    pub(crate) fn skip_conditions(&self) -> &[crate::ids::CondId] {
+        self.cold.as_ref().map_or(&[], |c| &c.skip_if)
+    }
+
+    pub(crate) fn invariant_conditions(&self) -> &[crate::ids::CondId] {
+        self.cold.as_ref().map_or(&[], |c| &c.invariants)
+    }
+
+    pub(crate) fn skipped(&self) -> bool {
+        self.cold.as_ref().is_some_and(|c| c.skipped)
     }
 
     pub(crate) fn failure(&self) -> Option<&Failure> {

@@ -584,6 +584,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if payload.is_none() && !is_monitor {
             return;
         }
+        let invariants = !n.invariant_conditions().is_empty();
         let expands = n.kind.expands();
         if !is_monitor {
             self.running += 1;
@@ -620,13 +621,35 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             None => self.monitor_started(id),
         }
+        if invariants {
+            self.check_invariants(id);
+        }
     }
 
-    /// What must happen before a node with a cold part starts: its resources are granted
+    /// The node's turn came while a `skip if` condition holds: it completes without running, its
+    /// handling going from enabled to completed (docs/semantics.md, "State and conditions").
+    fn skip(&mut self, id: NodeId) {
+        let display = self.node(id).display;
+        emit!(self, TraceKind::Skipped { node: display });
+        let n = self.node_mut(id);
+        n.cold_mut().skipped = true;
+        n.action = None;
+        self.transition(id, Facet::Handling, State::Completed);
+        self.bury_reservations(id);
+        self.queue_progress(id);
+    }
+
+    /// What must happen before a node with a cold part starts: its `skip if` conditions are
+    /// read (it is skipped if one holds), its resources are granted
     /// (docs/semantics.md, "Resources": it waits, enabled, until then, or fails if it is refused),
     /// and its "before" wiretaps approve it (it stays enabled until they report,
     /// `tap_finished`). Returns whether it is a monitor, or `None` if it does not start now.
     fn start_checks(&mut self, id: NodeId) -> Option<bool> {
+        let n = self.nodes.get(id)?;
+        if !n.skip_conditions().is_empty() && self.skips(id) {
+            self.skip(id);
+            return None;
+        }
         let n = self.nodes.get(id)?;
         if n.uses().is_some()
             && n.grant() != super::resource::Grant::Held
@@ -763,6 +786,8 @@ pub(super) fn timer_is_live<A, F, S: Keep<Node<A, F>>>(
             Then::Enable(facet) => n.state(facet) == State::Disabled,
             Then::Terminate => n.alive() && n.state(Facet::Execution) != State::Completed,
             Then::Activate => n.alive() && n.state(Facet::Handling) != State::Completed,
+            // Never timers.
+            Then::Skip | Then::Invariant | Then::Pause => false,
         }),
         TimerKind::Poll { monitor, .. } => nodes
             .get(monitor)

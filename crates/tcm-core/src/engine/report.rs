@@ -278,8 +278,17 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                         let what = format!("an activation when {what}");
                         r.activate.entry(t.display).or_default().push(what);
                     }
-                    Then::Terminate => {}
+                    Then::Terminate | Then::Skip | Then::Invariant | Then::Pause => {}
                 }
+            }
+        }
+        for (target, facet, what) in self.states.waiting() {
+            let Some(t) = self.nodes.get(target) else {
+                continue;
+            };
+            match facet {
+                Some(facet) => r.enable.entry((t.display, facet)).or_default().push(what),
+                None => r.activate.entry(t.display).or_default().push(what),
             }
         }
         for ext in &self.externals {

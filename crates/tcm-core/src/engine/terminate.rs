@@ -190,7 +190,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// Nodes terminated before they started wait only for the events of other nodes (the plan's
-    /// order): their pending delays and their waits on external events are released at once.
+    /// order): their pending delays and their waits on external events and conditions are
+    /// released at once.
     fn release_delays(&mut self, nodes: &[NodeId]) {
         let forced = |id: NodeId| nodes.contains(&id);
         for (target, then) in self.timers.take_enables(forced) {
@@ -210,6 +211,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 _ => true,
             });
         }
+        released.extend(self.states.take_enables(forced));
         for (target, then) in released {
             self.fire_trigger(target, then, true);
         }
@@ -272,6 +274,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 "unsuspended"
             }));
         }
+        self.suspend_now(id, on);
+        self.settle();
+        Ok(())
+    }
+
+    /// Suspends (or unsuspends) `id` and its subtree, without settling: for `suspend`, and for
+    /// a pause (`state.rs`).
+    pub(super) fn suspend_now(&mut self, id: NodeId, on: bool) {
         let mut queue = VecDeque::from([id]);
         while let Some(c) = queue.pop_front() {
             let Some(n) = self.nodes.get_mut(c) else {
@@ -304,7 +314,5 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 child = self.next_sibling(ch);
             }
         }
-        self.settle();
-        Ok(())
     }
 }

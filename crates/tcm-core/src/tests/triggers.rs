@@ -17,6 +17,9 @@ fn target(e: &mut SimEngine, root: NodeId, when: When, then: Then) -> NodeId {
             let spec = monitor_spec(idle(), Some(1), None);
             spawn_with(e, Spawn::monitor(root, "t", spec), &c)
         }
+        Then::Skip | Then::Invariant | Then::Pause => {
+            unreachable!("conditions are tested in `conditions`")
+        }
     }
 }
 

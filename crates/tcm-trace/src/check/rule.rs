@@ -91,6 +91,12 @@ pub enum Rule {
     /// A monitor activation while the monitor's handling is not active (or it is terminating), out of
     /// sequence, past its maximum, or not under its monitor.
     Activation,
+    /// A transition a condition over state variables explains, while the recorded values say
+    /// otherwise: a skip whose condition does not hold, a start whose `skip if` holds, an
+    /// `InvariantFailed` failure whose invariants all hold (or are unknown), or a condition that
+    /// cannot be evaluated on the declared variables. Enabling and terminating triggers on
+    /// conditions are checked by [`Rule::Disable`] and [`Rule::Terminate`].
+    Condition,
     /// A monitor's handling completed before reaching its maximum activations or triggers, while it was
     /// not terminating and had not failed.
     MonitorComplete,
@@ -159,6 +165,7 @@ impl Rule {
             Rule::DelayExpansion => "delay-expansion",
             Rule::Terminate => "terminate",
             Rule::Activation => "activation",
+            Rule::Condition => "condition",
             Rule::MonitorComplete => "monitor-complete",
             Rule::Handler => "handler",
             Rule::Retry => "retry",

@@ -56,7 +56,10 @@ impl Checker {
         let late_ok = matches!(
             constraint,
             TraceConstraint::Trigger {
-                then: TraceThen::Terminate | TraceThen::Activate,
+                then: TraceThen::Terminate
+                    | TraceThen::Activate
+                    | TraceThen::Invariant
+                    | TraceThen::Pause,
                 ..
             }
         );
@@ -78,6 +81,13 @@ impl Checker {
                 return;
             }
         }
+        if let TraceConstraint::Trigger {
+            when: TraceWhen::Condition(cond),
+            then,
+        } = constraint
+        {
+            return self.condition_applied(ev, node, cond, *then);
+        }
         let TraceConstraint::Trigger {
             when,
             then: TraceThen::Terminate,
@@ -86,6 +96,8 @@ impl Checker {
             return;
         };
         match when {
+            // Handled above; `on change of` only activates.
+            TraceWhen::Condition(_) | TraceWhen::Changed(_) => {}
             TraceWhen::Now => self.owe(node, ev.t, true, seq),
             TraceWhen::At(at) => self.owe(node, (*at).max(ev.t), *at <= ev.t, seq),
             TraceWhen::External(name) => {
@@ -249,9 +261,12 @@ impl Checker {
             TraceConstraint::Trigger {
                 when,
                 then: TraceThen::Enable(f),
-            } if *f == facet => {
-                self.trigger_pending(ev, when, n.termination() != Termination::Alive)?
-            }
+            } if *f == facet => self.trigger_pending(
+                ev,
+                Some(n.number()),
+                when,
+                n.termination() != Termination::Alive,
+            )?,
             TraceConstraint::ExpandFirst if facet == Facet::Execution => {
                 return (n.state(Facet::Expansion) != State::Completed).then(|| {
                     let state = n.state(Facet::Expansion);
@@ -277,12 +292,16 @@ impl Checker {
     pub(super) fn trigger_pending(
         &self,
         ev: &TraceEvent,
+        node: Option<u64>,
         when: &TraceWhen,
         terminating: bool,
     ) -> Option<String> {
         match when {
-            TraceWhen::Now => None,
-            TraceWhen::At(_) | TraceWhen::External(_) if terminating => None,
+            TraceWhen::Now | TraceWhen::Changed(_) => None,
+            TraceWhen::At(_) | TraceWhen::External(_) | TraceWhen::Condition(_) if terminating => {
+                None
+            }
+            TraceWhen::Condition(cond) => self.condition_pending(node, cond),
             TraceWhen::At(at) => {
                 (ev.t < *at).then(|| format!("it is disabled until t={}", secs(*at)))
             }
@@ -397,6 +416,7 @@ impl Checker {
                     }
                 }
             }
+            TraceKind::StateSet { .. } => self.state_set(ev),
             TraceKind::External { name } => {
                 self.externals.insert(name.clone());
                 if let Some(targets) = self.external_watches.remove(name) {
@@ -407,6 +427,11 @@ impl Checker {
             }
             _ => {}
         }
+    }
+
+    /// A termination due now, made due by record `ev`.
+    pub(super) fn owe_now(&mut self, node: u64, ev: &TraceEvent) {
+        self.owe(node, ev.t, true, ev.seq);
     }
 
     fn fire_watch(&mut self, ev: &TraceEvent, w: &Watch) {

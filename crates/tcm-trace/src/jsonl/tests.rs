@@ -10,7 +10,7 @@ fn lines_serialise_flat_with_tags() {
     let t = small_run();
     assert_eq!(
         to_line(&t[0]),
-        r#"{"seq":0,"t":0,"ev":"run_started","version":6,"run":0}"#
+        r#"{"seq":0,"t":0,"ev":"run_started","version":7,"run":0}"#
     );
     assert_eq!(
         to_line(&t[1]),
@@ -81,6 +81,26 @@ fn round_trip_every_kind() {
     b.push(TraceKind::Warning {
         node: Some(2),
         message: "w".into(),
+    });
+    b.push(TraceKind::StateDeclared {
+        var: "battery".into(),
+        ty: tcm_expr::Type::Float,
+        value: tcm_expr::Value::Float(0.1 + 0.2),
+    });
+    b.push(TraceKind::StateSet {
+        var: "battery".into(),
+        value: tcm_expr::Value::Unknown,
+    });
+    b.push(TraceKind::Skipped { node: 1 });
+    b.push(TraceKind::Constrained {
+        node: 1,
+        constraint: crate::TraceConstraint::trigger(
+            crate::TraceWhen::Condition(tcm_expr::Expr::and(
+                tcm_expr::Expr::var("ok"),
+                tcm_expr::Expr::not(tcm_expr::Expr::var("fault")),
+            )),
+            crate::TraceThen::Pause,
+        ),
     });
     for kind in [
         TraceKind::Terminating { node: 1 },
@@ -190,7 +210,7 @@ fn errors_name_the_line_and_the_problem() {
     let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":9,\"run\":0}");
     assert_eq!(
         e,
-        "line 1: the trace has format version 9, but this reader reads versions 1 to 6"
+        "line 1: the trace has format version 9, but this reader reads versions 1 to 7"
     );
     assert!(matches!(
         read_jsonl(&b"\xff\n"[..]),

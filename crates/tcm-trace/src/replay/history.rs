@@ -42,8 +42,10 @@ pub const M_DEAD: usize = 13;
 pub const M_RESERVED: usize = 14;
 /// Index of the mark of the node's first failure.
 pub const M_FAILED: usize = 15;
+/// Index of the mark where the node was skipped.
+pub const M_SKIPPED: usize = 16;
 /// Marks per row.
-pub const MARKS: usize = 16;
+pub const MARKS: usize = 17;
 
 /// A node number further past the last one allocated than this is taken as a damaged trace: its
 /// history is not kept (each `reserved` or `spawned` record allocates one number).
@@ -243,6 +245,8 @@ pub(super) struct History {
     kept: bool,
     pub(super) rows: Vec<Row>,
     pub(super) externals: Vec<(Mark, String)>,
+    // Each state variable's values: its declaration, then every set, with when.
+    pub(super) states: Vec<(Mark, String, tcm_expr::Value)>,
     pub(super) exceptions: Vec<ExceptionStory>,
     pub(super) restrictions: Vec<Restriction>,
     // The rows the last record applied changed, by number, each once, in the order first changed.
@@ -285,6 +289,12 @@ impl Replay {
     /// Each external event raised, with when.
     pub fn externals(&self) -> &[(Mark, String)] {
         &self.history.externals
+    }
+
+    /// Every value of every state variable, in order: its declared value, then each set (also a
+    /// set to the value it had), with when.
+    pub fn state_values(&self) -> &[(Mark, String, tcm_expr::Value)] {
+        &self.history.states
     }
 
     /// Every exception raised, in order, each with what followed.
@@ -477,6 +487,10 @@ impl Replay {
                 });
             }
             K::External { name } => self.history.externals.push((at, name.clone())),
+            K::StateDeclared { var, value, .. } | K::StateSet { var, value } => {
+                self.history.states.push((at, var.clone(), value.clone()));
+            }
+            K::Skipped { node } => self.set(*node, M_SKIPPED, at),
             K::Activated {
                 monitor,
                 node,
