@@ -3,6 +3,7 @@
 //! tasks and hands each, once and in order, to the node's action (`remote.rs`), and fails the
 //! remote tasks of an agent whose token is deleted with [`AgentLost`](crate::AgentLost).
 
+use crate::noise::{Ignored, Noise, Noted};
 use crate::wire::{self, Json, Msg, ToAgent, ToExec};
 use crate::{Error, RemoteOptions, Stats};
 use std::collections::{BTreeMap, BTreeSet};
@@ -11,6 +12,7 @@ use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 use std::time::Duration;
 use tcm::{Ctx, Failure, NodeId, Task};
 use tokio::sync::{mpsc, watch};
+use tokio::time::Instant;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
@@ -18,6 +20,14 @@ use zenoh::sample::SampleKind;
 /// How many ended remote tasks the executive remembers, to tell a duplicate of their last message
 /// from a late one.
 const ENDED_KEPT: usize = 65_536;
+
+/// At most one warning per remote task per interval about the messages it ignores, in the log and
+/// the trace.
+const REPEAT_INTERVAL: Duration = Duration::from_secs(1);
+
+/// How many remote tasks the warnings follow one by one; past so many at once (forged messages
+/// name any task), the others share one line in the log, and none in the trace.
+const REPEAT_TASKS: usize = 256;
 
 /// A task the executive can run for a remote body's `spawn` ([`Executive::register`]).
 type Local = Arc<dyn Fn(Json) -> Result<Task, Failure> + Send + Sync>;
@@ -52,7 +62,6 @@ pub struct Placement {
     pub agent: String,
 }
 
-#[derive(Default)]
 struct State {
     live: BTreeSet<String>,
     // Task → the agents whose offer token is live (an agent's offers go when its token does).
@@ -66,21 +75,37 @@ struct State {
     closed: bool,
     publishers: BTreeMap<String, Arc<Publisher<'static>>>,
     stats: Stats,
+    // The ignored messages not reported yet, by remote task (`None`: the others, and the
+    // messages that do not read), and the context of each task's node for the report.
+    repeats: Noise<Option<u64>>,
+    repeat_ctx: BTreeMap<u64, Ctx>,
 }
 
-/// Logs a message ignored (`what`, of a `whose` task) and writes it to the trace as a warning
-/// on its node, through `ctx` (a run already over has no trace to write to).
-fn ignored(msg: &Msg<ToExec>, what: &str, whose: &str, ctx: Option<Ctx>) {
-    let text = format!(
+impl Default for State {
+    fn default() -> State {
+        State {
+            live: BTreeSet::new(),
+            offers: BTreeMap::new(),
+            pending: BTreeMap::new(),
+            ended: BTreeMap::new(),
+            placed: BTreeMap::new(),
+            closed: false,
+            publishers: BTreeMap::new(),
+            stats: Stats::default(),
+            repeats: Noise::new(None, REPEAT_TASKS, REPEAT_INTERVAL),
+            repeat_ctx: BTreeMap::new(),
+        }
+    }
+}
+
+/// The text of a message ignored (`what`, of a `whose` task).
+fn ignored_text(msg: &Msg<ToExec>, what: &str, whose: &str) -> String {
+    format!(
         "{what} {} of {whose} {} ignored ({})",
         msg.seq,
         msg.task,
         msg.body.name()
-    );
-    tracing::warn!(target: "tcm_zenoh", task = msg.task, seq = msg.seq, "{text}");
-    if let Some(ctx) = ctx {
-        let _ = ctx.warn(text);
-    }
+    )
 }
 
 impl State {
@@ -96,6 +121,8 @@ impl State {
 
 pub(crate) struct Inner {
     pub(crate) session: zenoh::Session,
+    // Where the reports of repeated warnings are written from.
+    rt: tokio::runtime::Handle,
     pub(crate) system: String,
     pub(crate) id: String,
     state: Mutex<State>,
@@ -183,10 +210,13 @@ impl Executive {
             return Err(Error::BadName(system.into()));
         }
         let id = session.zid().to_string();
+        let rt = tokio::runtime::Handle::try_current()
+            .map_err(|_| Error::Zenoh("an executive must open inside a tokio runtime".into()))?;
         let (outbox, mut outgoing) = mpsc::unbounded_channel::<(String, Msg<ToAgent>)>();
         let inner = Arc::new(Inner {
             keep: Mutex::new(None),
             session: session.clone(),
+            rt,
             system: system.into(),
             id: id.clone(),
             state: Mutex::new(State::default()),
@@ -387,15 +417,80 @@ impl Inner {
         self.locals.read().ok()?.get(name).cloned()
     }
 
+    /// A message was ignored: about remote task `task` (`None`: one that does not read), whose
+    /// node's context is `ctx` while its run lasts. Reported at once (in the log, and in the
+    /// trace as a warning on the node) if it is the first about the task in a while (`detail`
+    /// says what it was), else counted for one report when the interval ends.
+    fn ignored(
+        self: &Arc<Self>,
+        task: Option<u64>,
+        what: Ignored,
+        ctx: Option<Ctx>,
+        detail: impl FnOnce() -> String,
+    ) {
+        let (noted, key) = {
+            let mut s = self.lock();
+            let key = *s.repeats.counted_as(&task);
+            let noted = s.repeats.note(&key, what, Instant::now());
+            if let (Noted::Log(_), Some(t), Some(c)) = (&noted, key, &ctx) {
+                s.repeat_ctx.insert(t, c.clone());
+            }
+            (noted, key)
+        };
+        let Noted::Log(at) = noted else { return };
+        let text = detail();
+        tracing::warn!(target: "tcm_zenoh", task, "{text}");
+        if let (Some(_), Some(ctx)) = (key, ctx) {
+            let _ = ctx.warn(text);
+        }
+        let weak = Arc::downgrade(self);
+        self.rt.spawn(async move {
+            let mut at = at;
+            loop {
+                tokio::time::sleep_until(at).await;
+                let Some(me) = weak.upgrade() else { break };
+                let (flushed, ctx) = {
+                    let mut s = me.lock();
+                    let flushed = s.repeats.flush(&key, Instant::now());
+                    let ctx = key.and_then(|t| match flushed {
+                        Some(_) => s.repeat_ctx.get(&t).cloned(),
+                        None => s.repeat_ctx.remove(&t),
+                    });
+                    (flushed, ctx)
+                };
+                let Some((held, over, next)) = flushed else {
+                    break;
+                };
+                let text = match key {
+                    Some(t) => format!(
+                        "{held} message(s) of remote task {t} ignored in the last {} ms",
+                        over.as_millis()
+                    ),
+                    None => format!(
+                        "{held} message(s) of other remote tasks ignored in the last {} ms",
+                        over.as_millis()
+                    ),
+                };
+                tracing::warn!(target: "tcm_zenoh", task = key, "{text}");
+                if let Some(ctx) = ctx {
+                    let _ = ctx.warn(text);
+                }
+                at = next;
+            }
+        });
+    }
+
     /// A message arrived on the inbox: handed to its task's action once, in order (numbered one
     /// more than the task's last); duplicates, messages out of order and messages of ended tasks
-    /// are counted and dropped.
-    fn receive(&self, bytes: &[u8]) {
+    /// are counted and dropped, and reported without flooding ([`Inner::ignored`]).
+    fn receive(self: &Arc<Self>, bytes: &[u8]) {
         let msg: Msg<ToExec> = match serde_json::from_slice(bytes) {
             Ok(m) => m,
             Err(e) => {
                 self.lock().stats.malformed += 1;
-                tracing::warn!(target: "tcm_zenoh", "malformed message ignored: {e}");
+                self.ignored(None, Ignored::Malformed, None, || {
+                    format!("malformed message ignored: {e}")
+                });
                 return;
             }
         };
@@ -410,15 +505,23 @@ impl Inner {
                 s.stats.late += 1;
             }
             drop(s);
-            let what = if dup { "duplicate" } else { "late" };
-            ignored(&msg, &format!("{what} message"), "ended remote task", ctx);
+            let (what, kind) = if dup {
+                ("duplicate", Ignored::Duplicate)
+            } else {
+                ("late", Ignored::Late)
+            };
+            self.ignored(Some(msg.task), kind, ctx, || {
+                ignored_text(&msg, &format!("{what} message"), "ended remote task")
+            });
             return;
         };
         if msg.seq <= p.last_seq {
             let ctx = p.ctx.clone();
             s.stats.duplicates += 1;
             drop(s);
-            ignored(&msg, "duplicate message", "remote task", Some(ctx));
+            self.ignored(Some(msg.task), Ignored::Duplicate, Some(ctx), || {
+                ignored_text(&msg, "duplicate message", "remote task")
+            });
             return;
         }
         // Zenoh delivers one publisher's messages in order: the agent's next message is numbered
@@ -429,8 +532,10 @@ impl Inner {
             let expected = p.last_seq.saturating_add(1);
             s.stats.refused += 1;
             drop(s);
-            let what = format!("out-of-order message (expected {expected})");
-            ignored(&msg, &what, "remote task", Some(ctx));
+            self.ignored(Some(msg.task), Ignored::Refused, Some(ctx), || {
+                let what = format!("out-of-order message (expected {expected})");
+                ignored_text(&msg, &what, "remote task")
+            });
             return;
         }
         p.last_seq = msg.seq;

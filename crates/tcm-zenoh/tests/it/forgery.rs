@@ -194,13 +194,15 @@ async fn a_poisoned_sequence_number_cannot_make_the_executive_ignore_the_real_do
             "{report}"
         );
         assert_eq!(*value.lock().expect("value"), Some(json!("real")));
+        // The first refusal is a warning of its own; the second, about the same task within a
+        // second, is counted for one record when the second ends, after this short run.
         let warned = warnings(&trace);
         assert_eq!(
             warned
                 .iter()
                 .filter(|w| w.contains("out-of-order message"))
                 .count(),
-            2,
+            1,
             "{warned:?}"
         );
         let stats = net.exec.stats();

@@ -11,6 +11,7 @@ mod goals;
 mod python;
 mod reach;
 mod remote_command;
+mod repeats;
 mod suspension;
 mod tdl;
 mod termination;
