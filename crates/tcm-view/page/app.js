@@ -129,13 +129,15 @@ function computeRows() {
   const onlyAlive = $('alive').checked;
   const seq = S.cursor;
   const q = S.query.toLowerCase();
+  // Part of a name; with a `/`, part of a path (names from the root's child down, joined by `/`).
+  const byPath = q.includes('/');
   let keep = null;
   S.matches = [];
   if (q) {
     keep = new Set();
     for (const node of S.nodes) {
       if (!node || node.n === 0) continue;
-      if (node.name.toLowerCase().includes(q) || pathOf(node.n).toLowerCase().includes(q)) {
+      if ((byPath ? pathOf(node.n) : node.name).toLowerCase().includes(q)) {
         S.matches.push(node.n);
         let a = node, guard = 0;
         while (a && !keep.has(a.n) && guard++ < 10000) { keep.add(a.n); a = S.nodes[a.p]; }

@@ -2,7 +2,8 @@
 //! missing): a page opened before a live run's first record builds its rows from the live
 //! messages alone, and they are the rows the page reads from the snapshot when it opens the run
 //! again after its end; both look the same. On a run with monitors, served as a trace file is:
-//! a monitor's many activations fold into one row with their count, listed by a click.
+//! a monitor's many activations fold into one row with their count, listed by a click; search
+//! matches names, or paths when the query has a `/`.
 //! Screenshots go to `target/viewer/`.
 
 mod common;
@@ -218,6 +219,72 @@ fn a_monitors_many_activations_fold_into_one_row_with_their_count() -> anyhow::R
                 Duration::from_secs(5),
             )
             .await?;
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+/// Types `text` in the search box, and waits until the page says how many rows match.
+async fn search(b: &mut Browser, text: &str) -> anyhow::Result<String> {
+    let text = serde_json::to_string(text)?;
+    b.eval(&format!(
+        "(() => {{ const s = document.getElementById('search'); s.value = {text}; \
+         s.dispatchEvent(new Event('input')); }})()"
+    ))
+    .await?;
+    let said = b
+        .wait_for(
+            &format!(
+                "S.query === {text}.trim() && !S.dirty \
+                 && [document.getElementById('matches').textContent]"
+            ),
+            Duration::from_secs(5),
+        )
+        .await?;
+    Ok(said[0].as_str().unwrap_or_default().to_string())
+}
+
+#[test]
+fn search_matches_names_and_paths_when_asked() -> anyhow::Result<()> {
+    let (viewer, records) = serve_patrol()?;
+    let url = viewer.url();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = open_page(&url, records).await?;
+            // The top goal's name is in every path, but only its own row matches it.
+            ensure!(search(&mut b, "patrol").await? == "1 match");
+            let shown = rows(&mut b).await?;
+            ensure!(shown == ["patrol"], "rows shown: {shown:?}");
+
+            // A name shared by a monitor's activations: their group, listed.
+            ensure!(search(&mut b, "TICK").await? == "11 matches");
+            let shown = rows(&mut b).await?;
+            ensure!(
+                shown.len() == 13 && shown[..3] == ["patrol", "tick", "ACT-tick ×10"],
+                "rows shown: {shown:?}"
+            );
+
+            // With a `/`, paths: what is under `patrol` whose name starts with `dr`, and the
+            // child of `fetch`.
+            ensure!(search(&mut b, "patrol/dr").await? == "1 match");
+            ensure!(rows(&mut b).await? == ["patrol", "drive"]);
+            ensure!(search(&mut b, "fetch/").await? == "1 match");
+            ensure!(rows(&mut b).await? == ["patrol", "fetch", "probe"]);
+            // Enter goes to the match and selects it.
+            b.eval("document.getElementById('search').dispatchEvent(new KeyboardEvent('keydown', { key: 'Enter' }))")
+                .await?;
+            b.wait_for(
+                "(() => { const r = document.querySelector('#tree .row.sel .name'); return r && r.textContent === 'probe'; })()",
+                Duration::from_secs(5),
+            )
+            .await?;
+
+            // Cleared, every row is back.
+            ensure!(search(&mut b, "").await?.is_empty());
+            ensure!(rows(&mut b).await?.len() == 10);
             anyhow::Ok(())
         })?;
     viewer.stop();
