@@ -9,7 +9,7 @@
 //! a node at a cursor `s` is then the last point of each facet whose mark is at most `s`: the page
 //! scrubs through a run without replaying it. Marks are in `docs/viewer.md`, "Snapshot".
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
 use serde::Serialize;
 use tcm_trace::{Facet, NodeKind, Point, Replay, TraceEvent, TraceKind};
@@ -88,6 +88,11 @@ pub struct RunModel {
     replay: Replay,
     /// `(seq, t)` at each record whose time differs from the record before's.
     times: Vec<(u64, u64)>,
+    /// Per monitor, `(seq, activations, triggers)` at each record that changed its counts in the
+    /// fold's row: the counts at a cursor (the row has the latest).
+    counts: HashMap<u64, Vec<(u64, u32, u32)>>,
+    /// Per node placed on an agent, `(seq, agent)` at each record that changed it in its row.
+    placed: HashMap<u64, Vec<(u64, String)>>,
     /// The first thing that stopped the reading, if any; everything before it is shown.
     pub problem: Option<Problem>,
     /// Whether the run ended (a file read to its end; a live run whose sinks were flushed).
@@ -104,6 +109,8 @@ impl RunModel {
             index: Vec::new(),
             replay: Replay::with_history(),
             times: Vec::new(),
+            counts: HashMap::new(),
+            placed: HashMap::new(),
             problem: None,
             finished: false,
         }
@@ -240,9 +247,53 @@ impl RunModel {
         // A record the fold refuses (a malformed trace) is kept for the event list; the trace
         // checker is the tool that says what is wrong with it.
         let _ = self.replay.apply(ev);
+        self.keep_changes(ev.seq);
         self.index.push((ev.t, ev.kind.node()));
         self.lines.push(line);
         Ok(())
+    }
+
+    /// Notes when the rows record `seq` changed got their counts and agent, which their rows hold
+    /// only as of the last record.
+    fn keep_changes(&mut self, seq: u64) {
+        for &n in self.replay.changed_rows() {
+            let Some(row) = self.replay.row(n) else {
+                continue;
+            };
+            if row.kind == Some(NodeKind::Monitor) {
+                let list = self.counts.entry(n).or_default();
+                let now = (row.activations, row.triggers);
+                if list.last().map_or((0, 0), |&(_, a, t)| (a, t)) != now {
+                    list.push((seq, now.0, now.1));
+                }
+            }
+            if let Some(agent) = &row.agent {
+                let list = self.placed.entry(n).or_default();
+                if list.last().map(|(_, a)| a) != Some(agent) {
+                    list.push((seq, agent.clone()));
+                }
+            }
+        }
+    }
+
+    /// A monitor's activations and triggers after record `seq`.
+    pub fn counts_at(&self, n: u64, seq: u64) -> (u32, u32) {
+        let Some(list) = self.counts.get(&n) else {
+            return (0, 0);
+        };
+        match list.partition_point(|&(s, _, _)| s <= seq) {
+            0 => (0, 0),
+            i => (list[i - 1].1, list[i - 1].2),
+        }
+    }
+
+    /// The agent node `n` runs on after record `seq`, if it was placed on one by then.
+    pub fn agent_at(&self, n: u64, seq: u64) -> Option<&str> {
+        let list = self.placed.get(&n)?;
+        match list.partition_point(|&(s, _)| s <= seq) {
+            0 => None,
+            i => Some(list[i - 1].1.as_str()),
+        }
     }
 
     /// Number of records.

@@ -8,8 +8,8 @@ use serde::Serialize;
 use tcm_trace::{Facet, Outcome, Point, TraceConstraint, TraceEventRef, TraceThen, TraceWhen};
 
 use crate::model::{
-    M_DEAD, M_RECLAIMED, M_SPAWNED, M_TERMINATED, M_TERMINATING, Mark, Row, RunModel, kind_str,
-    m_point,
+    M_DEAD, M_RECLAIMED, M_RESERVED, M_SPAWNED, M_TERMINATED, M_TERMINATING, Mark, Row, RunModel,
+    kind_str, m_point,
 };
 
 /// What the page shows of a node at a moment.
@@ -43,7 +43,7 @@ pub struct NodeView {
     pub ran_ns: Option<u64>,
     /// The wait between enabled and active, ns.
     pub queued_ns: Option<u64>,
-    /// A monitor's activations and triggers.
+    /// A monitor's activations and triggers at that moment.
     pub activations: u32,
     /// See `activations`.
     pub triggers_count: u32,
@@ -51,9 +51,9 @@ pub struct NodeView {
     pub handles: Option<(u64, String)>,
     /// For a retry: the node it runs again.
     pub retry_of: Option<u64>,
-    /// The agent its action runs on, if it was placed on one.
+    /// The agent its action runs on, if it was placed on one by that moment.
     pub agent: Option<String>,
-    /// Children, by number.
+    /// Children reserved or spawned by that moment, by number.
     pub children: Vec<u64>,
 }
 
@@ -167,6 +167,17 @@ impl RunModel {
         let queued_ns = enabled
             .filter(|e| e.seq <= seq)
             .map(|e| active.filter(|a| a.seq <= seq).map_or(at.t, |a| a.t) - e.t);
+        let (activations, triggers_count) = self.counts_at(n, seq);
+        let spawned = row.reached(M_SPAWNED, seq);
+        let children = row
+            .children
+            .iter()
+            .copied()
+            .filter(|&c| {
+                self.node(c)
+                    .is_some_and(|c| c.reached(M_SPAWNED, seq) || c.reached(M_RESERVED, seq))
+            })
+            .collect();
         Some(NodeView {
             node: n,
             name: row.name.clone(),
@@ -187,12 +198,12 @@ impl RunModel {
                 .collect(),
             ran_ns,
             queued_ns,
-            activations: row.activations,
-            triggers_count: row.triggers,
-            handles: row.handles.clone(),
-            retry_of: row.retry_of,
-            agent: row.agent.clone(),
-            children: row.children.clone(),
+            activations,
+            triggers_count,
+            handles: row.handles.clone().filter(|_| spawned),
+            retry_of: row.retry_of.filter(|_| spawned),
+            agent: self.agent_at(n, seq).map(str::to_string),
+            children,
         })
     }
 
@@ -349,7 +360,9 @@ impl RunModel {
                         when,
                         then: TraceThen::Enable(target),
                     } if *target == facet => {
-                        if let Some(w) = self.unmet(when, *applied, at, f) {
+                        let text =
+                            || c.text(|n| self.node(n).map_or(String::new(), |r| r.name.clone()));
+                        if let Some(w) = self.unmet(when, *applied, at, f, &text) {
                             out.push(w);
                         }
                     }
@@ -461,13 +474,14 @@ impl RunModel {
         None
     }
 
-    /// The wait a `when` still imposes at `at`, if it is not met.
+    /// The wait a `when` still imposes at `at`, if it is not met; `text` tells its constraint.
     fn unmet(
         &self,
         when: &TraceWhen,
         applied: Mark,
         at: Mark,
         facet: &'static str,
+        text: &dyn Fn() -> String,
     ) -> Option<Wait> {
         let wait = |what: String, event, time, external| Wait {
             facet,
@@ -523,20 +537,6 @@ impl RunModel {
                     })
                 }
             },
-            TraceWhen::External(name) => {
-                let raised = self
-                    .externals()
-                    .iter()
-                    .any(|(m, n)| n == name && m.seq <= at.seq);
-                (!raised).then(|| {
-                    wait(
-                        format!("the external event `{name}` (not raised yet)"),
-                        None,
-                        None,
-                        Some(name.clone()),
-                    )
-                })
-            }
             TraceWhen::All { events, delay_ns } => {
                 let missing: Vec<&TraceEventRef> = events
                     .iter()
@@ -554,38 +554,46 @@ impl RunModel {
                 }
                 Some(wait(what, Some(self.event_view(first)), None, None))
             }
+            // An external event; or what the viewer does not evaluate (a condition over state,
+            // which the fold does not track), held to be unmet while the facet it enables waits.
+            other => {
+                let TraceWhen::External(name) = other else {
+                    return Some(wait(format!("{} (not yet)", text()), None, None, None));
+                };
+                let raised = self
+                    .externals()
+                    .iter()
+                    .any(|(m, n)| n == name && m.seq <= at.seq);
+                (!raised).then(|| {
+                    wait(
+                        format!("the external event `{name}` (not raised yet)"),
+                        None,
+                        None,
+                        Some(name.clone()),
+                    )
+                })
+            }
         }
     }
 
+    /// The triggers applied to the node by `at` other than those enabling a facet (terminate,
+    /// activate, …), as TDL writes them, each with whether it is still pending.
     fn triggers(&self, row: &Row, at: Mark) -> Vec<String> {
         let mut out = Vec::new();
         for (applied, c) in row.constraints.iter().filter(|(m, _)| m.seq <= at.seq) {
             let TraceConstraint::Trigger { when, then } = c else {
                 continue;
             };
-            let verb = match then {
-                TraceThen::Terminate => "terminate",
-                TraceThen::Activate => "activate",
-                TraceThen::Enable(_) => continue,
-            };
-            let text = match when {
-                TraceWhen::Now => "now".to_string(),
-                TraceWhen::At(t) => format!("at {}", secs(*t)),
-                TraceWhen::Event(e) => format!("at {}", self.event_text(e)),
-                TraceWhen::After { delay_ns, event } => {
-                    format!("{} after {}", secs(*delay_ns), self.event_text(event))
-                }
-                TraceWhen::External(n) => format!("on the external event `{n}`"),
-                TraceWhen::All { events, .. } => {
-                    format!("when all {} members of a group got there", events.len())
-                }
-            };
-            let state = if self.unmet(when, *applied, at, "").is_none() {
+            if matches!(then, TraceThen::Enable(_)) {
+                continue;
+            }
+            let text = || c.text(|n| self.node(n).map_or(String::new(), |r| r.name.clone()));
+            let state = if self.unmet(when, *applied, at, "", &text).is_none() {
                 "due or done"
             } else {
                 "pending"
             };
-            out.push(format!("{verb} {text} ({state})"));
+            out.push(format!("{} ({state})", text()));
         }
         out
     }

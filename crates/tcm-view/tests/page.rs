@@ -3,7 +3,7 @@
 //! messages alone, and they are the rows the page reads from the snapshot when it opens the run
 //! again after its end; both look the same. On a run with monitors, served as a trace file is:
 //! a monitor's many activations fold into one row with their count, listed by a click; search
-//! matches names, or paths when the query has a `/`.
+//! matches names, or paths when the query has a `/`; a node's details are those at the cursor.
 //! Screenshots go to `target/viewer/`.
 
 mod common;
@@ -285,6 +285,58 @@ fn search_matches_names_and_paths_when_asked() -> anyhow::Result<()> {
             // Cleared, every row is back.
             ensure!(search(&mut b, "").await?.is_empty());
             ensure!(rows(&mut b).await?.len() == 10);
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+/// The Node tab's value for `key`, once shown.
+fn detail(key: &str) -> String {
+    format!(
+        "(() => {{ const d = [...document.querySelectorAll('#tab-node dt')].find((d) => d.textContent === '{key}'); \
+         return d ? d.nextElementSibling.textContent : null; }})()"
+    )
+}
+
+#[test]
+fn a_nodes_details_are_those_at_the_cursor() -> anyhow::Result<()> {
+    let (viewer, records) = serve_patrol()?;
+    let url = viewer.url();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = open_page(&url, records).await?;
+            // The cursor at `watch`'s first activation (the record after its node's spawn).
+            let first = b
+                .eval("S.nodes.find((n) => n && n.name === 'ACT-watch').m[0] + 1")
+                .await?;
+            let first = first
+                .as_u64()
+                .ok_or_else(|| anyhow::anyhow!("no activation"))?;
+            b.eval(&set_cursor(first)).await?;
+            let watch = "#tree .row:not([hidden])[data-n=\"2\"] .name";
+            ensure!(
+                b.eval(&format!("document.querySelector('{watch}').textContent"))
+                    .await?
+                    == "watch"
+            );
+            b.click(watch).await?;
+            let at_first = format!("{0} === '1 · 0' && {0}", detail("activations · triggers"));
+            b.wait_for(&at_first, Duration::from_secs(5)).await?;
+            ensure!(b.eval(&detail("children")).await? == "1");
+            b.screenshot(&shots().join("patrol-first-activation.png"))
+                .await?;
+
+            // At the end, all three.
+            b.eval(&set_cursor(1_000_000)).await?;
+            let at_end = format!(
+                "{0}.startsWith('3 · ') && {0}",
+                detail("activations · triggers")
+            );
+            b.wait_for(&at_end, Duration::from_secs(5)).await?;
+            ensure!(b.eval(&detail("children")).await? == "3");
             anyhow::Ok(())
         })?;
     viewer.stop();

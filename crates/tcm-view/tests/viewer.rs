@@ -1,6 +1,7 @@
 //! The viewer's model and server on real runs (tcm on tokio's paused clock, every trace through
 //! the checker): why a node waits and when it stops waiting, an exception's story, counts and
-//! durations, the event filter, bad files named by line with what came before kept; and the
+//! durations, the event filter, bad files named by line with what came before kept, a node's
+//! details at the cursor (a monitor's activations and triggers, children, agent); and the
 //! server: the snapshot, each live record with the rows it changed over a WebSocket (the rows a
 //! page builds from them being the snapshot's), and a page that falls behind being sent a fresh
 //! snapshot instead of slowing the run.
@@ -15,7 +16,7 @@ use std::time::Duration;
 use futures_util::StreamExt;
 use tcm::testing::run_checked;
 use tcm::{Facet, Runtime, Task, TraceSink};
-use tcm_trace::TraceEvent;
+use tcm_trace::{TraceEvent, TraceKind};
 use tcm_view::{EventFilter, RunModel, Viewer, m_point};
 use tokio_tungstenite::tungstenite::Message;
 
@@ -198,6 +199,13 @@ async fn a_node_placed_on_an_agent_shows_the_agent() {
     assert_eq!(row(look).agent, None);
     let v = m.node_view(grasp, m.seq_at(1_000_000_000)).expect("grasp");
     assert_eq!(v.agent.as_deref(), Some("arm"));
+    // Not before it was placed.
+    let placed = trace
+        .iter()
+        .find(|e| matches!(e.kind, TraceKind::Placed { .. }))
+        .expect("a placed record");
+    let v = m.node_view(grasp, placed.seq - 1).expect("grasp");
+    assert_eq!(v.agent, None);
     let snapshot: serde_json::Value =
         serde_json::from_str(&tcm_view::snapshot_json(0, &m)).expect("the snapshot is JSON");
     let nodes = snapshot["nodes"].as_array().expect("nodes");
@@ -211,6 +219,43 @@ async fn a_node_placed_on_an_agent_shows_the_agent() {
     assert_eq!(entry(grasp).len(), 4 + tcm_view::MARKS + 1);
     assert_eq!(entry(grasp)[4 + tcm_view::MARKS], "arm");
     assert_eq!(entry(look).len(), 4 + tcm_view::MARKS);
+}
+
+/// A node's details are those at the cursor, not at the end of the run: a monitor's activations,
+/// triggers and children, a node's agent.
+#[tokio::test(start_paused = true)]
+async fn a_nodes_details_are_those_at_the_cursor() {
+    let trace = common::patrol().await;
+    let m = model_of(&trace);
+    let watch = number(&m, "watch");
+    let seq_of = |what: &dyn Fn(&TraceKind) -> bool, nth: usize| {
+        trace
+            .iter()
+            .filter(|e| what(&e.kind))
+            .nth(nth)
+            .map(|e| e.seq)
+            .expect("such a record")
+    };
+    let activated =
+        |k: &TraceKind| matches!(k, TraceKind::Activated { monitor, .. } if *monitor == watch);
+    let triggered =
+        |k: &TraceKind| matches!(k, TraceKind::Triggered { monitor, .. } if *monitor == watch);
+    let details = |seq: u64| {
+        let v = m.node_view(watch, seq).expect("watch");
+        (v.activations, v.triggers_count, v.children.len())
+    };
+    let first = seq_of(&activated, 0);
+    assert_eq!(details(first - 2), (0, 0, 0), "before its first activation");
+    // Its first activation is spawned just before the record saying so.
+    assert_eq!(details(first - 1), (0, 0, 1));
+    assert_eq!(details(first), (1, 0, 1));
+    assert_eq!(details(seq_of(&triggered, 0)), (1, 1, 1));
+    assert_eq!(details(seq_of(&activated, 1)), (2, 1, 2));
+    // At the end, the fold's row (the last activation came as the monitor completed, whose
+    // trigger may count no more).
+    let row = m.node(watch).expect("watch");
+    assert!(row.triggers >= 2);
+    assert_eq!(details(u64::MAX), (3, row.triggers, 3));
 }
 
 /// An activation's row names its monitor after the agent's place (`null` when it runs here), so

@@ -1,7 +1,8 @@
 //! The runs both viewer test binaries read, on tokio's paused clock, checked. `mission` runs
 //! `drive` (5 s), then `park` (1 s, serial on `drive`), beside `honk` (2 s) which fails with
 //! `Jammed`, handled by `shrug`; with `grasp`, also `grasp` (3 s), placed on the agent `arm`.
-//! `patrol` has monitors: `watch` (3 activations, one a second) and `tick` (10, two a second),
+//! `patrol` has monitors: `watch` (3 activations, one a second, each a trigger) and `tick` (10,
+//! two a second),
 //! beside `drive` (6 s) and `fetch`, whose body waits for the value of `probe`, which fails with
 //! `Broken` after 1 s: `fetch` takes the failure and fails with it.
 
@@ -58,9 +59,14 @@ pub(crate) async fn patrol() -> Vec<TraceEvent> {
         ..Monitor::default()
     };
     let task = Task::goal("patrol", move |ctx| async move {
-        ctx.spawn(Task::monitor("watch", every(secs(1), 3), |_| async {
-            Ok::<(), Failure>(())
-        }))
+        ctx.spawn(Task::monitor(
+            "watch",
+            every(secs(1), 3),
+            |ctx| async move {
+                ctx.trigger()?;
+                Ok::<(), Failure>(())
+            },
+        ))
         .start()?;
         ctx.spawn(Task::monitor(
             "tick",
