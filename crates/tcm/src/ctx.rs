@@ -554,7 +554,7 @@ impl Ctx {
         args.downcast::<A>().ok()
     }
 
-    fn with_engine<T>(
+    pub(crate) fn with_engine<T>(
         &self,
         f: impl FnOnce(
             &mut tcm_core::Engine<Action, Factory>,

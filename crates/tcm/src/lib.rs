@@ -41,6 +41,7 @@ mod resource;
 mod runtime;
 mod session;
 mod sink;
+mod state;
 mod task;
 pub mod testing;
 mod timer;
@@ -53,6 +54,9 @@ pub use resource::{Resource, ResourceDenied, ResourceDropped, ResourceRef};
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};
 pub use session::Session;
 pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink, TracingSink};
+pub use state::{
+    BinOp, CondId, Expr, FromState, InvariantFailed, StateId, StateType, StateValue, StateVar,
+};
 pub use task::{
     Action, ActionFuture, Attached, Exception, Factory, Handler, Monitor, Task, Value, factory,
 };

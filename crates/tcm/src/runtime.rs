@@ -165,6 +165,20 @@ impl EventHandle {
         s.engine.handle_external(now, id);
         Ok(())
     }
+
+    /// Sets the state variable `name` (declared by the program or the runtime; an undeclared one
+    /// is declared with the value's type): an input to the engine, recorded with its value
+    /// (docs/semantics.md, "State and conditions").
+    pub fn set_state(&self, name: &str, value: impl Into<crate::StateValue>) -> Result<(), Error> {
+        let mut s = self.shared.enter()?;
+        let now = self.shared.now();
+        Ok(crate::state::set_by_name(
+            &mut s.engine,
+            now,
+            name,
+            value.into(),
+        )?)
+    }
 }
 
 impl Clone for EventHandle {
@@ -274,6 +288,19 @@ impl Runtime {
     /// their `uses`. A name declared twice, or a capacity of 0, is an error when the run starts.
     pub fn resource(self, name: impl Into<tcm_core::Name>, capacity: u32) -> Runtime {
         self.declare(crate::Resource::new(name, capacity))
+    }
+
+    /// Declares a state variable before the run starts (the program's own declaration of it, if
+    /// any, must agree on the type; the value set here is kept).
+    pub fn state(mut self, var: crate::StateVar) -> Runtime {
+        if self.setup.is_none() {
+            let declared = match self.shared.inner.lock() {
+                Ok(mut inner) => var.declare(&mut inner.engine).map(|_| ()),
+                Err(_) => Ok(()),
+            };
+            self.setup = declared.err().map(Into::into);
+        }
+        self
     }
 
     /// Declares a resource with its options ([`crate::Resource::pending_limit`]), as

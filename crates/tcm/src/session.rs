@@ -171,6 +171,17 @@ impl Session {
         self.ctx.raise(name)
     }
 
+    /// Sets the state variable `name` (see [`crate::EventHandle::set_state`]).
+    pub fn set_state(&self, name: &str, value: impl Into<crate::StateValue>) -> Result<(), Error> {
+        self.ctx
+            .with_engine(|e, now| crate::state::set_by_name(e, now, name, value.into()))
+    }
+
+    /// The value of the state variable `name`, if it is declared.
+    pub fn state(&self, name: &str) -> Result<Option<crate::StateValue>, Error> {
+        self.ctx.state(name)
+    }
+
     /// Applies a constraint to an existing node (see [`Ctx::constrain`]).
     pub fn constrain(&self, node: NodeId, c: Constraint) -> Result<(), Error> {
         self.ctx.constrain(node, c)

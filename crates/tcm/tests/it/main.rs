@@ -19,5 +19,6 @@ mod paper;
 mod resources;
 mod runtime;
 mod session;
+mod state;
 mod stuck;
 mod util;
