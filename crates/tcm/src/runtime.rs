@@ -298,7 +298,7 @@ impl Runtime {
                 Ok(mut inner) => var.declare(&mut inner.engine).map(|_| ()),
                 Err(_) => Ok(()),
             };
-            self.setup = declared.err().map(Into::into);
+            self.setup = declared.err();
         }
         self
     }
