@@ -524,6 +524,7 @@ async function showExceptions() {
     el('ol', { class: 'steps' }, ...(x.steps.length ? x.steps : [{ what: 'pending', detail: 'no handler chosen yet', node: null, at: x.at }]).map((s) => el('li', {},
       ...(s.what === 'chosen' ? [secs(s.at.t) + ' handler ', el('b', {}, s.detail), ' chosen, run as ', nodeLink(s.node)]
         : s.what === 'retried' ? [secs(s.at.t) + ' retried as ', nodeLink(s.node)]
+        : s.what === 'taken' ? [secs(s.at.t) + ' taken by its parent ', nodeLink(s.node), ', which ' + s.detail]
         : [secs(s.at.t) + ' ' + s.what + ' ', s.node !== null ? nodeLink(s.node) : '', s.detail ? ' ' + s.detail : ''])))))));
 }
 

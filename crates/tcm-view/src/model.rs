@@ -369,9 +369,63 @@ impl RunModel {
         self.replay.externals()
     }
 
-    /// Every exception raised, in order, each with what followed.
+    /// Every exception raised, in order, each with what followed, as the fold has them.
     pub fn exceptions(&self) -> &[ExceptionStory] {
         self.replay.exceptions()
+    }
+
+    /// The exceptions as the page tells them: the fold's stories, and for a failure that no
+    /// handler took and that was not reported unhandled, a `taken` step naming the parent that
+    /// took it (docs/semantics.md, "Waited values" and "Failing the parent"): one whose body
+    /// waited for its value, or one it fails (`with propagate`), fails with the same exception
+    /// (`detail`: `failed with it`); one that waited for how it ended, or caught the failure in
+    /// its code, goes on (`waited for it and did not fail with it`). For a retry, the parent of
+    /// its first run takes it.
+    pub fn stories(&self) -> Vec<ExceptionStory> {
+        let all = self.exceptions();
+        let mut out = all.to_vec();
+        for (i, story) in out.iter_mut().enumerate() {
+            if !story.steps.is_empty() {
+                continue;
+            }
+            let Some(taker) = self.taker(story.node).filter(|&p| p != 0) else {
+                continue;
+            };
+            let failed = all[i + 1..].iter().find(|later| {
+                later.node == taker
+                    && later.exception == story.exception
+                    && later.message == story.message
+            });
+            let ended = self
+                .node(story.node)
+                .and_then(|r| r.marks[m_point(Facet::Handling, Point::Completed)]);
+            let (detail, at) = match (failed, ended) {
+                (Some(later), _) => ("failed with it", later.at),
+                (None, Some(at)) => ("waited for it and did not fail with it", at),
+                (None, None) => continue,
+            };
+            story.steps.push(Step {
+                what: "taken",
+                node: Some(taker),
+                detail: detail.to_string(),
+                at,
+                attached: None,
+            });
+        }
+        out
+    }
+
+    /// The node that takes the failure of `n` when its search stops at it: the parent of its
+    /// first run (a retry's failure is its task's).
+    fn taker(&self, n: u64) -> Option<u64> {
+        let mut first = self.node(n)?;
+        for _ in 0..self.rows().len() {
+            match first.retry_of.and_then(|r| self.node(r)) {
+                Some(earlier) => first = earlier,
+                None => break,
+            }
+        }
+        first.parent
     }
 
     /// The `(seq, t)` table of time changes.

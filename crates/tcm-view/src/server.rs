@@ -488,7 +488,7 @@ async fn node(
 
 async fn exceptions(State(shared): State<Arc<Shared>>, Path(id): Path<usize>) -> Response {
     match shared.run(id) {
-        Some(run) => json(serde_json::to_string(run.lock().exceptions()).unwrap_or_default()),
+        Some(run) => json(serde_json::to_string(&run.lock().stories()).unwrap_or_default()),
         None => no_run(id),
     }
 }

@@ -3,7 +3,8 @@
 //! messages alone, and they are the rows the page reads from the snapshot when it opens the run
 //! again after its end; both look the same. On a run with monitors, served as a trace file is:
 //! a monitor's many activations fold into one row with their count, listed by a click; search
-//! matches names, or paths when the query has a `/`; a node's details are those at the cursor.
+//! matches names, or paths when the query has a `/`; a node's details are those at the cursor;
+//! the Exceptions tab tells a failure a waiting parent took as taken by it.
 //! Screenshots go to `target/viewer/`.
 
 mod common;
@@ -337,6 +338,49 @@ fn a_nodes_details_are_those_at_the_cursor() -> anyhow::Result<()> {
             );
             b.wait_for(&at_end, Duration::from_secs(5)).await?;
             ensure!(b.eval(&detail("children")).await? == "3");
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+#[test]
+fn the_exceptions_tab_tells_a_failure_a_waiting_parent_took() -> anyhow::Result<()> {
+    let (viewer, records) = serve_patrol()?;
+    let url = viewer.url();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = open_page(&url, records).await?;
+            b.click("#tabs [data-tab=exceptions]").await?;
+            let told = b
+                .wait_for(
+                    "(() => { const e = [...document.querySelectorAll('#tab-exceptions .exc')]; \
+                     return e.length === 2 ? e.map((x) => x.textContent) : null; })()",
+                    Duration::from_secs(10),
+                )
+                .await?;
+            b.screenshot(&shots().join("patrol-exceptions.png")).await?;
+            let probe = told[0].as_str().unwrap_or_default();
+            ensure!(
+                probe.contains("raised by patrol/fetch/probe")
+                    && probe.contains("taken by its parent fetch {5}, which failed with it")
+                    && !probe.contains("pending"),
+                "probe's story: {probe}"
+            );
+            let fetch = told[1].as_str().unwrap_or_default();
+            ensure!(
+                fetch.contains("raised by patrol/fetch {5}") && fetch.contains("unhandled"),
+                "fetch's story: {fetch}"
+            );
+            // The parent's link selects it.
+            b.click("#tab-exceptions .exc .steps a.node").await?;
+            b.wait_for(
+                "(() => { const r = document.querySelector('#tree .row.sel .name'); return r && r.textContent === 'fetch'; })()",
+                Duration::from_secs(5),
+            )
+            .await?;
             anyhow::Ok(())
         })?;
     viewer.stop();

@@ -221,6 +221,58 @@ async fn a_node_placed_on_an_agent_shows_the_agent() {
     assert_eq!(entry(look).len(), 4 + tcm_view::MARKS);
 }
 
+/// A failure that a waiting parent took is told as taken by that parent, not as pending: the
+/// parent that waited for its value fails with it; one that waited for how it ended goes on.
+#[tokio::test(start_paused = true)]
+async fn a_failure_a_waiting_parent_took_is_told_as_taken_by_it() {
+    let m = model_of(&common::patrol().await);
+    let (probe, fetch) = (number(&m, "probe"), number(&m, "fetch"));
+    let steps = |m: &RunModel, n: u64| -> Vec<(&'static str, Option<u64>, String)> {
+        let stories = m.stories();
+        let story = stories.iter().find(|s| s.node == n).expect("a story");
+        story
+            .steps
+            .iter()
+            .map(|s| (s.what, s.node, s.detail.clone()))
+            .collect()
+    };
+    assert_eq!(
+        steps(&m, probe),
+        [("taken", Some(fetch), "failed with it".to_string())]
+    );
+    // The fold's own story of it has no step: the viewer tells what the records imply.
+    let fold = m
+        .exceptions()
+        .iter()
+        .find(|s| s.node == probe)
+        .expect("a story");
+    assert!(fold.steps.is_empty());
+    // `fetch`'s own failure is searched for from it: no handler, so unhandled.
+    assert_eq!(steps(&m, fetch)[0].0, "unhandled");
+
+    let task = Task::goal("mission", |ctx| async move {
+        let ended = ctx
+            .spawn(Task::command("probe", |_| async {
+                Err::<u32, _>(tcm::Failure::new("Broken", "the probe broke"))
+            }))
+            .wait_outcome::<u32>()
+            .await?;
+        assert!(matches!(ended, tcm::Ended::Failed(_)));
+        Ok(())
+    });
+    let m = model_of(&run_checked(Runtime::new(), task).await.1);
+    let (probe, mission) = (number(&m, "probe"), number(&m, "mission"));
+    assert_eq!(
+        steps(&m, probe),
+        [(
+            "taken",
+            Some(mission),
+            "waited for it and did not fail with it".to_string()
+        )]
+    );
+    assert_eq!(m.stories().len(), 1);
+}
+
 /// A node's details are those at the cursor, not at the end of the run: a monitor's activations,
 /// triggers and children, a node's agent.
 #[tokio::test(start_paused = true)]
