@@ -251,11 +251,11 @@ fn documented_examples_are_exact() {
             thens.insert(key(&value["constraint"]["then"]));
         }
     }
-    assert_eq!(kinds.len(), 36, "{kinds:?}");
+    assert_eq!(kinds.len(), 39, "{kinds:?}");
     assert_eq!(forms.len(), 3, "{forms:?}");
     // Every kind of "when" with every kind of "then" is shown (the empty string is not a trigger).
-    assert_eq!(whens.len(), 6, "{whens:?}");
-    assert_eq!(thens.len(), 4, "{thens:?}");
+    assert_eq!(whens.len(), 8, "{whens:?}");
+    assert_eq!(thens.len(), 7, "{thens:?}");
 }
 
 #[test]
