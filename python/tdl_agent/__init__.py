@@ -170,6 +170,8 @@ class AgentStats:
     malformed: int = 0
     #: Starts refused because a bound was reached (the node fails with ``RemoteRefused``).
     over_limit: int = 0
+    #: Starts refused because the executive the key names is not live: not answered.
+    strangers: int = 0
 
 
 @dataclass
@@ -453,7 +455,7 @@ class Agent:
         ):
             p = _Outlet(
                 self._session.declare_publisher(
-                    wire.executive_inbox(self.system, executive),
+                    wire.executive_inbox(self.system, executive, self.name),
                     congestion_control=zenoh.CongestionControl.BLOCK,
                 )
             )
@@ -502,7 +504,7 @@ class Agent:
                 p.put(data)
             elif self._session is not None:
                 self._session.put(
-                    wire.executive_inbox(self.system, key[0]),
+                    wire.executive_inbox(self.system, key[0], self.name),
                     data,
                     congestion_control=zenoh.CongestionControl.BLOCK,
                 )
@@ -569,6 +571,14 @@ class Agent:
         if key in self._running or key in self._ended:
             self.stats.duplicates += 1
             log.warning("agent %s: duplicate start of task %d ignored", self.name, key[1])
+            return
+        if key[0] not in self._live:
+            # Only a live executive of the system starts tasks; nobody would read an answer.
+            self.stats.strangers += 1
+            log.warning(
+                "agent %s: start %d of task %d refused: no executive %s is live",
+                self.name, seq, key[1], key[0],
+            )
             return
         if seq != 1:
             # A task's first message is its start, number 1.

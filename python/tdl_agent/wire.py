@@ -52,9 +52,10 @@ def agent_inboxes(system: str, agent: str) -> str:
     return f"tdl/{system}/to-agent/{agent}/*"
 
 
-def executive_inbox(system: str, executive: str) -> str:
-    """Where executive ``executive`` receives the messages of agents."""
-    return f"tdl/{system}/to-exec/{executive}"
+def executive_inbox(system: str, executive: str, agent: str) -> str:
+    """Where executive ``executive`` receives the messages of agent ``agent``: the key names the
+    sender, and the executive accepts a task's messages only from the agent it placed it on."""
+    return f"tdl/{system}/to-exec/{executive}/{agent}"
 
 
 #: The kinds of message an executive sends to an agent.

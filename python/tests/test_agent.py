@@ -97,7 +97,7 @@ class Encoding(unittest.TestCase):
         self.assertEqual(wire.agent_token("robot", "voice"), "tdl/robot/agents/voice")
         self.assertEqual(wire.offer_token("robot", "speak", "voice"), "tdl/robot/offers/speak/voice")
         self.assertEqual(wire.agent_inboxes("robot", "voice"), "tdl/robot/to-agent/voice/*")
-        self.assertEqual(wire.executive_inbox("robot", "abc"), "tdl/robot/to-exec/abc")
+        self.assertEqual(wire.executive_inbox("robot", "abc", "py"), "tdl/robot/to-exec/abc/py")
         self.assertTrue(wire.valid_name("arm-1.left_2"))
         for bad in ["", "a/b", "a*", "$x", "a b", "a?", "a#", "é"]:
             self.assertFalse(wire.valid_name(bad), bad)
@@ -146,6 +146,7 @@ class ExactlyOnce(unittest.TestCase):
         self.agent.command("slow", slow, on_terminate=cleanup)
         self.agent.goal("fail", lambda ctx, x: (_ for _ in ()).throw(NoGrasp(x)))
         self.agent._loop = self.loop
+        self.agent._live.add("exec1")
         self.agent._publisher = lambda executive: self.out  # type: ignore[method-assign]
 
     def tearDown(self) -> None:
@@ -224,6 +225,16 @@ class ExactlyOnce(unittest.TestCase):
         self.assertEqual((self.agent.stats.cancelled, self.agent.stats.duplicates), (1, 0))
         self.assertEqual(self.cleanups, [30_000])
 
+    def test_a_start_from_an_executive_that_is_not_live_is_refused_unanswered(self) -> None:
+        self.agent._receive("made-up", wire.encode(1, 1, wire.start(1, "slow", "command", 1)))
+        self.settle()
+        self.assertEqual((self.agent.stats.strangers, self.runs, self.out.sent), (1, 0, []))
+        # Once its token is seen, the same start runs.
+        self.agent._live.add("made-up")
+        self.agent._receive("made-up", wire.encode(1, 1, wire.start(1, "slow", "command", 1)))
+        self.settle()
+        self.assertEqual((self.agent.stats.strangers, self.runs), (1, 1))
+
     def test_json_nested_too_deep_is_counted_as_malformed(self) -> None:
         self.agent._receive("exec1", b"[" * 200_000 + b"]" * 200_000)
         self.assertEqual((self.agent.stats.malformed, self.out.sent), (1, []))
@@ -268,6 +279,8 @@ class Bounds(unittest.TestCase):
         self.agent.command("slow", slow)
         self.agent.command("blocking", blocking)
         self.agent._loop = self.loop
+        # Live executives (their tokens seen), whose publishers are declared on first use.
+        self.agent._live.update({"e1", "e2", "e3"})
         # What leaves, by executive: through a publisher (`out`) or a put of the session (`put`).
         self.sent: List[Any] = []
         self.declared: List[str] = []
@@ -310,7 +323,7 @@ class Bounds(unittest.TestCase):
         self.loop.run_until_complete(asyncio.sleep(0.05))
 
     def refusals(self) -> List[Any]:
-        return [(k.rsplit("/", 1)[-1], m["task"], m["body"]["result"]["Err"]["data"]["reason"])
+        return [(k.split("/")[3], m["task"], m["body"]["result"]["Err"]["data"]["reason"])
                 for (_, k, m) in self.sent
                 if m["body"]["kind"] == "done" and "Err" in m["body"]["result"]
                 and m["body"]["result"]["Err"]["exception"] == "RemoteRefused"]
@@ -359,21 +372,16 @@ class Bounds(unittest.TestCase):
         self.assertEqual(done, [{"kind": "done", "result": {"Ok": "unblocked"}}])
 
     def test_publishers_are_kept_for_live_executives_only_at_most_so_many_and_released(self) -> None:
-        # A start from an executive whose token was never seen: its messages go out as puts.
-        self.deliver("made-up", 1, wire.start(1, "slow", "command", 1))
-        self.settle()
-        self.assertEqual(self.declared, [])
-        self.assertEqual({how for (how, _, _) in self.sent}, {"put"})
         self.agent._executive_up("e1")
         self.agent._executive_up("e2")
         # One publisher at most.
-        self.assertEqual(self.declared, ["tdl/sys/to-exec/e1"])
+        self.assertEqual(self.declared, ["tdl/sys/to-exec/e1/py"])
         self.assertIsNone(self.agent._publisher("e2"))
         self.sent.clear()
         self.deliver("e1", 1, wire.start(1, "slow", "command", 1))
         self.deliver("e2", 1, wire.start(1, "slow", "command", 1))
         self.settle()
-        self.assertEqual({(how, k.rsplit("/", 1)[-1]) for (how, k, _) in self.sent},
+        self.assertEqual({(how, k.split("/")[3]) for (how, k, _) in self.sent},
                          {("out", "e1"), ("put", "e2")})
         self.agent._executive_gone("e1")
         self.assertEqual(self.declared, [])
@@ -410,7 +418,7 @@ class Reach(unittest.TestCase):
         self.known = False
 
         def declare(key: str, congestion_control: Any) -> FakePublisher:
-            self.assertEqual(key, "tdl/sys/to-exec/exec1")
+            self.assertEqual(key, "tdl/sys/to-exec/exec1/py")
             p = FakePublisher(self.known)
             self.publishers.append(p)
             return p

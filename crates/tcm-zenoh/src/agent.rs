@@ -60,6 +60,9 @@ pub struct AgentStats {
     /// Starts refused because a bound was reached ([`Limits`]): the node fails with
     /// [`RemoteRefused`](crate::RemoteRefused).
     pub over_limit: u64,
+    /// Starts refused because the executive the key names is not live (no token of it is known):
+    /// not answered.
+    pub strangers: u64,
 }
 
 /// The bounds of an agent (docs/distributed.md, "Bounds"). A start past one is refused: the body
@@ -447,7 +450,7 @@ impl AgentInner {
         }
         let p = self
             .session
-            .declare_publisher(wire::executive_inbox(&self.system, exec))
+            .declare_publisher(wire::executive_inbox(&self.system, exec, &self.name))
             .congestion_control(CongestionControl::Block)
             .await
             .map_err(Error::zenoh)?;
@@ -486,7 +489,7 @@ impl AgentInner {
     /// Sends `bytes` to executive `exec`'s inbox without a publisher.
     async fn put_once(&self, exec: &str, bytes: Vec<u8>) -> Result<(), Error> {
         self.session
-            .put(wire::executive_inbox(&self.system, exec), bytes)
+            .put(wire::executive_inbox(&self.system, exec, &self.name), bytes)
             .congestion_control(CongestionControl::Block)
             .await
             .map_err(Error::zenoh)
@@ -642,6 +645,16 @@ impl AgentInner {
             drop(s);
             self.ignored(&exec, Ignored::Duplicate, || {
                 format!("duplicate start {seq} of task {task} ignored")
+            });
+            return;
+        }
+        // Only a live executive of the system starts tasks: a start from an id no token stands
+        // for is refused, and not answered (nobody would read the answer).
+        if !s.live.contains(&exec) {
+            s.stats.strangers += 1;
+            drop(s);
+            self.ignored(&exec, Ignored::Stranger, || {
+                format!("start {seq} of task {task} refused: no executive {exec} is live")
             });
             return;
         }

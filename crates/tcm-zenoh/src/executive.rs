@@ -67,9 +67,10 @@ struct State {
     // Task → the agents whose offer token is live (an agent's offers go when its token does).
     offers: BTreeMap<String, BTreeSet<String>>,
     pending: BTreeMap<u64, Pending>,
-    // Ended remote tasks: the sequence number of their last message and their node's context
-    // (for a warning in the trace when a message of theirs comes again), oldest ids first.
-    ended: BTreeMap<u64, (u64, Ctx)>,
+    // Ended remote tasks: the sequence number of their last message, their agent and their
+    // node's context (for a warning in the trace when a message of theirs comes again), oldest
+    // ids first.
+    ended: BTreeMap<u64, (u64, String, Ctx)>,
     placed: BTreeMap<NodeId, Placement>,
     // `Executive::close` was called.
     closed: bool,
@@ -111,7 +112,7 @@ fn ignored_text(msg: &Msg<ToExec>, what: &str, whose: &str) -> String {
 impl State {
     fn end(&mut self, task: u64, seq: u64) {
         if let Some(p) = self.pending.remove(&task) {
-            self.ended.insert(task, (seq, p.ctx));
+            self.ended.insert(task, (seq, p.agent, p.ctx));
         }
         while self.ended.len() > ENDED_KEPT {
             self.ended.pop_first();
@@ -229,10 +230,13 @@ impl Executive {
         });
         let weak = Arc::downgrade(&inner);
         let inbox = session
-            .declare_subscriber(wire::executive_inbox(system, &id))
+            .declare_subscriber(wire::executive_inboxes(system, &id))
             .callback(move |sample| {
                 if let Some(inner) = weak.upgrade() {
-                    inner.receive(&sample.payload().to_bytes());
+                    // The key's last chunk names the agent that sent it.
+                    let key = sample.key_expr().as_str();
+                    let from = key.rsplit('/').next().unwrap_or_default();
+                    inner.receive(from, &sample.payload().to_bytes());
                 }
             })
             .await
@@ -483,7 +487,9 @@ impl Inner {
     /// A message arrived on the inbox: handed to its task's action once, in order (numbered one
     /// more than the task's last); duplicates, messages out of order and messages of ended tasks
     /// are counted and dropped, and reported without flooding ([`Inner::ignored`]).
-    fn receive(self: &Arc<Self>, bytes: &[u8]) {
+    /// A message of a task from another agent than the one it was placed on is refused: only
+    /// that agent speaks for the task.
+    fn receive(self: &Arc<Self>, from: &str, bytes: &[u8]) {
         let msg: Msg<ToExec> = match serde_json::from_slice(bytes) {
             Ok(m) => m,
             Err(e) => {
@@ -495,10 +501,26 @@ impl Inner {
             }
         };
         let mut s = self.lock();
+        let placed_on = match (s.pending.get(&msg.task), s.ended.get(&msg.task)) {
+            (Some(p), _) => Some((p.agent.as_str(), p.ctx.clone())),
+            (None, Some((_, agent, ctx))) => Some((agent.as_str(), ctx.clone())),
+            (None, None) => None,
+        };
+        if let Some((agent, ctx)) = placed_on.filter(|(agent, _)| *agent != from) {
+            let agent = agent.to_string();
+            s.stats.strangers += 1;
+            drop(s);
+            let from = from.to_string();
+            self.ignored(Some(msg.task), Ignored::Stranger, Some(ctx), || {
+                let what = format!("message from {from} (not the agent {agent} it runs on)");
+                ignored_text(&msg, &what, "remote task")
+            });
+            return;
+        }
         let Some(p) = s.pending.get_mut(&msg.task) else {
             let ended = s.ended.get(&msg.task);
-            let dup = ended.is_some_and(|(last, _)| msg.seq <= *last);
-            let ctx = ended.map(|(_, ctx)| ctx.clone());
+            let dup = ended.is_some_and(|(last, _, _)| msg.seq <= *last);
+            let ctx = ended.map(|(_, _, ctx)| ctx.clone());
             if dup {
                 s.stats.duplicates += 1;
             } else {

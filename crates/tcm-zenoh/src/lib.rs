@@ -155,4 +155,6 @@ pub struct Stats {
     pub late: u64,
     /// Messages that could not be read, ignored.
     pub malformed: u64,
+    /// Messages about a task from another agent than the one it was placed on, refused.
+    pub strangers: u64,
 }

@@ -31,6 +31,8 @@ pub(crate) enum Ignored {
     Refused,
     /// Did not read.
     Malformed,
+    /// From a sender the task is not with, or a start from an executive that is not live.
+    Stranger,
     /// A start past one of the agent's bounds.
     OverLimit,
 }
@@ -42,6 +44,7 @@ pub(crate) struct Counts {
     late: u64,
     refused: u64,
     malformed: u64,
+    stranger: u64,
     over_limit: u64,
 }
 
@@ -52,6 +55,7 @@ impl Counts {
             Ignored::Late => &mut self.late,
             Ignored::Refused => &mut self.refused,
             Ignored::Malformed => &mut self.malformed,
+            Ignored::Stranger => &mut self.stranger,
             Ignored::OverLimit => &mut self.over_limit,
         };
         *n = n.saturating_add(1);
@@ -69,6 +73,7 @@ impl fmt::Display for Counts {
             (self.late, "late"),
             (self.refused, "out of order"),
             (self.malformed, "malformed"),
+            (self.stranger, "stranger's"),
             (self.over_limit, "over a bound"),
         ]
         .into_iter()

@@ -4,7 +4,9 @@
 //! Every message names its remote task (`task`, unique per executive) and carries a sequence
 //! number (`seq`, from 1, per task and direction): the receiver applies a message only when it is
 //! numbered one more than the last it applied of that task (zenoh delivers one publisher's
-//! messages in order), and counts the rest as duplicates, refused (out of order) or late.
+//! messages in order), and counts the rest as duplicates, refused (out of order) or late. The
+//! key of every message names its sender: the executive that sent it to an agent, the agent
+//! that sent it to an executive.
 
 use crate::failure::RemoteFailure;
 use serde::{Deserialize, Serialize};
@@ -39,9 +41,16 @@ pub(crate) fn agent_inboxes(system: &str, agent: &str) -> String {
     format!("tdl/{system}/to-agent/{agent}/*")
 }
 
-/// Where an executive receives its messages.
-pub(crate) fn executive_inbox(system: &str, exec: &str) -> String {
-    format!("tdl/{system}/to-exec/{exec}")
+/// Where executive `exec` receives the messages of agent `agent`: the key names the sender, so the
+/// executive accepts a task's messages only from the agent it placed the task on (a key that
+/// zenoh's access control can reserve to that agent, see docs/distributed.md, "Who may speak").
+pub(crate) fn executive_inbox(system: &str, exec: &str, agent: &str) -> String {
+    format!("tdl/{system}/to-exec/{exec}/{agent}")
+}
+
+/// Every inbox of an executive (`executive_inbox` for any agent).
+pub(crate) fn executive_inboxes(system: &str, exec: &str) -> String {
+    format!("tdl/{system}/to-exec/{exec}/*")
 }
 
 /// Whether `name` can be one chunk of a key expression: ASCII letters, digits, `_`, `-` and `.`,

@@ -122,7 +122,19 @@ async fn a_strangers_flood_of_starts_is_held_to_the_agents_bounds() {
         let arm = net
             .join_beside(spinner(&net, &log, limits), "arm", &stranger)
             .await;
-        // Ten starts from each of three executive ids nobody runs.
+        // Ten starts from each of three executive ids nobody runs, whose tokens the stranger
+        // declares (an agent starts tasks only for a live executive).
+        let mut tokens = Vec::new();
+        for exec in ["made-up-1", "made-up-2", "made-up-3"] {
+            tokens.push(
+                stranger
+                    .session
+                    .liveliness()
+                    .declare_token(format!("tdl/{}/executives/{exec}", net.system))
+                    .await
+                    .expect("a token"),
+            );
+        }
         for exec in ["made-up-1", "made-up-2", "made-up-3"] {
             let key = format!("tdl/{}/to-agent/arm/{exec}", net.system);
             for task in 1..=10u64 {

@@ -148,7 +148,8 @@ async fn a_poisoned_sequence_number_cannot_make_the_executive_ignore_the_real_do
             session: stranger,
             port: 0,
         });
-        let key = format!("tdl/{}/to-exec/{}", net.system, net.exec.id());
+        // The stranger says it is `arm`, the agent the task runs on (the key names the sender).
+        let key = format!("tdl/{}/to-exec/{}/arm", net.system, net.exec.id());
         let value: Arc<Mutex<Option<Json>>> = Arc::default();
         let (exec, exec2, l, v) = (
             net.exec.clone(),

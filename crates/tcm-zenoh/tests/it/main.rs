@@ -8,6 +8,7 @@ mod exactly_once;
 mod exceptions;
 mod forgery;
 mod goals;
+mod identity;
 mod python;
 mod reach;
 mod remote_command;

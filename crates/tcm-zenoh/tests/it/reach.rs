@@ -87,7 +87,7 @@ async fn the_start_waits_for_an_agent_whose_inbox_comes_after_its_token() {
         assert_eq!(start["body"]["args"], 21, "{start}");
         let exec_id = key.rsplit('/').next().expect("the executive's id");
         let done = json!({"task": start["task"], "seq": 1, "body": {"kind": "done", "result": {"Ok": 42}}});
-        put(&bare, format!("tdl/{sys}/to-exec/{exec_id}"), done).await;
+        put(&bare, format!("tdl/{sys}/to-exec/{exec_id}/late"), done).await;
         let (report, _trace) = run.await.expect("the run");
         assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
         assert!(report.unhandled.is_empty(), "{report}");
@@ -132,7 +132,7 @@ async fn the_done_waits_for_an_executive_whose_inbox_comes_after_its_token() {
             "kind": "start", "node": 1, "name": "double", "task_kind": "command", "args": 21}});
         put(&bare, format!("tdl/{sys}/to-agent/a/bare"), start).await;
         tokio::time::sleep(LATE).await;
-        let (_sub, mut rx) = inbox(&bare, format!("tdl/{sys}/to-exec/bare")).await;
+        let (_sub, mut rx) = inbox(&bare, format!("tdl/{sys}/to-exec/bare/a")).await;
         let (_, done) = next(&mut rx, "done").await;
         assert_eq!(
             done,

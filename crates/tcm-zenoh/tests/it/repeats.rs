@@ -28,7 +28,8 @@ async fn copies_of_an_ended_tasks_done_add_a_bounded_number_of_records() {
             .await
             .expect("the stranger's session");
         let stranger = Arc::new(Stranger { session, port: 0 });
-        let key = format!("tdl/{}/to-exec/{}", net.system, net.exec.id());
+        // As `arm`, the agent the task ran on (the key names the sender).
+        let key = format!("tdl/{}/to-exec/{}/arm", net.system, net.exec.id());
         let exec = net.exec.clone();
         let main = Task::goal("main", move |ctx| async move {
             let v: serde_json::Value = ctx
