@@ -8,7 +8,7 @@
 const ROW = 20;
 const FACETS = ['handling', 'expansion', 'execution'];
 const POINTS = ['enabled', 'active', 'completed'];
-const M_SPAWNED = 0, M_TERMINATING = 10, M_TERMINATED = 11, M_RECLAIMED = 12, M_DEAD = 13, M_RESERVED = 14, M_FAILED = 15;
+const M_SPAWNED = 0, M_TERMINATING = 10, M_TERMINATED = 11, M_RECLAIMED = 12, M_DEAD = 13, M_RESERVED = 14, M_FAILED = 15, M_SKIPPED = 16;
 // Marks per row: the snapshot's `marks` (a newer server may send more than the page reads).
 let MARKS = 16;
 const mPoint = (f, p) => 1 + 3 * f + p;
@@ -245,18 +245,20 @@ function render() {
     d.dataset.h = states[0]; d.dataset.x = states[1]; d.dataset.e = states[2];
     const spawned = reached(node, M_SPAWNED, seq);
     const failed = reached(node, M_FAILED, seq);
+    const skipped = reached(node, M_SKIPPED, seq);
     d.className = 'row' + (n === S.selected ? ' sel' : '') + (spawned ? '' : ' future')
       + (reached(node, M_RECLAIMED, seq) ? ' gone' : '')
       + (reached(node, M_TERMINATING, seq) ? ' terminated' : '')
-      + (failed ? ' failed' : '') + (matchSet && matchSet.has(n) ? ' match' : '');
+      + (failed ? ' failed' : '') + (skipped ? ' skipped' : '') + (matchSet && matchSet.has(n) ? ' match' : '');
     const tog = node.kids.length ? (S.collapsed.has(n) ? '▸' : '▾') : '';
     d.replaceChildren(
       el('span', { style: 'display:inline-block;width:' + (depth * 14) + 'px' }),
       el('span', { class: 'tog' }, tog),
       el('span', { class: 'kind k-' + node.k, title: node.k }, KIND_LETTER[node.k] || '?'),
-      ...states.map((s, f) => el('span', { class: 'sq s-' + (failed && f === 0 && s === 'completed' ? 'failed' : s), title: FACETS[f] + ': ' + s })),
+      ...states.map((s, f) => el('span', { class: 'sq s-' + (f === 0 && s === 'completed' ? (failed ? 'failed' : skipped ? 'skipped' : s) : s), title: FACETS[f] + ': ' + (f === 0 && skipped ? 'skipped' : s) })),
       el('span', { class: 'name' }, node.name),
       el('span', { class: 'num' }, '{' + n + '}'),
+      ...(skipped ? [el('span', { class: 'tag', title: 'its skip condition held when its turn came: it completed without running' }, 'skipped')] : []),
       ...(node.agent ? [el('span', { class: 'agent', title: 'runs on agent ' + node.agent }, '@' + node.agent)] : []),
     );
   }
@@ -349,7 +351,10 @@ function nodeBars(g, node, y, w, seq, end) {
       const stop = tc !== null ? tc : end;
       g.fillRect(xOf(ta, w), yy, Math.max(2, xOf(stop, w) - xOf(ta, w)), 4);
     }
-    if (tc !== null) { g.fillStyle = COLOURS.completed; g.fillRect(xOf(tc, w) - 1, yy, 2, 4); }
+    if (tc !== null) {
+      g.fillStyle = f === 0 && reached(node, M_SKIPPED, seq) ? COLOURS.disabled : COLOURS.completed;
+      g.fillRect(xOf(tc, w) - 1, yy, 2, 4);
+    }
   }
   if (reached(node, M_TERMINATING, seq)) {
     g.fillStyle = '#333';

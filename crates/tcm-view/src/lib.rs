@@ -14,9 +14,9 @@ mod server;
 mod why;
 
 pub use model::{
-    EventFilter, ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SPAWNED,
-    M_TERMINATED, M_TERMINATING, MARKS, Mark, NameStats, Problem, Restriction, Row, RunModel, Step,
-    m_point,
+    EventFilter, ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SKIPPED,
+    M_SPAWNED, M_TERMINATED, M_TERMINATING, MARKS, Mark, NameStats, Problem, Restriction, Row,
+    RunModel, Step, m_point,
 };
 pub use server::{
     DEFAULT_ADDR, LiveSink, ViewError, Viewer, exposure_warning, record_json, snapshot_json,

@@ -15,8 +15,8 @@ use serde::Serialize;
 use tcm_trace::{Facet, NodeKind, Point, Replay, TraceEvent, TraceKind};
 
 pub use tcm_trace::{
-    ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SPAWNED, M_TERMINATED,
-    M_TERMINATING, MARKS, Mark, Restriction, Row, Step, m_point,
+    ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SKIPPED, M_SPAWNED,
+    M_TERMINATED, M_TERMINATING, MARKS, Mark, Restriction, Row, Step, m_point,
 };
 
 /// Why a trace could not be read to its end.

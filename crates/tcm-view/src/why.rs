@@ -8,8 +8,8 @@ use serde::Serialize;
 use tcm_trace::{Facet, Outcome, Point, TraceConstraint, TraceEventRef, TraceThen, TraceWhen};
 
 use crate::model::{
-    M_DEAD, M_RECLAIMED, M_RESERVED, M_SPAWNED, M_TERMINATED, M_TERMINATING, Mark, Row, RunModel,
-    kind_str, m_point,
+    M_DEAD, M_RECLAIMED, M_RESERVED, M_SKIPPED, M_SPAWNED, M_TERMINATED, M_TERMINATING, Mark, Row,
+    RunModel, kind_str, m_point,
 };
 
 /// What the page shows of a node at a moment.
@@ -142,6 +142,7 @@ impl RunModel {
             (M_TERMINATED, "terminated".to_string()),
             (M_RECLAIMED, "reclaimed".to_string()),
             (M_DEAD, "dead".to_string()),
+            (M_SKIPPED, "skipped (completed without running)".to_string()),
         ];
         let mut marks: Vec<(Mark, String)> = names
             .into_iter()

@@ -4,7 +4,8 @@
 //! again after its end; both look the same. On a run with monitors, served as a trace file is:
 //! a monitor's many activations fold into one row with their count, listed by a click; search
 //! matches names, or paths when the query has a `/`; a node's details are those at the cursor;
-//! the Exceptions tab tells a failure a waiting parent took as taken by it.
+//! the Exceptions tab tells a failure a waiting parent took as taken by it; a skipped node looks
+//! skipped.
 //! Screenshots go to `target/viewer/`.
 
 mod common;
@@ -378,6 +379,99 @@ fn the_exceptions_tab_tells_a_failure_a_waiting_parent_took() -> anyhow::Result<
             b.click("#tab-exceptions .exc .steps a.node").await?;
             b.wait_for(
                 "(() => { const r = document.querySelector('#tree .row.sel .name'); return r && r.textContent === 'fetch'; })()",
+                Duration::from_secs(5),
+            )
+            .await?;
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+/// `dock`, skipped (the robot is docked already), beside `undock` (1 s).
+async fn skipping() -> Vec<TraceEvent> {
+    use tcm::{Constraint, Expr, Runtime, StateType, StateVar, Task};
+    let task = Task::goal("mission", |ctx| async move {
+        let docked = StateVar::new("docked", StateType::Bool, true);
+        let cond = ctx.condition(&[docked], Expr::Var("docked".into()))?;
+        ctx.spawn(Task::command("dock", |_| async { Ok(()) }))
+            .with(Constraint::skip_if(cond))
+            .start()?;
+        ctx.spawn(Task::command("undock", |_| async {
+            tokio::time::sleep(Duration::from_secs(1)).await;
+            Ok(())
+        }))
+        .start()?;
+        Ok(())
+    });
+    tcm::testing::run_checked(Runtime::new(), task).await.1
+}
+
+#[test]
+fn a_skipped_node_looks_skipped() -> anyhow::Result<()> {
+    let trace = paused(skipping())?;
+    let mut model = RunModel::new("skipping.jsonl");
+    for ev in &trace {
+        model.apply(ev).map_err(anyhow::Error::msg)?;
+    }
+    model.finished = true;
+    let dock = model
+        .rows()
+        .iter()
+        .find(|r| r.name == "dock")
+        .map(|r| r.number)
+        .ok_or_else(|| anyhow::anyhow!("no dock"))?;
+    let skipped = model.node(dock).and_then(|r| r.marks[tcm_view::M_SKIPPED]);
+    let skipped = skipped.ok_or_else(|| anyhow::anyhow!("dock was not skipped"))?;
+    let viewer = Viewer::serve(([127, 0, 0, 1], 0).into())?;
+    viewer.add(model);
+    let url = viewer.url();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = Browser::start(
+                &test_support::ensure_tool("chromium", "chromium")
+                    .map_err(|e| anyhow::anyhow!(e))?,
+                1200,
+                700,
+            )
+            .await?;
+            b.goto(&url).await?;
+            let row = |n: u64| format!("document.querySelector('#tree .row[data-n=\"{n}\"]')");
+            let look = |n: u64| {
+                format!(
+                    "(() => {{ const r = {}; return r && [r.classList.contains('skipped'), \
+                     r.querySelector('.sq').className, (r.querySelector('.tag') || {{}}).textContent || ''] }})()",
+                    row(n)
+                )
+            };
+            b.wait_for(&format!("S.finished && {}", row(dock)), Duration::from_secs(20))
+                .await?;
+            let undock = dock + 1;
+            ensure!(
+                b.eval(&look(dock)).await? == serde_json::json!([true, "sq s-skipped", "skipped"]),
+                "dock: {}",
+                b.eval(&look(dock)).await?
+            );
+            ensure!(
+                b.eval(&look(undock)).await? == serde_json::json!([false, "sq s-completed", ""]),
+                "undock: {}",
+                b.eval(&look(undock)).await?
+            );
+            b.screenshot(&shots().join("skipped.png")).await?;
+            // Before its skip, it is not.
+            b.eval(&set_cursor(skipped.seq - 1)).await?;
+            b.wait_for(
+                &format!("{0} && !{0}.classList.contains('skipped')", row(dock)),
+                Duration::from_secs(5),
+            )
+            .await?;
+            // Its history says so.
+            b.eval(&set_cursor(1_000_000)).await?;
+            b.click(&format!("#tree .row[data-n=\"{dock}\"] .name")).await?;
+            b.wait_for(
+                "[...document.querySelectorAll('#tab-node td')].some((d) => d.textContent.startsWith('skipped'))",
                 Duration::from_secs(5),
             )
             .await?;
