@@ -593,6 +593,8 @@ impl Body {
                             handled: true,
                         },
                         Ok(WatchOutcome::Terminated | WatchOutcome::Dead) => ChildEnded::Terminated,
+                        // A skipped child did not run: as a terminated one, it has no value.
+                        Ok(WatchOutcome::Skipped) => ChildEnded::Terminated,
                         Err(e) => return (call, Err(RemoteError::remote(e.to_string()))),
                     };
                     (call, Ok(Answer::Ended { ended }))

@@ -91,6 +91,9 @@ pub enum Error {
     /// The awaited child was terminated (or never spawned).
     #[error("the awaited child was terminated before it completed")]
     ChildTerminated,
+    /// The awaited child was skipped (its `skip if` condition held): it has no value.
+    #[error("the awaited child was skipped: it has no value")]
+    ChildSkipped,
     /// The precise timer's thread could not be started.
     #[error("cannot start the precise timer thread: {0}")]
     Timer(std::io::Error),

@@ -120,6 +120,8 @@ impl InTurn {
                     return Ok(Recovered::By(i));
                 }
                 Ended::Failed(f) => last = Recovered::Failed(f),
+                // It did not run, so it recovered nothing: the next one is tried.
+                Ended::Skipped => {}
                 Ended::Terminated => {
                     let preempted = event
                         .zip(self.preemption.as_ref())
@@ -217,7 +219,7 @@ pub async fn retry_around<T: 'static>(
                 recoveries.reset();
                 return Ok(ended);
             }
-            Ended::Terminated => return Ok(ended),
+            Ended::Terminated | Ended::Skipped => return Ok(ended),
             Ended::Failed(f) => f,
         };
         if attempt >= retries || !recoverable(failure) {

@@ -63,7 +63,7 @@ impl RunOutcome {
         let mut outcome = RunOutcome::Completed;
         for r in roots {
             match r.outcome.as_ref()? {
-                WatchOutcome::Reached | WatchOutcome::Recovered { .. } => {}
+                WatchOutcome::Reached | WatchOutcome::Recovered { .. } | WatchOutcome::Skipped => {}
                 WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => {
                     if outcome == RunOutcome::Completed {
                         outcome = RunOutcome::TaskFailed(f.clone());

@@ -70,6 +70,9 @@ pub enum WatchOutcome {
     },
     /// It was terminated (the point was passed without the work being done).
     Terminated,
+    /// It was skipped: its `skip if` condition held when its turn came, and it completed without
+    /// running (docs/semantics.md, "State and conditions").
+    Skipped,
     /// It was a reservation that was never spawned.
     Dead,
 }

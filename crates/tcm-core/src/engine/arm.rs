@@ -503,6 +503,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if let WaitKind::Watch { token } = kind {
             let outcome = if terminating {
                 WatchOutcome::Terminated
+            } else if n.skipped() {
+                WatchOutcome::Skipped
             } else if let Some(f) = n.failure() {
                 if let Some(by) = n.recovered_by() {
                     WatchOutcome::Recovered {

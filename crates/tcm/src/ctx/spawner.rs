@@ -211,6 +211,7 @@ impl Spawner<'_> {
             Ended::Succeeded(v) => Ok(v),
             Ended::Failed(f) => Err(Error::ChildFailed(tcm_core::PassedOn(f))),
             Ended::Terminated => Err(Error::ChildTerminated),
+            Ended::Skipped => Err(Error::ChildSkipped),
         }
     }
 
@@ -246,6 +247,7 @@ impl Spawner<'_> {
             }
             WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => Ok(Ended::Failed(f)),
             WatchOutcome::Terminated | WatchOutcome::Dead => Ok(Ended::Terminated),
+            WatchOutcome::Skipped => Ok(Ended::Skipped),
         }
     }
 
@@ -270,6 +272,9 @@ pub enum Ended<T> {
     Failed(Failure),
     /// It was terminated before it ended by itself.
     Terminated,
+    /// It was skipped: its `skip if` condition held when its turn came (docs/semantics.md,
+    /// "State and conditions"), so it has no value.
+    Skipped,
 }
 
 impl<T> Ended<T> {
@@ -286,6 +291,11 @@ impl<T> Ended<T> {
     /// It was terminated.
     pub fn terminated(&self) -> bool {
         matches!(self, Ended::Terminated)
+    }
+
+    /// It was skipped.
+    pub fn skipped(&self) -> bool {
+        matches!(self, Ended::Skipped)
     }
 
     /// Its value, if it succeeded.
@@ -309,12 +319,13 @@ impl<T> Ended<T> {
         self.failure().is_some_and(|f| f.is_a(E::name()))
     }
 
-    /// The outcome's point (`X succeeded`, `X failed`, `X terminated`).
+    /// The outcome's point (`X succeeded`, `X failed`, `X terminated`, `X skipped`).
     pub fn outcome(&self) -> tcm_core::Outcome {
         match self {
             Ended::Succeeded(_) => tcm_core::Outcome::Succeeded,
             Ended::Failed(_) => tcm_core::Outcome::Failed,
             Ended::Terminated => tcm_core::Outcome::Terminated,
+            Ended::Skipped => tcm_core::Outcome::Skipped,
         }
     }
 }

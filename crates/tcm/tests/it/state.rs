@@ -132,3 +132,34 @@ async fn a_body_reads_a_variable_typed_and_unknown_reads_as_none() {
     let (report, _) = run_checked(Runtime::new(), mission).await;
     assert_eq!(report.outcome, RunOutcome::Completed);
 }
+
+#[tokio::test(start_paused = true)]
+async fn a_skipped_child_ends_skipped_and_has_no_value() {
+    let mission = Task::goal("mission", |ctx| async move {
+        let position = StateVar::new("position", StateType::Float, StateValue::Unknown);
+        let unknown = ctx.condition(&[position], Expr::not(Expr::known(Expr::var("position"))))?;
+        let range = || Task::command("range", |_| async { Ok(12.5_f64) });
+        let ended = ctx
+            .spawn(range())
+            .with(Constraint::skip_if(unknown))
+            .wait_outcome::<f64>()
+            .await?;
+        assert!(ended.skipped(), "{:?}", ended.value());
+        let err = ctx
+            .spawn(range())
+            .with(Constraint::skip_if(unknown))
+            .wait_value::<f64>()
+            .await
+            .expect_err("no value");
+        assert!(matches!(err, tcm::Error::ChildSkipped), "{err}");
+        // A plain wait returns, as for a child that succeeded.
+        ctx.spawn(range())
+            .with(Constraint::skip_if(unknown))
+            .wait()
+            .await?;
+        Ok(())
+    });
+    let (report, trace) = run_checked(Runtime::new(), mission).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(only(&story(&trace), &["skipped"]).len(), 3);
+}

@@ -187,7 +187,10 @@ impl State {
             (WaitFor::Value, WatchOutcome::Failed(f) | WatchOutcome::Handled(f)) => {
                 return Step::Finish(Err(f.clone()));
             }
-            (WaitFor::Value, WatchOutcome::Terminated | WatchOutcome::Dead) => {
+            (
+                WaitFor::Value,
+                WatchOutcome::Terminated | WatchOutcome::Dead | WatchOutcome::Skipped,
+            ) => {
                 return Step::Finish(Err(Failure::new(
                     "Error",
                     "the child was terminated before it gave its value",
