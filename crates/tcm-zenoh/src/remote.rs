@@ -564,7 +564,8 @@ impl Body {
                             failure: RemoteFailure::from_failure(&f),
                             handled: false,
                         },
-                        Ok(tcm::Ended::Terminated) => ChildEnded::Terminated,
+                        // A skipped child did not run: as a terminated one, it has no value.
+                        Ok(tcm::Ended::Terminated | tcm::Ended::Skipped) => ChildEnded::Terminated,
                         // It succeeded with a value that is no JSON.
                         Err(tcm::Error::NoValue(_)) => ChildEnded::Succeeded { value: Json::Null },
                         Err(e) => return (call, Err(RemoteError::remote(e.to_string()))),
@@ -581,9 +582,12 @@ impl Body {
                 let ctx = self.ctx.clone();
                 self.calls.spawn(async move {
                     let ended = match ctx.wait(node).await {
-                        Ok(WatchOutcome::Reached | WatchOutcome::Recovered { .. }) => {
-                            ChildEnded::Succeeded { value: Json::Null }
-                        }
+                        // A plain wait returns for a skipped child as for one that succeeded.
+                        Ok(
+                            WatchOutcome::Reached
+                            | WatchOutcome::Recovered { .. }
+                            | WatchOutcome::Skipped,
+                        ) => ChildEnded::Succeeded { value: Json::Null },
                         Ok(WatchOutcome::Failed(f)) => ChildEnded::Failed {
                             failure: RemoteFailure::from_failure(&f),
                             handled: false,
@@ -593,8 +597,6 @@ impl Body {
                             handled: true,
                         },
                         Ok(WatchOutcome::Terminated | WatchOutcome::Dead) => ChildEnded::Terminated,
-                        // A skipped child did not run: as a terminated one, it has no value.
-                        Ok(WatchOutcome::Skipped) => ChildEnded::Terminated,
                         Err(e) => return (call, Err(RemoteError::remote(e.to_string()))),
                     };
                     (call, Ok(Answer::Ended { ended }))
