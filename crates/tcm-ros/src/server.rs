@@ -285,6 +285,11 @@ fn end_goal<R: Default>(
         Ok(Ended::Succeeded(result)) => State::Ended(GoalStatusEnum::Succeeded, result),
         Ok(Ended::Terminated) if canceling => State::Ended(GoalStatusEnum::Canceled, R::default()),
         Ok(Ended::Terminated) => State::Ended(GoalStatusEnum::Aborted, R::default()),
+        // Its `skip if` condition held: it has no value, as a task that ends without an `R`.
+        Ok(Ended::Skipped) => {
+            tracing::info!(target: "tcm_ros", action, goal = ?goal, "the goal's task was skipped");
+            State::Ended(GoalStatusEnum::Aborted, R::default())
+        }
         Ok(Ended::Failed(f)) => {
             tracing::info!(target: "tcm_ros", action, goal = ?goal, "the goal's task failed: {f}");
             State::Ended(GoalStatusEnum::Aborted, R::default())
