@@ -10,6 +10,10 @@
 //! - Offering: [`ActionServer::serve`] is a goal of the tree that serves a ROS 2 action; each
 //!   accepted goal runs a task built from it as a child, a cancel request terminates that child,
 //!   and the child's value (or failure) is the goal's result (or abort).
+//! - Reading: [`StateFeed`] subscribes to a topic and sets a state variable of the run (through
+//!   a [`tcm::EventHandle`]) to the value a closure maps each message to, optionally skipping
+//!   numbers within a minimum change of the last value set; the tree's conditions over the
+//!   variable then act on what the topic says. Its [`FeedHandle`] stops it when dropped.
 //!
 //! ```no_run
 //! # async fn demo(node: &tcm_ros::ros2_client::Node) -> Result<(), Box<dyn std::error::Error>> {
@@ -37,11 +41,13 @@
 
 mod client;
 mod failure;
+mod feed;
 mod off_thread;
 mod server;
 
 pub use client::{ActionClient, Call, DEFAULT_SERVER_TIMEOUT, Goal, ServiceClient};
 pub use failure::{ActionAborted, ActionCanceled, GoalRejected, RosError, RosTimeout, Waited};
+pub use feed::{FeedHandle, FeedValue, StateFeed};
 pub use server::{ActionServer, Feedback};
 
 /// The ROS 2 client library this crate is built on, at the version it uses (for its `Context`,
@@ -63,6 +69,9 @@ pub enum Error {
     /// ros2-client refused: an entity that cannot be created, a message that cannot be sent.
     #[error("ros2-client: {0}")]
     Ros(String),
+    /// [`StateFeed::start`] was called outside a tokio runtime, where its task cannot run.
+    #[error("a feed starts inside a tokio runtime")]
+    NoRuntime,
 }
 
 /// A ROS 2 name (`/navigate`, `ns/name`) as ros2-client reads it.

@@ -1,13 +1,13 @@
 //! Helpers: two ROS 2 contexts joined on 127.0.0.1 (zenoh peers, multicast scouting off, every
-//! endpoint pinned), a Fibonacci-like action and an adding service defined here with ros2-client's
-//! message trait, a scripted action server and a service server written with ros2-client alone, a
-//! bound on every test, and runs whose traces go through the trace checker.
+//! endpoint pinned), a Fibonacci-like action, an adding service and a float topic defined here with
+//! ros2-client's message trait, a scripted action server and a service server written with
+//! ros2-client alone, a bound on every test, and runs whose traces go through the trace checker.
 
 use ros2_client::action_msgs::{CancelGoalResponseEnum, GoalInfo, GoalStatusEnum};
 use ros2_client::builtin_interfaces::Time;
 use ros2_client::{
-    ActionTypeName, Context, ContextOptions, GoalId, Message, Node, NodeName, NodeOptions,
-    RmwRequestId, ServiceTypeName,
+    ActionTypeName, Context, ContextOptions, GoalId, Message, MessageTypeName, Node, NodeName,
+    NodeOptions, RmwRequestId, ServiceTypeName,
 };
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -27,10 +27,10 @@ pub(crate) async fn bounded<T>(test: impl Future<Output = T>) -> T {
         .expect("the test did not end within its bound")
 }
 
-// ---- Messages: the shapes of action_tutorials_interfaces/Fibonacci and
-// example_interfaces/AddTwoInts, two of the types whose ROS 2 type hash ros2-client knows, so
-// the key expressions are those a ROS 2 Jazzy node would use (CDR is positional: the fields
-// need only the right types and order).
+// ---- Messages: the shapes of action_tutorials_interfaces/Fibonacci,
+// example_interfaces/AddTwoInts and std_msgs/Float32, three of the types whose ROS 2 type hash
+// ros2-client knows, so the key expressions are those a ROS 2 Jazzy node would use (CDR is
+// positional: the fields need only the right types and order).
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub(crate) struct FibGoal {
@@ -62,6 +62,17 @@ pub(crate) struct AddResponse {
     pub(crate) sum: i64,
 }
 impl Message for AddResponse {}
+
+/// std_msgs/Float32 (a battery's percentage, in the tests).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub(crate) struct Float32 {
+    pub(crate) data: f32,
+}
+impl Message for Float32 {}
+
+pub(crate) fn float32_type() -> MessageTypeName {
+    MessageTypeName::new("std_msgs", "Float32")
+}
 
 pub(crate) fn fib_type() -> ActionTypeName {
     ActionTypeName::new("action_tutorials_interfaces", "Fibonacci")
