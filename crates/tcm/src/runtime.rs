@@ -157,9 +157,13 @@ impl EventHandle {
         EventHandle { shared }
     }
 
-    /// Raises the event `name` (latched: constraints applied later find it raised).
+    /// Raises the event `name` (latched: constraints applied later find it raised). After the
+    /// run ended, [`Error::RunEnded`].
     pub fn raise(&self, name: &str) -> Result<(), Error> {
         let mut s = self.shared.enter()?;
+        if s.ended {
+            return Err(Error::RunEnded);
+        }
         let now = self.shared.now();
         let id = s.engine.external(name);
         s.engine.handle_external(now, id);
@@ -168,9 +172,13 @@ impl EventHandle {
 
     /// Sets the state variable `name` (declared by the program or the runtime; an undeclared one
     /// is declared with the value's type): an input to the engine, recorded with its value
-    /// (docs/semantics.md, "State and conditions").
+    /// (docs/semantics.md, "State and conditions"). After the run ended, [`Error::RunEnded`], so
+    /// a feed of values knows to stop.
     pub fn set_state(&self, name: &str, value: impl Into<crate::StateValue>) -> Result<(), Error> {
         let mut s = self.shared.enter()?;
+        if s.ended {
+            return Err(Error::RunEnded);
+        }
         let now = self.shared.now();
         Ok(crate::state::set_by_name(
             &mut s.engine,

@@ -163,3 +163,16 @@ async fn a_skipped_child_ends_skipped_and_has_no_value() {
     assert_eq!(report.outcome, RunOutcome::Completed);
     assert_eq!(only(&story(&trace), &["skipped"]).len(), 3);
 }
+
+#[tokio::test(start_paused = true)]
+async fn a_handle_that_outlives_its_run_is_told_the_run_ended() {
+    let rt = Runtime::new();
+    let events = rt.events();
+    let (report, _) = run_checked(rt, sleeper("short", 1)).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert!(matches!(
+        events.set_state("battery", 10.0),
+        Err(tcm::Error::RunEnded)
+    ));
+    assert!(matches!(events.raise("go"), Err(tcm::Error::RunEnded)));
+}
