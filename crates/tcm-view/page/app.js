@@ -44,11 +44,12 @@ const S = {
   groups: new Map(),  // monitor number → its activations listed under its folded row, at the cursor
   query: '', matches: [], matchIdx: -1,
   rows: [],           // node numbers in display order
+  states: [],         // state variables, as declared: {name, ty, ch: [seq, value, seq, value, …]}
   dirty: true,
 };
 
 function reset() {
-  S.nodes = []; S.times = []; S.records = 0; S.finished = false; S.problem = null;
+  S.nodes = []; S.times = []; S.states = []; S.records = 0; S.finished = false; S.problem = null;
   S.cursor = 0; S.follow = true; S.collapsed = new Set(); S.folds = new Map(); S.dirty = true;
 }
 
@@ -64,7 +65,8 @@ function loadSnapshot(s) {
   S.nodes = [];
   for (const r of s.nodes) S.nodes[r[0]] = rowNode(r);
   for (const node of S.nodes) if (node && node.p >= 0 && S.nodes[node.p]) S.nodes[node.p].kids.push(node.n);
-  S.times = s.times; S.records = s.records; S.finished = s.finished; S.problem = s.problem;
+  S.times = s.times; S.records = s.records;
+  S.states = (s.states || []).map((v) => ({ name: v.name, ty: v.ty, ch: v.changes })); S.finished = s.finished; S.problem = s.problem;
   const last = lastT();
   if (S.follow) S.cursor = Math.max(0, S.records - 1);
   if (S.view[1] <= 1 || S.follow) S.view = [0, Math.max(last, 1)];
@@ -89,6 +91,12 @@ function apply(m) {
   const r = m.record;
   if (r.seq !== S.records) { resync(); return; }
   putRows(m.rows);
+  // The state variable the record declared or changed (the server's fold says which).
+  if (m.state) {
+    let lane = S.states.find((v) => v.name === m.state.name);
+    if (!lane) { lane = { name: m.state.name, ty: m.state.ty, ch: [] }; S.states.push(lane); }
+    lane.ch.push(r.seq, m.state.value);
+  }
   const tl = S.times.length;
   if (tl === 0 || S.times[tl - 1] !== r.t) S.times.push(r.seq, r.t);
   S.records = r.seq + 1;
@@ -115,6 +123,21 @@ const reached = (node, i, seq) => node.m[i] >= 0 && node.m[i] <= seq;
 function stateAt(node, f, seq) {
   for (let p = 2; p >= 0; p--) if (reached(node, mPoint(f, p), seq)) return POINTS[p];
   return 'disabled';
+}
+
+// A state variable's value after record `seq` and the record that gave it it (`undefined` before
+// its declaration).
+function valueAt(lane, seq) {
+  let lo = 0, hi = lane.ch.length / 2;
+  while (lo < hi) { const mid = (lo + hi) >> 1; if (lane.ch[2 * mid] <= seq) lo = mid + 1; else hi = mid; }
+  return lo === 0 ? undefined : { v: lane.ch[2 * lo - 1], seq: lane.ch[2 * lo - 2] };
+}
+// A value as TDL writes it: unknown, true, 42, 1.5 (a float always with a fraction), "text".
+function fmtValue(v, ty) {
+  if (v === null || v === undefined) return 'unknown';
+  if (ty === 'float' && Number.isInteger(v)) return v.toFixed(1);
+  if (typeof v === 'string') return JSON.stringify(v);
+  return String(v);
 }
 
 // --- Rows in display order ------------------------------------------------------------------
@@ -264,6 +287,7 @@ function render() {
   }
   drawBars(first, count, shift);
   drawAxis();
+  drawStates();
   const t = tOf(seq);
   $('cursor').max = Math.max(0, S.records - 1);
   $('cursor').value = seq;
@@ -377,6 +401,100 @@ function drawAxis() {
   }
   g.fillStyle = '#d33b3b';
   g.fillRect(xOf(tOf(S.cursor), w) - 0.5, 0, 1, h);
+}
+
+// --- State variables: one lane each under the timeline, on the same time scale -------------
+const LANE = 26;
+let hatch = null;
+function hatchPattern(g) {
+  if (!hatch) {
+    const c = document.createElement('canvas'); c.width = 6; c.height = 6;
+    const h = c.getContext('2d');
+    h.strokeStyle = '#b8b8b8'; h.lineWidth = 1.2;
+    h.beginPath(); h.moveTo(0, 6); h.lineTo(6, 0); h.stroke();
+    hatch = c;
+  }
+  return g.createPattern(hatch, 'repeat');
+}
+
+function drawStates() {
+  const box = $('states');
+  box.hidden = S.states.length === 0;
+  if (box.hidden) return;
+  const seq = S.cursor, tc = tOf(seq), end = Math.max(lastT(), S.view[1]);
+  // The labels: each variable's value at the cursor, and since when it has it.
+  const labels = $('statelabels');
+  while (labels.children.length < S.states.length) labels.append(el('div', { class: 'lane' }));
+  while (labels.children.length > S.states.length) labels.lastChild.remove();
+  S.states.forEach((lane, i) => {
+    const d = labels.children[i];
+    const at = valueAt(lane, seq);
+    const v = at ? at.v : null;
+    const cls = at === undefined ? 'v-unknown' : v === null ? 'v-unknown' : v === true ? 'v-true' : v === false ? 'v-false' : '';
+    d.dataset.var = lane.name;
+    d.title = lane.name + ' (' + lane.ty + ')' + (at ? ' = ' + fmtValue(v, lane.ty) + ' since ' + secs(tOf(at.seq)) : ': not declared yet at the cursor');
+    d.replaceChildren(
+      el('span', { class: 'vname' }, lane.name), el('span', { class: 'ty' }, lane.ty), ' = ',
+      el('span', { class: 'val ' + cls }, at ? fmtValue(v, lane.ty) : 'undeclared'),
+      at ? el('span', { class: 'since' }, 'since ' + secs(tOf(at.seq))) : null,
+    );
+  });
+  // The lanes, as wide as the bars above so that times line up.
+  const c = $('lanes');
+  c.style.width = $('bars').getBoundingClientRect().width + 'px';
+  c.style.height = (S.states.length * LANE) + 'px';
+  const [g, w, h] = fitCanvas(c);
+  g.clearRect(0, 0, w, h);
+  g.font = '11px ui-monospace, monospace'; g.textBaseline = 'middle';
+  S.states.forEach((lane, i) => {
+    const y0 = i * LANE, top = y0 + 5, bot = y0 + LANE - 5, mid = y0 + LANE / 2;
+    g.fillStyle = '#f0f0f0'; g.fillRect(0, y0, w, 1);
+    const n = lane.ch.length / 2;
+    const nums = [];
+    for (let j = 0; j < n; j++) if (typeof lane.ch[2 * j + 1] === 'number') nums.push(lane.ch[2 * j + 1]);
+    const lo = Math.min(...nums), hi = Math.max(...nums);
+    const yNum = (v) => (hi > lo ? bot - ((v - lo) / (hi - lo)) * (bot - top) : mid);
+    let prevY = null;
+    for (let j = 0; j < n; j++) {
+      const v = lane.ch[2 * j + 1];
+      const x0 = xOf(tOf(lane.ch[2 * j]), w);
+      const x1 = j + 1 < n ? xOf(tOf(lane.ch[2 * j + 2]), w) : xOf(end, w);
+      if (x1 < 0 || x0 > w) { prevY = typeof v === 'number' ? yNum(v) : null; continue; }
+      const width = Math.max(1, x1 - x0);
+      let label = fmtValue(v, lane.ty), ly = mid;
+      if (v === null) {
+        g.fillStyle = hatchPattern(g); g.fillRect(x0, top, width, bot - top);
+        prevY = null;
+      } else if (v === true) {
+        g.fillStyle = COLOURS.completed; g.fillRect(x0, top, width, bot - top);
+      } else if (v === false) {
+        g.fillStyle = '#9a9a9a'; g.fillRect(x0, bot - 3, width, 3);
+        ly = mid - 2;
+      } else if (typeof v === 'number') {
+        // A step line between the lane's least and greatest values.
+        const y = yNum(v);
+        g.strokeStyle = COLOURS.active; g.lineWidth = 2;
+        g.beginPath();
+        if (prevY !== null) { g.moveTo(x0, prevY); g.lineTo(x0, y); } else g.moveTo(x0, y);
+        g.lineTo(x0 + width, y); g.stroke();
+        prevY = y; ly = y < mid ? y + 7 : y - 7;
+      } else {
+        g.strokeStyle = '#8b8bb0'; g.lineWidth = 1; g.strokeRect(x0 + 0.5, top + 0.5, width - 1, bot - top - 1);
+      }
+      // Each change marked where it happened.
+      if (j > 0) { g.fillStyle = '#444'; g.fillRect(x0 - 0.5, y0 + 2, 1, LANE - 4); }
+      const tw = g.measureText(label).width;
+      if (width > tw + 8) {
+        g.fillStyle = v === true ? '#fff' : '#333';
+        g.fillText(label, Math.max(x0, 0) + 4, ly);
+      }
+    }
+  });
+  // After the cursor, faded; the cursor itself.
+  const xc = xOf(tc, w);
+  if (xc < w) { g.fillStyle = 'rgba(255,255,255,0.55)'; g.fillRect(Math.max(0, xc), 0, w, h); }
+  g.fillStyle = '#d33b3b';
+  g.fillRect(xc - 0.5, 0, 1, h);
 }
 
 let frame = 0;
@@ -504,6 +622,7 @@ async function showNode() {
   if (v.ran_ns !== null) add('action ran', secs(v.ran_ns));
   if (v.kind === 'monitor') add('activations · triggers', v.activations + ' · ' + v.triggers_count);
   add('children', String(v.children.length));
+  add('paused', v.paused);
   const parts = [el('h3', {}, v.name + ' {' + v.node + '}'), kv];
   parts.push(el('h3', {}, 'Waiting on'));
   if (v.waits.length) {
@@ -513,6 +632,11 @@ async function showNode() {
       el('span', { class: 'hint' }, ' — since ' + secs(w.since))))));
   } else {
     parts.push(el('p', { class: 'hint', id: 'waits' }, v.life === 'not yet spawned' ? 'Not spawned yet at the cursor.' : 'Nothing holds it back at the cursor.'));
+  }
+  if (v.conditions.length) {
+    parts.push(el('h3', {}, 'Conditions'), el('ul', { class: 'conds', id: 'conds' }, ...v.conditions.map((c) => el('li', {},
+      el('code', {}, c.form + ' ' + c.condition), ' is ', el('b', {}, c.value), ': ' + c.state,
+      c.reads.length ? el('span', { class: 'reads' }, c.reads.map((r) => r.name + ' = ' + r.value + (r.since !== null ? ' since ' + secs(r.since) : '')).join(', ')) : null))));
   }
   if (v.triggers.length) parts.push(el('h3', {}, 'Triggers'), el('ul', {}, ...v.triggers.map((t) => el('li', {}, t))));
   if (v.failures.length) parts.push(el('h3', {}, 'Failures'), el('ul', {}, ...v.failures.map(([f, t]) => el('li', {}, secs(t) + ' ' + f))));
@@ -536,10 +660,10 @@ async function showExceptions() {
 async function showStats() {
   const tab = $('tab-stats');
   const list = await getJSON('/api/runs/' + S.runId + '/stats');
-  const head = el('tr', {}, ...['task', 'kind', 'nodes', 'ok', 'failed', 'terminated', 'open', 'mean', 'max', 'total'].map((h) => el('th', {}, h)));
+  const head = el('tr', {}, ...['task', 'kind', 'nodes', 'ok', 'skipped', 'failed', 'terminated', 'open', 'mean', 'max', 'total'].map((h) => el('th', {}, h)));
   tab.replaceChildren(el('table', {}, head, ...list.map((s) => el('tr', {},
     el('td', {}, el('a', { class: 'node', onclick: () => { $('search').value = s.name; search(); } }, s.name)),
-    el('td', {}, s.kind), el('td', {}, s.count), el('td', {}, s.succeeded), el('td', {}, s.failed),
+    el('td', {}, s.kind), el('td', {}, s.count), el('td', {}, s.succeeded), el('td', {}, s.skipped), el('td', {}, s.failed),
     el('td', {}, s.terminated), el('td', {}, s.unfinished),
     el('td', {}, s.ran ? secs(s.mean_ns) : ''), el('td', {}, s.ran ? secs(s.max_ns) : ''), el('td', {}, s.ran ? secs(s.total_ns) : '')))));
 }
@@ -646,6 +770,10 @@ window.onmouseup = (e) => {
     if (i * 2 < S.rows.length && S.rows[i * 2] >= 0) select(S.rows[i * 2], false);
   }
   drag = null;
+};
+$('lanes').onclick = (e) => {
+  const r = $('lanes').getBoundingClientRect();
+  setCursor(seqAt(tAtX(e.clientX - r.left, r.width)));
 };
 for (const b of document.querySelectorAll('#tabs button')) {
   b.onclick = () => {

@@ -4,13 +4,15 @@
 //! [`Viewer::serve`] and [`Viewer::live`], whose [`LiveSink`] is a trace sink like any other.
 //! The page (served from the binary, no build step) shows the task tree coloured by its facets'
 //! states, a timeline with a time cursor that replays the tree as it was, why a node waits,
-//! each exception's story, counts and durations per task, and the records themselves, filtered.
+//! each exception's story, counts and durations per task, the state variables' values over the
+//! run (a lane each), and the records themselves, filtered.
 //! It folds no record itself: the model and the page read the rows of the one fold of the trace,
 //! [`tcm_trace::Replay`]; a live page gets each record (docs/trace-format.md) with the rows it
 //! changed, framed as `docs/viewer.md` says.
 
 mod model;
 mod server;
+mod state;
 mod why;
 
 pub use model::{
@@ -21,4 +23,5 @@ pub use model::{
 pub use server::{
     DEFAULT_ADDR, LiveSink, ViewError, Viewer, exposure_warning, record_json, snapshot_json,
 };
-pub use why::{EventView, NodeView, Wait};
+pub use state::{StateLane, VarAt};
+pub use why::{CondView, EventView, NodeView, Wait};

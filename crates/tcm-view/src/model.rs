@@ -1,7 +1,8 @@
 //! The viewer's model of one run: the records themselves for the event list, their times, and the
 //! one fold of the trace, [`tcm_trace::Replay`], which holds one [`Row`] per node with the moment
 //! (record number and time) of each point it reached, the exception stories and the resource
-//! restrictions; and what the page asks about a node (its details, why it waits, its exceptions).
+//! restrictions, and each state variable's changes (`state.rs`); and what the page asks about a
+//! node (its details, why it waits, its exceptions).
 //! The model never matches on record kinds to build its state: the fold does.
 //!
 //! A row's *marks* are the record numbers (`seq`) at which the node was spawned, each facet reached
@@ -12,7 +13,10 @@
 use std::collections::{BTreeMap, HashMap};
 
 use serde::Serialize;
+use tcm::{Expr, StateValue};
 use tcm_trace::{Facet, NodeKind, Point, Replay, TraceEvent, TraceKind};
+
+use crate::state::{StateLane, States, VarAt};
 
 pub use tcm_trace::{
     ExceptionStory, Failure, M_DEAD, M_FAILED, M_RECLAIMED, M_RESERVED, M_SKIPPED, M_SPAWNED,
@@ -93,6 +97,8 @@ pub struct RunModel {
     counts: HashMap<u64, Vec<(u64, u32, u32)>>,
     /// Per node placed on an agent, `(seq, agent)` at each record that changed it in its row.
     placed: HashMap<u64, Vec<(u64, String)>>,
+    /// Each state variable's changes, as the fold recorded its values.
+    states: States,
     /// The first thing that stopped the reading, if any; everything before it is shown.
     pub problem: Option<Problem>,
     /// Whether the run ended (a file read to its end; a live run whose sinks were flushed).
@@ -111,6 +117,7 @@ impl RunModel {
             times: Vec::new(),
             counts: HashMap::new(),
             placed: HashMap::new(),
+            states: States::default(),
             problem: None,
             finished: false,
         }
@@ -248,6 +255,7 @@ impl RunModel {
         // checker is the tool that says what is wrong with it.
         let _ = self.replay.apply(ev);
         self.keep_changes(ev.seq);
+        self.states.keep(&self.replay);
         self.index.push((ev.t, ev.kind.node()));
         self.lines.push(line);
         Ok(())
@@ -294,6 +302,38 @@ impl RunModel {
             0 => None,
             i => Some(list[i - 1].1.as_str()),
         }
+    }
+
+    /// Every state variable declared so far, in the order declared, with its changes.
+    pub fn state_lanes(&self) -> &[StateLane] {
+        self.states.lanes()
+    }
+
+    /// The variable the last record applied declared or changed, if it did.
+    pub fn state_changed(&self) -> Option<&StateLane> {
+        self.states.changed()
+    }
+
+    /// A state variable's value after record `seq`, with the moment it got it (its declaration or
+    /// the change to it); `None` before its declaration.
+    pub fn state_at(&self, name: &str, seq: u64) -> Option<(&StateValue, Mark)> {
+        self.states.value_at(name, seq)
+    }
+
+    /// A condition's value after record `seq`, three-valued (the text of the error for one that
+    /// cannot be evaluated then).
+    pub fn eval_at(&self, cond: &Expr, seq: u64) -> Result<StateValue, String> {
+        self.states.eval_at(cond, seq)
+    }
+
+    /// The first moment from `from` (when it was applied) to record `to` at which `cond` held.
+    pub fn first_held(&self, cond: &Expr, from: Mark, to: u64) -> Option<Mark> {
+        self.states.first_held(cond, from, to)
+    }
+
+    /// Each variable `cond` reads, with its value after record `seq` and since when.
+    pub fn reading(&self, cond: &Expr, seq: u64) -> Vec<VarAt> {
+        self.states.reading(cond, seq)
     }
 
     /// Number of records.
@@ -489,6 +529,8 @@ impl RunModel {
                 entry.terminated += 1;
             } else if !r.failures.is_empty() {
                 entry.failed += 1;
+            } else if r.marks[M_SKIPPED].is_some() {
+                entry.skipped += 1;
             } else if ended.is_some() {
                 entry.succeeded += 1;
             } else {
@@ -541,8 +583,10 @@ pub struct NameStats {
     pub kind: &'static str,
     /// Nodes spawned.
     pub count: u64,
-    /// Ended well.
+    /// Ended well (having run: a skipped node is counted in `skipped`).
     pub succeeded: u64,
+    /// Skipped: completed without running, a `skip if` condition holding when its turn came.
+    pub skipped: u64,
     /// Failed (at least once).
     pub failed: u64,
     /// Terminated.

@@ -345,6 +345,20 @@ pub fn snapshot_json(id: usize, m: &RunModel) -> String {
         }
         let _ = write!(out, "{s},{t}");
     }
+    out.push_str(r#"],"states":["#);
+    for (i, lane) in m.state_lanes().iter().enumerate() {
+        if i > 0 {
+            out.push(',');
+        }
+        let changes: Vec<serde_json::Value> = lane
+            .changes
+            .iter()
+            .flat_map(|(mark, v)| [mark.seq.into(), serde_json::to_value(v).unwrap_or_default()])
+            .collect();
+        out.push_str(
+            &serde_json::json!({"name": lane.name, "ty": lane.ty, "changes": changes}).to_string(),
+        );
+    }
     out.push_str(r#"],"nodes":["#);
     write_rows(&mut out, m.rows());
     out.push_str("]}");
@@ -353,7 +367,8 @@ pub fn snapshot_json(id: usize, m: &RunModel) -> String {
 
 /// The live message of the last record applied to `m` (`docs/viewer.md`, "Live messages"): the
 /// record as its trace line, and the rows it changed, as the fold has them after it
-/// ([`tcm_trace::Replay::changed_rows`]), in the snapshot's format.
+/// ([`tcm_trace::Replay::changed_rows`]), in the snapshot's format; and the state variable it
+/// declared or changed, if it did, with its value after it.
 pub fn record_json(m: &RunModel) -> String {
     let record = m.len().checked_sub(1).and_then(|seq| m.line(seq));
     let changed = m.changed_rows();
@@ -365,7 +380,14 @@ pub fn record_json(m: &RunModel) -> String {
         &mut out,
         changed.iter().filter_map(|&n| m.rows().get(n as usize)),
     );
-    out.push_str("]}");
+    out.push(']');
+    if let Some(lane) = m.state_changed() {
+        let value = lane.changes.last().map(|(_, v)| v);
+        let state = serde_json::json!({"name": lane.name, "ty": lane.ty, "value": value});
+        out.push_str(r#","state":"#);
+        out.push_str(&state.to_string());
+    }
+    out.push('}');
     out
 }
 

@@ -1,11 +1,16 @@
 //! "Why is it waiting": for a node at a moment of the run, each condition that still holds one of
 //! its facets back (the paper's "constraints between nodes that are not yet satisfied"): the
 //! constraints applied to it whose event has not happened, the structural couplings to its
-//! parent and to its own facets (docs/semantics.md, "Facets and states"), a suspension, or its
-//! turn to start; each with the event it waits for and since when.
+//! parent and to its own facets (docs/semantics.md, "Facets and states"), a condition over state
+//! variables (with each variable it reads, its value then and since when), a suspension (a pause
+//! named with its condition), or its turn to start; each with the event it waits for and since
+//! when. And its triggers on conditions (skip, invariant, pause, …) with their values then.
 
 use serde::Serialize;
 use tcm_trace::{Facet, Outcome, Point, TraceConstraint, TraceEventRef, TraceThen, TraceWhen};
+
+use crate::state::VarAt;
+use tcm::{Expr, StateValue};
 
 use crate::model::{
     M_DEAD, M_RECLAIMED, M_RESERVED, M_SKIPPED, M_SPAWNED, M_TERMINATED, M_TERMINATING, Mark, Row,
@@ -33,8 +38,15 @@ pub struct NodeView {
     pub life: &'static str,
     /// What holds it back at that moment (empty when nothing does).
     pub waits: Vec<Wait>,
-    /// Constraints that will terminate or activate it, and whether they fired yet.
+    /// Constraints that will terminate or activate it, and whether they fired yet (those on
+    /// conditions over state are in `conditions`).
     pub triggers: Vec<String>,
+    /// Its triggers on conditions over state (every form: enable, terminate, activate, skip,
+    /// invariant, pause), each with its value at that moment and the variables it reads.
+    pub conditions: Vec<CondView>,
+    /// When it is suspended by a `pause while` condition (its own or an ancestor's) that holds at
+    /// that moment: which, and the variables that hold it.
+    pub paused: Option<String>,
     /// Every point reached so far, in order: `(what, t)`.
     pub history: Vec<(String, u64)>,
     /// Failures, as `exception: message` with when.
@@ -71,8 +83,44 @@ pub struct Wait {
     pub time: Option<u64>,
     /// The external event waited for, when it is one.
     pub external: Option<String>,
+    /// The condition over state waited for, when it is one, as TDL writes it.
+    pub condition: Option<String>,
+    /// The variables that condition reads, each with its value at that moment and since when.
+    pub reads: Vec<VarAt>,
     /// Since when it waits, ns.
     pub since: u64,
+}
+
+/// A trigger on a condition over state, at a moment.
+#[derive(Debug, Serialize)]
+pub struct CondView {
+    /// What it does: `disable handling until`, `terminate when`, `activate when`, `activate on
+    /// change of`, `skip if`, `invariant`, `pause while`.
+    pub form: String,
+    /// The condition as TDL writes it (for `activate on change of`, the variable).
+    pub condition: String,
+    /// Its value at that moment: `true`, `false`, `unknown` (or why it cannot be evaluated); for
+    /// `activate on change of`, the variable's value.
+    pub value: String,
+    /// What that means for the node at that moment.
+    pub state: String,
+    /// The variables it reads, each with its value at that moment and since when.
+    pub reads: Vec<VarAt>,
+    /// When it was applied, ns.
+    pub applied: u64,
+}
+
+/// A condition's value for people: `true`, `false`, `unknown`, or why it cannot be evaluated.
+fn value_text(v: &Result<StateValue, String>) -> String {
+    match v {
+        Ok(v) => v.to_string(),
+        Err(e) => format!("cannot be evaluated: {e}"),
+    }
+}
+
+/// The variables read, as `a = v since t, b = w since u`.
+fn reads_text(reads: &[VarAt]) -> String {
+    reads.iter().map(VarAt::text).collect::<Vec<_>>().join(", ")
 }
 
 /// An event, with the node's path.
@@ -106,7 +154,7 @@ fn state_str(p: Option<Point>) -> &'static str {
     p.map_or("disabled", point_str)
 }
 
-fn secs(ns: u64) -> String {
+pub(crate) fn secs(ns: u64) -> String {
     format!("{:.3} s", ns as f64 / 1e9)
 }
 
@@ -190,6 +238,11 @@ impl RunModel {
             life,
             waits: self.waits(row, at),
             triggers: self.triggers(row, at),
+            conditions: self.conditions(row, at),
+            paused: self
+                .suspended_by(row, at)
+                .and_then(|_| self.pause_of(row, at))
+                .map(|(p, c)| self.pause_text(row, p, &c, at)),
             history,
             failures: row
                 .failures
@@ -228,6 +281,8 @@ impl RunModel {
                     Outcome::Terminated
                 } else if row.failures.iter().any(|f| f.at.seq <= at.seq) {
                     Outcome::Failed
+                } else if row.reached(M_SKIPPED, at.seq) {
+                    Outcome::Skipped
                 } else {
                     Outcome::Succeeded
                 };
@@ -315,6 +370,8 @@ impl RunModel {
                     event,
                     time: None,
                     external: None,
+                    condition: None,
+                    reads: Vec::new(),
                     since: since_spawn,
                 });
             }
@@ -334,6 +391,8 @@ impl RunModel {
                                 event: Some(self.event_view(&e)),
                                 time: None,
                                 external: None,
+                                condition: None,
+                                reads: Vec::new(),
                                 since: applied.t,
                             });
                         }
@@ -353,6 +412,8 @@ impl RunModel {
                                 event: Some(self.event_view(&e)),
                                 time: None,
                                 external: None,
+                                condition: None,
+                                reads: Vec::new(),
                                 since: applied.t,
                             });
                         }
@@ -381,12 +442,16 @@ impl RunModel {
                     return out;
                 }
             }
-            let what = match suspended {
-                Some(n) if n == row.number => "it is suspended".to_string(),
-                Some(n) => format!("its ancestor {} is suspended", self.label(n)),
-                None => "its turn to start: enabled, it starts once the nodes before it started \
+            let paused = suspended.and_then(|_| self.pause_of(row, at));
+            let what = match (suspended, paused) {
+                (Some(_), Some((p, c))) => self.pause_text(row, p, &c, at),
+                (Some(n), None) if n == row.number => "it is suspended".to_string(),
+                (Some(n), None) => format!("its ancestor {} is suspended", self.label(n)),
+                (None, _) => {
+                    "its turn to start: enabled, it starts once the nodes before it started \
                          and its parent's action lets go of its children (returns or waits)"
-                    .to_string(),
+                        .to_string()
+                }
             };
             out.push(Wait {
                 facet: "start",
@@ -394,6 +459,8 @@ impl RunModel {
                 event: None,
                 time: None,
                 external: None,
+                condition: None,
+                reads: Vec::new(),
                 since: enabled,
             });
         }
@@ -451,6 +518,8 @@ impl RunModel {
             event: None,
             time: None,
             external: None,
+            condition: None,
+            reads: Vec::new(),
             since: asked.t,
         })
     }
@@ -490,10 +559,29 @@ impl RunModel {
             event,
             time,
             external,
+            condition: None,
+            reads: Vec::new(),
             since: applied.t,
         };
         match when {
             TraceWhen::Now => None,
+            // Met for good once it held at some moment since it was applied (latched).
+            TraceWhen::Condition(c) => {
+                if self.first_held(c, applied, at.seq).is_some() {
+                    return None;
+                }
+                let reads = self.reading(c, at.seq);
+                let value = value_text(&self.eval_at(c, at.seq));
+                let mut w = wait(
+                    format!("waits for `{c}` ({value}): {}", reads_text(&reads)),
+                    None,
+                    None,
+                    None,
+                );
+                w.condition = Some(c.to_string());
+                w.reads = reads;
+                Some(w)
+            }
             TraceWhen::At(t) => (at.t < *t).then(|| {
                 wait(
                     format!("the time {} (held until then)", secs(*t)),
@@ -555,8 +643,8 @@ impl RunModel {
                 }
                 Some(wait(what, Some(self.event_view(first)), None, None))
             }
-            // An external event; or what the viewer does not evaluate (a condition over state,
-            // which the fold does not track), held to be unmet while the facet it enables waits.
+            // An external event; or a change of a variable (only ever activates, so never met
+            // for good), held to be unmet.
             other => {
                 let TraceWhen::External(name) = other else {
                     return Some(wait(format!("{} (not yet)", text()), None, None, None));
@@ -585,7 +673,9 @@ impl RunModel {
             let TraceConstraint::Trigger { when, then } = c else {
                 continue;
             };
-            if matches!(then, TraceThen::Enable(_)) {
+            if matches!(then, TraceThen::Enable(_))
+                || matches!(when, TraceWhen::Condition(_) | TraceWhen::Changed(_))
+            {
                 continue;
             }
             let text = || c.text(|n| self.node(n).map_or(String::new(), |r| r.name.clone()));
@@ -595,6 +685,154 @@ impl RunModel {
                 "pending"
             };
             out.push(format!("{} ({state})", text()));
+        }
+        out
+    }
+    /// The nearest node from `row` up (itself first) whose `pause while` condition, applied by
+    /// `at`, holds at `at`, with that condition: what pauses a suspended node.
+    fn pause_of(&self, row: &Row, at: Mark) -> Option<(u64, Expr)> {
+        let mut cur = Some(row);
+        let mut steps = 0;
+        while let Some(r) = cur {
+            for (_, c) in r.constraints.iter().filter(|(m, _)| m.seq <= at.seq) {
+                if let TraceConstraint::Trigger {
+                    when: TraceWhen::Condition(cond),
+                    then: TraceThen::Pause,
+                } = c
+                {
+                    if self.eval_at(cond, at.seq).is_ok_and(|v| v.is_true()) {
+                        return Some((r.number, cond.clone()));
+                    }
+                }
+            }
+            steps += 1;
+            if steps > self.rows().len() {
+                return None;
+            }
+            cur = r.parent.and_then(|p| self.rows().get(p as usize));
+        }
+        None
+    }
+
+    /// `it is paused by `pause while C`: v = x since t` (or `its ancestor … is paused …`).
+    fn pause_text(&self, row: &Row, by: u64, cond: &Expr, at: Mark) -> String {
+        let who = if by == row.number {
+            "it is".to_string()
+        } else {
+            format!("its ancestor {} is", self.label(by))
+        };
+        format!(
+            "{who} paused by `pause while {cond}`: {}",
+            reads_text(&self.reading(cond, at.seq))
+        )
+    }
+
+    /// The node's triggers on conditions over state applied by `at`, each with its value at `at`
+    /// and what that means for the node then.
+    fn conditions(&self, row: &Row, at: Mark) -> Vec<CondView> {
+        let mut out = Vec::new();
+        let reached = |m: usize| row.marks[m].filter(|mk| mk.seq <= at.seq);
+        let started = reached(m_point(Facet::Handling, Point::Active));
+        let ended = reached(m_point(Facet::Execution, Point::Completed));
+        let terminating = reached(M_TERMINATING);
+        for (applied, c) in row.constraints.iter().filter(|(m, _)| m.seq <= at.seq) {
+            let TraceConstraint::Trigger { when, then } = c else {
+                continue;
+            };
+            let cond = match when {
+                TraceWhen::Condition(cond) => cond,
+                TraceWhen::Changed(var) => {
+                    let reads = self.reading(&Expr::var(var.as_str()), at.seq);
+                    out.push(CondView {
+                        form: "activate on change of".to_string(),
+                        condition: var.clone(),
+                        value: reads.first().map_or(String::new(), |r| r.value.clone()),
+                        state: "activates the monitor at each change".to_string(),
+                        reads,
+                        applied: applied.t,
+                    });
+                    continue;
+                }
+                _ => continue,
+            };
+            let value = self.eval_at(cond, at.seq);
+            let holds = value.as_ref().is_ok_and(StateValue::is_true);
+            let held = || self.first_held(cond, *applied, at.seq);
+            let (form, state) = match then {
+                TraceThen::Enable(facet) => (
+                    format!("disable {facet} until"),
+                    match held() {
+                        Some(m) => format!("held at {}: met for good", secs(m.t)),
+                        None => "has not held yet: the facet waits for it".to_string(),
+                    },
+                ),
+                TraceThen::Terminate => (
+                    "terminate when".to_string(),
+                    match held() {
+                        Some(m) => format!("held at {}: terminates the node", secs(m.t)),
+                        None => "has not held yet".to_string(),
+                    },
+                ),
+                TraceThen::Activate => (
+                    "activate when".to_string(),
+                    "activates the monitor each time it becomes true".to_string(),
+                ),
+                TraceThen::Skip => (
+                    "skip if".to_string(),
+                    match (reached(M_SKIPPED), started, terminating) {
+                        (Some(m), _, _) => {
+                            format!("held when its turn came: skipped at {}", secs(m.t))
+                        }
+                        (None, Some(m), _) => format!(
+                            "did not hold when its turn came ({} at {}): it ran",
+                            value_text(&self.eval_at(cond, m.seq)),
+                            secs(m.t)
+                        ),
+                        (None, None, Some(_)) => "never read: terminated first".to_string(),
+                        (None, None, None) => {
+                            "read when its turn comes (handling enabled, about to start)"
+                                .to_string()
+                        }
+                    },
+                ),
+                TraceThen::Invariant => (
+                    "invariant".to_string(),
+                    match (started, ended) {
+                        (None, _) => "watched once it starts".to_string(),
+                        (Some(_), Some(m)) => {
+                            format!("watched until its execution completed at {}", secs(m.t))
+                        }
+                        (Some(_), None) if terminating.is_some() => {
+                            "no longer watched: terminating".to_string()
+                        }
+                        (Some(_), None) => match &value {
+                            Ok(StateValue::Bool(true)) => "watched: holds".to_string(),
+                            Ok(StateValue::Bool(false)) => {
+                                "watched: false, the node fails with InvariantFailed".to_string()
+                            }
+                            _ => "watched: not false, so it does not fail".to_string(),
+                        },
+                    },
+                ),
+                TraceThen::Pause => (
+                    "pause while".to_string(),
+                    if terminating.is_some() {
+                        "no longer acts: terminating".to_string()
+                    } else if holds {
+                        "holds: its subtree is paused (nothing new starts in it)".to_string()
+                    } else {
+                        "does not hold: not paused".to_string()
+                    },
+                ),
+            };
+            out.push(CondView {
+                form,
+                condition: cond.to_string(),
+                value: value_text(&value),
+                state,
+                reads: self.reading(cond, at.seq),
+                applied: applied.t,
+            });
         }
         out
     }

@@ -5,7 +5,9 @@
 //! a monitor's many activations fold into one row with their count, listed by a click; search
 //! matches names, or paths when the query has a `/`; a node's details are those at the cursor;
 //! the Exceptions tab tells a failure a waiting parent took as taken by it; a skipped node looks
-//! skipped.
+//! skipped. On a run with state variables: a lane per variable with its value at the cursor, a
+//! node's wait on a condition with the values that hold it, skipped nodes counted apart, and a
+//! live page's lanes the same as the snapshot's.
 //! Screenshots go to `target/viewer/`.
 
 mod common;
@@ -475,6 +477,159 @@ fn a_skipped_node_looks_skipped() -> anyhow::Result<()> {
                 Duration::from_secs(5),
             )
             .await?;
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+/// The text of `battery_ok`'s label under the timeline: its value at the cursor and since when.
+const BATTERY: &str = "(() => { const d = document.querySelector('#statelabels [data-var=\"battery_ok\"]'); \
+    return d && [d.querySelector('.val').textContent, (d.querySelector('.since') || {}).textContent || '']; })()";
+
+#[test]
+fn state_variables_show_their_value_at_the_cursor_and_a_wait_names_them() -> anyhow::Result<()> {
+    let trace = paused(common::powered())?;
+    let mut model = RunModel::new("powered.jsonl");
+    for ev in &trace {
+        model.apply(ev).map_err(anyhow::Error::msg)?;
+    }
+    model.finished = true;
+    let at = |s: u64| model.seq_at(s * 1_000_000_000);
+    let (three, four, six) = (at(3), at(4), at(6));
+    let drive = model
+        .rows()
+        .iter()
+        .find(|r| r.name == "drive")
+        .map(|r| r.number)
+        .ok_or_else(|| anyhow::anyhow!("no drive"))?;
+    let records = trace.len();
+    let viewer = Viewer::serve(([127, 0, 0, 1], 0).into())?;
+    viewer.add(model);
+    let url = viewer.url();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = open_page(&url, records).await?;
+            // A lane per variable, in the order declared.
+            let names = b
+                .wait_for(
+                    "(() => { const l = [...document.querySelectorAll('#statelabels .lane')]; \
+                     return l.length === 5 && !document.getElementById('states').hidden \
+                     && l.map((d) => d.dataset.var); })()",
+                    Duration::from_secs(5),
+                )
+                .await?;
+            ensure!(
+                names == serde_json::json!(["battery_ok", "fault", "charge", "position", "docked"]),
+                "lanes: {names}"
+            );
+            // At 3 s, false since 2 s; at 6 s, true since 5 s; `position` unknown.
+            b.eval(&set_cursor(three)).await?;
+            let value = b
+                .wait_for(
+                    &format!("(() => {{ const v = {BATTERY}; return v && v[0] === 'false' && v; }})()"),
+                    Duration::from_secs(5),
+                )
+                .await?;
+            ensure!(value == serde_json::json!(["false", "since 2.000 s"]), "at 3 s: {value}");
+            b.screenshot(&shots().join("state-lanes.png")).await?;
+            b.eval(&set_cursor(six)).await?;
+            let value = b
+                .wait_for(
+                    &format!("(() => {{ const v = {BATTERY}; return v && v[0] === 'true' && v; }})()"),
+                    Duration::from_secs(5),
+                )
+                .await?;
+            ensure!(value == serde_json::json!(["true", "since 5.000 s"]), "at 6 s: {value}");
+            let position = b
+                .eval("document.querySelector('#statelabels [data-var=\"position\"] .val').textContent")
+                .await?;
+            ensure!(position == "unknown", "position: {position}");
+
+            // `drive` at 4 s waits for its condition, held by `battery_ok`.
+            b.eval(&set_cursor(four)).await?;
+            b.eval(&format!("select({drive}, true)")).await?;
+            let waits = b
+                .wait_for(
+                    "(() => { const w = document.getElementById('waits'); \
+                     return w && w.textContent.includes('waits for') && w.textContent; })()",
+                    Duration::from_secs(5),
+                )
+                .await?;
+            let waits = waits.as_str().unwrap_or_default();
+            ensure!(
+                waits.contains(
+                    "handling: waits for `battery_ok && !fault` (false): battery_ok = false \
+                     since 2.000 s, fault = false since 0.000 s"
+                ),
+                "drive's waits: {waits}"
+            );
+            let conds = b.eval("document.getElementById('conds').textContent").await?;
+            ensure!(
+                conds.as_str().unwrap_or_default().contains("invariant charge > 10.0 is true"),
+                "drive's conditions: {conds}"
+            );
+            b.screenshot(&shots().join("state-waiting.png")).await?;
+
+            // Counts & durations: `dock` skipped, not ok.
+            b.click("#tabs [data-tab=stats]").await?;
+            let dock = b
+                .wait_for(
+                    "(() => { const r = [...document.querySelectorAll('#tab-stats tr')].find((r) => r.cells[0].textContent === 'dock'); \
+                     return r && [...r.cells].slice(3, 5).map((c) => c.textContent); })()",
+                    Duration::from_secs(5),
+                )
+                .await?;
+            ensure!(dock == serde_json::json!(["0", "1"]), "dock's ok and skipped: {dock}");
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+#[test]
+fn a_live_page_builds_the_state_lanes_a_page_reads_from_the_snapshot() -> anyhow::Result<()> {
+    let chromium =
+        test_support::ensure_tool("chromium", "chromium").map_err(|e| anyhow::anyhow!(e))?;
+    let trace = paused(common::powered())?;
+    let viewer = Viewer::serve(([127, 0, 0, 1], 0).into())?;
+    let mut sink = viewer.live("powered");
+    let url = viewer.url();
+    let done = format!("S.finished && S.records === {}", trace.len());
+    let states = "JSON.stringify(S.states)";
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = Browser::start(&chromium, 1200, 700).await?;
+            b.goto(&url).await?;
+            let subscribed =
+                "S.runId === 0 && document.getElementById('status').textContent.startsWith('live')";
+            let mut tries = 0;
+            while let Err(e) = b.wait_for(subscribed, Duration::from_secs(20)).await {
+                tries += 1;
+                ensure!(tries < 3, "the page did not open the run: {e}");
+            }
+            for ev in &trace {
+                sink.record(ev);
+            }
+            sink.flush();
+            b.wait_for(&done, Duration::from_secs(20)).await?;
+            let live = b.eval(states).await?;
+            b.eval("open(0)").await?;
+            b.wait_for(&done, Duration::from_secs(20)).await?;
+            let fresh = b.eval(states).await?;
+            let text = live.as_str().unwrap_or_default();
+            ensure!(
+                text.contains(r#"{"name":"charge","ty":"float","ch":["#),
+                "the live page lacks the lanes: {text}"
+            );
+            ensure!(
+                live == fresh,
+                "the live page's lanes differ from the snapshot's:\nlive:  {live}\nfresh: {fresh}"
+            );
             anyhow::Ok(())
         })?;
     viewer.stop();

@@ -1,7 +1,9 @@
 //! The viewer's model and server on real runs (tcm on tokio's paused clock, every trace through
 //! the checker): why a node waits and when it stops waiting, an exception's story, counts and
 //! durations, the event filter, bad files named by line with what came before kept, a node's
-//! details at the cursor (a monitor's activations and triggers, children, agent); and the
+//! details at the cursor (a monitor's activations and triggers, children, agent); state variables
+//! (each one's changes and value at a cursor, a wait on a condition with the values that hold it,
+//! what a skip, an invariant and a pause say at a cursor, skipped nodes counted apart); and the
 //! server: the snapshot, each live record with the rows it changed over a WebSocket (the rows a
 //! page builds from them being the snapshot's), and a page that falls behind being sent a fresh
 //! snapshot instead of slowing the run.
@@ -555,4 +557,266 @@ fn a_live_page_gets_a_snapshot_then_records_and_a_fresh_snapshot_when_it_falls_b
         assert_eq!(rows, snapshot_rows(&model_of(&all)));
     });
     viewer.stop();
+}
+
+/// The last record at or before `s` seconds.
+fn at_secs(m: &RunModel, s: f64) -> u64 {
+    m.seq_at((s * 1e9) as u64)
+}
+
+#[tokio::test(start_paused = true)]
+async fn each_state_variable_has_its_changes_and_a_value_at_any_cursor() {
+    let trace = common::powered().await;
+    let m = model_of(&trace);
+    let lanes: Vec<(&str, &str)> = m
+        .state_lanes()
+        .iter()
+        .map(|l| (l.name.as_str(), l.ty))
+        .collect();
+    assert_eq!(
+        lanes,
+        [
+            ("battery_ok", "bool"),
+            ("fault", "bool"),
+            ("charge", "float"),
+            ("position", "float"),
+            ("docked", "bool"),
+        ]
+    );
+    let lane = |name: &str| {
+        m.state_lanes()
+            .iter()
+            .find(|l| l.name == name)
+            .unwrap_or_else(|| panic!("no lane {name}"))
+    };
+    // Declared, then each change; `fault` set to the value it had is a set, not a change.
+    let changes = |name: &str| -> Vec<(u64, String)> {
+        lane(name)
+            .changes
+            .iter()
+            .map(|(mk, v)| (mk.t / 1_000_000_000, v.to_string()))
+            .collect()
+    };
+    assert_eq!(
+        changes("battery_ok"),
+        [(0, "true".into()), (2, "false".into()), (5, "true".into())]
+    );
+    assert_eq!(
+        changes("charge"),
+        [(0, "100.0".into()), (2, "20.0".into()), (5, "90.0".into())]
+    );
+    assert_eq!(changes("fault"), [(0, "false".to_string())]);
+    assert_eq!(lane("fault").sets, 2);
+    assert_eq!(changes("position"), [(0, "unknown".to_string())]);
+
+    // At 3 s and at 6 s, with since when.
+    let value = |name: &str, s: f64| {
+        let (v, since) = m.state_at(name, at_secs(&m, s)).expect("declared");
+        (v.to_string(), since.t / 1_000_000_000)
+    };
+    assert_eq!(value("battery_ok", 3.0), ("false".into(), 2));
+    assert_eq!(value("battery_ok", 6.0), ("true".into(), 5));
+    assert_eq!(value("charge", 3.0), ("20.0".into(), 2));
+    assert_eq!(value("position", 6.0), ("unknown".into(), 0));
+    // Before its declaration, a variable has no value.
+    assert!(m.state_at("battery_ok", 0).is_none());
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_node_waiting_on_a_condition_says_which_with_the_values_that_hold_it() {
+    let trace = common::powered().await;
+    let m = model_of(&trace);
+    let drive = number(&m, "drive");
+
+    // At 4 s, its handling waits for the condition, held by `battery_ok`, false since 2 s.
+    let v = m.node_view(drive, at_secs(&m, 4.0)).expect("drive");
+    let waits: Vec<_> = v.waits.iter().filter(|w| w.condition.is_some()).collect();
+    assert_eq!(waits.len(), 1, "{:?}", v.waits);
+    let w = waits[0];
+    assert_eq!(w.facet, "handling");
+    assert_eq!(w.condition.as_deref(), Some("battery_ok && !fault"));
+    assert_eq!(
+        w.what,
+        "waits for `battery_ok && !fault` (false): battery_ok = false since 2.000 s, \
+         fault = false since 0.000 s"
+    );
+    assert_eq!(w.since, 3_000_000_000);
+    let forms: Vec<(&str, &str, &str, &str)> = v
+        .conditions
+        .iter()
+        .map(|c| {
+            (
+                c.form.as_str(),
+                c.condition.as_str(),
+                c.value.as_str(),
+                c.state.as_str(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        forms,
+        [
+            (
+                "disable handling until",
+                "battery_ok && !fault",
+                "false",
+                "has not held yet: the facet waits for it"
+            ),
+            (
+                "invariant",
+                "charge > 10.0",
+                "true",
+                "watched once it starts"
+            ),
+        ]
+    );
+
+    // At 5.5 s, it runs: nothing holds it, the condition held at 5 s, the invariant holds.
+    let v = m.node_view(drive, at_secs(&m, 5.5)).expect("drive");
+    assert!(v.waits.is_empty(), "{:?}", v.waits);
+    assert_eq!(v.states[0], "active");
+    let states: Vec<&str> = v.conditions.iter().map(|c| c.state.as_str()).collect();
+    assert_eq!(states, ["held at 5.000 s: met for good", "watched: holds"]);
+    let reads: Vec<String> = v.conditions[1].reads.iter().map(|r| r.text()).collect();
+    assert_eq!(reads, ["charge = 90.0 since 5.000 s"]);
+    // After its end, the invariant is no longer watched.
+    let v = m.node_view(drive, u64::MAX).expect("drive");
+    assert_eq!(
+        v.conditions[1].state,
+        "watched until its execution completed at 6.000 s"
+    );
+}
+
+#[tokio::test(start_paused = true)]
+async fn skip_and_pause_say_what_their_condition_was_at_the_cursor() {
+    let trace = common::powered().await;
+    let m = model_of(&trace);
+    let (dock, patrol) = (number(&m, "dock"), number(&m, "patrol"));
+
+    let v = m.node_view(dock, u64::MAX).expect("dock");
+    assert_eq!(v.conditions.len(), 1);
+    let skip = &v.conditions[0];
+    assert_eq!(
+        (
+            skip.form.as_str(),
+            skip.condition.as_str(),
+            skip.value.as_str()
+        ),
+        ("skip if", "!is_known(position)", "true")
+    );
+    assert_eq!(skip.state, "held when its turn came: skipped at 0.000 s");
+
+    // At 3 s, `patrol` is enabled and paused by its own `pause while docked`.
+    let v = m.node_view(patrol, at_secs(&m, 3.0)).expect("patrol");
+    let paused = "it is paused by `pause while docked`: docked = true since 0.000 s";
+    assert_eq!(v.paused.as_deref(), Some(paused));
+    let start: Vec<&str> = v
+        .waits
+        .iter()
+        .filter(|w| w.facet == "start")
+        .map(|w| w.what.as_str())
+        .collect();
+    assert_eq!(start, [paused]);
+    assert_eq!(
+        (
+            v.conditions[0].form.as_str(),
+            v.conditions[0].value.as_str()
+        ),
+        ("pause while", "true")
+    );
+    assert_eq!(
+        v.conditions[0].state,
+        "holds: its subtree is paused (nothing new starts in it)"
+    );
+    // From 7 s, it is not.
+    let v = m.node_view(patrol, at_secs(&m, 7.2)).expect("patrol");
+    assert_eq!(v.paused, None);
+    assert_eq!(v.conditions[0].state, "does not hold: not paused");
+    assert!(!v.waits.iter().any(|w| w.facet == "start"), "{:?}", v.waits);
+    // At 8.5 s, `sweep2`'s turn came while its ancestor's pause held again (from 7.5 s).
+    let sweep2 = number(&m, "sweep2");
+    let v = m.node_view(sweep2, at_secs(&m, 8.5)).expect("sweep2");
+    let paused = format!(
+        "its ancestor patrol {{{patrol}}} is paused by `pause while docked`: docked = true since 7.500 s"
+    );
+    assert_eq!(v.paused.as_deref(), Some(paused.as_str()));
+    let start: Vec<&str> = v
+        .waits
+        .iter()
+        .filter(|w| w.facet == "start")
+        .map(|w| w.what.as_str())
+        .collect();
+    assert_eq!(start, [paused.as_str()]);
+    let ran = v.history.iter().any(|(what, _)| what == "handling active");
+    assert!(!ran, "{:?}", v.history);
+    let v = m.node_view(sweep2, u64::MAX).expect("sweep2");
+    let active = v.history.iter().find(|(what, _)| what == "handling active");
+    assert_eq!(active.map(|a| a.1), Some(9_000_000_000));
+    assert_eq!(v.paused, None);
+}
+
+#[tokio::test(start_paused = true)]
+async fn counts_tell_skipped_nodes_apart_from_those_that_succeeded() {
+    let trace = common::powered().await;
+    let m = model_of(&trace);
+    let stats = m.stats();
+    let of = |name: &str| {
+        let s = stats.iter().find(|s| s.name == name).expect("a task");
+        (s.count, s.succeeded, s.skipped, s.ran)
+    };
+    assert_eq!(of("dock"), (1, 0, 1, 0));
+    assert_eq!(of("drive"), (1, 1, 0, 1));
+}
+
+#[tokio::test(start_paused = true)]
+async fn the_snapshot_and_live_messages_carry_the_state_variables() {
+    let trace = common::powered().await;
+    let mut m = RunModel::new("powered");
+    let mut changed = Vec::new();
+    for ev in &trace {
+        m.apply(ev).expect("a checked trace applies");
+        let msg: serde_json::Value =
+            serde_json::from_str(&tcm_view::record_json(&m)).expect("JSON");
+        if let Some(state) = msg.get("state") {
+            changed.push((ev.t / 1_000_000_000, state.to_string()));
+        }
+    }
+    let battery: Vec<_> = changed
+        .iter()
+        .filter(|(_, s)| s.contains("battery_ok"))
+        .collect();
+    assert_eq!(
+        battery,
+        [
+            &(
+                0,
+                r#"{"name":"battery_ok","ty":"bool","value":true}"#.to_string()
+            ),
+            &(
+                2,
+                r#"{"name":"battery_ok","ty":"bool","value":false}"#.to_string()
+            ),
+            &(
+                5,
+                r#"{"name":"battery_ok","ty":"bool","value":true}"#.to_string()
+            ),
+        ]
+    );
+    // `fault`'s set to the value it had sends nothing.
+    assert_eq!(
+        changed.iter().filter(|(_, s)| s.contains("fault")).count(),
+        1
+    );
+    let snap: serde_json::Value =
+        serde_json::from_str(&tcm_view::snapshot_json(0, &m)).expect("JSON");
+    let charge = &snap["states"][2];
+    assert_eq!(charge["name"], "charge");
+    assert_eq!(charge["ty"], "float");
+    let values: Vec<f64> = charge["changes"]
+        .as_array()
+        .expect("changes")
+        .chunks(2)
+        .map(|p| p[1].as_f64().expect("a number"))
+        .collect();
+    assert_eq!(values, [100.0, 20.0, 90.0]);
 }
