@@ -305,6 +305,25 @@ fn index(program: &Program<'_>, files: &[String], figure: &str) -> String {
         }
         b.push_str("</ul>\n");
     }
+    if !program.states.is_empty() {
+        b.push_str("<h2 id=\"states\">State variables</h2>\n<dl>\n");
+        for v in &program.states {
+            b.push_str(&format!(
+                "<dt id=\"state-{}\"><code>{}</code></dt>\n<dd>",
+                esc(&v.name),
+                esc(&v.text)
+            ));
+            if let Some(doc) = &v.doc {
+                b.push_str(&doc_html(program, doc));
+            }
+            if !v.set_by.is_empty() {
+                let setters: Vec<String> = v.set_by.iter().map(|t| task_link(program, t)).collect();
+                b.push_str(&format!("<p>Set by {}.</p>", setters.join(", ")));
+            }
+            b.push_str("</dd>\n");
+        }
+        b.push_str("</dl>\n");
+    }
     if !program.exceptions.is_empty() {
         b.push_str("<h2 id=\"exceptions\">Exceptions</h2>\n<dl>\n");
         for e in &program.exceptions {
@@ -474,6 +493,30 @@ fn task_page(program: &Program<'_>, t: &TaskInfo<'_>) -> String {
         if !does.is_empty() {
             b.push_str(&format!("<p>Its body may {}.</p>\n", does.join(" or ")));
         }
+    }
+    if !t.sets.is_empty() {
+        let vars: Vec<String> = t
+            .sets
+            .iter()
+            .map(|v| {
+                format!(
+                    "<a href=\"index.html#state-{0}\"><code>{0}</code></a>",
+                    esc(v)
+                )
+            })
+            .collect();
+        b.push_str(&format!("<p>Sets {}.</p>\n", vars.join(", ")));
+    }
+    if !t.raises_external.is_empty() {
+        let names: Vec<String> = t
+            .raises_external
+            .iter()
+            .map(|n| format!("<code>{}</code>", esc(n)))
+            .collect();
+        b.push_str(&format!(
+            "<p>Raises the external events {}.</p>\n",
+            names.join(", ")
+        ));
     }
     if !t.notes.is_empty() {
         b.push_str("<h2 id=\"constraints\">Constraints</h2>\n<ul>\n");

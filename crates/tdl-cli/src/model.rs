@@ -24,6 +24,8 @@ pub(crate) struct Program<'a> {
     pub(crate) tasks: Vec<TaskInfo<'a>>,
     /// The exceptions declared.
     pub(crate) exceptions: Vec<ExceptionInfo<'a>>,
+    /// The state variables declared (the first of each name).
+    pub(crate) states: Vec<StateInfo>,
     task_index: BTreeMap<String, usize>,
     exception_index: BTreeMap<String, usize>,
 }
@@ -57,10 +59,26 @@ pub(crate) struct TaskInfo<'a> {
     pub(crate) bypasses: bool,
     /// The body says `trigger;`.
     pub(crate) triggers: bool,
+    /// The state variables the body sets, each once, in source order.
+    pub(crate) sets: Vec<String>,
+    /// The external events the body raises (`"name"`, or `(expr)`), each once, in source order.
+    pub(crate) raises_external: Vec<String>,
     /// Every tag written in a constraint, `previous` aside, as the drawings resolve it.
     pub(crate) tags: Vec<hir::ResolvedTag>,
     /// The place of its file among the program's.
     pub(crate) file_index: usize,
+}
+
+/// A declared state variable, as the program writes it.
+pub(crate) struct StateInfo {
+    /// Its name.
+    pub(crate) name: String,
+    /// `state battery: float = 100.0`.
+    pub(crate) text: String,
+    /// Its doc comments.
+    pub(crate) doc: Option<String>,
+    /// The tasks whose bodies `set` it, in source order.
+    pub(crate) set_by: Vec<String>,
 }
 
 /// A declared exception.
@@ -193,7 +211,7 @@ impl<'a> Program<'a> {
             let file = it.name.to_string();
             for item in &it.ast.items {
                 match item {
-                    Item::Resource(_) => {}
+                    Item::Resource(_) | Item::State(_) => {}
                     Item::Task(task) => {
                         let name = task.name.to_string();
                         tasks.push(TaskInfo {
@@ -210,6 +228,8 @@ impl<'a> Program<'a> {
                             retries: false,
                             bypasses: false,
                             triggers: false,
+                            sets: Vec::new(),
+                            raises_external: Vec::new(),
                             tags: Vec::new(),
                             file_index,
                         });
@@ -232,6 +252,24 @@ impl<'a> Program<'a> {
         for info in &mut tasks {
             analyse(info, program.body(info.task));
         }
+        let states = program
+            .states()
+            .into_iter()
+            .map(|decl| {
+                let name = decl.name.to_string();
+                let set_by = tasks
+                    .iter()
+                    .filter(|t| t.sets.contains(&name))
+                    .map(|t| t.name.clone())
+                    .collect();
+                StateInfo {
+                    text: print::state_decl(decl),
+                    doc: tdl_syntax::ast::doc_text(&decl.attrs),
+                    set_by,
+                    name,
+                }
+            })
+            .collect();
         let mut task_index = BTreeMap::new();
         for (i, t) in tasks.iter().enumerate() {
             task_index.entry(t.name.clone()).or_insert(i);
@@ -243,6 +281,7 @@ impl<'a> Program<'a> {
         Program {
             tasks,
             exceptions,
+            states,
             task_index,
             exception_index,
         }

@@ -13,8 +13,10 @@
     reason = "the tree is built once and walked by `match`; boxing variants would only add noise"
 )]
 
+mod cond;
 mod constraint;
 
+pub use cond::{Cond, CondExpr, Raise, SetState, StateDecl, StateLit, state_type};
 pub use constraint::{
     Constraint, ConstraintKind, Count, Event, ExternalName, Facet, HandlerRef, OnTerminate,
     Persistent, Point, RelTime, Tag, TagIndex, TagKind, TaskConstraint, TaskConstraintKind, Then,
@@ -39,6 +41,8 @@ pub enum Item {
     Exception(ExceptionDecl),
     /// `resource name(capacity) [pending N];` (docs/semantics.md, "Resources").
     Resource(ResourceDecl),
+    /// `state name: type [= literal];` (docs/language.md, "State and conditions").
+    State(StateDecl),
     /// Any Rust item (`fn`, `use`, `struct`, ...), passed through verbatim.
     Rust(Box<syn::Item>),
 }
@@ -328,6 +332,10 @@ pub enum Stmt {
     /// `lock r;`, `unlock r;`, `reserve r;` (for this task's subtree), `unreserve r;`
     /// (docs/semantics.md, "Resources").
     Resource(ResourceStmt),
+    /// `set VAR = expr;`: a state variable set (docs/language.md, "State and conditions").
+    Set(SetState),
+    /// `raise "name";` or `raise (expr);`: an external event raised.
+    Raise(Raise),
     /// `if cond { ... } [else ...]`.
     If(If),
     /// `['label:] for pat in expr { ... }`.

@@ -22,6 +22,7 @@ mod body;
 mod lower;
 mod pretty_print;
 mod spawn;
+mod state;
 
 use proc_macro2::{Ident, Literal, Span, TokenStream};
 use quote::{format_ident, quote};
@@ -60,8 +61,9 @@ fn generate_in(file: &FileScope<'_>, ast: &Ast, source: Option<&str>) -> Generat
         match item {
             Item::Task(task) => tokens.extend(task_items(file, task, source, &mut diagnostics)),
             Item::Exception(exc) => tokens.extend(exception_items(file, exc)),
-            // A resource is declared by the spawns that use it (`uses_expr`): no item of its own.
-            Item::Resource(_) => {}
+            // A resource is declared by the spawns that use it (`uses_expr`), a state variable by
+            // each use (`state.rs`): no item of their own.
+            Item::Resource(_) | Item::State(_) => {}
             Item::Rust(item) => tokens.extend(quote!(#item)),
         }
     }
@@ -87,7 +89,7 @@ pub fn stubs(ast: &Ast) -> TokenStream {
                 tokens.extend(task_shell(task, &body, Allow::Stub));
             }
             Item::Exception(exc) => tokens.extend(exception_items(&file, exc)),
-            Item::Resource(_) => {}
+            Item::Resource(_) | Item::State(_) => {}
             Item::Rust(item) => tokens.extend(quote!(#item)),
         }
     }

@@ -32,6 +32,7 @@ use crate::ast::{Ast, Item, Task, TaskConstraintKind, TaskKind};
 use crate::diagnostic::Diagnostic;
 
 mod resources;
+mod state;
 
 use crate::hir::{Duplicate, FileScope};
 
@@ -71,6 +72,11 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                     .with_label(first.span, "first declared here")
                     .with_hint("rename one of the resources")
             }
+            Duplicate::State(v, first) => {
+                Diagnostic::error(v.span, format!("duplicate state variable `{}`", v.name))
+                    .with_label(first.span, "first declared here")
+                    .with_hint("a state variable is declared once per program: remove one")
+            }
         });
     }
     for item in &ast.items {
@@ -83,6 +89,7 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                     scope: file.body(task),
                 };
                 body.diagnose(diags);
+                state::body(file, body.scope, diags);
                 let flow = flow::Flow::new(file, task, body.scope);
                 cycles::check(&flow, body.scope, diags);
                 waits::check(&flow, body.scope, diags);
@@ -93,6 +100,7 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                 }
             }
             Item::Resource(_) | Item::Rust(_) => {}
+            Item::State(decl) => state::declaration(decl, diags),
         }
     }
     raises::check(file, ast, diags);

@@ -43,6 +43,14 @@ pub fn dump(ast: &Ast) -> String {
                     .unwrap_or_default();
                 let _ = writeln!(out, "resource {}({}){pending}", r.name, r.capacity);
             }
+            Item::State(it) => {
+                let init = it
+                    .init
+                    .as_ref()
+                    .map(|it| format!(" = {}", it.value))
+                    .unwrap_or_default();
+                let _ = writeln!(out, "state {}: {}{init}", it.name, it.ty_name);
+            }
             Item::Rust(item) => {
                 let _ = writeln!(out, "rust item: {}", tokens(item.as_ref()));
             }
@@ -176,6 +184,12 @@ fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
             line(out, depth, &format!("fail{exc}{fields}"));
         }
         Stmt::Resource(it) => line(out, depth, &format!("{} {}", it.op.as_str(), it.name)),
+        Stmt::Set(it) => line(
+            out,
+            depth,
+            &format!("set {} = {}", it.name, tokens(&it.value)),
+        ),
+        Stmt::Raise(it) => line(out, depth, &format!("raise {}", print::external(&it.name))),
         Stmt::Bypass(_) => line(out, depth, "bypass"),
         Stmt::Trigger(_) => line(out, depth, "trigger"),
         Stmt::Retry(it) => match &it.args {

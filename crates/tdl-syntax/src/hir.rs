@@ -57,7 +57,7 @@ pub use scope::{BUILTIN_EXCEPTIONS, Duplicate, Elsewhere, FileScope};
 pub use visit::{Branch, Visit, walk_stmt};
 
 use crate::ast::{
-    Ast, ConstraintKind, ExceptionDecl, Item, ResourceDecl, Task, TaskConstraintKind,
+    Ast, ConstraintKind, ExceptionDecl, Item, ResourceDecl, StateDecl, Task, TaskConstraintKind,
 };
 
 /// The exception a bare `fail;` raises, as the runtime names it.
@@ -170,6 +170,22 @@ impl<'a> Program<'a> {
                 if let Item::Resource(r) = item {
                     if seen.insert(r.name.to_string()) {
                         out.push(r);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Every state variable declaration, the first of each name, file by file in source order.
+    pub fn states(&self) -> Vec<&'a StateDecl> {
+        let mut seen = BTreeSet::new();
+        let mut out = Vec::new();
+        for it in &self.files {
+            for item in &it.ast.items {
+                if let Item::State(v) = item {
+                    if seen.insert(v.name.to_string()) {
+                        out.push(v);
                     }
                 }
             }

@@ -22,6 +22,7 @@ const VOCABULARY: &[&str] = &[
     "after",
     "at",
     "busy",
+    "change",
     "completed",
     "delay",
     "deny",
@@ -30,9 +31,9 @@ const VOCABULARY: &[&str] = &[
     "exception",
     "execution",
     "expand",
+    "expansion",
     "external",
     "failed",
-    "expansion",
     "first",
     "for",
     "handler",
@@ -40,20 +41,24 @@ const VOCABULARY: &[&str] = &[
     "if",
     "in",
     "initial",
+    "invariant",
     "max",
     "maximum",
     "name",
+    "of",
     "on",
-    "parallel",
     "outcome",
+    "parallel",
     "parent",
+    "pause",
     "period",
-    "propagate",
     "persistent",
     "planning",
     "priority",
+    "propagate",
     "sequential",
     "serial",
+    "skip",
     "succeeded",
     "terminate",
     "terminated",
@@ -62,6 +67,8 @@ const VOCABULARY: &[&str] = &[
     "until",
     "uses",
     "wait",
+    "when",
+    "while",
 ];
 
 /// Maps a synonym to its canonical word.
@@ -222,6 +229,9 @@ pub(crate) fn starts_constraint(word: &str) -> bool {
             | "uses"
             | "priority"
             | "deny"
+            | "skip"
+            | "invariant"
+            | "pause"
     )
 }
 

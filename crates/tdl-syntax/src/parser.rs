@@ -7,6 +7,7 @@
 //! leaks into the enclosing parse. Statements are in `parser/stmt.rs`, constraints in
 //! `parser/constraint.rs`; the static diagnosis runs afterwards in `diagnose.rs`.
 
+mod cond;
 mod constraint;
 mod stmt;
 
@@ -17,7 +18,10 @@ use syn::parse::{ParseStream, Parser};
 use syn::punctuated::Punctuated;
 use syn::{Token, Type};
 
-use crate::ast::{Arg, Ast, Block, ExceptionDecl, Field, Item, ResourceDecl, Task, TaskKind};
+use crate::ast::{
+    Arg, Ast, Block, ExceptionDecl, Field, Item, ResourceDecl, StateDecl, Task, TaskKind,
+    state_type,
+};
 use crate::diagnostic::Diagnostic;
 
 pub(crate) use constraint::parse_task_constraints;
@@ -114,7 +118,7 @@ fn is_end_of_input(err: &syn::Error) -> bool {
 
 /// Points "unexpected end of input" errors from a group's own parse at its closing delimiter
 /// (`syn` only knows the call site there).
-fn at_close(err: syn::Error, close: Span) -> syn::Error {
+pub(crate) fn at_close(err: syn::Error, close: Span) -> syn::Error {
     let mut parts = err.into_iter().map(|part| {
         if is_end_of_input(&part) {
             syn::Error::new(close, part.to_string())
@@ -230,6 +234,11 @@ fn tdl_item_keyword(input: ParseStream) -> Option<String> {
     if word == "resource" {
         return fork.peek(syn::Ident).then_some(word);
     }
+    // `state NAME: TYPE` declares a state variable.
+    if word == "state" {
+        return (fork.peek(syn::Ident) && fork.peek2(Token![:]) && !fork.peek2(Token![::]))
+            .then_some(word);
+    }
     matches!(
         word.as_str(),
         "goal" | "command" | "monitor" | "handler" | "exception"
@@ -280,15 +289,16 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
         "handler" => TaskKind::Handler,
         other => {
             if let Some(span) = blocking {
-                let what = if other == "resource" {
-                    "a resource"
-                } else {
-                    "an exception"
+                let what = match other {
+                    "resource" => "a resource",
+                    "state" => "a state variable",
+                    _ => "an exception",
                 };
                 cx.diags.push(not_blocking(span, what));
             }
             return match other {
                 "resource" => resource(input, attrs, persistent, keyword.span(), cx),
+                "state" => state(input, attrs, persistent, keyword.span(), cx),
                 _ => exception(input, attrs, vis, persistent, keyword.span(), cx),
             };
         }
@@ -351,6 +361,63 @@ fn resource(
         span,
     }))
 }
+
+/// `state name: type [= literal];` (docs/language.md, "State and conditions").
+fn state(
+    input: ParseStream,
+    attrs: Vec<syn::Attribute>,
+    persistent: bool,
+    keyword_span: Span,
+    cx: &mut Cx,
+) -> syn::Result<Item> {
+    if persistent {
+        cx.diags.push(
+            Diagnostic::error(keyword_span, "a state variable cannot be `persistent`")
+                .with_hint("remove `persistent`: a state variable lives as long as the run"),
+        );
+    }
+    let name: Ident = input.parse()?;
+    input.parse::<Token![:]>()?;
+    let ty_name = input.call(Ident::parse_any)?;
+    if state_type(&ty_name.to_string()).is_none() {
+        let hint = match ty_name.to_string().as_str() {
+            "i64" | "i32" | "u32" | "u64" | "usize" | "isize" => "write `int`",
+            "f64" | "f32" => "write `float`",
+            "String" | "str" => "write `string`",
+            _ => "a state variable is a `bool`, an `int`, a `float` or a `string`",
+        };
+        cx.diags.push(
+            Diagnostic::error(
+                ty_name.span(),
+                format!("`{ty_name}` is not a type of state variable"),
+            )
+            .with_hint(hint),
+        );
+    }
+    let init = if input.peek(Token![=]) {
+        input.parse::<Token![=]>()?;
+        cx.hint = Some(STATE_HINT);
+        Some(cond::parse_lit(input)?)
+    } else {
+        None
+    };
+    if !input.peek(Token![;]) {
+        cx.hint = Some(STATE_HINT);
+        return Err(input.error("expected `;` or `= value` after the state variable's type"));
+    }
+    input.parse::<Token![;]>()?;
+    let span = name.span();
+    Ok(Item::State(StateDecl {
+        attrs,
+        name,
+        ty_name,
+        init,
+        span,
+    }))
+}
+
+const STATE_HINT: &str = "a state variable reads `state name: type [= value];`, its type \
+     `bool`, `int`, `float` or `string`, its value a literal or `unknown` (the default)";
 
 fn exception(
     input: ParseStream,

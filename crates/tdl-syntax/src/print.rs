@@ -11,8 +11,8 @@
 use quote::{ToTokens, quote};
 
 use crate::ast::{
-    ConstraintKind, Count, Event, ExternalName, HandlerRef, OnTerminate, Priority, RelTime,
-    ResourceAmount, Tag, TagIndex, TagKind, TaskConstraintKind, Then, TimeOfDay, When,
+    Cond, ConstraintKind, Count, Event, ExternalName, HandlerRef, OnTerminate, Priority, RelTime,
+    ResourceAmount, StateDecl, Tag, TagIndex, TagKind, TaskConstraintKind, Then, TimeOfDay, When,
 };
 
 /// Where a printer writes.
@@ -118,7 +118,9 @@ fn tag_or_previous(it: Option<&Tag>, out: &mut impl Sink) {
 }
 
 /// A trigger: `disable [facet] until|for …`, `terminate [at|in …]`, `activate [at|in …]`, with
-/// `external "name"` after `until` or `at` for an external event.
+/// `external "name"` after `until` or `at` for an external event; on a condition, `disable
+/// [facet] until COND`, `terminate when COND`, `activate when COND`, `activate on change of VAR`,
+/// `skip if COND`, `invariant COND` and `pause while COND`.
 pub fn trigger(when: &When, then: Then, out: &mut impl Sink) {
     let (head, at, within) = match then {
         Then::Enable(facet) => {
@@ -129,6 +131,9 @@ pub fn trigger(when: &When, then: Then, out: &mut impl Sink) {
         }
         Then::Terminate => ("terminate".to_owned(), "at", "in"),
         Then::Activate => ("activate".to_owned(), "at", "in"),
+        Then::Skip => ("skip".to_owned(), "if", "in"),
+        Then::Invariant => ("invariant".to_owned(), "", "in"),
+        Then::Pause => ("pause".to_owned(), "while", "in"),
     };
     out.text(&head);
     match when {
@@ -144,7 +149,33 @@ pub fn trigger(when: &When, then: Then, out: &mut impl Sink) {
             event(it, out);
         }
         When::External(name) => out.text(&format!(" {at} external {}", external(name))),
+        When::Condition(c) => {
+            let word = match then {
+                Then::Terminate | Then::Activate => " when ".to_owned(),
+                Then::Invariant => " ".to_owned(),
+                _ => format!(" {at} "),
+            };
+            out.text(&word);
+            out.text(&condition(c));
+        }
+        When::Changed(var) => out.text(&format!(" on change of {var}")),
     }
+}
+
+/// A state variable's declaration, without its `;`: `state battery: float = 100.0`, the value
+/// as the variable holds it (an integer given to a `float` is a float).
+pub fn state_decl(it: &StateDecl) -> String {
+    let init = match &it.init {
+        Some(_) => format!(" = {}", it.initial()),
+        None => String::new(),
+    };
+    format!("state {}: {}{init}", it.name, it.ty_name)
+}
+
+/// A condition in its canonical text (`tcm_expr`'s: `battery > 20.5 && !fault`), the one the
+/// engine, the trace and the checker show.
+pub fn condition(it: &Cond) -> String {
+    it.to_expr().to_string()
 }
 
 /// An event: `tag [facet] point`.
@@ -258,7 +289,8 @@ pub fn priority(it: &Priority) -> String {
     }
 }
 
-fn external(it: &ExternalName) -> String {
+/// An external event's name: `"name"`, or `(expr)`.
+pub fn external(it: &ExternalName) -> String {
     match it {
         // The literal's value, escaped as Rust would write it.
         ExternalName::Lit(lit) => format!("{:?}", lit.value()),

@@ -75,6 +75,18 @@ pub(super) fn analyse(info: &mut TaskInfo<'_>, body: &BodyScope<'_>) {
     info.retries = body.stmts.iter().any(|it| matches!(it, Tdl::Retry(_)));
     info.bypasses = body.stmts.iter().any(|it| matches!(it, Tdl::Bypass(_)));
     info.triggers = body.stmts.iter().any(|it| matches!(it, Tdl::Trigger(_)));
+    for set in &body.sets {
+        let name = set.name.to_string();
+        if !info.sets.contains(&name) {
+            info.sets.push(name);
+        }
+    }
+    for raise in &body.raises_external {
+        let name = print::external(&raise.name);
+        if !info.raises_external.contains(&name) {
+            info.raises_external.push(name);
+        }
+    }
 }
 
 /// The order a body's waits make: a body waits for a waited spawn (`with wait`, `with outcome`, a
@@ -310,6 +322,8 @@ fn apply(
                     Then::Enable(_) => RelationKind::Order,
                     Then::Terminate => RelationKind::Terminate,
                     Then::Activate => RelationKind::Activate,
+                    // On a condition, never on an event: a note of the site below.
+                    Then::Skip | Then::Invariant | Then::Pause => RelationKind::Order,
                 };
                 relate(Some(&ev.tag), kind, when_label(when, *then))
             });

@@ -180,3 +180,53 @@ fn a_body_that_waits_orders_what_comes_next_after_the_end_of_what_it_waited_for(
         ]
     );
 }
+
+#[test]
+fn conditions_are_notes_of_their_sites_and_state_is_listed() {
+    let files = program(
+        "/// Whether the lander may act.
+        state healthy: bool = true;
+        state battery: float = 100;
+        command step() {}
+        monitor watch() {}
+        goal g() {
+            a: spawn step() with pause while !healthy, skip if battery < 10;
+            w: spawn watch() with activate on change of battery;
+            a terminate when (battery - 5.0) * 2 < 20 || !healthy;
+            spawn step() with disable until healthy, serial a;
+            set battery = 50;
+            raise \"done\";
+        }",
+    );
+    let p = structure(&files);
+    let g = p.task("g").expect("g");
+    assert_eq!(
+        g.sites[0].notes,
+        [
+            "pause while !healthy",
+            "skip if battery < 10",
+            "terminate when (battery - 5.0) * 2 < 20 || !healthy",
+        ]
+    );
+    assert_eq!(g.sites[1].notes, ["activate on change of battery"]);
+    assert_eq!(g.sites[2].notes, ["disable until healthy"]);
+    assert_eq!(relations(&p, "g"), ["step -> step: serial"]);
+    assert_eq!(g.sets, ["battery"]);
+    assert_eq!(g.raises_external, ["\"done\""]);
+    let states: Vec<(&str, &[String])> = p
+        .states
+        .iter()
+        .map(|v| (v.text.as_str(), v.set_by.as_slice()))
+        .collect();
+    assert_eq!(
+        states,
+        [
+            ("state healthy: bool = true", &[][..]),
+            ("state battery: float = 100.0", &["g".to_string()][..]),
+        ]
+    );
+    assert_eq!(
+        p.states[0].doc.as_deref(),
+        Some("Whether the lander may act.")
+    );
+}

@@ -5,7 +5,7 @@
 
 use proc_macro2::{Ident, Span};
 
-use super::{Priority, ResourceAmount};
+use super::{Cond, Priority, ResourceAmount};
 
 /// A task-level constraint with its span.
 #[derive(Clone, Debug)]
@@ -175,6 +175,12 @@ pub enum When {
     /// are latched (a raise before the constraint counts); `activate` fires on every raise after
     /// it (docs/semantics.md, "Events").
     External(ExternalName),
+    /// `until COND` (`disable`), `when COND` (`terminate`, `activate`), and the condition of
+    /// `skip if`, `invariant` and `pause while`: a condition over state variables (docs/language.md,
+    /// "State and conditions").
+    Condition(Cond),
+    /// `on change of VAR` (`activate`): each time the state variable changes value.
+    Changed(Ident),
 }
 
 impl When {
@@ -182,7 +188,12 @@ impl When {
     pub fn event(&self) -> Option<&Event> {
         match self {
             When::Event(event) | When::After(_, event) => Some(event),
-            When::Now | When::At(_) | When::In(_) | When::External(_) => None,
+            When::Now
+            | When::At(_)
+            | When::In(_)
+            | When::External(_)
+            | When::Condition(_)
+            | When::Changed(_) => None,
         }
     }
 }
@@ -207,6 +218,14 @@ pub enum Then {
     Terminate,
     /// `activate …` (monitors): the monitor is activated once.
     Activate,
+    /// `skip if COND`: when the node's turn comes, it completes without running if the condition
+    /// holds (outcome `skipped`).
+    Skip,
+    /// `invariant COND`: the node fails with `InvariantFailed` when the condition is false while
+    /// it runs.
+    Invariant,
+    /// `pause while COND`: the node's subtree is suspended while the condition holds.
+    Pause,
 }
 
 /// `TAG [facet] state`: a state transition of a node.

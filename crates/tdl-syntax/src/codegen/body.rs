@@ -36,7 +36,7 @@ use quote::{format_ident, quote};
 use super::spawn::Frame;
 use crate::ast::{Block, Else, Fail, ResourceOp, Stmt, Task, TaskConstraintKind, TaskKind};
 use crate::diagnostic::Diagnostic;
-use crate::hir::{BodyScope, FileScope, LoopId, ResolvedTag, node_macro};
+use crate::hir::{BodyScope, FileScope, LoopId, ResolvedTag, node_macro, state_macro};
 
 /// A generated action body.
 pub(super) struct Action {
@@ -258,6 +258,8 @@ fn stmt_span(stmt: &Stmt) -> Span {
         Stmt::Succeed(span) | Stmt::Bypass(span) | Stmt::Trigger(span) => *span,
         Stmt::Retry(it) => it.span,
         Stmt::Resource(it) => it.span,
+        Stmt::Set(it) => it.span,
+        Stmt::Raise(it) => it.span,
     }
 }
 
@@ -425,6 +427,8 @@ impl<'a> Gen<'_, 'a> {
                     ResourceOp::Unreserve => quote!(ctx.unreserve_resource(#r)?;),
                 }
             }
+            Stmt::Set(it) => super::state::set(self.file, it),
+            Stmt::Raise(it) => super::state::raise(it),
             Stmt::Retry(it) => {
                 let retry = match &it.args {
                     None => quote!(ctx.retry()?),
@@ -517,7 +521,8 @@ impl<'a> Gen<'_, 'a> {
     }
 
     /// Replaces each `node!(tag)` in the generated body by the tag's node (docs/language.md,
-    /// "Tags, `previous` and groups"); one the diagnosis refused stays as written.
+    /// "Tags, `previous` and groups"), and each `state!(x)` by the variable's value read as an
+    /// `Option` of its type ("State and conditions"); one the diagnosis refused stays as written.
     fn rewrite_node_uses(&self, tokens: TokenStream) -> TokenStream {
         let tts: Vec<TokenTree> = tokens.into_iter().collect();
         let mut out = TokenStream::new();
@@ -526,7 +531,12 @@ impl<'a> Gen<'_, 'a> {
             let node = node_macro(&tts[i..])
                 .and_then(|(inner, _)| crate::parser::parse_tag_tokens(inner).ok())
                 .and_then(|tag| self.node_expr(&tag));
-            if let Some(expr) = node {
+            let state = || {
+                state_macro(&tts[i..])
+                    .and_then(|(inner, _)| syn::parse2::<Ident>(inner).ok())
+                    .and_then(|name| super::state::read(self.file, &name))
+            };
+            if let Some(expr) = node.or_else(state) {
                 out.extend(quote!((#expr)));
                 i += 3;
                 continue;

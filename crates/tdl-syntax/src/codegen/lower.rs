@@ -134,6 +134,12 @@ pub(super) fn trigger(when: &When, then: Then, node: &TokenStream) -> TokenStrea
             let id = external_id(name);
             quote!(::tdl::When::External(#id))
         }
+        // Lowered with the program's declarations by `Gen::lower_trigger` (`state.rs`).
+        When::Condition(_) | When::Changed(_) => {
+            return quote!(::core::compile_error!(
+                "a condition needs the program's state variables"
+            ));
+        }
     };
     let then = then_expr(then);
     quote!(::tdl::Constraint::Trigger(#when, #then))
@@ -161,6 +167,9 @@ fn then_expr(then: Then) -> TokenStream {
         }
         Then::Terminate => quote!(::tdl::Then::Terminate),
         Then::Activate => quote!(::tdl::Then::Activate),
+        Then::Skip => quote!(::tdl::Then::Skip),
+        Then::Invariant => quote!(::tdl::Then::Invariant),
+        Then::Pause => quote!(::tdl::Then::Pause),
     }
 }
 
@@ -430,6 +439,14 @@ impl Gen<'_, '_> {
     /// A trigger: per node, or, naming an entity, per member (enablement) or once for the
     /// whole entity (`terminate`, `activate`).
     fn lower_trigger(&self, when: &When, then: Then, prev: &Ident) -> Lowered {
+        if let When::Condition(_) | When::Changed(_) = when {
+            let value = super::state::constraint(self.file, when, then);
+            return Lowered::Each {
+                nodes: Nodes::One(TokenStream::new()),
+                low: Box::new(move |_| Low::Trigger(value)),
+                empty: None,
+            };
+        }
         let nodes = match when.event() {
             Some(ev) => self.nodes(&ev.tag, prev),
             None => Nodes::One(TokenStream::new()),
@@ -437,7 +454,12 @@ impl Gen<'_, '_> {
         let (delay, event) = match when {
             When::Event(ev) => (None, Some(ev)),
             When::After(d, ev) => (Some(d), Some(ev)),
-            When::Now | When::At(_) | When::In(_) | When::External(_) => (None, None),
+            When::Now
+            | When::At(_)
+            | When::In(_)
+            | When::External(_)
+            | When::Condition(_)
+            | When::Changed(_) => (None, None),
         };
         if let (Nodes::Entity(members), Some(ev), Then::Terminate | Then::Activate) =
             (&nodes, event, then)

@@ -567,3 +567,92 @@ fn a_blocking_command_runs_its_body_on_a_blocking_thread() {
         "the goal is async: {out}"
     );
 }
+
+#[test]
+fn state_and_conditions_generate_declarations_conditions_and_their_constraints() {
+    let out = expand(include_str!("../../test_data/ok/state_conditions.tdl"));
+    let healthy =
+        "::tdl::StateVar::new(\"healthy\", ::tdl::StateType::Bool, ::tdl::StateValue::Bool(true))";
+    let battery = "::tdl::StateVar::new(\"battery\", ::tdl::StateType::Float, ::tdl::StateValue::Float(100f64))";
+    let errors =
+        "::tdl::StateVar::new(\"errors\", ::tdl::StateType::Int, ::tdl::StateValue::Unknown)";
+    let mode = "::tdl::StateVar::new(\"mode\", ::tdl::StateType::Str, ::tdl::StateValue::Str(::std::string::String::from(\"auto\")))";
+    let position =
+        "::tdl::StateVar::new(\"position\", ::tdl::StateType::Float, ::tdl::StateValue::Unknown)";
+    let floor =
+        "::tdl::StateVar::new(\"floor\", ::tdl::StateType::Int, ::tdl::StateValue::Int(-2i64))";
+    let not_healthy =
+        format!("ctx.condition(&[{healthy}], ::tdl::Expr::not(::tdl::Expr::var(\"healthy\")))?");
+    for line in [
+        // pause while !healthy
+        format!(".with(::tdl::Constraint::pause_while({not_healthy}))"),
+        // disable until healthy && battery > 20.5: the default facet, each variable declared
+        format!(
+            ".with(::tdl::Constraint::disable(::tdl::Facet::Handling, ::tdl::When::Condition(\
+             ctx.condition(&[{healthy}, {battery}], ::tdl::Expr::bin(::tdl::BinOp::And, \
+             ::tdl::Expr::var(\"healthy\"), ::tdl::Expr::bin(::tdl::BinOp::Gt, \
+             ::tdl::Expr::var(\"battery\"), ::tdl::Expr::lit(20.5f64))))?)))"
+        ),
+        format!(
+            ".with(::tdl::Constraint::disable(::tdl::Facet::Execution, ::tdl::When::Condition(\
+             ctx.condition(&[{errors}, {mode}], ::tdl::Expr::bin(::tdl::BinOp::Or, \
+             ::tdl::Expr::bin(::tdl::BinOp::Eq, ::tdl::Expr::var(\"errors\"), ::tdl::Expr::lit(0i64)), \
+             ::tdl::Expr::bin(::tdl::BinOp::Ne, ::tdl::Expr::var(\"mode\"), ::tdl::Expr::lit(\"auto\"))))?)))"
+        ),
+        format!(
+            ".with(::tdl::Constraint::skip_if(ctx.condition(&[{position}], \
+             ::tdl::Expr::not(::tdl::Expr::known(::tdl::Expr::var(\"position\"))))?))"
+        ),
+        format!(".with(::tdl::Constraint::invariant(ctx.condition(&[{battery}, {healthy}],"),
+        // terminate when errors > 3 * floor + -1: a negative literal is one literal
+        format!(
+            ".with(::tdl::Constraint::terminate(::tdl::When::Condition(ctx.condition(&[{errors}, {floor}], \
+             ::tdl::Expr::bin(::tdl::BinOp::Gt, ::tdl::Expr::var(\"errors\"), ::tdl::Expr::bin(\
+             ::tdl::BinOp::Add, ::tdl::Expr::bin(::tdl::BinOp::Mul, ::tdl::Expr::lit(3i64), \
+             ::tdl::Expr::var(\"floor\")), ::tdl::Expr::lit(-1i64))))?)))"
+        ),
+        format!(
+            ".with(::tdl::Constraint::activate(::tdl::When::Condition(ctx.condition(&[{battery}], \
+             ::tdl::Expr::bin(::tdl::BinOp::Lt, ::tdl::Expr::var(\"battery\"), ::tdl::Expr::lit(20f64)))?)))"
+        ),
+        format!(
+            ".with(::tdl::Constraint::activate(::tdl::When::Changed(ctx.state_var(&{mode})?)))"
+        ),
+        // A constraint statement.
+        format!(
+            "ctx.constrain(tdl_w, ::tdl::Constraint::terminate(::tdl::When::Condition(ctx.condition(&[{mode}], \
+             ::tdl::Expr::bin(::tdl::BinOp::Eq, ::tdl::Expr::var(\"mode\"), ::tdl::Expr::lit(\"off\")))?)))?;"
+        ),
+        // A `with` group's conditions on its spawn.
+        format!(
+            ".with(::tdl::Constraint::pause_while({not_healthy})).with(::tdl::Constraint::skip_if("
+        ),
+        // -(errors - 1) * 2 / 3 <= floor
+        "::tdl::Expr::Neg(::std::boxed::Box::new(::tdl::Expr::bin(::tdl::BinOp::Sub, \
+         ::tdl::Expr::var(\"errors\"), ::tdl::Expr::lit(1i64))))"
+            .to_owned(),
+        format!("ctx.set_state(&{battery}, v)?;"),
+        format!("ctx.set_state(&{errors}, (ctx.read_state::<i64>(&{errors})?).unwrap_or(0) + 1)?;"),
+        format!("ctx.set_state(&{position}, ::tdl::StateValue::Unknown)?;"),
+        format!("ctx.set_state(&{mode}, \"manual\")?;"),
+        "ctx.raise(\"step_done\")?;".to_owned(),
+        "ctx.raise(::core::convert::AsRef::<str>::as_ref(&(format!(\"done/{}\", 7))))?;".to_owned(),
+        format!("(ctx.read_state::<f64>(&{battery})?)"),
+    ] {
+        assert!(has(&out, &line), "missing {line:?} in:\n{out}");
+    }
+}
+
+#[test]
+fn conditions_with_errors_generate_nothing() {
+    let errs = errors(
+        "state ok: bool;\ncommand a() {}\ngoal g() { spawn a() with skip if ok > 1; set nope = 1; }",
+    );
+    assert_eq!(
+        errs,
+        [
+            "`>` cannot be applied to `bool` and `int`",
+            "no state variable `nope` is declared"
+        ]
+    );
+}

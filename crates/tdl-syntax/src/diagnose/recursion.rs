@@ -251,6 +251,12 @@ impl<'a> Must<'a> {
             }
             Stmt::Rust(it) => self.exited |= may_exit(it.tokens.clone()),
             Stmt::Bind(it) => self.exited |= may_exit(it.expr.to_token_stream()),
+            Stmt::Set(it) => self.exited |= may_exit(it.value.to_token_stream()),
+            Stmt::Raise(it) => {
+                if let crate::ast::ExternalName::Expr(expr) = &it.name {
+                    self.exited |= may_exit(expr.to_token_stream());
+                }
+            }
             Stmt::Constrain(_) | Stmt::Trigger(_) | Stmt::Resource(_) => {}
             Stmt::Succeed(_) | Stmt::Fail(_) | Stmt::Bypass(_) | Stmt::Retry(_) => {
                 self.exited = true;
@@ -319,6 +325,11 @@ fn stops(kind: &ConstraintKind) -> bool {
             when: When::Event(event) | When::After(_, event),
             then: Then::Enable(_),
         } => event.point.is_outcome(),
+        // A condition may never hold, or skip or fail the node.
+        ConstraintKind::Trigger {
+            when: When::Condition(_),
+            then: Then::Enable(_) | Then::Skip | Then::Invariant,
+        } => true,
         _ => false,
     }
 }
@@ -380,6 +391,7 @@ fn by_hand(block: &Block) -> bool {
         Stmt::Spawn(it) => it.args.iter().any(|a| tokens(a.to_token_stream())),
         Stmt::With(it) => by_hand(&it.body),
         Stmt::Bind(it) => tokens(it.expr.to_token_stream()),
+        Stmt::Set(it) => tokens(it.value.to_token_stream()),
         Stmt::If(it) => {
             let mut at = it;
             loop {
@@ -406,6 +418,7 @@ fn by_hand(block: &Block) -> bool {
         | Stmt::Bypass(_)
         | Stmt::Trigger(_)
         | Stmt::Resource(_)
+        | Stmt::Raise(_)
         | Stmt::Retry(_) => false,
     })
 }

@@ -13,10 +13,10 @@ use proc_macro2::{Ident, Span};
 use quote::format_ident;
 
 use super::previous::{self, Previous};
-pub use super::resolve::{node_macro, node_uses};
+pub use super::resolve::{node_macro, node_uses, state_macro, state_uses};
 use crate::ast::{
-    Bind, Block, Constraint, ConstraintKind, ConstraintStmt, Event, Fail, OnTerminate,
-    ResourceStmt, Spawn, Tag, TagIndex, TagKind, Task, WithGroup,
+    Bind, Block, Cond, Constraint, ConstraintKind, ConstraintStmt, Event, Fail, OnTerminate, Raise,
+    ResourceStmt, SetState, Spawn, Tag, TagIndex, TagKind, Task, WithGroup,
 };
 
 /// A spawn of a body, numbered in source order from 0.
@@ -269,6 +269,14 @@ pub fn uses_previous(constraints: &[Constraint]) -> bool {
         .any(|it| it.is_previous())
 }
 
+/// A `state!(var)` in a body's Rust code.
+pub struct StateUse {
+    /// The variable named inside the parentheses, or why they do not hold one name.
+    pub name: Result<Ident, syn::Error>,
+    /// Span of `state`.
+    pub span: Span,
+}
+
 /// One task body, resolved.
 pub struct BodyScope<'a> {
     /// Its TDL statements in source order.
@@ -291,6 +299,17 @@ pub struct BodyScope<'a> {
     pub uses_previous: bool,
     /// Its `lock`, `unlock`, `reserve` and `unreserve` statements, in source order.
     pub resource_stmts: Vec<&'a ResourceStmt>,
+    /// The conditions of its constraints (`disable until`, `terminate when`, `activate when`,
+    /// `skip if`, `invariant`, `pause while`), in source order.
+    pub conditions: Vec<&'a Cond>,
+    /// The state variables of `activate on change of VAR`, in source order.
+    pub changes: Vec<&'a Ident>,
+    /// Its `set` statements, in source order.
+    pub sets: Vec<&'a SetState>,
+    /// Its `raise` statements, in source order.
+    pub raises_external: Vec<&'a Raise>,
+    /// Every `state!(var)` in the body's Rust code, in source order.
+    pub state_uses: Vec<StateUse>,
     /// `previous` at each spawn, group and constraint statement, by position.
     pub(super) previous: BTreeMap<usize, Previous>,
     /// Labels, the first of each.
@@ -320,6 +339,11 @@ impl<'a> BodyScope<'a> {
             duplicate_labels: Vec::new(),
             uses_previous: false,
             resource_stmts: Vec::new(),
+            conditions: Vec::new(),
+            changes: Vec::new(),
+            sets: Vec::new(),
+            raises_external: Vec::new(),
+            state_uses: Vec::new(),
             previous: BTreeMap::new(),
             labels: BTreeMap::new(),
             by_task: BTreeMap::new(),

@@ -2,12 +2,12 @@
 //! its spawns, groups, labels, bound names and loops registered, every tag written in a
 //! constraint and every `node!(tag)` of its Rust code collected ([`BodyScope`] holds the result).
 
-use proc_macro2::{Delimiter, Span, TokenStream, TokenTree};
+use proc_macro2::{Delimiter, Ident, Span, TokenStream, TokenTree};
 use quote::ToTokens;
 
 use super::body::{
     BodyScope, BoundDef, CleanupDef, Def, GroupDef, GroupId, LoopId, NodeUse, Ref, Refers, Site,
-    SpawnDef, Tdl, refers,
+    SpawnDef, StateUse, Tdl, refers,
 };
 use super::visit::{Branch, Visit, walk_stmt};
 use crate::ast::{
@@ -141,6 +141,16 @@ impl<'a> Visit<'a> for Walk<'a> {
                 self.scope.stmts.push(Tdl::Fail(it));
             }
             Stmt::Resource(it) => self.scope.resource_stmts.push(it),
+            Stmt::Set(it) => {
+                self.rust(it.value.to_token_stream(), &site);
+                self.scope.sets.push(it);
+            }
+            Stmt::Raise(it) => {
+                if let ExternalName::Expr(expr) = &it.name {
+                    self.rust(expr.to_token_stream(), &site);
+                }
+                self.scope.raises_external.push(it);
+            }
             Stmt::Bypass(span) => self.scope.stmts.push(Tdl::Bypass(*span)),
             Stmt::Trigger(span) => self.scope.stmts.push(Tdl::Trigger(*span)),
             Stmt::Retry(it) => {
@@ -188,8 +198,11 @@ impl<'a> Visit<'a> for Walk<'a> {
 }
 
 impl<'a> Walk<'a> {
-    /// Records the `node!(tag)` uses in Rust code at `site`.
+    /// Records the `node!(tag)` and `state!(var)` uses in Rust code at `site`.
     fn rust(&mut self, tokens: TokenStream, site: &Site) {
+        for (name, span) in state_uses(tokens.clone()) {
+            self.scope.state_uses.push(StateUse { name, span });
+        }
         for (tag, span) in node_uses(tokens) {
             self.scope.node_uses.push(NodeUse {
                 tag,
@@ -202,6 +215,17 @@ impl<'a> Walk<'a> {
     fn constraints(&mut self, constraints: &'a [Constraint], site: &Site) {
         for constraint in constraints {
             self.rust(constraint_code(&constraint.kind), site);
+            match &constraint.kind {
+                ConstraintKind::Trigger {
+                    when: When::Condition(cond),
+                    ..
+                } => self.scope.conditions.push(cond),
+                ConstraintKind::Trigger {
+                    when: When::Changed(var),
+                    ..
+                } => self.scope.changes.push(var),
+                _ => {}
+            }
             match refers(&constraint.kind) {
                 Some(Refers::Previous) => self.scope.uses_previous = true,
                 Some(Refers::WaitsOn(tag)) => self.tag(tag),
@@ -246,13 +270,23 @@ pub fn node_uses(tokens: TokenStream) -> Vec<(Result<Tag, syn::Error>, Span)> {
 
 /// `node ! ( … )` at the start of `tts`: the tokens inside and the span of `node`.
 pub fn node_macro(tts: &[TokenTree]) -> Option<(TokenStream, Span)> {
+    macro_call(tts, "node")
+}
+
+/// `state ! ( … )` at the start of `tts`: the tokens inside and the span of `state`.
+pub fn state_macro(tts: &[TokenTree]) -> Option<(TokenStream, Span)> {
+    macro_call(tts, "state")
+}
+
+/// `name ! ( … )` at the start of `tts`: the tokens inside and the span of `name`.
+fn macro_call(tts: &[TokenTree], macro_name: &str) -> Option<(TokenStream, Span)> {
     match tts {
         [
             TokenTree::Ident(name),
             TokenTree::Punct(bang),
             TokenTree::Group(group),
             ..,
-        ] if name == "node"
+        ] if name == macro_name
             && bang.as_char() == '!'
             && group.delimiter() == Delimiter::Parenthesis =>
         {
@@ -260,6 +294,32 @@ pub fn node_macro(tts: &[TokenTree]) -> Option<(TokenStream, Span)> {
         }
         _ => None,
     }
+}
+
+/// The `state!(var)` uses in `tokens`, outermost first: the variable named inside the
+/// parentheses (or why they hold no one name) and the span of `state`.
+pub fn state_uses(tokens: TokenStream) -> Vec<(Result<Ident, syn::Error>, Span)> {
+    let mut out = Vec::new();
+    let tts: Vec<TokenTree> = tokens.into_iter().collect();
+    let mut i = 0;
+    while i < tts.len() {
+        if let Some((inner, span)) = state_macro(&tts[i..]) {
+            let name = syn::parse2::<Ident>(inner).map_err(|_| {
+                syn::Error::new(
+                    span,
+                    "`state!` takes the name of one state variable, as in `state!(battery)`",
+                )
+            });
+            out.push((name, span));
+            i += 3;
+            continue;
+        }
+        if let TokenTree::Group(group) = &tts[i] {
+            out.extend(state_uses(group.stream()));
+        }
+        i += 1;
+    }
+    out
 }
 
 /// The Rust expressions of a constraint (a name, a parent, counts, times in seconds, an external

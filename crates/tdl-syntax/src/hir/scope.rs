@@ -9,7 +9,7 @@ use std::rc::Rc;
 use proc_macro2::{Ident, Span};
 
 use super::body::BodyScope;
-use crate::ast::{Ast, ExceptionDecl, Item, ResourceDecl, Task, TaskKind};
+use crate::ast::{Ast, ExceptionDecl, Item, ResourceDecl, StateDecl, Task, TaskKind};
 
 /// The exceptions the runtime raises itself, which handlers name without declaring them
 /// (docs/semantics.md, "Resources").
@@ -30,6 +30,8 @@ pub struct FileScope<'a> {
     exceptions: BTreeMap<String, &'a ExceptionDecl>,
     /// Resources of the program: this file's (the first of a name), then the other files'.
     resources: BTreeMap<String, &'a ResourceDecl>,
+    /// State variables of the program: this file's (the first of a name), then the other files'.
+    states: BTreeMap<String, &'a StateDecl>,
     /// Declarations of a name this file already declared, in source order.
     pub duplicates: Vec<Duplicate<'a>>,
     /// Tasks and exceptions of the program's other files (the first file declaring a name wins).
@@ -50,6 +52,8 @@ pub enum Duplicate<'a> {
     Exception(&'a ExceptionDecl, &'a ExceptionDecl),
     /// Two resources of one name.
     Resource(&'a ResourceDecl, &'a ResourceDecl),
+    /// Two state variables of one name.
+    State(&'a StateDecl, &'a StateDecl),
 }
 
 /// A declaration of a name an earlier file of the program declares.
@@ -62,12 +66,13 @@ pub struct Elsewhere<'a> {
     pub first: Span,
 }
 
-/// A declaration of a task, an exception or a resource: its name and its span.
+/// A declaration of a task, an exception, a resource or a state variable: its name and its span.
 #[derive(Clone, Copy)]
 enum Decl<'a> {
     Task(&'a Task),
     Exception(&'a ExceptionDecl),
     Resource(&'a ResourceDecl),
+    State(&'a StateDecl),
 }
 
 impl<'a> Decl<'a> {
@@ -76,6 +81,7 @@ impl<'a> Decl<'a> {
             Item::Task(it) => Some(Decl::Task(it)),
             Item::Exception(it) => Some(Decl::Exception(it)),
             Item::Resource(it) => Some(Decl::Resource(it)),
+            Item::State(it) => Some(Decl::State(it)),
             Item::Rust(_) => None,
         }
     }
@@ -85,6 +91,7 @@ impl<'a> Decl<'a> {
             Decl::Task(it) => &it.name,
             Decl::Exception(it) => &it.name,
             Decl::Resource(it) => &it.name,
+            Decl::State(it) => &it.name,
         }
     }
 
@@ -93,15 +100,17 @@ impl<'a> Decl<'a> {
             Decl::Task(it) => it.span,
             Decl::Exception(it) => it.span,
             Decl::Resource(it) => it.span,
+            Decl::State(it) => it.span,
         }
     }
 
-    /// Tasks, exceptions and resources have name spaces of their own.
+    /// Tasks, exceptions, resources and state variables have name spaces of their own.
     fn space(self) -> u8 {
         match self {
             Decl::Task(_) => 0,
             Decl::Exception(_) => 1,
             Decl::Resource(_) => 2,
+            Decl::State(_) => 3,
         }
     }
 }
@@ -119,6 +128,7 @@ impl<'a> FileScope<'a> {
             tasks: BTreeMap::new(),
             exceptions: BTreeMap::new(),
             resources: BTreeMap::new(),
+            states: BTreeMap::new(),
             duplicates: Vec::new(),
             other_tasks: BTreeMap::new(),
             other_exceptions: BTreeMap::new(),
@@ -143,6 +153,12 @@ impl<'a> FileScope<'a> {
                     Some(first) => scope.duplicates.push(Duplicate::Resource(r, first)),
                     None => {
                         scope.resources.insert(r.name.to_string(), r);
+                    }
+                },
+                Item::State(v) => match scope.states.get(&v.name.to_string()) {
+                    Some(first) => scope.duplicates.push(Duplicate::State(v, first)),
+                    None => {
+                        scope.states.insert(v.name.to_string(), v);
                     }
                 },
                 Item::Rust(_) => {}
@@ -181,6 +197,9 @@ impl<'a> FileScope<'a> {
                     }
                     Decl::Resource(r) => {
                         scope.resources.entry(name).or_insert(r);
+                    }
+                    Decl::State(v) => {
+                        scope.states.entry(name).or_insert(v);
                     }
                 }
             }
@@ -305,6 +324,16 @@ impl<'a> FileScope<'a> {
     /// The names of the resources declared in the program, sorted.
     pub fn resource_names(&self) -> impl Iterator<Item = &str> {
         self.resources.keys().map(String::as_str)
+    }
+
+    /// The state variable of this name declared in the program.
+    pub fn state(&self, name: &str) -> Option<&'a StateDecl> {
+        self.states.get(name).copied()
+    }
+
+    /// The names of the state variables declared in the program, sorted.
+    pub fn state_names(&self) -> impl Iterator<Item = &str> {
+        self.states.keys().map(String::as_str)
     }
 
     /// The ancestors of exception `name`, nearest first: its parent, the parent's parent, ... (a

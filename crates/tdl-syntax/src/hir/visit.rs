@@ -112,7 +112,9 @@ pub fn walk_stmt<'a, V: Visit<'a> + ?Sized>(v: &mut V, stmt: &'a Stmt) {
         | Stmt::Bypass(_)
         | Stmt::Trigger(_)
         | Stmt::Retry(_)
-        | Stmt::Resource(_) => {}
+        | Stmt::Resource(_)
+        | Stmt::Set(_)
+        | Stmt::Raise(_) => {}
     }
 }
 

@@ -10,6 +10,7 @@ use syn::ext::IdentExt;
 use syn::punctuated::Punctuated;
 use syn::{Token, Type};
 
+use super::cond::{COND_HINT, parse_cond};
 use super::{Cx, parse_group, parse_group_as, take_group};
 use crate::ast::{
     Constraint, ConstraintKind, Count, Event, ExternalName, Facet, HandlerRef, OnTerminate,
@@ -72,7 +73,9 @@ pub(crate) fn parse_constraint_list(
 pub(crate) fn parse_constraint(input: ParseStream, cx: &mut Cx) -> syn::Result<Constraint> {
     parse_constraint_inner(input, cx).inspect_err(|err| {
         let text = err.to_string();
-        cx.hint = Some(if text.contains("external") {
+        cx.hint = Some(if text.contains("condition") || text.contains("chain") {
+            COND_HINT
+        } else if text.contains("external") {
             EXTERNAL_HINT
         } else if text.contains("time") || text.contains("H:M:S") {
             TIME_HINT
@@ -186,6 +189,18 @@ fn parse_constraint_inner(input: ParseStream, cx: &mut Cx) -> syn::Result<Constr
             expect_phrase(input, &["deny", "if", "busy"])?;
             ConstraintKind::DenyIfBusy
         }
+        Some("skip") => {
+            expect_phrase(input, &["skip", "if"])?;
+            condition(input, Then::Skip)?
+        }
+        Some("invariant") => {
+            take_words(input, 1)?;
+            condition(input, Then::Invariant)?
+        }
+        Some("pause") => {
+            expect_phrase(input, &["pause", "while"])?;
+            condition(input, Then::Pause)?
+        }
         _ => {
             let what = match input.cursor().token_tree() {
                 Some((tt, _)) => format!("`{tt}`"),
@@ -212,6 +227,28 @@ fn timed(input: ParseStream, cx: &mut Cx, activate: bool) -> syn::Result<Constra
     let words = peek_words(input.cursor(), 5);
     let second = words.get(1).and_then(|it| it.text);
     let external = external_at(&words, 2).filter(|_| second == Some("at"));
+    let at = |i: usize| words.get(i).and_then(|it| it.text);
+    if second == Some("when") {
+        take_words(input, 2)?;
+        return Ok(ConstraintKind::Trigger {
+            when: When::Condition(parse_cond(input)?),
+            then,
+        });
+    }
+    if activate && second == Some("on") && at(2) == Some("change") {
+        take_words(input, 2)?;
+        expect_phrase(input, &["change", "of"])?;
+        if input.cursor().ident().is_none() {
+            return Err(input.error(
+                "expected a state variable after `activate on change of`, as in \
+                 `activate on change of battery`",
+            ));
+        }
+        return Ok(ConstraintKind::Trigger {
+            when: When::Changed(input.call(Ident::parse_any)?),
+            then,
+        });
+    }
     let when = match (second, external) {
         (_, Some(keyword)) => {
             // The keywords may be joined (`terminate_at_external`): taken all at once.
@@ -253,12 +290,49 @@ fn disable(input: ParseStream, cx: &mut Cx) -> syn::Result<ConstraintKind> {
         When::External(parse_external_name(input, keyword)?)
     } else {
         take_words(input, n_words)?;
-        parse_when(input, cx, relative)?
+        if !relative && is_condition(input) {
+            When::Condition(parse_cond(input)?)
+        } else {
+            parse_when(input, cx, relative)?
+        }
     };
     Ok(ConstraintKind::Trigger {
         when,
         then: Then::Enable(facet),
     })
+}
+
+/// A constraint on a condition (`skip if`, `invariant`, `pause while`), its keywords taken.
+fn condition(input: ParseStream, then: Then) -> syn::Result<ConstraintKind> {
+    Ok(ConstraintKind::Trigger {
+        when: When::Condition(parse_cond(input)?),
+        then,
+    })
+}
+
+/// Whether what follows `disable [facet] until` is a condition rather than an event or a time
+/// of day: a tag followed by a facet or a point is an event (`t1 completed`), a number followed
+/// by `:` a time (`13:00:00`); anything else is a condition (`battery_ok`, `level > 3`,
+/// `!fault`, `(a || b)`).
+fn is_condition(input: ParseStream) -> bool {
+    if input.peek(syn::LitInt) || input.peek(syn::LitFloat) {
+        return !input.peek2(Token![:]);
+    }
+    if input.cursor().ident().is_none() || input.peek(syn::LitBool) {
+        return true;
+    }
+    let fork = input.fork();
+    let Ok(tag) = parse_tag(&fork) else {
+        return true;
+    };
+    match tag.kind {
+        TagKind::Named { indexes, .. } if indexes.is_empty() => {
+            let next = peek_words(fork.cursor(), 1);
+            let word = next.first().and_then(|it| it.text);
+            facet_of(word).is_none() && point_of(word).is_none()
+        }
+        _ => false,
+    }
 }
 
 /// The span of word `i` when it is the keyword `external`, not the tag of a task named `external`
@@ -623,6 +697,32 @@ fn task_constraint(input: ParseStream, cx: &mut Cx) -> syn::Result<TaskConstrain
         ConstraintKind::Sequential { facet, tag: None } => TaskConstraintKind::Sequential(facet),
         ConstraintKind::Uses(it) => TaskConstraintKind::Uses(it),
         ConstraintKind::Priority(it) => TaskConstraintKind::Priority(it),
+        ConstraintKind::Trigger {
+            when: when @ (When::Condition(_) | When::Changed(_)),
+            then,
+        } => {
+            let form = match (when, then) {
+                (When::Changed(_), _) => "activate on change of",
+                (_, Then::Enable(_)) => "disable until",
+                (_, Then::Terminate) => "terminate when",
+                (_, Then::Activate) => "activate when",
+                (_, Then::Skip) => "skip if",
+                (_, Then::Invariant) => "invariant",
+                (_, Then::Pause) => "pause while",
+            };
+            cx.hint = Some(
+                "a condition constrains each node where it is spawned: `spawn step() with \
+                 pause while !healthy;`, in a `with (...)` group, or in a constraint statement \
+                 `step skip if done;`",
+            );
+            return Err(syn::Error::new(
+                span,
+                format!(
+                    "`{form}` goes on a spawn, a `with` group or a constraint statement, not on \
+                     a task definition"
+                ),
+            ));
+        }
         _ => {
             return Err(syn::Error::new(
                 span,

@@ -20,10 +20,12 @@ use super::constraint::{
 };
 use super::{Cx, attempt, parse_block, parse_group, recover, take_group};
 use crate::ast::{
-    Arm, Bind, BindTarget, Binding, Block, ConstraintStmt, Else, Fail, For, If, Loop, Match,
-    ResourceOp, ResourceStmt, Retry, RustStmt, Spawn, Stmt, While, WithGroup,
+    Arm, Bind, BindTarget, Binding, Block, ConstraintStmt, Else, ExternalName, Fail, For, If, Loop,
+    Match, Raise, ResourceOp, ResourceStmt, Retry, RustStmt, SetState, Spawn, Stmt, While,
+    WithGroup,
 };
 use crate::keyword::{peek_words, starts_constraint};
+use quote::ToTokens;
 
 /// Rust keywords that can start a statement followed by an identifier, so `kw ident` is Rust.
 const RUST_KEYWORDS: &[&str] = &[
@@ -235,13 +237,106 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
             span: keyword.span(),
         }));
     }
+    if is_set(cursor) {
+        return set_state(input, cx).map(Stmt::Set);
+    }
+    if is_raise(cursor) {
+        return raise(input, cx).map(Stmt::Raise);
+    }
     if is_constraint_stmt(cursor) {
         return constraint_stmt(input, cx).map(Stmt::Constrain);
+    }
+    if let Some((word, rest)) = first_ident(cursor) {
+        if let (true, Some((name, _))) = (word == "raise", rest.ident()) {
+            cx.hint = Some(RAISE_HINT);
+            return Err(syn::Error::new(
+                name.span(),
+                format!("the name of an external event is a string: write `raise \"{name}\";`"),
+            ));
+        }
     }
     if let Some(it) = control_flow(input, cx)? {
         return Ok(it);
     }
     rust_stmt(input, cx).map(Stmt::Rust)
+}
+
+/// True when the cursor is at `set IDENT =` (not `==`).
+fn is_set(cursor: Cursor<'_>) -> bool {
+    let Some((word, rest)) = first_ident(cursor) else {
+        return false;
+    };
+    let Some((_, after)) = rest.ident().filter(|_| word == "set") else {
+        return false;
+    };
+    match after.punct() {
+        Some((p, next)) => {
+            p.as_char() == '=' && next.punct().is_none_or(|(q, _)| q.as_char() != '=')
+        }
+        None => false,
+    }
+}
+
+/// True when the cursor is at `raise "name"` or `raise (…)`.
+fn is_raise(cursor: Cursor<'_>) -> bool {
+    let Some((word, rest)) = first_ident(cursor) else {
+        return false;
+    };
+    word == "raise" && (rest.literal().is_some() || rest.group(Delimiter::Parenthesis).is_some())
+}
+
+const SET_HINT: &str = "a set reads `set name = value;`, the value any Rust expression \
+     convertible to the variable's type (`true`, `3`, `x + 1.5`, `\"text\"`) or `unknown`";
+
+const RAISE_HINT: &str = "a raise reads `raise \"name\";`, or `raise (expr);` with the name \
+     computed in Rust; `disable until external \"name\"`, `terminate at external \"name\"` and \
+     `activate at external \"name\"` wait for it";
+
+/// `set name = expr;`.
+fn set_state(input: ParseStream, cx: &mut Cx) -> syn::Result<SetState> {
+    cx.hint = Some(SET_HINT);
+    let keyword = input.call(Ident::parse_any)?;
+    let name: Ident = input.parse()?;
+    input.parse::<Token![=]>()?;
+    let value: syn::Expr = input.parse()?;
+    if !input.peek(Token![;]) {
+        return Err(input.error("expected `;` after `set name = value`"));
+    }
+    input.parse::<Token![;]>()?;
+    Ok(SetState {
+        name,
+        value,
+        span: keyword.span(),
+    })
+}
+
+/// `raise "name";` or `raise (expr);`.
+fn raise(input: ParseStream, cx: &mut Cx) -> syn::Result<Raise> {
+    cx.hint = Some(RAISE_HINT);
+    let keyword = input.call(Ident::parse_any)?;
+    let name = if input.peek(syn::LitStr) {
+        ExternalName::Lit(input.parse()?)
+    } else if input.peek(syn::token::Paren) {
+        let group = take_group(input, Delimiter::Parenthesis, "`(`")?;
+        ExternalName::Expr(super::parse_group_as(group)?)
+    } else {
+        let lit: syn::Lit = input.parse()?;
+        return Err(syn::Error::new(
+            lit.span(),
+            format!(
+                "expected the external event's name as a string, found `{}`",
+                lit.to_token_stream()
+            ),
+        ));
+    };
+    if !input.peek(Token![;]) {
+        return Err(input.error("expected `;` after `raise \"name\"`"));
+    }
+    input.parse::<Token![;]>()?;
+    Ok(Raise {
+        name,
+        span: keyword.span(),
+    })
 }
 
 /// Parses `place =` when a `spawn TASK` follows (an assignment of a waited spawn's value to an

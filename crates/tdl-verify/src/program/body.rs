@@ -228,6 +228,8 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
                 }
                 WhenIr::External(Some(name))
             }
+            // Never reached: `Body::stmt` refuses conditions before any constraint is compiled.
+            ast::When::Condition(_) | ast::When::Changed(_) => WhenIr::Now,
         }
     }
 
@@ -272,6 +274,8 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
                     ast::Then::Enable(f) => Then::Enable(facet(f.unwrap_or(ast::Facet::Handling))),
                     ast::Then::Terminate => Then::Terminate,
                     ast::Then::Activate => Then::Activate,
+                    // Conditions: refused by `Body::stmt` first.
+                    ast::Then::Skip | ast::Then::Invariant | ast::Then::Pause => return None,
                 };
                 CIr::Trigger {
                     when: self.when(when, line),
@@ -328,7 +332,26 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
     }
 
     pub(super) fn stmt(&mut self, s: &ast::Stmt) -> Result<(), LoadError> {
+        if let Some(span) = condition_in(s) {
+            return Err(self.unsupported(
+                line_of(span),
+                "a condition over state variables (`disable until`, `terminate when`, `activate \
+                 when`, `activate on change of`, `skip if`, `invariant`, `pause while`) is not \
+                 modelled by tdl verify yet",
+            ));
+        }
         match s {
+            ast::Stmt::Set(it) => {
+                return Err(
+                    self.unsupported(line_of(it.span), "`set` is not modelled by tdl verify yet")
+                );
+            }
+            ast::Stmt::Raise(it) => {
+                return Err(self.unsupported(
+                    line_of(it.span),
+                    "`raise` is not modelled by tdl verify yet",
+                ));
+            }
             ast::Stmt::Rust(r) => self.rust(&r.tokens, line_of(r.span)),
             ast::Stmt::Spawn(sp) => self.spawn(sp)?,
             ast::Stmt::With(g) => self.with(g)?,
@@ -712,4 +735,22 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
         self.body.stmts.push(StmtIr { target, op });
         self.emit(Op::Stmt(sid), line);
     }
+}
+
+/// The span of the first constraint on a condition or a state variable's change that `s` gives
+/// its spawn, its group or its tag, if any.
+fn condition_in(s: &ast::Stmt) -> Option<proc_macro2::Span> {
+    let list = match s {
+        ast::Stmt::Spawn(it) => it.constraints.as_slice(),
+        ast::Stmt::With(it) => it.constraints.as_slice(),
+        ast::Stmt::Constrain(it) => std::slice::from_ref(&it.constraint),
+        _ => return None,
+    };
+    list.iter().find_map(|c| match &c.kind {
+        ast::ConstraintKind::Trigger {
+            when: ast::When::Condition(_) | ast::When::Changed(_),
+            ..
+        } => Some(c.span),
+        _ => None,
+    })
 }
