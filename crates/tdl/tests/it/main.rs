@@ -22,6 +22,7 @@ mod porting;
 mod propagation;
 mod refs;
 mod resources;
+mod state;
 mod ui;
 mod util;
 mod warnings;
