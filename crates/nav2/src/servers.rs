@@ -277,6 +277,7 @@ impl Nav {
             Ended::Succeeded(()) => "navigation succeeded".to_owned(),
             Ended::Failed(f) => format!("navigation failed {}", f.exception),
             Ended::Terminated => "navigation terminated".to_owned(),
+            Ended::Skipped => "navigation skipped".to_owned(),
         };
         self.note(what);
     }

@@ -64,6 +64,7 @@ tdl::tdl! {
             Ended::Succeeded(name) => log(format!("chose {name}")),
             Ended::Failed(f) => log(format!("all failed {}", f.exception)),
             Ended::Terminated => log("terminated"),
+            Ended::Skipped => log("skipped"),
         }
     }
 
@@ -73,6 +74,7 @@ tdl::tdl! {
             Ended::Succeeded(()) => log("succeeded"),
             Ended::Failed(f) => log(format!("failed {}", f.exception)),
             Ended::Terminated => log("terminated"),
+            Ended::Skipped => log("skipped"),
         }
     }
 

@@ -38,6 +38,7 @@ fn describe<T: std::fmt::Debug>(o: &tdl::Ended<T>) -> String {
             format!("failed {} at {at}", f.exception)
         }
         tdl::Ended::Terminated => "terminated".to_owned(),
+        tdl::Ended::Skipped => "skipped".to_owned(),
     }
 }
 
