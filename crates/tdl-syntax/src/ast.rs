@@ -16,7 +16,10 @@
 mod cond;
 mod constraint;
 
-pub use cond::{Cond, CondExpr, Raise, SetState, StateDecl, StateLit, state_type};
+pub use cond::{
+    Cond, CondExpr, EnvEntry, EnvTarget, EnvironmentDecl, Raise, SetState, StateDecl, StateLit,
+    state_type,
+};
 pub use constraint::{
     Constraint, ConstraintKind, Count, Event, ExternalName, Facet, HandlerRef, OnTerminate,
     Persistent, Point, RelTime, Tag, TagIndex, TagKind, TaskConstraint, TaskConstraintKind, Then,
@@ -43,6 +46,9 @@ pub enum Item {
     Resource(ResourceDecl),
     /// `state name: type [= literal];` (docs/language.md, "State and conditions").
     State(StateDecl),
+    /// `environment { … }`: what the outside may change, for the tools (docs/verification.md,
+    /// "The environment").
+    Environment(EnvironmentDecl),
     /// Any Rust item (`fn`, `use`, `struct`, ...), passed through verbatim.
     Rust(Box<syn::Item>),
 }

@@ -101,6 +101,7 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
             }
             Item::Resource(_) | Item::Rust(_) => {}
             Item::State(decl) => state::declaration(decl, diags),
+            Item::Environment(env) => state::environment(file, env, diags),
         }
     }
     raises::check(file, ast, diags);

@@ -51,6 +51,12 @@ pub fn dump(ast: &Ast) -> String {
                     .unwrap_or_default();
                 let _ = writeln!(out, "state {}: {}{init}", it.name, it.ty_name);
             }
+            Item::Environment(env) => {
+                let _ = writeln!(out, "environment");
+                for e in &env.entries {
+                    let _ = writeln!(out, "  {}", crate::print::env_entry(e));
+                }
+            }
             Item::Rust(item) => {
                 let _ = writeln!(out, "rust item: {}", tokens(item.as_ref()));
             }

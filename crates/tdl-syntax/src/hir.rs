@@ -57,7 +57,8 @@ pub use scope::{BUILTIN_EXCEPTIONS, Duplicate, Elsewhere, FileScope};
 pub use visit::{Branch, Visit, walk_stmt};
 
 use crate::ast::{
-    Ast, ConstraintKind, ExceptionDecl, Item, ResourceDecl, StateDecl, Task, TaskConstraintKind,
+    Ast, ConstraintKind, EnvEntry, ExceptionDecl, Item, ResourceDecl, StateDecl, Task,
+    TaskConstraintKind,
 };
 
 /// The exception a bare `fail;` raises, as the runtime names it.
@@ -191,6 +192,22 @@ impl<'a> Program<'a> {
             }
         }
         out
+    }
+
+    /// The entries of the program's environment declarations, in file order (docs/
+    /// verification.md, "The environment"), and whether it has one at all.
+    pub fn environment(&self) -> Option<Vec<&'a EnvEntry>> {
+        let mut found = false;
+        let mut out = Vec::new();
+        for it in &self.files {
+            for item in &it.ast.items {
+                if let Item::Environment(env) = item {
+                    found = true;
+                    out.extend(env.entries.iter());
+                }
+            }
+        }
+        found.then_some(out)
     }
 
     /// The ancestors of exception `name`, nearest first (see [`FileScope::ancestry`]).

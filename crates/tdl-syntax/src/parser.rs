@@ -19,8 +19,8 @@ use syn::punctuated::Punctuated;
 use syn::{Token, Type};
 
 use crate::ast::{
-    Arg, Ast, Block, ExceptionDecl, Field, Item, ResourceDecl, StateDecl, Task, TaskKind,
-    state_type,
+    Arg, Ast, Block, EnvEntry, EnvTarget, EnvironmentDecl, ExceptionDecl, Field, Item,
+    ResourceDecl, StateDecl, Task, TaskKind, state_type,
 };
 use crate::diagnostic::Diagnostic;
 
@@ -234,6 +234,10 @@ fn tdl_item_keyword(input: ParseStream) -> Option<String> {
     if word == "resource" {
         return fork.peek(syn::Ident).then_some(word);
     }
+    // `environment { … }` declares what the outside may change.
+    if word == "environment" {
+        return fork.peek(syn::token::Brace).then_some(word);
+    }
     // `state NAME: TYPE` declares a state variable.
     if word == "state" {
         return (fork.peek(syn::Ident) && fork.peek2(Token![:]) && !fork.peek2(Token![::]))
@@ -292,6 +296,7 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
                 let what = match other {
                     "resource" => "a resource",
                     "state" => "a state variable",
+                    "environment" => "an environment",
                     _ => "an exception",
                 };
                 cx.diags.push(not_blocking(span, what));
@@ -299,6 +304,7 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
             return match other {
                 "resource" => resource(input, attrs, persistent, keyword.span(), cx),
                 "state" => state(input, attrs, persistent, keyword.span(), cx),
+                "environment" => environment(input, keyword.span(), cx),
                 _ => exception(input, attrs, vis, persistent, keyword.span(), cx),
             };
         }
@@ -415,6 +421,84 @@ fn state(
         span,
     }))
 }
+
+/// `environment { entry* }`, each entry `VAR: v1, v2 [at most N] [when COND];` or `external
+/// "name" [at most N] [when COND];` (docs/verification.md, "The environment").
+fn environment(input: ParseStream, keyword_span: Span, cx: &mut Cx) -> syn::Result<Item> {
+    let content;
+    syn::braced!(content in input);
+    let mut entries = Vec::new();
+    while !content.is_empty() {
+        cx.hint = Some(ENV_HINT);
+        let span = content.span();
+        let target = if content.peek(syn::Ident) && content.peek2(syn::LitStr) {
+            let word = content.call(Ident::parse_any)?;
+            if word != "external" {
+                return Err(syn::Error::new(
+                    word.span(),
+                    format!("expected `external \"name\"` or a state variable, found `{word}`"),
+                ));
+            }
+            EnvTarget::External(content.parse()?)
+        } else {
+            let name: Ident = content.parse()?;
+            content.parse::<Token![:]>()?;
+            EnvTarget::State(name)
+        };
+        let mut values = Vec::new();
+        if matches!(target, EnvTarget::State(_)) {
+            values.push(cond::parse_lit(&content)?);
+            while content.peek(Token![,]) {
+                content.parse::<Token![,]>()?;
+                values.push(cond::parse_lit(&content)?);
+            }
+        }
+        let mut at_most = None;
+        let mut when = None;
+        loop {
+            if content.peek(syn::Ident)
+                && content
+                    .fork()
+                    .call(Ident::parse_any)
+                    .is_ok_and(|w| w == "at")
+            {
+                content.call(Ident::parse_any)?;
+                let most = content.call(Ident::parse_any)?;
+                if most != "most" {
+                    return Err(syn::Error::new(most.span(), "expected `at most N`"));
+                }
+                let n: syn::LitInt = content.parse()?;
+                at_most = Some((n.base10_parse::<u32>()?, n.span()));
+            } else if content.peek(syn::Ident)
+                && content
+                    .fork()
+                    .call(Ident::parse_any)
+                    .is_ok_and(|w| w == "when")
+            {
+                content.call(Ident::parse_any)?;
+                when = Some(cond::parse_cond(&content)?);
+            } else {
+                break;
+            }
+        }
+        content.parse::<Token![;]>()?;
+        entries.push(EnvEntry {
+            target,
+            values,
+            at_most,
+            when,
+            span,
+        });
+    }
+    cx.hint = None;
+    Ok(Item::Environment(EnvironmentDecl {
+        entries,
+        span: keyword_span,
+    }))
+}
+
+const ENV_HINT: &str = "an environment entry reads `var: value, value [at most N] [when condition];` \
+     or `external \"name\" [at most N] [when condition];`";
 
 const STATE_HINT: &str = "a state variable reads `state name: type [= value];`, its type \
      `bool`, `int`, `float` or `string`, its value a literal or `unknown` (the default)";

@@ -172,6 +172,25 @@ pub fn state_decl(it: &StateDecl) -> String {
     format!("state {}: {}{init}", it.name, it.ty_name)
 }
 
+/// An environment entry, without its `;`: `battery: 100.0, 15.0 at most 2 when !docked`,
+/// `external "go" at most 3`.
+pub fn env_entry(it: &crate::ast::EnvEntry) -> String {
+    let mut out = match &it.target {
+        crate::ast::EnvTarget::State(v) => {
+            let values: Vec<String> = it.values.iter().map(|l| l.value.to_string()).collect();
+            format!("{v}: {}", values.join(", "))
+        }
+        crate::ast::EnvTarget::External(name) => format!("external {:?}", name.value()),
+    };
+    if let Some((n, _)) = it.at_most {
+        out.push_str(&format!(" at most {n}"));
+    }
+    if let Some(c) = &it.when {
+        out.push_str(&format!(" when {}", condition(c)));
+    }
+    out
+}
+
 /// A condition in its canonical text (`tcm_expr`'s: `battery > 20.5 && !fault`), the one the
 /// engine, the trace and the checker show.
 pub fn condition(it: &Cond) -> String {

@@ -76,6 +76,15 @@ pub(crate) enum Op {
     /// `lock r;`, `unlock r;`, `reserve r;` (for the body's own node), `unreserve r;`, on the
     /// resource declared `r` (its number in [`crate::Program`]'s resources).
     Resource(ResOp, u16),
+    /// `set VAR = value;`: the program's state variable `var` (its number in
+    /// [`crate::Program`]'s states) takes a value, or one of several (a value computed in Rust, a
+    /// choice).
+    SetState {
+        var: u16,
+        values: Vec<tcm_core::Value>,
+    },
+    /// `raise "name";`: the external event (its number in [`crate::Program`]'s events) is raised.
+    Raise(u16),
     End,
 }
 
@@ -285,6 +294,10 @@ pub(crate) enum WhenIr {
     After(TimeIr, EventIr),
     /// A named external event; `None` for a name computed in Rust.
     External(Option<String>),
+    /// A condition over state variables.
+    Condition(tcm_core::Expr),
+    /// A change of the named state variable.
+    Changed(String),
 }
 
 impl WhenIr {

@@ -69,6 +69,9 @@ pub(crate) enum Action {
     Decide { node: NodeId, i: u16 },
     /// An external event is raised.
     Raise(u16),
+    /// The environment uses entry `entry` of its declaration: sets its variable to its `value`th
+    /// value, or raises its event.
+    Env { entry: u16, value: u16 },
     /// Time advances to the next deadline.
     Tick,
 }
@@ -185,6 +188,8 @@ pub(crate) struct State {
     stops: VecDeque<NodeId>,
     next_token: u64,
     raised: Vec<u8>,
+    /// How many times each entry of the environment declaration was used.
+    env_used: Vec<u8>,
     hangs: u16,
     /// Nodes a termination constraint or statement names.
     terminable: Vec<NodeId>,
@@ -263,6 +268,13 @@ impl State {
                 error = Some(format!("cannot declare resource `{}`: {e}", r.name));
             }
         }
+        // The state variables, in order (the generated code declares each where it is first
+        // used, with the same type and initial value).
+        for v in &prog.states {
+            if let Err(e) = engine.declare_state(&v.name, v.ty, v.initial.clone()) {
+                error = Some(format!("cannot declare state variable `{}`: {e}", v.name));
+            }
+        }
         // Handlers declared `for T` are attached to T on the run.
         for (i, t) in prog.tasks.iter().enumerate() {
             if let (Some(target), Some(exc)) = (&t.for_task, &t.handles) {
@@ -291,6 +303,7 @@ impl State {
             stops: VecDeque::new(),
             next_token: 0,
             raised: vec![0; prog.external_events.len()],
+            env_used: vec![0; prog.environment.as_ref().map_or(0, Vec::len)],
             hangs: 0,
             terminable: Vec::new(),
             cut: None,

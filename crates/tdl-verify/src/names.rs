@@ -15,10 +15,12 @@ use crate::value::{Env, Value};
 /// A property names a node no run of the program can have.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "property `{property}` names `{name}`, which no node of the program is named; the names are: {}",
+    "property `{property}` names `{name}`, which no {what} of the program is named; the names are: {}",
     known.join(", ")
 )]
 pub struct UnknownName {
+    /// What the name was taken for: `node` or `state variable`.
+    pub what: &'static str,
     /// The property, as written.
     pub property: String,
     /// The name it uses that nothing has.
@@ -36,6 +38,20 @@ pub fn check_names(
     task: &str,
     properties: &[Property],
 ) -> Result<(), UnknownName> {
+    // State variables are the program's own, whatever the task.
+    let vars: Vec<String> = program.states.iter().map(|s| s.name.clone()).collect();
+    for p in properties {
+        for var in p.state_vars() {
+            if !vars.contains(&var) {
+                return Err(UnknownName {
+                    what: "state variable",
+                    property: p.text().to_owned(),
+                    name: var,
+                    known: vars.clone(),
+                });
+            }
+        }
+    }
     let Some(known) = node_names(program, task) else {
         return Ok(());
     };
@@ -43,6 +59,7 @@ pub fn check_names(
         for name in p.names() {
             if !known.contains(name) {
                 return Err(UnknownName {
+                    what: "node",
                     property: p.text().to_owned(),
                     name: name.to_owned(),
                     known: known.iter().cloned().collect(),

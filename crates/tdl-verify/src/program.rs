@@ -75,6 +75,34 @@ pub(crate) struct ResourceDef {
     pub(crate) pending: Option<u32>,
 }
 
+/// A state variable the program declares: `state name: type [= value];`.
+#[derive(Clone, Debug)]
+pub(crate) struct StateDef {
+    pub(crate) name: String,
+    pub(crate) ty: tcm_core::Type,
+    pub(crate) initial: tcm_core::Value,
+}
+
+/// One line of the program's environment declaration: what the outside may change, to which
+/// values, how many times per run, and only while which condition holds.
+#[derive(Clone, Debug)]
+pub(crate) struct EnvEntry {
+    pub(crate) target: EnvTarget,
+    /// For a variable: the values it may take (the current one is skipped).
+    pub(crate) values: Vec<tcm_core::Value>,
+    pub(crate) at_most: u32,
+    pub(crate) when: Option<tcm_core::Expr>,
+}
+
+/// What an environment entry changes.
+#[derive(Clone, Debug)]
+pub(crate) enum EnvTarget {
+    /// A state variable, by its number in the program's states.
+    State(u16),
+    /// An external event, by its number in the program's events.
+    External(u16),
+}
+
 /// A TDL program, ready to be verified.
 #[derive(Clone, Debug, Default)]
 pub struct Program {
@@ -91,6 +119,11 @@ pub struct Program {
     pub(crate) external_events: Vec<String>,
     /// The resources it declares, in order.
     pub(crate) resources: Vec<ResourceDef>,
+    /// The state variables it declares, in order.
+    pub(crate) states: Vec<StateDef>,
+    /// Its environment declaration: what the outside may change (`None`: none declared, and
+    /// external events are raised anywhere up to `Options::events` times each).
+    pub(crate) environment: Option<Vec<EnvEntry>>,
     pub(crate) symbols: Vec<String>,
     pub(crate) files: Vec<String>,
     /// What the checker abstracts that a reader should know of, with its place.
@@ -146,10 +179,67 @@ impl Program {
                 pending: r.pending.as_ref().and_then(|p| p.base10_parse().ok()),
             });
         }
+        for s in program.states() {
+            b.prog.states.push(StateDef {
+                name: s.name.to_string(),
+                ty: s.ty().unwrap_or(tcm_core::Type::Bool),
+                initial: s.initial(),
+            });
+        }
+        // What the outside may change, before the bodies: a `set` computed in Rust takes the
+        // values given here.
+        if let Some(entries) = program.environment() {
+            let mut env = Vec::new();
+            for e in entries {
+                let target = match &e.target {
+                    ast::EnvTarget::State(v) => match b.state(&v.to_string()) {
+                        Some(i) => EnvTarget::State(i),
+                        None => continue, // The diagnosis refused the program already.
+                    },
+                    ast::EnvTarget::External(name) => {
+                        EnvTarget::External(b.external_event(name.value()))
+                    }
+                };
+                let ty = match target {
+                    EnvTarget::State(i) => Some(b.prog.states[i as usize].ty),
+                    EnvTarget::External(_) => None,
+                };
+                let values = e
+                    .values
+                    .iter()
+                    .map(|l| match ty {
+                        Some(ty) => l
+                            .value
+                            .clone()
+                            .coerce(ty)
+                            .unwrap_or(tcm_core::Value::Unknown),
+                        None => l.value.clone(),
+                    })
+                    .collect();
+                env.push(EnvEntry {
+                    target,
+                    values,
+                    at_most: e.at_most(),
+                    when: e.when.as_ref().map(ast::Cond::to_expr),
+                });
+            }
+            b.prog.environment = Some(env);
+        }
         // Pass 2: bodies.
         for t in &tasks {
             let def = b.task(t.file, t.task, program.body(t.task))?;
             b.prog.tasks.push(def);
+        }
+        if b.prog.environment.is_none()
+            && (!b.prog.states.is_empty() || !b.prog.external_events.is_empty())
+        {
+            b.prog.notes.push(
+                "no environment declaration: nothing outside the program sets its state \
+                 variables, and each external event may be raised at any moment (up to --events \
+                 times); say what the outside may do with `environment { … }` \
+                 (docs/verification.md, \"The environment\")"
+                    .to_owned(),
+            );
         }
         let mut raisable: BTreeSet<&'static str> =
             b.prog.exceptions.keys().map(|e| leak(e)).collect();
@@ -297,6 +387,25 @@ fn line_of(span: proc_macro2::Span) -> u32 {
 }
 
 impl Builder {
+    /// The number of the external event `name`, added on first use.
+    fn external_event(&mut self, name: String) -> u16 {
+        let events = &mut self.prog.external_events;
+        let i = match events.iter().position(|e| *e == name) {
+            Some(i) => i,
+            None => {
+                events.push(name);
+                events.len() - 1
+            }
+        };
+        u16::try_from(i).unwrap_or(u16::MAX)
+    }
+
+    /// The number of the state variable `name`, if the program declares it.
+    fn state(&self, name: &str) -> Option<u16> {
+        let i = self.prog.states.iter().position(|s| s.name == name)?;
+        u16::try_from(i).ok()
+    }
+
     fn sym(&mut self, name: &str) -> Sym {
         if let Some(s) = self.syms.get(name) {
             return *s;

@@ -3,13 +3,19 @@
 //!
 //! ```text
 //! property := "never" formula                 a state where the formula holds is a violation
+//!           | "never" event "while" formula   the event may not happen while the formula holds
 //!           | event "before" event            every second event comes after a first one
 //!           | ["always"] "eventually" event   every run that ends saw the event
 //! formula  := conj ("or" conj)*
 //! conj     := unary ("and" unary)*
-//! unary    := "not" unary | "(" formula ")" | "active" "(" NAME ")"
+//! unary    := "not" unary | "(" formula ")" | "active" "(" NAME ")" | state
+//! state    := VAR [("<" | "<=" | ">" | ">=" | "==" | "!=") LITERAL]
 //! event    := ("enabled" | "active" | "completed" | "failed" | "terminated") "(" NAME ")"
 //! ```
+//!
+//! A `state` atom reads a state variable of the program (docs/semantics.md, "State and
+//! conditions"): a `bool` variable alone, or compared with a literal (`battery < 20.0`, `mode ==
+//! "safe"`; the operator between spaces). It holds as the condition would: not while unknown.
 //!
 //! `NAME` is a node's instance name as the trace writes it: the task's name (unless a `name`
 //! constraint gave another), a handler's name, `ACT-<monitor>` for a monitor's activations.
@@ -32,6 +38,7 @@ pub struct Property {
 #[derive(Clone, Debug, PartialEq)]
 enum Kind {
     Never(Formula),
+    NeverWhile(Ev, Formula),
     Before(Ev, Ev),
     Eventually(Ev),
 }
@@ -39,6 +46,8 @@ enum Kind {
 #[derive(Clone, Debug, PartialEq)]
 enum Formula {
     Active(String),
+    /// A condition over the program's state variables.
+    State(tcm_core::Expr),
     Not(Box<Formula>),
     And(Box<Formula>, Box<Formula>),
     Or(Box<Formula>, Box<Formula>),
@@ -108,6 +117,7 @@ impl Property {
         fn formula<'a>(f: &'a Formula, out: &mut Vec<&'a str>) {
             match f {
                 Formula::Active(n) => out.push(n),
+                Formula::State(_) => {}
                 Formula::Not(f) => formula(f, out),
                 Formula::And(a, b) | Formula::Or(a, b) => {
                     formula(a, out);
@@ -118,8 +128,33 @@ impl Property {
         let mut out = Vec::new();
         match &self.kind {
             Kind::Never(f) => formula(f, &mut out),
+            Kind::NeverWhile(e, f) => {
+                out.push(&e.name);
+                formula(f, &mut out);
+            }
             Kind::Before(a, b) => out.extend([a.name.as_str(), b.name.as_str()]),
             Kind::Eventually(e) => out.push(&e.name),
+        }
+        out
+    }
+
+    /// The state variables the property reads, in order of appearance.
+    pub fn state_vars(&self) -> Vec<String> {
+        fn formula(f: &Formula, out: &mut Vec<String>) {
+            match f {
+                Formula::Active(_) => {}
+                Formula::State(e) => out.extend(e.vars().into_iter().map(str::to_owned)),
+                Formula::Not(f) => formula(f, out),
+                Formula::And(a, b) | Formula::Or(a, b) => {
+                    formula(a, out);
+                    formula(b, out);
+                }
+            }
+        }
+        let mut out = Vec::new();
+        match &self.kind {
+            Kind::Never(f) | Kind::NeverWhile(_, f) => formula(f, &mut out),
+            Kind::Before(..) | Kind::Eventually(_) => {}
         }
         out
     }
@@ -200,7 +235,30 @@ impl Parser<'_> {
             )),
             Some("never") => {
                 self.at += 1;
-                Ok(Kind::Never(self.formula()?))
+                let event_first = matches!(
+                    self.peek(),
+                    Some("enabled" | "completed" | "failed" | "terminated")
+                );
+                if event_first {
+                    let ev = self.event()?;
+                    self.expect("while")?;
+                    return Ok(Kind::NeverWhile(ev, self.formula()?));
+                }
+                let f = self.formula()?;
+                if self.eat("while") {
+                    let Formula::Active(name) = f else {
+                        return Err(self.error(
+                            "`while` follows an event".into(),
+                            Some("write `never active(T) while F`".into()),
+                        ));
+                    };
+                    let ev = Ev {
+                        point: Point::Active,
+                        name,
+                    };
+                    return Ok(Kind::NeverWhile(ev, self.formula()?));
+                }
+                Ok(Kind::Never(f))
             }
             Some("always") => {
                 self.at += 1;
@@ -295,24 +353,81 @@ impl Parser<'_> {
                 self.at += 1;
                 Ok(Formula::Active(self.name()?))
             }
+            Some(var)
+                if var
+                    .chars()
+                    .next()
+                    .is_some_and(|c| c.is_alphabetic() || c == '_')
+                    && var.chars().all(|c| c.is_alphanumeric() || c == '_')
+                    && !matches!(var, "and" | "or" | "not" | "while" | "before") =>
+            {
+                let var = tcm_core::Expr::var(var);
+                self.at += 1;
+                let op = match self.peek() {
+                    Some("<") => tcm_core::BinOp::Lt,
+                    Some("<=") => tcm_core::BinOp::Le,
+                    Some(">") => tcm_core::BinOp::Gt,
+                    Some(">=") => tcm_core::BinOp::Ge,
+                    Some("==") => tcm_core::BinOp::Eq,
+                    Some("!=") => tcm_core::BinOp::Ne,
+                    _ => return Ok(Formula::State(var)),
+                };
+                self.at += 1;
+                let lit = self.peek().and_then(literal).ok_or_else(|| {
+                    self.error(
+                        "expected a literal after the comparison".into(),
+                        Some("a number, true, false or a \"string\", e.g. `battery < 20.0`".into()),
+                    )
+                })?;
+                self.at += 1;
+                Ok(Formula::State(tcm_core::Expr::bin(
+                    op,
+                    var,
+                    tcm_core::Expr::Lit(lit),
+                )))
+            }
             other => {
                 let found = other.map_or("the end".to_owned(), |f| format!("`{f}`"));
                 Err(self.error(
-                    format!("expected `active(T)`, `not`, or `(`, found {found}"),
-                    Some("a state formula is made of active(T), and, or, not".into()),
+                    format!("expected `active(T)`, a state variable, `not`, or `(`, found {found}"),
+                    Some(
+                        "a state formula is made of active(T), state variables (`ok`, `battery < 20.0`), and, or, not"
+                            .into(),
+                    ),
                 ))
             }
         }
     }
 }
 
+/// A literal of a state atom: `true`, `false`, a number, a `"string"`.
+fn literal(word: &str) -> Option<tcm_core::Value> {
+    match word {
+        "true" => return Some(true.into()),
+        "false" => return Some(false.into()),
+        _ => {}
+    }
+    if let Some(s) = word.strip_prefix('"').and_then(|w| w.strip_suffix('"')) {
+        return Some(s.into());
+    }
+    if let Ok(i) = word.parse::<i64>() {
+        return Some(i.into());
+    }
+    word.parse::<f64>().ok().map(Into::into)
+}
+
 impl Formula {
-    fn holds(&self, active: &dyn Fn(&str) -> bool) -> bool {
+    fn holds(
+        &self,
+        active: &dyn Fn(&str) -> bool,
+        state: &dyn Fn(&str) -> Option<tcm_core::Value>,
+    ) -> bool {
         match self {
             Formula::Active(n) => active(n),
-            Formula::Not(f) => !f.holds(active),
-            Formula::And(a, b) => a.holds(active) && b.holds(active),
-            Formula::Or(a, b) => a.holds(active) || b.holds(active),
+            Formula::State(e) => e.holds(state).unwrap_or(false),
+            Formula::Not(f) => !f.holds(active, state),
+            Formula::And(a, b) => a.holds(active, state) && b.holds(active, state),
+            Formula::Or(a, b) => a.holds(active, state) || b.holds(active, state),
         }
     }
 }
@@ -330,8 +445,32 @@ pub(crate) struct Props {
 pub(crate) struct Watch {
     names: Vec<(u64, Arc<str>)>,
     active: Vec<u64>,
+    /// The state variables' values on the path, by name.
+    states: Vec<(Arc<str>, tcm_core::Value)>,
     /// Bit `i`: event `i` of [`Props`] happened on the path.
     pub(crate) seen: u64,
+}
+
+impl Watch {
+    /// Whether a state formula holds on the path now.
+    fn holds(&self, f: &Formula) -> bool {
+        let names = &self.names;
+        let active = &self.active;
+        let is_active = |t: &str| {
+            active.iter().any(|a| {
+                names
+                    .binary_search_by_key(a, |(n, _)| *n)
+                    .is_ok_and(|j| &*names[j].1 == t)
+            })
+        };
+        let state = |v: &str| {
+            self.states
+                .iter()
+                .find(|(n, _)| &**n == v)
+                .map(|(_, value)| value.clone())
+        };
+        f.holds(&is_active, &state)
+    }
 }
 
 impl Props {
@@ -341,7 +480,7 @@ impl Props {
             let evs: Vec<&Ev> = match &p.kind {
                 Kind::Before(a, _) => vec![a],
                 Kind::Eventually(e) => vec![e],
-                Kind::Never(_) => Vec::new(),
+                Kind::Never(_) | Kind::NeverWhile(..) => Vec::new(),
             };
             for e in evs {
                 if !events.contains(e) {
@@ -370,6 +509,18 @@ impl Props {
         let mut broken = None;
         for r in records {
             let (point, node) = match &r.kind {
+                TraceKind::StateDeclared { var, value, .. }
+                | TraceKind::StateSet { var, value } => {
+                    match w.states.iter_mut().find(|(n, _)| &**n == var.as_str()) {
+                        Some(slot) => slot.1 = value.clone(),
+                        None => w.states.push((Arc::from(var.as_str()), value.clone())),
+                    }
+                    // A state formula may hold from here.
+                    if broken.is_none() {
+                        broken = self.never_holds(w);
+                    }
+                    continue;
+                }
                 TraceKind::Spawned { node, name, .. } | TraceKind::Reserved { node, name, .. } => {
                     match w.names.binary_search_by_key(node, |(n, _)| *n) {
                         Ok(i) => w.names[i].1 = Arc::from(name.as_str()),
@@ -428,19 +579,11 @@ impl Props {
                             broken = Some(k);
                         }
                     }
-                    Kind::Never(f) if point == Point::Active && broken.is_none() => {
-                        let names = &w.names;
-                        let active = &w.active;
-                        let is_active = |t: &str| {
-                            active.iter().any(|a| {
-                                names
-                                    .binary_search_by_key(a, |(n, _)| *n)
-                                    .is_ok_and(|j| &*names[j].1 == t)
-                            })
-                        };
-                        if f.holds(&is_active) {
-                            broken = Some(k);
-                        }
+                    Kind::Never(f) if point == Point::Active && broken.is_none() && w.holds(f) => {
+                        broken = Some(k);
+                    }
+                    Kind::NeverWhile(e, f) if *e == ev && broken.is_none() && w.holds(f) => {
+                        broken = Some(k);
                     }
                     _ => {}
                 }
@@ -450,6 +593,13 @@ impl Props {
             }
         }
         broken
+    }
+
+    /// The first `never` property whose formula holds now.
+    fn never_holds(&self, w: &Watch) -> Option<usize> {
+        self.list
+            .iter()
+            .position(|p| matches!(&p.kind, Kind::Never(f) if w.holds(f)))
     }
 
     /// At the end of a run: the first `eventually` property whose event it never saw.

@@ -370,14 +370,23 @@ fn walk(
     let mut rng = Draw(ChaCha8Rng::seed_from_u64(seed));
     let mut s = State::init(cx, task, true);
     let mut trace: Vec<TraceEvent> = std::mem::take(&mut s.records);
-    // The external events' raises, in time order: (time, event).
+    // The external events' raises, in time order: (time, event); with an environment
+    // declaration, its entries' uses instead (an event of the program's numbers, or
+    // `ENV + entry`), each drawn among what the entry may do then.
+    const ENV: u16 = 1 << 15;
     let mut events: Vec<(Time, u16)> = Vec::new();
     let n_events = cx.prog.external_events.len();
-    for i in 0..n_events {
-        for _ in 0..cx.opts.events {
+    let draws: Vec<(u16, u32)> = match &cx.prog.environment {
+        None => (0..n_events).map(|i| (i as u16, cx.opts.events)).collect(),
+        Some(env) => (0..env.len())
+            .map(|i| (ENV + i as u16, env[i].at_most))
+            .collect(),
+    };
+    for (i, n) in draws {
+        for _ in 0..n {
             if rng.chance(options.event_chance) {
                 let at = rng.between(Duration::ZERO, options.event_window);
-                events.push((Time::ZERO.saturating_add(at), i as u16));
+                events.push((Time::ZERO.saturating_add(at), i));
             }
         }
     }
@@ -415,13 +424,28 @@ fn walk(
             break;
         }
         s.actions(cx, &mut actions);
-        // Raises are the walk's to schedule, not choices to draw.
-        actions.retain(|a| !matches!(a, Action::Raise(_)));
+        // Raises and the environment's changes are the walk's to schedule, not choices to draw.
+        let env_now: Vec<Action> = actions
+            .iter()
+            .filter(|a| matches!(a, Action::Env { .. }))
+            .cloned()
+            .collect();
+        actions.retain(|a| !matches!(a, Action::Raise(_) | Action::Env { .. }));
         if actions.is_empty() && events.is_empty() {
-            // Nothing can happen: an event not raised yet comes now, if any is left.
-            match (0..n_events).find(|i| raised[*i] < cx.opts.events) {
-                Some(i) if !s.finished() => events.push_back((s.engine.now(), i as u16)),
-                _ => break,
+            // Nothing can happen: an event not raised yet comes now, if any is left (with an
+            // environment declaration, what it may still do).
+            if cx.prog.environment.is_some() {
+                match env_now.first() {
+                    Some(Action::Env { entry, .. }) if !s.finished() => {
+                        events.push_back((s.engine.now(), ENV + *entry))
+                    }
+                    _ => break,
+                }
+            } else {
+                match (0..n_events).find(|i| raised[*i] < cx.opts.events) {
+                    Some(i) if !s.finished() => events.push_back((s.engine.now(), i as u16)),
+                    _ => break,
+                }
             }
         }
         if transitions >= cx.opts.depth as usize {
@@ -452,11 +476,25 @@ fn walk(
                         if at > s.engine.now() {
                             s.engine.handle_timeout(at);
                         }
-                        if raised[i as usize] >= cx.opts.events {
-                            continue;
+                        if i >= ENV {
+                            // What the entry may do now (its condition, its uses left, the
+                            // values other than the current one), drawn.
+                            let mut can: Vec<Action> = Vec::new();
+                            s.actions(cx, &mut can);
+                            can.retain(
+                                |a| matches!(a, Action::Env { entry, .. } if *entry == i - ENV),
+                            );
+                            if can.is_empty() {
+                                continue;
+                            }
+                            can.swap_remove(rng.below(can.len()))
+                        } else {
+                            if raised[i as usize] >= cx.opts.events {
+                                continue;
+                            }
+                            raised[i as usize] += 1;
+                            Action::Raise(i)
                         }
-                        raised[i as usize] += 1;
-                        Action::Raise(i)
                     }
                     (_, Some(_)) => Action::Tick,
                     // A run the search would call stuck: nothing is due and no time can pass.

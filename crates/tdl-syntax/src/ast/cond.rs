@@ -169,3 +169,45 @@ pub struct Raise {
     /// Span of the `raise` keyword.
     pub span: Span,
 }
+
+/// `environment { … }`: what the outside may change, for `tdl verify` and `tdl sim` (docs/
+/// verification.md, "The environment"). Nothing is generated from it.
+#[derive(Clone, Debug)]
+pub struct EnvironmentDecl {
+    /// Its entries, in order.
+    pub entries: Vec<EnvEntry>,
+    /// Span of the `environment` keyword.
+    pub span: Span,
+}
+
+/// One entry of an environment declaration: `VAR: v1, v2 [at most N] [when COND];` or
+/// `external "name" [at most N] [when COND];`.
+#[derive(Clone, Debug)]
+pub struct EnvEntry {
+    /// What the outside changes.
+    pub target: EnvTarget,
+    /// For a variable: the values it may take.
+    pub values: Vec<StateLit>,
+    /// `at most N`: how many times per run (1 without it).
+    pub at_most: Option<(u32, Span)>,
+    /// `when COND`: only while the condition holds.
+    pub when: Option<Cond>,
+    /// Span of the entry's first token.
+    pub span: Span,
+}
+
+/// What an environment entry changes.
+#[derive(Clone, Debug)]
+pub enum EnvTarget {
+    /// A state variable.
+    State(Ident),
+    /// An external event.
+    External(syn::LitStr),
+}
+
+impl EnvEntry {
+    /// How many times per run the outside may use the entry.
+    pub fn at_most(&self) -> u32 {
+        self.at_most.map_or(1, |(n, _)| n)
+    }
+}

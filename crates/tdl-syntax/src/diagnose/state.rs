@@ -47,6 +47,79 @@ pub(super) fn declaration(decl: &StateDecl, diags: &mut Vec<Diagnostic>) {
     }
 }
 
+/// Checks an environment declaration: each variable declared, each value of its type, each
+/// condition a `bool` over declared variables, `at most` at least 1, an event's name not empty.
+pub(super) fn environment(
+    file: &FileScope<'_>,
+    env: &crate::ast::EnvironmentDecl,
+    diags: &mut Vec<Diagnostic>,
+) {
+    for e in &env.entries {
+        match &e.target {
+            crate::ast::EnvTarget::State(var) => match file.state(&var.to_string()) {
+                None => diags.push(unknown_var(file, var, false)),
+                Some(decl) => {
+                    let Some(ty) = decl.ty() else { continue };
+                    for v in &e.values {
+                        if let Err(mismatch) = v.value.clone().coerce(ty) {
+                            diags.push(
+                                Diagnostic::error(
+                                    v.span,
+                                    format!(
+                                        "`{var}` is {}, and `{}` {}",
+                                        a(ty),
+                                        v.value,
+                                        a(mismatch.found)
+                                    ),
+                                )
+                                .with_label(decl.span, format!("`{var}` is declared here"))
+                                .with_hint(format!(
+                                    "the outside may set it to `{ty}` values, or `unknown`"
+                                )),
+                            );
+                        }
+                    }
+                }
+            },
+            crate::ast::EnvTarget::External(name) => {
+                if name.value().is_empty() {
+                    diags.push(
+                        Diagnostic::error(name.span(), "the name of an external event is empty")
+                            .with_hint("write the name the constraints wait for"),
+                    );
+                }
+            }
+        }
+        if let Some((0, span)) = e.at_most {
+            diags.push(
+                Diagnostic::error(span, "`at most 0`: the entry would never be used")
+                    .with_hint("remove the entry, or allow at least 1"),
+            );
+        }
+        if let Some(cond) = &e.when {
+            let mut declared = true;
+            for var in cond.vars() {
+                if file.state(&var.to_string()).is_none() {
+                    declared = false;
+                    diags.push(unknown_var(file, var, false));
+                }
+            }
+            if !declared {
+                continue;
+            }
+            let types = |name: &str| file.state(name).and_then(StateDecl::ty);
+            match check(&cond.expr, &types) {
+                Ok(Type::Bool) => {}
+                Ok(ty) => diags.push(Diagnostic::error(
+                    cond.span,
+                    format!("this condition is {}, not a `bool`", a(ty)),
+                )),
+                Err((span, err, fix)) => diags.push(type_error(span, &err, fix)),
+            }
+        }
+    }
+}
+
 /// Checks what a body says of state: its conditions, `activate on change of`, `set`, `raise`
 /// and `state!(…)`.
 pub(super) fn body(file: &FileScope<'_>, scope: &BodyScope<'_>, diags: &mut Vec<Diagnostic>) {

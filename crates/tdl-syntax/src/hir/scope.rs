@@ -82,7 +82,7 @@ impl<'a> Decl<'a> {
             Item::Exception(it) => Some(Decl::Exception(it)),
             Item::Resource(it) => Some(Decl::Resource(it)),
             Item::State(it) => Some(Decl::State(it)),
-            Item::Rust(_) => None,
+            Item::Environment(_) | Item::Rust(_) => None,
         }
     }
 
@@ -161,7 +161,7 @@ impl<'a> FileScope<'a> {
                         scope.states.insert(v.name.to_string(), v);
                     }
                 },
-                Item::Rust(_) => {}
+                Item::Environment(_) | Item::Rust(_) => {}
             }
         }
         scope

@@ -382,3 +382,46 @@ command go(room: u32) {}
     assert_eq!(lost.doc().as_deref(), Some("A block\ndoc comment."));
     assert_eq!(go.doc(), None);
 }
+
+/// `environment { … }`: each entry read, printed canonically, and checked against the declared
+/// variables (a value of the wrong type, an unknown variable, `at most 0`, a condition that is
+/// not a bool).
+#[test]
+fn an_environment_declaration_is_read_and_checked() {
+    let src = "state battery: float = 100.0;\nstate docked: bool = false;\nenvironment {\n    battery: 100, 15.5 at most 2 when !docked;\n    external \"go\";\n}\n";
+    let parse = tdl_syntax::parse_str("env.tdl", src);
+    assert!(parse.diagnostics.is_empty(), "{:?}", parse.diagnostics);
+    let Some(Item::Environment(env)) = parse.file.items.get(2) else {
+        panic!("an environment item: {:?}", parse.file.items);
+    };
+    let lines: Vec<String> = env
+        .entries
+        .iter()
+        .map(tdl_syntax::print::env_entry)
+        .collect();
+    assert_eq!(
+        lines,
+        [
+            "battery: 100, 15.5 at most 2 when !docked",
+            "external \"go\""
+        ]
+    );
+    assert_eq!(env.entries[1].at_most(), 1);
+
+    let bad = "state battery: float;\nenvironment {\n    battery: true;\n    speed: 1.0;\n    battery: 1.0 at most 0 when battery;\n}\n";
+    let parse = tdl_syntax::parse_str("env.tdl", bad);
+    let messages: Vec<(usize, String)> = parse
+        .diagnostics
+        .iter()
+        .map(|d| (d.line(), d.message().to_owned()))
+        .collect();
+    assert_eq!(
+        messages,
+        [
+            (3, "`battery` is a `float`, and `true` a `bool`".to_owned()),
+            (4, "no state variable `speed` is declared".to_owned()),
+            (5, "`at most 0`: the entry would never be used".to_owned()),
+            (5, "this condition is a `float`, not a `bool`".to_owned()),
+        ]
+    );
+}

@@ -135,6 +135,7 @@ impl State {
         }
         self.stops.len().hash(h);
         self.raised.hash(h);
+        self.env_used.hash(h);
         self.hangs.hash(h);
         let mut term: Vec<u32> = self
             .terminable

@@ -42,6 +42,12 @@ impl State {
         match op {
             Op::If { else_pc, .. } => c.pc = if i == 0 { c.pc + 1 } else { *else_pc },
             Op::Match(arms) => c.pc = arms.get(i as usize).copied().unwrap_or(c.pc + 1),
+            Op::SetState { var, values } => {
+                if let Some(v) = values.get(i as usize) {
+                    self.set_state(cx, *var, v.clone());
+                }
+                c.pc += 1;
+            }
             Op::LoopTest { id, exit } => {
                 if i == 0 {
                     c.pc = *exit;
@@ -141,11 +147,43 @@ impl State {
                 Op::Bypass | Op::Trigger | Op::Retry | Op::Resource(..) => {
                     self.own_call(cx, &mut c, op, now)
                 }
+                Op::SetState { var, values } => match values.as_slice() {
+                    [] => {
+                        c.pc += 1;
+                        Step::Next
+                    }
+                    [v] => {
+                        self.set_state(cx, *var, v.clone());
+                        c.pc += 1;
+                        Step::Next
+                    }
+                    vs => self.choose(&mut c, u8::try_from(vs.len()).unwrap_or(u8::MAX)),
+                },
+                Op::Raise(i) => {
+                    if let Some(name) = cx.prog.external_events.get(*i as usize) {
+                        let id = self.engine.external(name);
+                        self.engine.handle_external(now, id);
+                    }
+                    c.pc += 1;
+                    Step::Next
+                }
             };
             if !matches!(step, Step::Next) {
                 self.stop(cx, c, step);
                 return;
             }
+        }
+    }
+
+    /// The program's state variable `var` takes `value` (an input to the engine, as `set` is).
+    pub(super) fn set_state(&mut self, cx: &Ctx<'_>, var: u16, value: tcm_core::Value) {
+        let Some(def) = cx.prog.states.get(var as usize) else {
+            return;
+        };
+        if let Some(id) = self.engine.state_id(&def.name) {
+            let now = self.engine.now();
+            // The value is of the variable's type (the loader made it so).
+            let _ = self.engine.set_state(now, id, value);
         }
     }
 

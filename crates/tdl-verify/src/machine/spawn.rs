@@ -282,6 +282,17 @@ impl State {
                         WhenIr::External(name) => {
                             When::External(engine.external(name.as_deref().unwrap_or("")))
                         }
+                        // The program's variables are declared when the machine starts, and
+                        // tdl-syntax type-checked the condition: registering it cannot fail; were
+                        // it to, the trigger waits on a condition that never holds.
+                        WhenIr::Condition(e) => match engine.condition(e) {
+                            Ok(c) => When::Condition(c),
+                            Err(_) => When::External(engine.external("(bad condition)")),
+                        },
+                        WhenIr::Changed(v) => match engine.state_id(v) {
+                            Some(id) => When::Changed(id),
+                            None => When::External(engine.external("(unknown variable)")),
+                        },
                     };
                     let _ = now;
                     Constraint::Trigger(w, *then)

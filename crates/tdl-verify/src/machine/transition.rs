@@ -5,6 +5,7 @@ use tcm_core::{NodeId, Time};
 use super::{Action, Ctx, Fault, Modelled, State, Undrawn, failure, fmt_secs, time_plus};
 use crate::ir::{Callee, Op};
 use crate::model::Ending;
+use crate::program::{EnvEntry, EnvTarget};
 
 impl State {
     /// The transitions from here, in a fixed order.
@@ -60,10 +61,15 @@ impl State {
                 }
             }
         }
-        for (i, n) in self.raised.iter().enumerate() {
-            if u32::from(*n) < opts.events {
-                out.push(Action::Raise(i as u16));
+        match &cx.prog.environment {
+            None => {
+                for (i, n) in self.raised.iter().enumerate() {
+                    if u32::from(*n) < opts.events {
+                        out.push(Action::Raise(i as u16));
+                    }
+                }
             }
+            Some(env) => self.env_actions(cx, env, out),
         }
         if let Some(t) = self.next_tick() {
             // Time may pass only as long as no running command outlasts the duration bound, and
@@ -78,6 +84,83 @@ impl State {
                 out.push(Action::Tick);
             }
         }
+    }
+
+    /// What the environment may do now: each entry with uses left whose condition holds sets its
+    /// variable to each of its values but the current one, or raises its event.
+    fn env_actions(&self, cx: &Ctx<'_>, env: &[EnvEntry], out: &mut Vec<Action>) {
+        for (i, e) in env.iter().enumerate() {
+            if u32::from(self.env_used.get(i).copied().unwrap_or(u8::MAX)) >= e.at_most {
+                continue;
+            }
+            if let Some(w) = &e.when {
+                if !self.holds(w) {
+                    continue;
+                }
+            }
+            match e.target {
+                EnvTarget::External(_) => out.push(Action::Env {
+                    entry: i as u16,
+                    value: 0,
+                }),
+                EnvTarget::State(v) => {
+                    let current = cx
+                        .prog
+                        .states
+                        .get(v as usize)
+                        .and_then(|d| self.engine.state_id(&d.name))
+                        .and_then(|id| self.engine.state(id))
+                        .map(|s| s.2.clone());
+                    for (k, value) in e.values.iter().enumerate() {
+                        if current.as_ref() != Some(value) {
+                            out.push(Action::Env {
+                                entry: i as u16,
+                                value: k as u16,
+                            });
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// A TDL command that succeeds: its `set`s of a literal value and its `raise`s happen, in
+    /// the order written, as it ends (the checker does not run a command's Rust, so it does not
+    /// know when in the command they come, or whether a `set` in an `if` is reached: it takes
+    /// each as reached).
+    fn command_effects(&mut self, cx: &Ctx<'_>, callee: &Callee, outside: bool, now: Time) {
+        let Callee::Task(id) = *callee else {
+            return;
+        };
+        if outside {
+            return;
+        }
+        for op in &cx.prog.task(id).body.ops {
+            match op {
+                Op::SetState { var, values } if values.len() == 1 => {
+                    self.set_state(cx, *var, values[0].clone());
+                }
+                Op::Raise(i) => {
+                    if let Some(name) = cx.prog.external_events.get(*i as usize) {
+                        let ev = self.engine.external(name);
+                        self.engine.handle_external(now, ev);
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Whether a condition over the state variables holds now.
+    pub(crate) fn holds(&self, cond: &tcm_core::Expr) -> bool {
+        let engine = &self.engine;
+        cond.holds(&|n| {
+            engine
+                .state_id(n)
+                .and_then(|id| engine.state(id))
+                .map(|s| s.2.clone())
+        })
+        .unwrap_or(false)
     }
 
     /// The next time something is due: a timer of the engine or a modelled command's end.
@@ -208,6 +291,9 @@ impl State {
                             Err(failure(cx.prog, e, "chosen by tdl verify"))
                         }
                     };
+                    if result.is_ok() {
+                        s.command_effects(cx, &cmd.callee, cmd.abstracted || cmd.remote, now);
+                    }
                     if let Err(e) = s.engine.handle_action_finished(now, *node, result) {
                         s.error = Some(format!("the end of a command was refused: {e}"));
                     }
@@ -242,6 +328,31 @@ impl State {
                 if let Some(name) = cx.prog.external_events.get(*i as usize) {
                     let id = s.engine.external(name);
                     s.engine.handle_external(now, id);
+                }
+            }
+            Action::Env { entry, value } => {
+                let e = cx
+                    .prog
+                    .environment
+                    .as_ref()
+                    .and_then(|e| e.get(*entry as usize));
+                if let Some(e) = e {
+                    if let Some(n) = s.env_used.get_mut(*entry as usize) {
+                        *n = n.saturating_add(1);
+                    }
+                    match e.target {
+                        EnvTarget::External(i) => {
+                            if let Some(name) = cx.prog.external_events.get(i as usize) {
+                                let id = s.engine.external(name);
+                                s.engine.handle_external(now, id);
+                            }
+                        }
+                        EnvTarget::State(v) => {
+                            if let Some(value) = e.values.get(*value as usize) {
+                                s.set_state(cx, v, value.clone());
+                            }
+                        }
+                    }
                 }
             }
             Action::Tick => {
@@ -358,6 +469,30 @@ impl State {
                     .get(*i as usize)
                     .map_or("?", String::as_str)
             ),
+            Action::Env { entry, value } => {
+                let e = cx
+                    .prog
+                    .environment
+                    .as_ref()
+                    .and_then(|e| e.get(*entry as usize));
+                match e.map(|e| (&e.target, e.values.get(*value as usize))) {
+                    Some((EnvTarget::State(v), Some(value))) => format!(
+                        "the environment sets {} = {value}",
+                        cx.prog
+                            .states
+                            .get(*v as usize)
+                            .map_or("?", |d| d.name.as_str())
+                    ),
+                    Some((EnvTarget::External(i), _)) => format!(
+                        "the environment raises external event `{}`",
+                        cx.prog
+                            .external_events
+                            .get(*i as usize)
+                            .map_or("?", String::as_str)
+                    ),
+                    _ => "the environment acts".to_owned(),
+                }
+            }
             Action::Tick => match self.next_tick() {
                 Some(t) => format!("time passes to {}", fmt_secs(t)),
                 None => "time passes".to_owned(),

@@ -8,7 +8,7 @@ use tcm_core::{Facet, Outcome, Point, Then};
 use tdl_syntax::{ast, hir};
 
 use super::rust::idents;
-use super::{Builder, LoadError, facet, line_of};
+use super::{Builder, EnvTarget, LoadError, facet, line_of};
 use crate::ir::{
     Body, CIr, EventIr, GroupId, GroupIr, IndexIr, Iter, LoopId, MonitorOverride, Op, ResOp,
     SpawnIr, StmtIr, StmtOp, TagDef, TagId, TagKind, TagOf, TagRef, TagUse, TagUseOf, UsesIr, Wait,
@@ -73,6 +73,49 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
             line,
             what: what.into(),
         }
+    }
+
+    /// `set VAR = value;`: a literal is set as it is; a value computed in Rust is a choice among
+    /// the values the environment declaration gives the variable, or `true` and `false` for a
+    /// `bool`; another is left as it is, with a note.
+    pub(super) fn set_state(&mut self, it: &ast::SetState) {
+        let line = line_of(it.span);
+        let name = it.name.to_string();
+        let Some(var) = self.b.state(&name) else {
+            return; // The diagnosis refused the program already.
+        };
+        let def = &self.b.prog.states[var as usize];
+        let ty = def.ty;
+        let values = match literal(&it.value) {
+            Some(v) => vec![v.coerce(ty).unwrap_or(tcm_core::Value::Unknown)],
+            None => {
+                let declared: Vec<tcm_core::Value> = self
+                    .b
+                    .prog
+                    .environment
+                    .iter()
+                    .flatten()
+                    .filter(|e| matches!(e.target, EnvTarget::State(v) if v == var))
+                    .flat_map(|e| e.values.iter().cloned())
+                    .collect();
+                if !declared.is_empty() {
+                    declared
+                } else if ty == tcm_core::Type::Bool {
+                    vec![false.into(), true.into()]
+                } else {
+                    self.note(
+                        line,
+                        format!(
+                            "the value of `set {name} = …` is computed in Rust: the checker leaves \
+                             `{name}` as it is (give its values in the environment declaration to \
+                             explore them)"
+                        ),
+                    );
+                    Vec::new()
+                }
+            }
+        };
+        self.emit(Op::SetState { var, values }, line);
     }
 
     pub(super) fn note(&mut self, line: u32, what: impl std::fmt::Display) {
@@ -228,8 +271,8 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
                 }
                 WhenIr::External(Some(name))
             }
-            // Never reached: `Body::stmt` refuses conditions before any constraint is compiled.
-            ast::When::Condition(_) | ast::When::Changed(_) => WhenIr::Now,
+            ast::When::Condition(c) => WhenIr::Condition(c.to_expr()),
+            ast::When::Changed(v) => WhenIr::Changed(v.to_string()),
         }
     }
 
@@ -274,8 +317,9 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
                     ast::Then::Enable(f) => Then::Enable(facet(f.unwrap_or(ast::Facet::Handling))),
                     ast::Then::Terminate => Then::Terminate,
                     ast::Then::Activate => Then::Activate,
-                    // Conditions: refused by `Body::stmt` first.
-                    ast::Then::Skip | ast::Then::Invariant | ast::Then::Pause => return None,
+                    ast::Then::Skip => Then::Skip,
+                    ast::Then::Invariant => Then::Invariant,
+                    ast::Then::Pause => Then::Pause,
                 };
                 CIr::Trigger {
                     when: self.when(when, line),
@@ -332,25 +376,19 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
     }
 
     pub(super) fn stmt(&mut self, s: &ast::Stmt) -> Result<(), LoadError> {
-        if let Some(span) = condition_in(s) {
-            return Err(self.unsupported(
-                line_of(span),
-                "a condition over state variables (`disable until`, `terminate when`, `activate \
-                 when`, `activate on change of`, `skip if`, `invariant`, `pause while`) is not \
-                 modelled by tdl verify yet",
-            ));
-        }
         match s {
-            ast::Stmt::Set(it) => {
-                return Err(
-                    self.unsupported(line_of(it.span), "`set` is not modelled by tdl verify yet")
-                );
-            }
+            ast::Stmt::Set(it) => self.set_state(it),
             ast::Stmt::Raise(it) => {
-                return Err(self.unsupported(
-                    line_of(it.span),
-                    "`raise` is not modelled by tdl verify yet",
-                ));
+                let line = line_of(it.span);
+                let name = match &it.name {
+                    ast::ExternalName::Lit(l) => l.value(),
+                    ast::ExternalName::Expr(_) => {
+                        self.note(line, "a raised event's name is computed in Rust: the checker takes it for one event of its own");
+                        format!("(computed at {}:{line})", self.b.prog.files[self.file])
+                    }
+                };
+                let i = self.b.external_event(name);
+                self.emit(Op::Raise(i), line);
             }
             ast::Stmt::Rust(r) => self.rust(&r.tokens, line_of(r.span)),
             ast::Stmt::Spawn(sp) => self.spawn(sp)?,
@@ -737,20 +775,22 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
     }
 }
 
-/// The span of the first constraint on a condition or a state variable's change that `s` gives
-/// its spawn, its group or its tag, if any.
-fn condition_in(s: &ast::Stmt) -> Option<proc_macro2::Span> {
-    let list = match s {
-        ast::Stmt::Spawn(it) => it.constraints.as_slice(),
-        ast::Stmt::With(it) => it.constraints.as_slice(),
-        ast::Stmt::Constrain(it) => std::slice::from_ref(&it.constraint),
-        _ => return None,
-    };
-    list.iter().find_map(|c| match &c.kind {
-        ast::ConstraintKind::Trigger {
-            when: ast::When::Condition(_) | ast::When::Changed(_),
-            ..
-        } => Some(c.span),
+/// The value of a literal Rust expression (`true`, `3`, `-2.5`, `"text"`), if it is one.
+fn literal(e: &syn::Expr) -> Option<tcm_core::Value> {
+    match e {
+        syn::Expr::Lit(l) => match &l.lit {
+            syn::Lit::Bool(b) => Some(b.value.into()),
+            syn::Lit::Int(i) => i.base10_parse::<i64>().ok().map(Into::into),
+            syn::Lit::Float(f) => f.base10_parse::<f64>().ok().map(Into::into),
+            syn::Lit::Str(s) => Some(s.value().into()),
+            _ => None,
+        },
+        syn::Expr::Unary(u) if matches!(u.op, syn::UnOp::Neg(_)) => match literal(&u.expr)? {
+            tcm_core::Value::Int(i) => i.checked_neg().map(Into::into),
+            tcm_core::Value::Float(x) => Some((-x).into()),
+            _ => None,
+        },
+        syn::Expr::Paren(p) => literal(&p.expr),
         _ => None,
-    })
+    }
 }

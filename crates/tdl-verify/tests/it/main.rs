@@ -9,4 +9,5 @@
 mod agents;
 mod mission;
 mod sim;
+mod state;
 mod status;
