@@ -8,6 +8,7 @@ use crate::Error;
 use crate::body::{Link, RemoteCtx};
 use crate::failure::{RemoteError, RemoteFailure, RemoteRefused};
 use crate::noise::{Ignored, Noise, Noted};
+use crate::sequence::{Known, Verdict, start_verdict, verdict};
 use crate::wire::{self, Json, Kind, Msg, ToAgent, ToExec};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
@@ -499,7 +500,7 @@ impl AgentInner {
     /// the last of its task: a start is number 1); duplicates, messages out of order and messages
     /// of ended tasks are counted, logged (see [`crate::noise`]) and dropped.
     fn receive(self: &Arc<Self>, exec: &str, bytes: &[u8]) {
-        let msg: Msg<ToAgent> = match serde_json::from_slice(bytes) {
+        let msg: Msg<ToAgent> = match wire::decode_to_agent(bytes) {
             Ok(m) => m,
             Err(e) => {
                 self.lock().stats.malformed += 1;
@@ -528,49 +529,51 @@ impl AgentInner {
             body => {
                 let key = (exec.to_string(), msg.task);
                 let mut s = self.lock();
-                let Some(r) = s.running.get_mut(&key) else {
-                    let dup = s.ended.get(&key).is_some_and(|last| msg.seq <= *last);
-                    let what = if dup {
-                        s.stats.duplicates += 1;
-                        Ignored::Duplicate
-                    } else {
-                        s.stats.late += 1;
-                        Ignored::Late
-                    };
-                    drop(s);
-                    self.ignored(exec, what, || {
-                        format!(
-                            "{} {kind} {} of ended task {} ignored",
-                            if dup { "duplicate" } else { "late" },
-                            msg.seq,
-                            msg.task
-                        )
-                    });
-                    return;
+                let known = match (s.running.get(&key), s.ended.get(&key)) {
+                    (Some(r), _) => Known::Running(r.last_seq),
+                    (None, Some(last)) => Known::Ended(*last),
+                    (None, None) => Known::Unknown,
                 };
-                if msg.seq <= r.last_seq {
-                    s.stats.duplicates += 1;
-                    drop(s);
-                    self.ignored(exec, Ignored::Duplicate, || {
-                        format!("duplicate {kind} {} of task {} ignored", msg.seq, msg.task)
-                    });
-                    return;
-                }
+                let ended = if matches!(known, Known::Running(_)) {
+                    ""
+                } else {
+                    "ended "
+                };
                 // Zenoh delivers one publisher's messages in order: anything but the next number
                 // (a gap, a forged 2^64-1 that would make the executive's cancel a duplicate) is
                 // refused and changes nothing.
-                if r.last_seq.checked_add(1) != Some(msg.seq) {
-                    let expected = r.last_seq.saturating_add(1);
-                    s.stats.refused += 1;
+                let (what, text) = match verdict(known, msg.seq) {
+                    Verdict::Apply => (None, String::new()),
+                    Verdict::Duplicate => {
+                        s.stats.duplicates += 1;
+                        (Some(Ignored::Duplicate), "duplicate".to_string())
+                    }
+                    Verdict::Late => {
+                        s.stats.late += 1;
+                        (Some(Ignored::Late), "late".to_string())
+                    }
+                    Verdict::OutOfOrder { expected } => {
+                        s.stats.refused += 1;
+                        (Some(Ignored::Refused), format!("(expected {expected})"))
+                    }
+                };
+                if let Some(what) = what {
                     drop(s);
-                    self.ignored(exec, Ignored::Refused, || {
-                        format!(
-                            "out-of-order {kind} {} of task {} refused (expected {expected})",
+                    self.ignored(exec, what, || match what {
+                        Ignored::Refused => format!(
+                            "out-of-order {kind} {} of task {} refused {text}",
                             msg.seq, msg.task
-                        )
+                        ),
+                        _ => format!(
+                            "{text} {kind} {} of {ended}task {} ignored",
+                            msg.seq, msg.task
+                        ),
                     });
                     return;
                 }
+                let Some(r) = s.running.get_mut(&key) else {
+                    return;
+                };
                 r.last_seq = msg.seq;
                 match body {
                     ToAgent::Cancel => {
@@ -640,7 +643,13 @@ impl AgentInner {
     ) {
         let key = (exec.clone(), task);
         let mut s = self.lock();
-        if s.running.contains_key(&key) || s.ended.contains_key(&key) {
+        let known = match (s.running.get(&key), s.ended.get(&key)) {
+            (Some(r), _) => Known::Running(r.last_seq),
+            (None, Some(last)) => Known::Ended(*last),
+            (None, None) => Known::Unknown,
+        };
+        let verdict = start_verdict(known, seq);
+        if verdict == Verdict::Duplicate {
             s.stats.duplicates += 1;
             drop(s);
             self.ignored(&exec, Ignored::Duplicate, || {
@@ -661,7 +670,7 @@ impl AgentInner {
         // A task's first message is its start, number 1: a start numbered otherwise (a forged
         // 2^64-1 would make every later message of the task a duplicate) is refused, and the
         // task stays unknown.
-        if seq != 1 {
+        if verdict != Verdict::Apply {
             s.stats.refused += 1;
             drop(s);
             self.ignored(&exec, Ignored::Refused, || {

@@ -4,6 +4,7 @@
 //! remote tasks of an agent whose token is deleted with [`AgentLost`](crate::AgentLost).
 
 use crate::noise::{Ignored, Noise, Noted};
+use crate::sequence::{Known, Verdict, verdict};
 use crate::wire::{self, Json, Msg, ToAgent, ToExec};
 use crate::{Error, RemoteOptions, Stats};
 use std::collections::{BTreeMap, BTreeSet};
@@ -490,7 +491,7 @@ impl Inner {
     /// A message of a task from another agent than the one it was placed on is refused: only
     /// that agent speaks for the task.
     fn receive(self: &Arc<Self>, from: &str, bytes: &[u8]) {
-        let msg: Msg<ToExec> = match serde_json::from_slice(bytes) {
+        let msg: Msg<ToExec> = match wire::decode_to_exec(bytes) {
             Ok(m) => m,
             Err(e) => {
                 self.lock().stats.malformed += 1;
@@ -517,49 +518,46 @@ impl Inner {
             });
             return;
         }
-        let Some(p) = s.pending.get_mut(&msg.task) else {
-            let ended = s.ended.get(&msg.task);
-            let dup = ended.is_some_and(|(last, _, _)| msg.seq <= *last);
-            let ctx = ended.map(|(_, _, ctx)| ctx.clone());
-            if dup {
-                s.stats.duplicates += 1;
-            } else {
-                s.stats.late += 1;
-            }
-            drop(s);
-            let (what, kind) = if dup {
-                ("duplicate", Ignored::Duplicate)
-            } else {
-                ("late", Ignored::Late)
-            };
-            self.ignored(Some(msg.task), kind, ctx, || {
-                ignored_text(&msg, &format!("{what} message"), "ended remote task")
-            });
-            return;
+        let (known, ctx) = match (s.pending.get(&msg.task), s.ended.get(&msg.task)) {
+            (Some(p), _) => (Known::Running(p.last_seq), Some(p.ctx.clone())),
+            (None, Some((last, _, ctx))) => (Known::Ended(*last), Some(ctx.clone())),
+            (None, None) => (Known::Unknown, None),
         };
-        if msg.seq <= p.last_seq {
-            let ctx = p.ctx.clone();
-            s.stats.duplicates += 1;
-            drop(s);
-            self.ignored(Some(msg.task), Ignored::Duplicate, Some(ctx), || {
-                ignored_text(&msg, "duplicate message", "remote task")
-            });
-            return;
-        }
+        let whose = match known {
+            Known::Running(_) => "remote task",
+            _ => "ended remote task",
+        };
         // Zenoh delivers one publisher's messages in order: the agent's next message is numbered
         // one more than the last. Any other number (a gap, or a forged 2^64-1 that would make the
         // real messages look like duplicates) is refused and changes nothing.
-        if p.last_seq.checked_add(1) != Some(msg.seq) {
-            let ctx = p.ctx.clone();
-            let expected = p.last_seq.saturating_add(1);
-            s.stats.refused += 1;
+        let (kind, what) = match verdict(known, msg.seq) {
+            Verdict::Apply => (None, String::new()),
+            Verdict::Duplicate => {
+                s.stats.duplicates += 1;
+                (Some(Ignored::Duplicate), "duplicate message".to_string())
+            }
+            Verdict::Late => {
+                s.stats.late += 1;
+                (Some(Ignored::Late), "late message".to_string())
+            }
+            Verdict::OutOfOrder { expected } => {
+                s.stats.refused += 1;
+                (
+                    Some(Ignored::Refused),
+                    format!("out-of-order message (expected {expected})"),
+                )
+            }
+        };
+        if let Some(kind) = kind {
             drop(s);
-            self.ignored(Some(msg.task), Ignored::Refused, Some(ctx), || {
-                let what = format!("out-of-order message (expected {expected})");
-                ignored_text(&msg, &what, "remote task")
+            self.ignored(Some(msg.task), kind, ctx, || {
+                ignored_text(&msg, &what, whose)
             });
             return;
         }
+        let Some(p) = s.pending.get_mut(&msg.task) else {
+            return;
+        };
         p.last_seq = msg.seq;
         // Sent before the task is marked ended, so nothing can overtake it.
         let _ = p.tx.send(Incoming::Msg(msg.body.clone()));

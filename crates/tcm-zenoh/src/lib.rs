@@ -46,6 +46,7 @@ mod executive;
 mod failure;
 mod noise;
 mod remote;
+mod sequence;
 mod wire;
 
 pub use agent::{Agent, AgentBuilder, AgentStats, Limits};
@@ -57,6 +58,33 @@ pub use failure::{
 };
 pub use remote::{At, Remote, RemoteOptions};
 pub use wire::{ChildEnded, ChildRef, Json, Kind};
+
+/// For the fuzz target (`fuzz/fuzz_targets/wire.rs`) only, with the feature `fuzzing`: the
+/// decoders the executive and the agents read messages with, and the rule they number them by.
+/// Not a stable API.
+#[cfg(feature = "fuzzing")]
+#[doc(hidden)]
+pub mod fuzzing {
+    pub use crate::sequence::{Known, Verdict, start_verdict, verdict};
+
+    /// A message to an executive as it reads it: its task, number and kind, and whether it ends
+    /// the task (`done`, `cancelled`), encoded again; `None` when it does not read.
+    pub fn decode_to_exec(bytes: &[u8]) -> Option<(u64, u64, &'static str, bool, Vec<u8>)> {
+        let m = crate::wire::decode_to_exec(bytes).ok()?;
+        let ends = matches!(
+            m.body,
+            crate::wire::ToExec::Done { .. } | crate::wire::ToExec::Cancelled
+        );
+        Some((m.task, m.seq, m.body.name(), ends, m.encode()))
+    }
+
+    /// A message to an agent as it reads it: its task, number and kind, encoded again; `None`
+    /// when it does not read.
+    pub fn decode_to_agent(bytes: &[u8]) -> Option<(u64, u64, &'static str, Vec<u8>)> {
+        let m = crate::wire::decode_to_agent(bytes).ok()?;
+        Some((m.task, m.seq, m.body.name(), m.encode()))
+    }
+}
 
 /// Sends the log of `tracing` (this crate's warnings: messages ignored or refused, a peer not
 /// reached) to stderr, filtered by `RUST_LOG`, `warn` by default: for a program that runs an

@@ -77,6 +77,17 @@ impl<B: Serialize> Msg<B> {
     }
 }
 
+/// A message to an executive, read from its bytes (JSON nested deeper than 128 levels does not
+/// read: serde_json's limit).
+pub(crate) fn decode_to_exec(bytes: &[u8]) -> Result<Msg<ToExec>, serde_json::Error> {
+    serde_json::from_slice(bytes)
+}
+
+/// A message to an agent, read from its bytes.
+pub(crate) fn decode_to_agent(bytes: &[u8]) -> Result<Msg<ToAgent>, serde_json::Error> {
+    serde_json::from_slice(bytes)
+}
+
 /// The kind of node a remote task is on the executive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

@@ -2,6 +2,7 @@
 //! mode, multicast scouting off), in one process with a zenoh session each, or with an agent in a
 //! process of its own. Every test is bounded in time, and every run's trace is checked.
 
+mod adversary;
 mod agent_loss;
 mod bounds;
 mod exactly_once;
