@@ -1,9 +1,79 @@
 //! Zenoh configurations for one machine (docs/distributed.md, "Configuration"): peer mode,
 //! multicast scouting off, and every socket on 127.0.0.1, so nothing leaves the host. The
-//! executive listens on one port; agents connect to it and listen nowhere.
+//! executive listens on one port; agents connect to it and listen nowhere. With a system's
+//! certificates ([`Certs`]), the same over TLS with mutual authentication: only a process holding
+//! a certificate of the system's authority opens a link ("Who may speak").
 
 use crate::Error;
+use std::path::PathBuf;
 use std::time::Duration;
+
+/// One process's credentials in a system (PEM files): the certificate of the system's authority,
+/// which every peer's certificate must be signed by, and this process's certificate (signed by
+/// it, naming the address it is reached at, `IP:127.0.0.1` on one machine) and private key.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Certs {
+    /// The authority's certificate.
+    pub authority: PathBuf,
+    /// This process's certificate.
+    pub certificate: PathBuf,
+    /// This process's private key.
+    pub key: PathBuf,
+}
+
+/// `c` with mutual TLS: its `tls/…` endpoints present `certs`' certificate, both when listening
+/// and when connecting, and accept only a peer whose certificate the system's authority signed
+/// (and, connecting, one that names the address connected to). A `tcp/…` endpoint of `c` is not
+/// protected: use TLS endpoints only ([`tls_endpoint`]).
+pub fn with_mtls(mut c: zenoh::Config, certs: &Certs) -> Result<zenoh::Config, Error> {
+    let path = |p: &PathBuf| serde_json::to_string(&p.to_string_lossy()).unwrap_or_default();
+    let tls = "transport/link/tls";
+    set(
+        &mut c,
+        &format!("{tls}/root_ca_certificate"),
+        &path(&certs.authority),
+    )?;
+    set(
+        &mut c,
+        &format!("{tls}/listen_certificate"),
+        &path(&certs.certificate),
+    )?;
+    set(
+        &mut c,
+        &format!("{tls}/listen_private_key"),
+        &path(&certs.key),
+    )?;
+    set(
+        &mut c,
+        &format!("{tls}/connect_certificate"),
+        &path(&certs.certificate),
+    )?;
+    set(
+        &mut c,
+        &format!("{tls}/connect_private_key"),
+        &path(&certs.key),
+    )?;
+    set(&mut c, &format!("{tls}/enable_mtls"), "true")?;
+    set(&mut c, &format!("{tls}/verify_name_on_connect"), "true")?;
+    Ok(c)
+}
+
+/// `tls/127.0.0.1:port`.
+pub fn tls_endpoint(port: u16) -> String {
+    format!("tls/127.0.0.1:{port}")
+}
+
+/// The configuration of an executive on this machine with mutual TLS: listening on
+/// `tls/127.0.0.1:port` only.
+pub fn loopback_tls_listen(port: u16, certs: &Certs) -> Result<zenoh::Config, Error> {
+    with_mtls(peer(&[tls_endpoint(port)], &[])?, certs)
+}
+
+/// The configuration of an agent on this machine with mutual TLS: connecting to the executive's
+/// `tls/127.0.0.1:port`, listening nowhere.
+pub fn loopback_tls_connect(port: u16, certs: &Certs) -> Result<zenoh::Config, Error> {
+    with_mtls(peer(&[], &[tls_endpoint(port)])?, certs)
+}
 
 /// A zenoh configuration: peer mode, multicast scouting off, listening on `listen` and
 /// connecting to `connect` (endpoints such as `tcp/127.0.0.1:7447`).
@@ -72,5 +142,19 @@ mod tests {
         assert!(text.contains("tcp/127.0.0.1:7447"), "{text}");
         assert!(with_lease(c, Duration::from_millis(1500)).is_ok());
         assert!(loopback_connect(7447).is_ok());
+    }
+
+    #[test]
+    fn a_tls_config_names_the_certificates_and_asks_for_the_peers() {
+        let certs = Certs {
+            authority: "/c/ca.pem".into(),
+            certificate: "/c/me.pem".into(),
+            key: "/c/me.key".into(),
+        };
+        let text = format!("{}", loopback_tls_listen(7447, &certs).expect("config"));
+        for part in ["tls/127.0.0.1:7447", "/c/ca.pem", "/c/me.pem", "/c/me.key"] {
+            assert!(text.contains(part), "{part}: {text}");
+        }
+        assert!(loopback_tls_connect(7447, &certs).is_ok());
     }
 }

@@ -18,5 +18,6 @@ mod suspension;
 mod tdl;
 mod termination;
 mod timeouts;
+mod tls;
 mod typed;
 mod util;
