@@ -244,6 +244,11 @@ impl Program {
         let mut raisable: BTreeSet<&'static str> =
             b.prog.exceptions.keys().map(|e| leak(e)).collect();
         raisable.extend(b.prog.tasks.iter().filter_map(|t| t.handles));
+        // The engine raises these itself, from what the checker follows (an invariant that is
+        // false, a resource refused): a command does not.
+        for engine_raised in ["InvariantFailed", "ResourceDenied", "ResourceDropped"] {
+            raisable.remove(engine_raised);
+        }
         b.prog.raisable = raisable.into_iter().collect();
         Ok(b.prog)
     }

@@ -431,6 +431,14 @@ fn expand(cx: &Ctx<'_>, depth: u32, mut s: State) -> Expanded {
     let mut actions = Vec::new();
     s.actions(cx, &mut actions);
     if actions.is_empty() {
+        // Waiting on the outside, which has used up what its declaration allows: not stuck
+        // (the outside would act again), not a bound of the search either; the path ends here.
+        if !s.finished() && s.held_by_environment(cx).is_some() {
+            return Expanded::Stopped {
+                cut: None,
+                error: None,
+            };
+        }
         return Expanded::End {
             finished: s.finished(),
             not_eventually: s.watch.as_ref().and_then(|w| cx.props.at_end(w)),

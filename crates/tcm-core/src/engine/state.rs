@@ -132,6 +132,28 @@ impl States {
         self.watches.len() - self.free.len()
     }
 
+    /// The variables a node is held by: those read by the conditions an enablement or a
+    /// termination waits for, and by a pause that holds. For a model checker, which tells a run
+    /// stuck for good from one that only its environment's bound holds.
+    pub(super) fn waited_on(&self) -> Vec<StateId> {
+        let mut out: Vec<StateId> = Vec::new();
+        for w in self.watches.iter().flatten() {
+            let holds = match w.act {
+                Act::Enable(_) | Act::Terminate => true,
+                Act::Pause => w.held,
+                Act::Activate | Act::Changed | Act::Invariant => false,
+            };
+            if let (true, Some(c)) = (holds, w.cond) {
+                for v in &self.conds[c.0 as usize].reads {
+                    if !out.contains(v) {
+                        out.push(*v);
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// Removes the enabling watches of the nodes `forced` says, for their release (a node
     /// terminated before it started waits for no condition); returns what they would enable.
     pub(super) fn take_enables(&mut self, forced: impl Fn(NodeId) -> bool) -> Vec<(NodeId, Then)> {
@@ -347,6 +369,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         Ok(id)
     }
 
+    /// The variables whose change could release a node: read by a condition an enablement or a
+    /// termination waits for, or by a pause that holds (for a model checker: a run that waits
+    /// only on these is held by its environment, not stuck by itself).
+    pub fn states_waited_on(&self) -> Vec<StateId> {
+        self.states.waited_on()
+    }
+
     /// The condition's value now.
     pub fn condition_value(&self, c: CondId) -> Option<Value> {
         (c.0 < self.states.conds.len() as u32).then(|| self.states.eval(c))
@@ -389,7 +418,20 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     self.arm_event(node, node, event, then, None);
                 }
             }
-            Then::Skip => self.node_mut(node).cold_mut().skip_if.push(c),
+            Then::Skip => {
+                self.node_mut(node).cold_mut().skip_if.push(c);
+                // A goal-like node would start (expand) as soon as its expansion is enabled,
+                // ahead of its execution's turn: one that may be skipped waits for that turn, so
+                // the condition is read when the plan reaches it (`delay expansion`, traced).
+                let n = self.node(node);
+                if n.kind.expands()
+                    && !n.delay_expansion
+                    && n.state(Facet::Expansion) == State::Disabled
+                {
+                    let parent = n.parent.unwrap_or(self.root);
+                    self.apply(node, parent, None, crate::Constraint::DelayExpansion);
+                }
+            }
             Then::Invariant => {
                 self.node_mut(node).cold_mut().invariants.push(c);
                 self.add_watch(node, Some(c), Act::Invariant, false);

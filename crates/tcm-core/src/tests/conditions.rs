@@ -451,3 +451,38 @@ fn the_checker_refuses_a_trace_whose_values_do_not_explain_its_transitions() {
         "{v:?}"
     );
 }
+
+#[test]
+fn a_goal_that_may_be_skipped_is_not_expanded_ahead_of_its_turn() {
+    // `g` follows `a` (execution); a goal would expand at once, but one with `skip if` waits for
+    // its execution's turn, when the condition is read: `flag` is set true at 0.5, before it.
+    let r = run(|e, root| {
+        let flag = super::conditions::flag(e, "flag", false);
+        let c = cond(e, Expr::var("flag"));
+        setter(e, root, 0.5, flag, vec![true.into()]);
+        cmd(e, root, "a", takes(s(1.0)), &[]);
+        let body = body(|e, me, _| {
+            cmd(e, me, "inner", takes(s(1.0)), &[]);
+            Outcome::done()
+        });
+        goal(
+            e,
+            root,
+            "g",
+            body,
+            &[AFTER_PREVIOUS, Constraint::skip_if(c)],
+        );
+    });
+    assert_eq!(
+        only(
+            &r.story,
+            &[
+                "g skipped",
+                "g handling active",
+                "g expansion enabled",
+                "inner"
+            ]
+        ),
+        ["1 g expansion enabled", "1 g skipped"]
+    );
+}

@@ -151,6 +151,31 @@ impl State {
         }
     }
 
+    /// When nothing can happen: whether something waits on a variable the environment may
+    /// change but has changed as often as its declaration allows, and which (the run waits on
+    /// its outside, which would act again: it is not stuck).
+    pub(crate) fn held_by_environment(&self, cx: &Ctx<'_>) -> Option<String> {
+        let env = cx.prog.environment.as_ref()?;
+        for id in self.engine.states_waited_on() {
+            let Some((name, _, _)) = self.engine.state(id) else {
+                continue;
+            };
+            let var = cx.prog.states.iter().position(|d| d.name == name)?;
+            for (i, e) in env.iter().enumerate() {
+                let used = u32::from(self.env_used.get(i).copied().unwrap_or(0));
+                if matches!(e.target, EnvTarget::State(v) if v as usize == var) && used >= e.at_most
+                {
+                    return Some(format!(
+                        "the run waits on `{name}`, which the environment changed as often as its \
+                         declaration allows (at most {})",
+                        e.at_most
+                    ));
+                }
+            }
+        }
+        None
+    }
+
     /// Whether a condition over the state variables holds now.
     pub(crate) fn holds(&self, cond: &tcm_core::Expr) -> bool {
         let engine = &self.engine;
