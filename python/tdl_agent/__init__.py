@@ -77,6 +77,8 @@ __all__ = [
     "loopback_config",
     "peer_config",
     "client_config",
+    "with_mtls",
+    "loopback_tls_config",
 ]
 
 log = logging.getLogger("tdl_agent")
@@ -142,6 +144,32 @@ def client_config(routers: Sequence[str]) -> zenoh.Config:
     """A client-mode configuration with multicast scouting off, connecting to the ``zenohd``
     routers ``routers`` (docs/distributed.md, "Several machines")."""
     return _config("client", [], routers)
+
+
+def with_mtls(config: zenoh.Config, authority: str, certificate: str, key: str) -> zenoh.Config:
+    """``config`` with mutual TLS on its ``tls/...`` endpoints (docs/distributed.md, "Mutual
+    TLS"), as ``tcm_zenoh::config::with_mtls``: ``authority`` is the PEM certificate of the
+    system's authority, ``certificate`` and ``key`` this agent's, signed by it; a peer is
+    accepted only with a certificate the authority signed."""
+    import json
+
+    tls = "transport/link/tls"
+    for k, v in (
+        ("root_ca_certificate", authority),
+        ("listen_certificate", certificate),
+        ("listen_private_key", key),
+        ("connect_certificate", certificate),
+        ("connect_private_key", key),
+    ):
+        config.insert_json5(f"{tls}/{k}", json.dumps(str(v)))
+    config.insert_json5(f"{tls}/enable_mtls", "true")
+    config.insert_json5(f"{tls}/verify_name_on_connect", "true")
+    return config
+
+
+def loopback_tls_config(port: int, authority: str, certificate: str, key: str) -> zenoh.Config:
+    """As :func:`loopback_config`, over mutual TLS: connecting to ``tls/127.0.0.1:<port>``."""
+    return with_mtls(peer_config([], [f"tls/127.0.0.1:{port}"]), authority, certificate, key)
 
 
 def _config(mode: str, listen: Sequence[str], connect: Sequence[str]) -> zenoh.Config:
@@ -214,6 +242,11 @@ class _Running:
 #: How long the first messages to an executive wait for its inbox to be known (seconds).
 REACH = 3.0
 
+#: How long a start from an executive whose token was not seen waits for it (seconds), and how
+#: many such starts wait at once (the others are refused at once).
+PARK_WAIT = 2.0
+PARKED = 64
+
 
 class _Outlet:
     """The publisher to an executive's inbox, and what waits for a subscriber of it to be known:
@@ -284,6 +317,8 @@ class Agent:
         self._publishers: Dict[str, _Outlet] = {}
         # The executives whose token is live.
         self._live: "set[str]" = set()
+        # Starts from executives whose token was not seen yet, by executive.
+        self._parked: Dict[str, List[Any]] = {}
         self.max_bodies_per_executive = max_bodies_per_executive
         self.max_bodies = max_bodies
         self.max_threads = max_threads
@@ -441,6 +476,7 @@ class Agent:
     def _executive_up(self, executive: str) -> None:
         self._live.add(executive)
         self._publisher(executive)
+        self._unpark(executive)
 
     def _publisher(self, executive: str) -> Optional[_Outlet]:
         """The outlet to a live executive's inbox, declared on first use; ``None`` for an
@@ -573,12 +609,16 @@ class Agent:
             log.warning("agent %s: duplicate start of task %d ignored", self.name, key[1])
             return
         if key[0] not in self._live:
-            # Only a live executive of the system starts tasks; nobody would read an answer.
-            self.stats.strangers += 1
-            log.warning(
-                "agent %s: start %d of task %d refused: no executive %s is live",
-                self.name, seq, key[1], key[0],
-            )
+            # Only a live executive of the system starts tasks. The start waits a little for the
+            # executive's token (its notice and the start can come by different paths), at most
+            # PARKED starts at once; then it is refused, unanswered (nobody would read it).
+            if sum(len(v) for v in self._parked.values()) < PARKED:
+                first = key[0] not in self._parked
+                self._parked.setdefault(key[0], []).append((key, seq, node, name, kind, args))
+                if first and self._loop is not None:
+                    self._loop.call_later(PARK_WAIT, self._unpark, key[0])
+                return
+            self._refuse_stranger(key, seq)
             return
         if seq != 1:
             # A task's first message is its start, number 1.
@@ -610,6 +650,22 @@ class Agent:
         self.stats.started += 1
         self._send(key, r, wire.started())
         r.task = self._spawn(self._run_body(key, r))
+
+    def _refuse_stranger(self, key: Tuple[str, int], seq: int) -> None:
+        self.stats.strangers += 1
+        log.warning(
+            "agent %s: start %d of task %d refused: no executive %s is live",
+            self.name, seq, key[1], key[0],
+        )
+
+    def _unpark(self, executive: str) -> None:
+        """Starts the starts of ``executive`` that waited for its token if it came, else refuses
+        them."""
+        for (key, seq, node, name, kind, args) in self._parked.pop(executive, []):
+            if executive in self._live:
+                self._start(key, seq, node, name, kind, args)
+            else:
+                self._refuse_stranger(key, seq)
 
     def _over_limit(self, executive: str, offer: _Offer) -> Optional[str]:
         """Why a start of ``offer`` from ``executive`` is refused, if a bound is reached."""

@@ -93,6 +93,11 @@ class Encoding(unittest.TestCase):
         with self.assertRaises(wire.MalformedMessage):
             wire.start_fields(wire.decode(b'{"task":1,"seq":1,"body":{"kind":"start","name":"x"}}'))
 
+    def test_a_tls_config_names_the_certificates_and_asks_for_the_peers(self) -> None:
+        text = str(tdl_agent.loopback_tls_config(7447, "/c/ca.pem", "/c/me.pem", "/c/me.key"))
+        for part in ("tls/127.0.0.1:7447", "/c/ca.pem", "/c/me.pem", "/c/me.key"):
+            self.assertIn(part, text)
+
     def test_keys_and_names(self) -> None:
         self.assertEqual(wire.agent_token("robot", "voice"), "tdl/robot/agents/voice")
         self.assertEqual(wire.offer_token("robot", "speak", "voice"), "tdl/robot/offers/speak/voice")
@@ -225,15 +230,22 @@ class ExactlyOnce(unittest.TestCase):
         self.assertEqual((self.agent.stats.cancelled, self.agent.stats.duplicates), (1, 0))
         self.assertEqual(self.cleanups, [30_000])
 
-    def test_a_start_from_an_executive_that_is_not_live_is_refused_unanswered(self) -> None:
+    def test_a_start_from_an_executive_that_is_not_live_waits_for_its_token_or_is_refused(self) -> None:
         self.agent._receive("made-up", wire.encode(1, 1, wire.start(1, "slow", "command", 1)))
         self.settle()
+        # Waiting for the token; when the wait ends without it, refused, unanswered.
+        self.assertEqual((self.agent.stats.strangers, self.runs, self.out.sent), (0, 0, []))
+        self.agent._unpark("made-up")
         self.assertEqual((self.agent.stats.strangers, self.runs, self.out.sent), (1, 0, []))
-        # Once its token is seen, the same start runs.
-        self.agent._live.add("made-up")
-        self.agent._receive("made-up", wire.encode(1, 1, wire.start(1, "slow", "command", 1)))
+        # A start whose executive's token comes while it waits runs.
+        self.agent._receive("late", wire.encode(1, 1, wire.start(1, "slow", "command", 1)))
+        self.agent._executive_up("late")
         self.settle()
         self.assertEqual((self.agent.stats.strangers, self.runs), (1, 1))
+        # Past so many waiting at once, refused at once.
+        for task in range(tdl_agent.PARKED + 1):
+            self.agent._receive("flood", wire.encode(task, 1, wire.start(1, "slow", "command", 1)))
+        self.assertEqual(self.agent.stats.strangers, 2)
 
     def test_json_nested_too_deep_is_counted_as_malformed(self) -> None:
         self.agent._receive("exec1", b"[" * 200_000 + b"]" * 200_000)

@@ -243,6 +243,7 @@ impl AgentBuilder {
                     inner.executive_gone(exec);
                 } else {
                     inner.lock().live.insert(exec.to_string());
+                    inner.unpark(exec);
                     // Declared now, so the first `Done` to it can leave from the receiving thread.
                     let exec = exec.to_string();
                     let me = inner.clone();
@@ -353,6 +354,22 @@ impl Drop for Agent {
     }
 }
 
+/// How long a start from an executive whose token was not seen waits for it.
+const PARK_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// How many such starts wait at once; the others are refused at once.
+const PARKED: usize = 64;
+
+/// A start waiting for its executive's token.
+struct Parked {
+    task: u64,
+    seq: u64,
+    node: u64,
+    name: String,
+    kind: Kind,
+    args: Json,
+}
+
 /// A body that runs.
 struct Running {
     last_seq: u64,
@@ -370,6 +387,8 @@ struct AgentState {
     ended_order: std::collections::VecDeque<(String, u64)>,
     // The executives whose token is live.
     live: BTreeSet<String>,
+    // Starts from executives whose token was not seen yet, by executive.
+    parked: BTreeMap<String, Vec<Parked>>,
     // One per live executive, at most `Limits::executives`.
     publishers: BTreeMap<String, Arc<Publisher<'static>>>,
     stats: AgentStats,
@@ -657,9 +676,33 @@ impl AgentInner {
             });
             return;
         }
-        // Only a live executive of the system starts tasks: a start from an id no token stands
-        // for is refused, and not answered (nobody would read the answer).
+        // Only a live executive of the system starts tasks. A start from an id whose token was
+        // not seen waits a little for it (the token's notice and the start can come by different
+        // paths), at most `PARKED` starts at once; then it is refused, and not answered (nobody
+        // would read the answer).
         if !s.live.contains(&exec) {
+            if s.parked.values().map(Vec::len).sum::<usize>() < PARKED {
+                let first = !s.parked.contains_key(&exec);
+                s.parked.entry(exec.clone()).or_default().push(Parked {
+                    task,
+                    seq,
+                    node,
+                    name,
+                    kind,
+                    args,
+                });
+                drop(s);
+                if first {
+                    let weak = Arc::downgrade(self);
+                    self.rt.spawn(async move {
+                        tokio::time::sleep(PARK_WAIT).await;
+                        if let Some(me) = weak.upgrade() {
+                            me.unpark(&exec);
+                        }
+                    });
+                }
+                return;
+            }
             s.stats.strangers += 1;
             drop(s);
             self.ignored(&exec, Ignored::Stranger, || {
@@ -768,6 +811,38 @@ impl AgentInner {
                     }
                 });
                 r.body = Some(handle.abort_handle());
+            }
+        }
+    }
+
+    /// Starts the starts of `exec` parked until its token came: applied if it came, else refused.
+    fn unpark(self: &Arc<Self>, exec: &str) {
+        let (parked, live) = {
+            let mut s = self.lock();
+            (
+                s.parked.remove(exec).unwrap_or_default(),
+                s.live.contains(exec),
+            )
+        };
+        for p in parked {
+            if live {
+                self.start(
+                    exec.to_string(),
+                    p.task,
+                    p.seq,
+                    p.node,
+                    p.name,
+                    p.kind,
+                    p.args,
+                );
+            } else {
+                self.lock().stats.strangers += 1;
+                self.ignored(exec, Ignored::Stranger, || {
+                    format!(
+                        "start {} of task {} refused: no executive {exec} is live",
+                        p.seq, p.task
+                    )
+                });
             }
         }
     }

@@ -48,8 +48,24 @@ struct PythonAgent {
 impl PythonAgent {
     /// Starts the agent, connected to the executive's `ports[0]` and the other `ports`.
     fn spawn(python: &Path, system: &str, name: &str, ports: &[u16]) -> PythonAgent {
+        PythonAgent::spawn_with(python, system, name, ports, None)
+    }
+
+    /// As [`PythonAgent::spawn`], over mutual TLS with `tls`' certificates if given.
+    fn spawn_with(
+        python: &Path,
+        system: &str,
+        name: &str,
+        ports: &[u16],
+        tls: Option<&tcm_zenoh::config::Certs>,
+    ) -> PythonAgent {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/it/python_agent.py");
-        let mut child = Command::new(python)
+        let mut command = Command::new(python);
+        if let Some(c) = tls {
+            let files = [&c.authority, &c.certificate, &c.key].map(|p| p.display().to_string());
+            command.env("TDL_AGENT_TLS", files.join(":"));
+        }
+        let mut child = command
             .arg(script)
             .args([system, name])
             .args(ports.iter().map(u16::to_string))
@@ -369,6 +385,50 @@ async fn a_forged_cancel_to_a_python_agent_fails_the_node_with_remote_cancelled(
             (0, 0, 0, 1),
             "{stats:?}"
         );
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_python_agent_serves_over_mutual_tls() {
+    let Some(python) = python() else { return };
+    if Command::new("openssl").arg("version").output().is_err() {
+        println!("skipped: openssl is not on PATH, so no certificates can be made");
+        return;
+    }
+    bounded(async {
+        let dir = crate::tls::scratch("py-tls");
+        crate::tls::authority(&dir, "system");
+        let exec_certs = crate::tls::certificate(&dir, "exec", "system");
+        let py_certs = crate::tls::certificate(&dir, "py", "system");
+        let system = crate::util::system("py-tls");
+        let port = tcm_zenoh::config::free_port().expect("a port");
+        let config = tcm_zenoh::config::loopback_tls_listen(port, &exec_certs).expect("config");
+        let exec = tcm_zenoh::Executive::open(&system, config)
+            .await
+            .expect("the executive opens");
+        let net = Net { exec, port, system };
+        let agent = PythonAgent::spawn_with(&python, &net.system, "py", &[port], Some(&py_certs));
+        agent.expect("ready", READY).await;
+        net.exec
+            .wait_for("py", Some("add"), crate::util::JOIN)
+            .await
+            .expect("the executive sees the Python agent over TLS");
+        let exec = net.exec.clone();
+        let main = Task::goal("main", move |ctx| async move {
+            let sum: Json = ctx
+                .spawn(exec.remote("py", "add", [1.5, 2.0]).task())
+                .wait_value()
+                .await?;
+            assert_eq!(sum, json!(3.5));
+            Ok(())
+        });
+        let (report, _) = run_checked(Runtime::new(), main).await;
+        assert!(report.is_clean(), "{report}");
+        agent.expect("start add", READY).await;
+        drop(agent);
+        net.exec.close().await;
+        let _ = std::fs::remove_dir_all(&dir);
     })
     .await;
 }

@@ -1,7 +1,8 @@
 """A Python agent for the tests of crates/tcm-zenoh/tests/it/python.rs, built on tdl_agent.
 
 Usage: python_agent.py <system> <agent> <executive port> [<port>...] (other peers on 127.0.0.1 to
-connect to as well)
+connect to as well). With ``TDL_AGENT_TLS=<authority>:<certificate>:<key>`` (PEM files) in the
+environment, it connects over mutual TLS.
 
 It joins the system on 127.0.0.1 and prints one line per event on stdout (``ready``,
 ``start <task> <node>``, ``cleanup <task> <args>``) until it is killed or gets SIGTERM. Offered:
@@ -17,6 +18,7 @@ It joins the system on 127.0.0.1 and prints one line per event on stdout (``read
 from __future__ import annotations
 
 import asyncio
+import os
 import sys
 import threading
 import time
@@ -94,7 +96,15 @@ def main(argv: List[str]) -> int:
 
     agent.command("spin", spin, on_terminate=lambda ms: say(f"cleanup spin {ms}"))
 
-    agent.start(tdl_agent.peer_config([], [f"tcp/127.0.0.1:{p}" for p in ports]))
+    tls = os.environ.get("TDL_AGENT_TLS")
+    if tls:
+        authority, certificate, key = tls.split(os.pathsep)
+        config = tdl_agent.with_mtls(
+            tdl_agent.peer_config([], [f"tls/127.0.0.1:{p}" for p in ports]), authority, certificate, key
+        )
+    else:
+        config = tdl_agent.peer_config([], [f"tcp/127.0.0.1:{p}" for p in ports])
+    agent.start(config)
     say("ready")
     agent.run()
     return 0

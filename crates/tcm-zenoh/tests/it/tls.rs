@@ -15,7 +15,7 @@ use tcm::{RunOutcome, Runtime, Task};
 use tcm_zenoh::config::{Certs, loopback_tls_connect, loopback_tls_listen};
 use tcm_zenoh::{Agent, Executive, Json, RemoteCtx, RemoteFailure};
 
-fn openssl(dir: &Path, args: &[&str]) {
+pub(crate) fn openssl(dir: &Path, args: &[&str]) {
     let out = Command::new("openssl")
         .args(args)
         .current_dir(dir)
@@ -29,7 +29,7 @@ fn openssl(dir: &Path, args: &[&str]) {
 }
 
 /// An authority `name` in `dir`: its certificate and key.
-fn authority(dir: &Path, name: &str) {
+pub(crate) fn authority(dir: &Path, name: &str) {
     openssl(
         dir,
         &[
@@ -57,7 +57,7 @@ fn authority(dir: &Path, name: &str) {
 }
 
 /// A certificate for `name`, reached at 127.0.0.1, signed by authority `by`.
-fn certificate(dir: &Path, name: &str, by: &str) -> Certs {
+pub(crate) fn certificate(dir: &Path, name: &str, by: &str) -> Certs {
     openssl(
         dir,
         &[
@@ -110,7 +110,7 @@ fn certificate(dir: &Path, name: &str, by: &str) -> Certs {
 }
 
 /// A fresh directory for one test's certificates.
-fn scratch(name: &str) -> PathBuf {
+pub(crate) fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("tcm-zenoh-tls-{}", system(name)));
     std::fs::create_dir_all(&dir).expect("a directory");
     dir
