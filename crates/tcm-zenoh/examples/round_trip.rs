@@ -6,7 +6,10 @@
 //!
 //! `cargo run --release -p tcm-zenoh --example round_trip [-- <round trips> <in flight>]`
 //! (defaults 2000 and 20000). The executive and the agent are two zenoh sessions of this process
-//! (peer mode, 127.0.0.1, multicast scouting off).
+//! (peer mode, 127.0.0.1, multicast scouting off). With `--tls <dir>`, they are linked by mutual
+//! TLS (docs/distributed.md, "Mutual TLS"), with the certificates of `<dir>`: `authority.pem`,
+//! `exec.pem` and `exec.key`, `agent.pem` and `agent.key` (the bare query goes over the same
+//! link).
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -45,20 +48,46 @@ fn rounds(n: usize, make: impl Fn() -> Task + Send + 'static) -> (Task, Arc<Mute
 
 #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
 async fn main() -> Result<(), Error> {
-    let args: Vec<usize> = std::env::args()
-        .skip(1)
-        .filter_map(|a| a.parse().ok())
-        .collect();
+    // Warnings (zenoh's and this crate's) to stderr, filtered by RUST_LOG.
+    tcm_zenoh::log_to_stderr();
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    let tls = argv
+        .iter()
+        .position(|a| a == "--tls")
+        .map(|i| argv.get(i + 1).map(std::path::PathBuf::from))
+        .map(|d| d.ok_or("--tls needs a directory"))
+        .transpose()?;
+    let args: Vec<usize> = argv.iter().filter_map(|a| a.parse().ok()).collect();
     let n = args.first().copied().unwrap_or(2000);
     let in_flight = args.get(1).copied().unwrap_or(20_000);
 
-    let (exec, port) = Executive::open_loopback("bench").await?;
-    let agent = Agent::builder("bench", "agent")
-        .command("noop", |_: RemoteCtx, (): ()| async {
-            Ok::<_, RemoteFailure>(())
-        })
-        .start(tcm_zenoh::config::loopback_connect(port)?)
-        .await?;
+    let builder = Agent::builder("bench", "agent").command("noop", |_: RemoteCtx, (): ()| async {
+        Ok::<_, RemoteFailure>(())
+    });
+    let (exec, agent) = match &tls {
+        None => {
+            let (exec, port) = Executive::open_loopback("bench").await?;
+            let agent = builder
+                .start(tcm_zenoh::config::loopback_connect(port)?)
+                .await?;
+            (exec, agent)
+        }
+        Some(dir) => {
+            use tcm_zenoh::config::{Certs, free_port, loopback_tls_connect, loopback_tls_listen};
+            let certs = |who: &str| Certs {
+                authority: dir.join("authority.pem"),
+                certificate: dir.join(format!("{who}.pem")),
+                key: dir.join(format!("{who}.key")),
+            };
+            let port = free_port()?;
+            let exec = Executive::open("bench", loopback_tls_listen(port, &certs("exec"))?).await?;
+            let agent = builder
+                .start(loopback_tls_connect(port, &certs("agent"))?)
+                .await?;
+            println!("over mutual TLS");
+            (exec, agent)
+        }
+    };
     exec.wait_for("agent", Some("noop"), Duration::from_secs(10))
         .await?;
     let _echo = agent
