@@ -58,6 +58,113 @@ pub fn with_mtls(mut c: zenoh::Config, certs: &Certs) -> Result<zenoh::Config, E
     Ok(c)
 }
 
+/// Who may be in a system, by the common names of their certificates: its executives and its
+/// agents (an agent's common name is its agent name).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Roster {
+    /// The executives' common names.
+    pub executives: Vec<String>,
+    /// The agents' common names, which are their names.
+    pub agents: Vec<String>,
+}
+
+/// `c` with zenoh's access control for `system` (docs/distributed.md, "Who may speak"), for use
+/// with mutual TLS ([`with_mtls`]): what this process receives from a peer is checked against the
+/// common name of the peer's certificate. A peer named in `roster` may send anything except what
+/// speaks for another: an agent may not publish on another agent's inbox keys
+/// (`tdl/<system>/to-exec/*/<other>`), nor on any agent's (`tdl/<system>/to-agent/**`), nor hold
+/// an executive's token or another agent's; an executive may not publish on `to-exec` keys nor
+/// hold an agent's tokens. A peer that `roster` does not name is refused everything.
+pub fn with_access(
+    mut c: zenoh::Config,
+    system: &str,
+    roster: &Roster,
+) -> Result<zenoh::Config, Error> {
+    let all = [
+        "put",
+        "delete",
+        "declare_subscriber",
+        "query",
+        "reply",
+        "declare_queryable",
+        "liveliness_token",
+        "declare_liveliness_subscriber",
+        "liveliness_query",
+    ];
+    let mut rules = vec![serde_json::json!({
+        "id": "members",
+        "messages": all,
+        "flows": ["ingress", "egress"],
+        "permission": "allow",
+        "key_exprs": ["**"],
+    })];
+    let mut subjects = Vec::new();
+    let mut policies = Vec::new();
+    let deny = |id: String, messages: &[&str], keys: Vec<String>| {
+        serde_json::json!({
+            "id": id,
+            "messages": messages,
+            "flows": ["ingress"],
+            "permission": "deny",
+            "key_exprs": keys,
+        })
+    };
+    for (i, agent) in roster.agents.iter().enumerate() {
+        let others: Vec<&String> = roster.agents.iter().filter(|a| *a != agent).collect();
+        let mut puts = vec![format!("tdl/{system}/to-agent/**")];
+        puts.extend(others.iter().map(|o| format!("tdl/{system}/to-exec/*/{o}")));
+        let mut tokens = vec![format!("tdl/{system}/executives/*")];
+        for o in &others {
+            tokens.push(format!("tdl/{system}/agents/{o}"));
+            tokens.push(format!("tdl/{system}/offers/*/{o}"));
+        }
+        rules.push(deny(format!("agent-{i}-puts"), &["put", "delete"], puts));
+        rules.push(deny(
+            format!("agent-{i}-tokens"),
+            &["liveliness_token"],
+            tokens,
+        ));
+        subjects
+            .push(serde_json::json!({"id": format!("agent-{i}"), "cert_common_names": [agent]}));
+        policies.push(serde_json::json!({
+            "rules": ["members", format!("agent-{i}-puts"), format!("agent-{i}-tokens")],
+            "subjects": [format!("agent-{i}")],
+        }));
+    }
+    if !roster.executives.is_empty() {
+        rules.push(deny(
+            "executive-puts".into(),
+            &["put", "delete"],
+            vec![format!("tdl/{system}/to-exec/**")],
+        ));
+        rules.push(deny(
+            "executive-tokens".into(),
+            &["liveliness_token"],
+            vec![
+                format!("tdl/{system}/agents/*"),
+                format!("tdl/{system}/offers/**"),
+            ],
+        ));
+        subjects.push(serde_json::json!({
+            "id": "executives",
+            "cert_common_names": roster.executives,
+        }));
+        policies.push(serde_json::json!({
+            "rules": ["members", "executive-puts", "executive-tokens"],
+            "subjects": ["executives"],
+        }));
+    }
+    let acl = serde_json::json!({
+        "enabled": true,
+        "default_permission": "deny",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    });
+    set(&mut c, "access_control", &acl.to_string())?;
+    Ok(c)
+}
+
 /// `tls/127.0.0.1:port`.
 pub fn tls_endpoint(port: u16) -> String {
     format!("tls/127.0.0.1:{port}")

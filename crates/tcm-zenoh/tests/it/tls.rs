@@ -214,3 +214,117 @@ async fn only_holders_of_the_systems_certificates_join_it() {
     })
     .await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn under_access_control_a_member_cannot_speak_for_another_agent() {
+    if Command::new("openssl").arg("version").output().is_err() {
+        eprintln!("openssl is not on PATH: no certificates to test TLS with");
+        return;
+    }
+    bounded(async {
+        use tcm_zenoh::config::{Roster, with_access};
+        let dir = scratch("acl");
+        authority(&dir, "system");
+        let exec_certs = certificate(&dir, "exec", "system");
+        let arm_certs = certificate(&dir, "arm", "system");
+        // A member of the system, with a certificate of its authority, that turns against it.
+        let fake_certs = certificate(&dir, "fake", "system");
+        let sys = system("acl");
+        let roster = Roster {
+            executives: vec!["exec".into()],
+            agents: vec!["arm".into(), "fake".into()],
+        };
+        let port = tcm_zenoh::config::free_port().expect("a port");
+        let config = with_access(
+            loopback_tls_listen(port, &exec_certs).expect("config"),
+            &sys,
+            &roster,
+        )
+        .expect("config");
+        let exec = Executive::open(&sys, config)
+            .await
+            .expect("the executive opens");
+        let (gate, open) = tokio::sync::watch::channel(false);
+        let arm = Agent::builder(sys.clone(), "arm")
+            .command("gated", move |_: RemoteCtx, (): ()| {
+                let mut open = open.clone();
+                async move {
+                    let _ = open.wait_for(|o| *o).await;
+                    Ok::<_, RemoteFailure>("real")
+                }
+            })
+            .start(
+                with_access(
+                    loopback_tls_connect(port, &arm_certs).expect("config"),
+                    &sys,
+                    &roster,
+                )
+                .expect("config"),
+            )
+            .await
+            .expect("the agent starts");
+        let fake = Agent::builder(sys.clone(), "fake")
+            .command("other", |_: RemoteCtx, (): ()| async move {
+                Ok::<_, RemoteFailure>(())
+            })
+            .start(loopback_tls_connect(port, &fake_certs).expect("config"))
+            .await
+            .expect("the fake agent starts");
+        exec.wait_for("arm", Some("gated"), JOIN)
+            .await
+            .expect("the executive sees arm");
+        exec.wait_for("fake", Some("other"), JOIN)
+            .await
+            .expect("the executive sees fake, a member");
+        let e = exec.clone();
+        let run = tokio::spawn(async move {
+            let main = Task::goal("main", move |ctx| async move {
+                let v: Json = ctx
+                    .spawn(e.remote("arm", "gated", ()).task())
+                    .wait_value()
+                    .await?;
+                assert_eq!(v, json!("real"));
+                Ok(())
+            });
+            run_checked(Runtime::new(), main).await
+        });
+        // Once arm's `started` (number 1) is in, the fake member sends `done`, number 2, as arm:
+        // without access control the executive would apply it.
+        let start = std::time::Instant::now();
+        while arm.running() == 0 {
+            assert!(start.elapsed() < JOIN, "the body did not start");
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let forged =
+            json!({"task": 1, "seq": 2, "body": {"kind": "done", "result": {"Ok": "forged"}}});
+        for _ in 0..3 {
+            fake.session()
+                .put(
+                    format!("tdl/{sys}/to-exec/{}/arm", exec.id()),
+                    serde_json::to_vec(&forged).expect("JSON"),
+                )
+                .await
+                .expect("a put");
+        }
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        gate.send_replace(true);
+        let (report, _) = run.await.expect("the run");
+        assert!(report.is_clean(), "{report}");
+        let stats = exec.stats();
+        assert_eq!(
+            (
+                stats.succeeded,
+                stats.duplicates,
+                stats.refused,
+                stats.strangers
+            ),
+            (1, 0, 0, 0),
+            "the forged done never reached the executive: {stats:?}"
+        );
+        drop((fake, arm));
+        exec.close().await;
+        let _ = std::fs::remove_dir_all(&dir);
+    })
+    .await;
+}
