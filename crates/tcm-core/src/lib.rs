@@ -50,8 +50,8 @@ pub use constraint::{Constraint, Constraints, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{
     Blocked, Canonical, EachActivation, Effect, Engine, EngineError, HandlerSpec, InvariantFailed,
-    Job, MonitorInfo, MonitorSpec, NodeInfo, OnTerminate, Purpose, ResourceDenied, ResourceDropped,
-    ResourceInfo, Spawn, Stats, Uses, WatchOutcome,
+    Job, MonitorInfo, MonitorSpec, NodeInfo, OnTerminate, Overrun, Purpose, ResourceDenied,
+    ResourceDropped, ResourceInfo, Spawn, Stats, Uses, WatchOutcome,
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
 pub use ids::{CondId, ExternalId, NodeId, ResourceId, StateId, TapWhen, WatchToken, WiretapId};

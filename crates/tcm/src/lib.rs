@@ -66,7 +66,7 @@ pub use tcm_core::{
     Termination, Time, WatchOutcome,
 };
 pub use tcm_core::{
-    EachActivation, Outcome, PassedOn, ResourceInfo, TapWhen, Then, When, WiretapId,
+    EachActivation, Outcome, Overrun, PassedOn, ResourceInfo, TapWhen, Then, When, WiretapId,
 };
 pub use tcm_trace::{TraceEvent, TraceKind};
 

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::{
     Constraint, EachActivation, Failure, HandlerSpec, MonitorSpec, Name, NodeId, NodeKind,
-    OnTerminate, Spawn,
+    OnTerminate, Overrun, Spawn,
 };
 
 /// A task's arguments as the host keeps them ([`Task::with_args`]), type-erased.
@@ -120,6 +120,10 @@ pub struct Monitor {
     pub initial_wait: bool,
     /// Constraints between successive activations.
     pub each: EachActivation,
+    /// What a poll does when it falls due while the last activation still runs: made at once
+    /// (`Burst`, the default), dropped (`Skip`), or held until that activation ends (`Delay`);
+    /// docs/semantics.md, "Monitors", rule 7.
+    pub overrun: Overrun,
     /// Name of activation nodes (default `ACT-<monitor>`).
     pub activation_name: Option<Name>,
 }
@@ -375,6 +379,7 @@ impl Task {
             period: params.period,
             initial_wait: params.initial_wait,
             each: params.each,
+            overrun: params.overrun,
             activation_name: params.activation_name,
         }));
         task

@@ -592,6 +592,7 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
                 m.spec.max_triggers.hash(h);
                 m.spec.period.hash(h);
                 m.spec.initial_wait.hash(h);
+                m.spec.overrun.hash(h);
                 let e = m.spec.each;
                 (
                     e.serial,
@@ -610,8 +611,11 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
                 limited(m.activations, m.spec.max_activations).hash(h);
                 limited(m.triggers, m.spec.max_triggers).hash(h);
                 self.opt_ref(m.last, h);
-                // The schedule: when the armed poll is due, relative to now (as `poll_due`).
+                // The schedule: when the armed poll is due, relative to now (as `poll_due`); a
+                // held poll has none (it restarts the schedule when it is made).
+                m.held.hash(h);
                 match m.spec.period {
+                    Some(_) if m.held => 0u8.hash(h),
                     Some(p) => {
                         let (at, k0) = m.anchor;
                         let k = u32::try_from(m.next_poll.saturating_sub(k0)).unwrap_or(u32::MAX);

@@ -106,7 +106,7 @@ pub use api::{Effect, EngineError, Job, Spawn, Stats, WatchOutcome};
 use arm::{External, Join};
 pub use canon::Canonical;
 pub use exception::HandlerSpec;
-pub use monitor::{EachActivation, MonitorSpec};
+pub use monitor::{EachActivation, MonitorSpec, Overrun};
 use node::Node;
 pub use node::{OnTerminate, Purpose};
 use progress::timer_is_live;

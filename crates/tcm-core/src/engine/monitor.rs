@@ -20,6 +20,11 @@
 //!    [`Engine::set_max_triggers`], [`Engine::set_period`]: TDL's constraint statements), traced as
 //!    a new `monitor_params` record. A maximum already reached completes the monitor's handling at
 //!    once; a new period counts from the poll already due.
+//! 6. A poll that falls due while the monitor's last activation has not completed its execution
+//!    is an *overrun*, handled by the monitor's [`Overrun`] policy: made at once (`Burst`, the
+//!    default), dropped (`Skip`), or held until that activation completes and made then, the
+//!    schedule restarting from that instant (`Delay`; the polls missed meanwhile make that one
+//!    activation). A held poll arms no timer; [`Engine::activation_ended`] makes it.
 
 use super::node::Node;
 use super::node::{Payload, Purpose};
@@ -48,6 +53,26 @@ pub struct EachActivation {
     pub delay_expansion: bool,
 }
 
+/// What a polling monitor does with a poll that falls due while its last activation has not
+/// completed its execution (docs/semantics.md, "Monitors", rule 7). Activations made otherwise
+/// (constraints, events, explicit calls) are never held or dropped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Overrun {
+    /// Every poll makes its activation when it falls due. Without `serial`, activations overlap;
+    /// with it, those due while one ran wait for it, then start one after the other at the
+    /// instant it completed (a catch-up burst).
+    #[default]
+    Burst,
+    /// A poll due while the last activation runs makes no activation; the next poll comes on the
+    /// schedule. Polling stays on `start + k × period` and activations never overlap: what a
+    /// ticking tree does with the ticks a long tick missed.
+    Skip,
+    /// A poll due while the last activation runs is held until it completes, and made then (the
+    /// polls missed meanwhile make that one activation); the schedule restarts from that
+    /// instant, one period per poll. Activations never overlap.
+    Delay,
+}
+
 /// How a monitor behaves; given at spawn (`Spawn::monitor`).
 #[derive(Clone, Debug)]
 pub struct MonitorSpec<F> {
@@ -63,6 +88,8 @@ pub struct MonitorSpec<F> {
     pub initial_wait: bool,
     /// Constraints between successive activations.
     pub each: EachActivation,
+    /// What a poll due while the last activation runs does. Not in the `monitor_params` record.
+    pub overrun: Overrun,
     /// Name of activation nodes; default `ACT-<monitor name>`.
     pub activation_name: Option<Name>,
 }
@@ -96,6 +123,7 @@ impl<F> MonitorSpec<F> {
             period: None,
             initial_wait: false,
             each: EachActivation::default(),
+            overrun: Overrun::Burst,
             activation_name: None,
         }
     }
@@ -110,8 +138,11 @@ pub(crate) struct Monitor<F> {
     /// Polling schedule: poll `k` is due at `anchor.0 + (k - anchor.1) × period`. The anchor is the
     /// start (poll 0) until the period changes, then the poll that was due next.
     pub(crate) anchor: (Time, u64),
-    /// The poll whose timer is armed.
+    /// The poll whose timer is armed, or the poll held (`held`).
     pub(crate) next_poll: u64,
+    /// Under [`Overrun::Delay`]: poll `next_poll` fell due while the last activation ran and waits
+    /// for it to complete; no poll timer is armed meanwhile.
+    pub(crate) held: bool,
 }
 
 impl<F> Monitor<F> {
@@ -123,6 +154,7 @@ impl<F> Monitor<F> {
             last: None,
             anchor: (Time::ZERO, 0),
             next_poll: 0,
+            held: false,
         }
     }
 
@@ -248,9 +280,32 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.timers.push(at, TimerKind::Poll { monitor, k });
     }
 
-    /// Polling timer `k` fired (step 2).
+    /// Whether the monitor's last activation has not completed its execution (an overrun if a
+    /// poll falls due now).
+    fn last_activation_runs(&self, mon: &Monitor<F>) -> bool {
+        mon.last
+            .and_then(|a| self.nodes.get(a))
+            .is_some_and(|a| a.state(Facet::Execution) != State::Completed)
+    }
+
+    /// Polling timer `k` fired (step 2), under the monitor's overrun policy (step 6).
     pub(crate) fn poll(&mut self, monitor: NodeId, k: u64) {
-        self.activation_due(monitor);
+        let Some(mon) = self.nodes.get(monitor).and_then(Node::monitor) else {
+            return;
+        };
+        let overrun = mon.spec.overrun;
+        let runs = overrun != Overrun::Burst && self.last_activation_runs(mon);
+        match (overrun, runs) {
+            (Overrun::Delay, true) => {
+                if let Some(mon) = self.node_mut(monitor).monitor_mut() {
+                    mon.held = true;
+                    mon.next_poll = k;
+                }
+                return;
+            }
+            (Overrun::Skip, true) => {}
+            _ => self.activation_due(monitor),
+        }
         let Some(n) = self.nodes.get(monitor) else {
             return;
         };
@@ -260,6 +315,37 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 let next = mon.poll_due(p, k + 1);
                 self.arm_poll(monitor, next, k + 1);
             }
+        }
+    }
+
+    /// The execution of node `id` completed: if it is an activation and its monitor holds a poll
+    /// (step 6, `Delay`) and no activation of it runs any more, the held poll makes its
+    /// activation now and the schedule restarts from now.
+    pub(crate) fn activation_ended(&mut self, id: NodeId) {
+        let Some(monitor) = self.nodes.get(id).and_then(Node::activation_of) else {
+            return;
+        };
+        let Some(m) = self.nodes.get(monitor) else {
+            return;
+        };
+        let Some(mon) = m.monitor() else { return };
+        if !mon.held || self.last_activation_runs(mon) {
+            return;
+        }
+        let active = m.alive() && m.state(Facet::Handling) == State::Active;
+        let now = self.time();
+        let Some(mon) = self.node_mut(monitor).monitor_mut() else {
+            return;
+        };
+        mon.held = false;
+        let (k, period) = (mon.next_poll, mon.spec.period);
+        mon.anchor = (now, k);
+        let Some(p) = period.filter(|_| active) else {
+            return;
+        };
+        self.make_activation(monitor);
+        if self.node(monitor).state(Facet::Handling) == State::Active {
+            self.arm_poll(monitor, now + p, k + 1);
         }
     }
 

@@ -353,6 +353,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                         }
                     }
                 }
+                // An activation (cold) that ended may release its monitor's held poll.
+                if cold {
+                    self.activation_ended(id);
+                }
                 // A live node whose execution completed has one branch left, its reclaim (the
                 // next pass would find every other closed): taken here, without that pass.
                 let Some(n) = self.nodes.get(id) else { return };

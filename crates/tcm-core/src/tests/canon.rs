@@ -244,6 +244,38 @@ fn a_monitor_polling_forever_comes_back_to_the_same_state() {
 }
 
 #[test]
+fn a_monitor_s_overrun_policy_and_its_held_poll_are_part_of_the_state() {
+    // A monitor polling every second whose first activation never ends: at 1 s, the poll is
+    // made (burst), dropped (skip) or held (delay); three different states, and the policy
+    // alone already tells them apart at the start.
+    let at = |overrun: Overrun, secs: u64| {
+        let mut e: E = Engine::new(1);
+        let root = e.root();
+        let mut spec = MonitorSpec::new(7);
+        spec.period = Some(Duration::from_secs(1));
+        spec.overrun = overrun;
+        e.spawn(t(0), Spawn::monitor(root, "watch", spec))
+            .expect("spawn the monitor");
+        for k in 0..=secs {
+            e.handle_timeout(t(k));
+            while e.poll_effect().is_some() {}
+        }
+        hash(&e)
+    };
+    let policies = [Overrun::Burst, Overrun::Skip, Overrun::Delay];
+    for secs in [0, 1] {
+        let hashes: Vec<u64> = policies.iter().map(|&o| at(o, secs)).collect();
+        assert_ne!(hashes[0], hashes[1], "{secs}");
+        assert_ne!(hashes[1], hashes[2], "{secs}");
+        assert_ne!(hashes[0], hashes[2], "{secs}");
+    }
+    // A held poll waits, whatever the time: 1 s and 3 s later, the same state; skipped polls
+    // keep the schedule, so the same state too.
+    assert_eq!(at(Overrun::Delay, 1), at(Overrun::Delay, 3));
+    assert_eq!(at(Overrun::Skip, 1), at(Overrun::Skip, 3));
+}
+
+#[test]
 fn resource_tables_are_part_of_the_state() {
     // Two commands use one base: the second waits for it. Then it is locked, and reserved.
     let mut e: E = Engine::new(1);

@@ -7,6 +7,7 @@ use crate::sim::{Factory, Outcome, SimEngine, factory, takes};
 use crate::*;
 use std::cell::Cell;
 use std::rc::Rc;
+use std::time::Duration;
 use tcm_trace::TraceKind;
 use tcm_trace::story::only;
 
@@ -359,4 +360,140 @@ fn activating_an_inactive_monitor_is_an_error_the_trace_shows() {
         TraceKind::Warning { message, .. }
             if message.starts_with("Trying to activate an inactive monitor late")
     )));
+}
+
+/// A monitor polling every 100 ms from 100 ms (`initial wait`), at most 5 activations, whose
+/// first activation takes 350 ms and the others none, under `overrun`: the instants its
+/// activations start, from its checked trace.
+fn overrun_starts(overrun: Overrun, serial: bool) -> Vec<String> {
+    overrun_starts_after(overrun, serial, s(0.35))
+}
+
+/// [`overrun_starts`] with a first activation that takes `first`.
+fn overrun_starts_after(overrun: Overrun, serial: bool, first: Duration) -> Vec<String> {
+    let r = run(|e, root| {
+        let body = factory(move |_, _, _, p| match p {
+            Purpose::Activation { number: 1, .. } => Outcome::after(first),
+            _ => Outcome::done(),
+        });
+        let mut spec = monitor_spec(body, Some(5), Some(0.1));
+        spec.initial_wait = true;
+        spec.each.serial = serial;
+        spec.overrun = overrun;
+        monitor(e, root, "tick", spec, &[]);
+    });
+    only(&r.story, &["ACT-tick handling active"])
+}
+
+#[test]
+fn a_burst_catches_up_the_polls_an_overrun_missed_at_one_instant() {
+    // The default: polls at 200, 300 and 400 ms make their activations, which wait for the first
+    // and then run back to back at 450 ms.
+    assert_story(
+        &overrun_starts(Overrun::default(), true),
+        "
+        0.1 ACT-tick handling active
+        0.45 ACT-tick handling active
+        0.45 ACT-tick handling active
+        0.45 ACT-tick handling active
+        0.5 ACT-tick handling active
+        ",
+    );
+    // Without `serial`, they run beside the first.
+    assert_story(
+        &overrun_starts(Overrun::Burst, false),
+        "
+        0.1 ACT-tick handling active
+        0.2 ACT-tick handling active
+        0.3 ACT-tick handling active
+        0.4 ACT-tick handling active
+        0.5 ACT-tick handling active
+        ",
+    );
+}
+
+#[test]
+fn skip_drops_the_polls_an_overrun_missed_and_keeps_the_schedule() {
+    // Polls at 200, 300 and 400 ms fall due while the first activation runs: none activates; the
+    // next is the poll at 500 ms, on the schedule. `serial` or not, nothing overlaps.
+    for serial in [true, false] {
+        assert_story(
+            &overrun_starts(Overrun::Skip, serial),
+            "
+            0.1 ACT-tick handling active
+            0.5 ACT-tick handling active
+            0.6 ACT-tick handling active
+            0.7 ACT-tick handling active
+            0.8 ACT-tick handling active
+            ",
+        );
+    }
+}
+
+#[test]
+fn delay_makes_one_activation_when_an_overrun_ends_and_restarts_the_schedule() {
+    // The poll due at 200 ms waits for the first activation (300 and 400 ms make no other) and
+    // activates at 450 ms; the next polls come every 100 ms from there.
+    for serial in [true, false] {
+        assert_story(
+            &overrun_starts(Overrun::Delay, serial),
+            "
+            0.1 ACT-tick handling active
+            0.45 ACT-tick handling active
+            0.55 ACT-tick handling active
+            0.65 ACT-tick handling active
+            0.75 ACT-tick handling active
+            ",
+        );
+    }
+}
+
+#[test]
+fn an_activation_that_ends_as_a_poll_falls_due_is_done_for_that_poll() {
+    // The first activation's end is an input at 400 ms, the instant poll 4 falls due: the timer
+    // fires after the input, so the poll finds no activation running, under either policy.
+    for overrun in [Overrun::Skip, Overrun::Delay] {
+        assert_story(
+            &overrun_starts_after(overrun, true, 3 * s(0.1)),
+            "
+            0.1 ACT-tick handling active
+            0.4 ACT-tick handling active
+            0.5 ACT-tick handling active
+            0.6 ACT-tick handling active
+            0.7 ACT-tick handling active
+            ",
+        );
+    }
+}
+
+#[test]
+fn a_held_poll_waits_for_the_last_activation_whatever_made_it() {
+    // Delay: the poll due at 1 s waits for the first activation (0 to 1.5 s); at 1.2 s an
+    // explicit call makes another, which runs to 2 s; the held poll activates when that one
+    // completes, and the schedule goes on from there (3 s). Terminated at 3.5 s.
+    let r = run(|e, root| {
+        let body = factory(|_, _, _, p| match p {
+            Purpose::Activation { number: 1, .. } => Outcome::after(s(1.5)),
+            Purpose::Activation { number: 2, .. } => Outcome::after(s(0.8)),
+            _ => Outcome::done(),
+        });
+        let mut spec = monitor_spec(body, None, Some(1.0));
+        spec.overrun = Overrun::Delay;
+        let m = monitor(e, root, "tick", spec, &[stop_in(3.5)]);
+        let poke = crate::sim::body(move |e, _, now| {
+            e.activate(now, m).expect("activate");
+            Outcome::done()
+        });
+        cmd(e, root, "poke", poke, &[not_before(1.2)]);
+    });
+    assert_story(
+        &only(&r.story, &["ACT-tick handling active", "tick terminated"]),
+        "
+        0 ACT-tick handling active
+        1.2 ACT-tick handling active
+        2 ACT-tick handling active
+        3 ACT-tick handling active
+        3.5 tick terminated
+        ",
+    );
 }

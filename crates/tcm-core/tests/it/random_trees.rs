@@ -12,7 +12,7 @@ use std::time::Duration;
 use tcm_core::sim::{Body, Factory, Outcome, Sim, SimEngine, body, factory};
 use tcm_core::{
     Constraint, EngineError, Event, ExternalId, Facet, Failure, HandlerSpec, MonitorSpec, NodeId,
-    NodeKind, NodeRef, Point, Purpose, Spawn, Termination, Then, Time, Uses, When,
+    NodeKind, NodeRef, Overrun, Point, Purpose, Spawn, Termination, Then, Time, Uses, When,
 };
 
 #[derive(Clone, Debug)]
@@ -107,6 +107,9 @@ struct Mon {
     initial_wait: bool,
     serial: bool,
     child_secs: u8,
+    /// The overrun policy: 0 burst, 1 skip, 2 delay (an activation lasts as long as its probe,
+    /// up to 2 s, so polls overrun).
+    overrun: u8,
 }
 
 /// A handler attached to a goal: `what` 0 = recover, 1 = bypass, 2 = fail with `C`.
@@ -127,9 +130,18 @@ fn mon() -> impl Strategy<Value = Option<Mon>> {
             any::<bool>(),
             any::<bool>(),
             0u8..3,
+            0u8..3,
         )
             .prop_map(
-                |(period_ms, max_activations, max_triggers, initial_wait, serial, child_secs)| {
+                |(
+                    period_ms,
+                    max_activations,
+                    max_triggers,
+                    initial_wait,
+                    serial,
+                    child_secs,
+                    overrun,
+                )| {
                     Mon {
                         period_ms,
                         max_activations,
@@ -137,6 +149,7 @@ fn mon() -> impl Strategy<Value = Option<Mon>> {
                         initial_wait,
                         serial,
                         child_secs,
+                        overrun,
                     }
                 },
             ),
@@ -479,6 +492,7 @@ fn monitor_spec(m: &Mon) -> MonitorSpec<Factory> {
     spec.max_triggers = m.max_triggers.map(u32::from);
     spec.initial_wait = m.initial_wait;
     spec.each.serial = m.serial;
+    spec.overrun = [Overrun::Burst, Overrun::Skip, Overrun::Delay][usize::from(m.overrun % 3)];
     spec
 }
 

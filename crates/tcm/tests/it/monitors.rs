@@ -84,3 +84,50 @@ async fn a_monitor_activated_by_an_external_event_each_time() {
         ]
     );
 }
+
+/// A rate-limited check through the runtime: period 100 ms from 100 ms, `serial`, five
+/// activations, the first taking 350 ms, under `overrun`; the instants the activations start.
+async fn overrun_starts(overrun: tcm::Overrun) -> Vec<String> {
+    let params = Monitor {
+        max_activations: Some(5),
+        period: Some(Duration::from_millis(100)),
+        initial_wait: true,
+        each: tcm::EachActivation {
+            serial: true,
+            ..Default::default()
+        },
+        overrun,
+        ..Monitor::default()
+    };
+    let task = Task::monitor("tick", params, |ctx| async move {
+        if ctx.activation().unwrap_or_default().0 == 1 {
+            ctx.sleep(Duration::from_millis(350)).await;
+        }
+        Ok(())
+    });
+    let (report, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    only(&story(&trace), &["ACT-tick handling active"])
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_monitor_s_overrun_policy_chooses_what_the_polls_missed_do() {
+    let starts = |ts: &[&str]| -> Vec<String> {
+        ts.iter()
+            .map(|t| format!("{t} ACT-tick handling active"))
+            .collect()
+    };
+    // The default catches up at one instant; skip keeps the schedule; delay restarts it.
+    assert_eq!(
+        overrun_starts(tcm::Overrun::Burst).await,
+        starts(&["0.1", "0.45", "0.45", "0.45", "0.5"])
+    );
+    assert_eq!(
+        overrun_starts(tcm::Overrun::Skip).await,
+        starts(&["0.1", "0.5", "0.6", "0.7", "0.8"])
+    );
+    assert_eq!(
+        overrun_starts(tcm::Overrun::Delay).await,
+        starts(&["0.1", "0.45", "0.55", "0.65", "0.75"])
+    );
+}
