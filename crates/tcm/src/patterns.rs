@@ -8,8 +8,17 @@
 //!   immediate failure for the failures recovery cannot help (a recovery node);
 //! - [`Preemption`]: a new goal ends what runs for the old one at that instant (a reactive
 //!   fallback on "goal updated");
+//! - [`RunOnce`]: a task run to its end once, skipped every later time (a run-once
+//!   decorator);
+//! - [`Cooldown`]: a task skipped for a while after it succeeded (a cooldown decorator);
 //! - replanning at a bounded rate while executing is a monitor with a period (TDL's
-//!   `monitor m() with period 1s`), beside the task that executes; no function is needed.
+//!   `monitor m() with period 1s, serial`, with `Overrun::Skip` for a tree's rate), beside the
+//!   task that executes; no function is needed.
+//!
+//! A decorator that decides not to run its task still spawns it, `skip if true`: the node is
+//! skipped when its turn comes (a `skipped` record, outcome skipped, its action never run), so the
+//! trace shows the decision where a behaviour tree would show a skipped node, and the caller gets
+//! [`Ended::Skipped`].
 //!
 //! The language has the other half: `with propagate` (a child's failure fails its parent),
 //! `retry;` in a handler on the parent (the whole subtree again), `with outcome` (how a child
@@ -19,9 +28,10 @@
 use crate::Error;
 use crate::ctx::{Ctx, Ended};
 use crate::task::Task;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use tcm_core::{Constraint, Failure, Then, When};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
+use tcm_core::{Constraint, Expr, Failure, Then, Value, When};
 
 /// Runs `tasks` one after the other, each only if the one before failed, and returns how the
 /// first that succeeded ended, or the last failure (a behaviour-tree fallback). A task that is
@@ -230,5 +240,166 @@ pub async fn retry_around<T: 'static>(
             Recovered::Failed(f) => return Ok(Ended::Failed(f)),
             Recovered::Terminated => return Ok(Ended::Terminated),
         }
+    }
+}
+
+/// Spawns `task` with `skip if true` and waits: it is skipped when its turn comes, so the trace
+/// shows it skipped and it ends [`Ended::Skipped`] (or [`Ended::Terminated`], if its parent is
+/// terminated first).
+async fn skipped<T: 'static>(ctx: &Ctx, task: Task) -> Result<Ended<T>, Error> {
+    let always = ctx.condition(&[], Expr::Lit(Value::Bool(true)))?;
+    ctx.spawn(task)
+        .with(Constraint::skip_if(always))
+        .wait_outcome::<T>()
+        .await
+}
+
+#[derive(Clone, Debug, Default)]
+enum Once {
+    #[default]
+    NotRun,
+    Running,
+    Ended(Option<Failure>),
+}
+
+/// A task run to its end once (a behaviour-tree run-once decorator): the first
+/// [`RunOnce::run`] runs it and returns how it ended; every later call, and any call while it
+/// runs, spawns the task given skipped and returns [`Ended::Skipped`]. A run that ends
+/// succeeded or failed counts; one that was terminated (or skipped) did not run to its end, and
+/// the next call runs the task again. [`RunOnce::reset`] forgets the run.
+///
+/// With state variables the language has the same without Rust: the task sets a variable when
+/// it is done, and is spawned `skip if done` (docs/from-behavior-trees.md, "Decorators").
+///
+/// Cloning shares it: give a clone to each activation or task that may run the task.
+#[derive(Clone, Debug, Default)]
+pub struct RunOnce {
+    state: Arc<Mutex<Once>>,
+}
+
+impl RunOnce {
+    /// Not run yet.
+    pub fn new() -> RunOnce {
+        RunOnce::default()
+    }
+
+    /// Runs `task` if it never ran to its end (and is not running), and waits for it; otherwise
+    /// skips it (see the type).
+    pub async fn run<T: 'static>(&self, ctx: &Ctx, task: Task) -> Result<Ended<T>, Error> {
+        if !self.claim() {
+            return skipped(ctx, task).await;
+        }
+        // Until it ended, a dropped wait (the caller was terminated) leaves it not run.
+        let mut run = Claimed {
+            once: self,
+            ended: None,
+        };
+        let ended = ctx.spawn(task).wait_outcome::<T>().await;
+        run.ended = Some(match &ended {
+            Ok(Ended::Succeeded(_)) => Once::Ended(None),
+            Ok(Ended::Failed(f)) => Once::Ended(Some(f.clone())),
+            _ => Once::NotRun,
+        });
+        ended
+    }
+
+    /// Marks it running if it never ran to its end and is not running; whether it did.
+    fn claim(&self) -> bool {
+        let mut state = self.lock();
+        let free = matches!(*state, Once::NotRun);
+        if free {
+            *state = Once::Running;
+        }
+        free
+    }
+
+    /// Whether the task ran to its end.
+    pub fn done(&self) -> bool {
+        matches!(*self.lock(), Once::Ended(_))
+    }
+
+    /// How the run ended: `Some(None)` succeeded, `Some(Some(failure))` failed, `None` not yet.
+    pub fn ended(&self) -> Option<Option<Failure>> {
+        match &*self.lock() {
+            Once::Ended(f) => Some(f.clone()),
+            _ => None,
+        }
+    }
+
+    /// Forgets the run: the next call runs the task again (a run in progress still counts when
+    /// it ends).
+    pub fn reset(&self) {
+        let mut state = self.lock();
+        if matches!(*state, Once::Ended(_)) {
+            *state = Once::NotRun;
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Once> {
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// A run of a [`RunOnce`]: when it is dropped, the state it ended in (`ended`), or not run if
+/// the wait for it was dropped unfinished.
+struct Claimed<'a> {
+    once: &'a RunOnce,
+    ended: Option<Once>,
+}
+
+impl Drop for Claimed<'_> {
+    fn drop(&mut self) {
+        *self.once.lock() = self.ended.take().unwrap_or(Once::NotRun);
+    }
+}
+
+/// A task skipped for a while after it succeeded (a behaviour-tree cooldown decorator):
+/// [`Cooldown::run`] runs the task and waits for it, unless the last success was less than the
+/// cooldown ago, in the run's time ([`Ctx::now`]); then it spawns the task given skipped and
+/// returns [`Ended::Skipped`]. A failure or a termination starts no cooldown, so the next call
+/// runs the task again at once. Calls while one runs are not held back: the cooldown starts when
+/// a run's success is seen. [`Cooldown::reset`] ends the cooldown.
+///
+/// Cloning shares it.
+#[derive(Clone, Debug)]
+pub struct Cooldown {
+    period: Duration,
+    until: Arc<Mutex<Option<Duration>>>,
+}
+
+impl Cooldown {
+    /// A cooldown of `period` after each success.
+    pub fn new(period: Duration) -> Cooldown {
+        Cooldown {
+            period,
+            until: Arc::new(Mutex::new(None)),
+        }
+    }
+
+    /// Runs `task` unless it is cooling down, and waits for it (see the type).
+    pub async fn run<T: 'static>(&self, ctx: &Ctx, task: Task) -> Result<Ended<T>, Error> {
+        if !self.remaining(ctx).is_zero() {
+            return skipped(ctx, task).await;
+        }
+        let ended = ctx.spawn(task).wait_outcome::<T>().await?;
+        if ended.succeeded() {
+            *self.lock() = Some(ctx.now() + self.period);
+        }
+        Ok(ended)
+    }
+
+    /// How long the cooldown still lasts at `ctx`'s time (zero: the next call runs the task).
+    pub fn remaining(&self, ctx: &Ctx) -> Duration {
+        self.lock()
+            .map_or(Duration::ZERO, |until| until.saturating_sub(ctx.now()))
+    }
+
+    /// Ends the cooldown: the next call runs the task.
+    pub fn reset(&self) {
+        *self.lock() = None;
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<Duration>> {
+        self.until.lock().unwrap_or_else(PoisonError::into_inner)
     }
 }

@@ -16,6 +16,7 @@ mod loud;
 mod monitors;
 mod panics;
 mod paper;
+mod patterns;
 mod resources;
 mod runtime;
 mod session;
