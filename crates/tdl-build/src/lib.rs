@@ -12,7 +12,9 @@
 //! ` --> file:line:col`, the source with the span underlined, a hint), without colour, and the
 //! build script exits with status 1: cargo then fails the build and shows that stderr verbatim (a
 //! panic would add a `panicked at` line and a backtrace note).
-//! Warnings are passed to cargo as `cargo:warning=` lines.
+//! Warnings are passed to cargo as `cargo:warning=` lines, `file:line:col: message [tdl::NAME]`:
+//! `#[allow(tdl::NAME)]` on the task or the statement accepts one there (docs/language.md,
+//! "Accepting a warning"), and it is then not passed.
 //!
 //! The generated file starts with a comment naming its `.tdl` file, and each line generated for a
 //! body statement ends with `// src/walk.tdl:42`, the statement's file and line: a Rust error in a
@@ -58,8 +60,7 @@ pub fn compile_all<P: AsRef<Path>>(paths: impl IntoIterator<Item = P>) {
             continue;
         }
         for diag in diagnostics {
-            let (line, col) = (diag.line(), diag.column());
-            println!("cargo:warning={shown}:{line}:{col}: {}", diag.message());
+            println!("cargo:warning={}", warning_line(shown, diag));
         }
     }
     if !errors.is_empty() {
@@ -79,5 +80,41 @@ pub fn compile_all<P: AsRef<Path>>(paths: impl IntoIterator<Item = P>) {
         );
         std::fs::write(&out, text)
             .unwrap_or_else(|e| fail(format!("error: cannot write {}: {e}", out.display())));
+    }
+}
+
+/// The `cargo:warning=` text of a warning: where, what, and the name of its lint.
+fn warning_line(shown: &str, diag: &tdl_syntax::Diagnostic) -> String {
+    let (line, col) = (diag.line(), diag.column());
+    let lint = diag
+        .lint()
+        .map(|it| format!(" [tdl::{}]", it.name()))
+        .unwrap_or_default();
+    format!("{shown}:{line}:{col}: {}{lint}", diag.message())
+}
+
+#[cfg(test)]
+mod tests {
+    /// A warning names its lint; one accepted by `#[allow(tdl::…)]` is not passed at all.
+    #[test]
+    fn warnings_name_their_lint_and_allowed_ones_are_not_passed() {
+        let src = "exception Fault;\n\
+            command a() {\n    fail Fault;\n}\n\
+            #[allow(tdl::unhandled_exception)]\n\
+            command b() {\n    fail Fault;\n}\n";
+        let results = tdl_syntax::compile_program(&[("src/f.tdl", src)]);
+        let [(Some(_), diagnostics)] = results.as_slice() else {
+            panic!("expected code: {results:?}");
+        };
+        let lines: Vec<String> = diagnostics
+            .iter()
+            .map(|it| super::warning_line("src/f.tdl", it))
+            .collect();
+        assert_eq!(
+            lines,
+            [
+                "src/f.tdl:3:10: no handler in this program handles `Fault` raised here [tdl::unhandled_exception]"
+            ]
+        );
     }
 }

@@ -33,6 +33,23 @@ use proc_macro2::{Ident, Span, TokenStream};
 pub struct Ast {
     /// Top-level items in source order.
     pub items: Vec<Item>,
+    /// The warnings accepted with `#[allow(tdl::NAME)]` on tasks and statements, in source
+    /// order (docs/language.md, "Accepting a warning").
+    pub allows: Vec<Allow>,
+}
+
+/// One lint of `#[allow(tdl::NAME, …)]` on a task or on a statement of a body: the warnings of
+/// that class whose span starts between `from` and `to` are accepted.
+#[derive(Clone, Debug)]
+pub struct Allow {
+    /// The lint allowed.
+    pub lint: crate::Lint,
+    /// Span of its name in the attribute.
+    pub span: Span,
+    /// The first token covered: the attribute's `#`.
+    pub from: Span,
+    /// The last token covered: the task body's closing brace, or the statement's last token.
+    pub to: Span,
 }
 
 /// A top-level item.

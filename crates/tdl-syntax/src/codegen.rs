@@ -146,6 +146,7 @@ pub fn compile_program_with<R>(
         crate::diagnose::diagnose_in(&file.scope, &parse.file, &mut diagnostics);
         let generated = generate_in(&file.scope, &parse.file, Some(file.name));
         diagnostics.extend(generated.diagnostics);
+        crate::lint::apply(&parse.file.allows, &mut diagnostics);
         diagnostics.sort_by_key(|it| (it.start(), it.severity()));
         let tokens = if diagnostics.iter().any(Diagnostic::is_error) {
             None
@@ -555,7 +556,10 @@ fn attached_handler(task: &Task, target: &Ident, parts: AttachedParts) -> TokenS
         modifiers,
     } = parts;
     let vis = &task.vis;
-    let attrs = &task.attrs;
+    let attrs: Vec<TokenStream> = crate::lint::rust_attrs(&task.attrs)
+        .into_iter()
+        .map(|(_, it)| it)
+        .collect();
     let fn_name = &task.name;
     let name_str = task.name.to_string();
     let target_struct = struct_ident_of(target);
@@ -623,7 +627,10 @@ enum Allow {
 
 fn task_shell(task: &Task, body: &TokenStream, allow: Allow) -> TokenStream {
     let vis = &task.vis;
-    let attrs = &task.attrs;
+    let attrs: Vec<TokenStream> = crate::lint::rust_attrs(&task.attrs)
+        .into_iter()
+        .map(|(_, it)| it)
+        .collect();
     let fn_name = &task.name;
     let struct_name = struct_ident(task);
     let names: Vec<&Ident> = task.args.iter().map(|it| &it.name).collect();

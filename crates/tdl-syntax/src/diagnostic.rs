@@ -9,6 +9,8 @@
 
 use proc_macro2::Span;
 
+pub(crate) use crate::lint::Lint;
+
 /// How bad a [`Diagnostic`] is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Severity {
@@ -38,7 +40,7 @@ pub struct LineCol {
 }
 
 impl LineCol {
-    fn start_of(span: Span) -> LineCol {
+    pub(crate) fn start_of(span: Span) -> LineCol {
         let it = span.start();
         LineCol {
             line: it.line.max(1),
@@ -46,7 +48,7 @@ impl LineCol {
         }
     }
 
-    fn end_of(span: Span) -> LineCol {
+    pub(crate) fn end_of(span: Span) -> LineCol {
         let it = span.end();
         LineCol {
             line: it.line.max(1),
@@ -98,6 +100,8 @@ pub struct Diagnostic {
     message: String,
     labels: Vec<Label>,
     hint: Option<String>,
+    /// The lint a warning belongs to; `None` for an error.
+    lint: Option<Lint>,
 }
 
 impl Diagnostic {
@@ -106,9 +110,12 @@ impl Diagnostic {
         Diagnostic::new(Severity::Error, span, message.into())
     }
 
-    /// A warning at `span`.
-    pub fn warning(span: Span, message: impl Into<String>) -> Diagnostic {
-        Diagnostic::new(Severity::Warning, span, message.into())
+    /// A warning of the class `lint` at `span`: `#[allow(tdl::NAME)]` with the lint's name, on
+    /// the statement or the task it is in, accepts it there.
+    pub fn warning(lint: Lint, span: Span, message: impl Into<String>) -> Diagnostic {
+        let mut it = Diagnostic::new(Severity::Warning, span, message.into());
+        it.lint = Some(lint);
+        it
     }
 
     fn new(severity: Severity, span: Span, message: String) -> Diagnostic {
@@ -120,6 +127,7 @@ impl Diagnostic {
             message,
             labels: Vec::new(),
             hint: None,
+            lint: None,
         }
     }
 
@@ -198,10 +206,15 @@ impl Diagnostic {
     pub fn hint(&self) -> Option<&str> {
         self.hint.as_deref()
     }
+    /// The lint of a warning (its class, which `#[allow(tdl::NAME)]` names); `None` for an
+    /// error.
+    pub fn lint(&self) -> Option<Lint> {
+        self.lint
+    }
 
     /// Renders the diagnostic as plain text, as rustc does (with `annotate-snippets`, rustc's own
     /// renderer): `error: message`, ` --> file:line:col`, the source lines with the span
-    /// underlined and the labels, then `= help: hint`.
+    /// underlined and the labels, a `= note:` naming a warning's lint, then `= help: hint`.
     ///
     /// `source` is the text the spans point into; pass `None` when there is none (the macro), and
     /// only the header, the location, the labels' locations and the hint are printed.
@@ -261,6 +274,15 @@ impl Diagnostic {
         };
         for note in &notes {
             group = group.element(Level::NOTE.message(note.as_str()));
+        }
+        let allow = self.lint.filter(|it| *it != Lint::UnusedAllow).map(|lint| {
+            format!(
+                "`#[allow(tdl::{})]` on the statement or on its task accepts this warning there",
+                lint.name()
+            )
+        });
+        if let Some(allow) = &allow {
+            group = group.element(Level::NOTE.message(allow.as_str()));
         }
         if let Some(hint) = &self.hint {
             group = group.element(Level::HELP.message(hint.as_str()));

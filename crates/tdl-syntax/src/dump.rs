@@ -62,6 +62,18 @@ pub fn dump(ast: &Ast) -> String {
             }
         }
     }
+    for allow in &ast.allows {
+        let (from, to) = (allow.from.start(), allow.to.end());
+        let _ = writeln!(
+            out,
+            "allow tdl::{} over {}:{}..{}:{}",
+            allow.lint.name(),
+            from.line,
+            from.column + 1,
+            to.line,
+            to.column + 1
+        );
+    }
     out
 }
 

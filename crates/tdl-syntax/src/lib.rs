@@ -20,7 +20,9 @@
 //! - The static diagnosis of docs/semantics.md, "Tags and forward references" (unknown and ambiguous tags, duplicate labels, `wait`
 //!   on a forward reference, ...) and the static checks of docs/language.md, "Static checks"
 //!   (circular constraints, waits that cannot end, unhandled exceptions, unbounded recursion) run
-//!   as part of parsing and add to the same diagnostics (`diagnose.rs`, `diagnose/`).
+//!   as part of parsing and add to the same diagnostics (`diagnose.rs`, `diagnose/`). Every
+//!   warning has a [`Lint`]; `#[allow(tdl::NAME)]` on a task or a statement accepts it there
+//!   (`lint.rs`, docs/language.md, "Accepting a warning").
 //! - [`generate`] turns the tree into Rust calling the `tcm` runtime through the `tdl` crate
 //!   (`codegen.rs`, `codegen/`).
 //! - [`Diagnostic::render`] prints a diagnostic as rustc does, with `annotate-snippets`:
@@ -69,6 +71,7 @@ mod diagnostic;
 mod dump;
 pub mod hir;
 mod keyword;
+mod lint;
 mod parser;
 pub mod print;
 mod time;
@@ -85,6 +88,7 @@ pub use codegen::{
 };
 pub use diagnostic::{Diagnostic, Label, LineCol, Severity, render_all, render_all_styled};
 pub use dump::dump;
+pub use lint::Lint;
 pub use time::format_nanos;
 
 /// The result of parsing: the tree and every diagnostic, errors and warnings, in source order.
@@ -113,6 +117,7 @@ impl Parse {
 pub fn parse_str(file_name: &str, src: &str) -> Parse {
     let mut parse = parse_str_syntax(file_name, src);
     diagnose::diagnose(&parse.file, &mut parse.diagnostics);
+    lint::apply(&parse.file.allows, &mut parse.diagnostics);
     parse
         .diagnostics
         .sort_by_key(|it| (it.start(), it.severity()));
@@ -146,6 +151,7 @@ pub(crate) fn parse_str_syntax(file_name: &str, src: &str) -> Parse {
 pub fn parse_tokens(tokens: TokenStream) -> Parse {
     let mut parse = parse_syntax(tokens, None);
     diagnose::diagnose(&parse.file, &mut parse.diagnostics);
+    lint::apply(&parse.file.allows, &mut parse.diagnostics);
     parse
         .diagnostics
         .sort_by_key(|it| (it.start(), it.severity()));

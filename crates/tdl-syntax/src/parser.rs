@@ -19,7 +19,7 @@ use syn::punctuated::Punctuated;
 use syn::{Token, Type};
 
 use crate::ast::{
-    Arg, Ast, Block, EnvEntry, EnvTarget, EnvironmentDecl, ExceptionDecl, Field, Item,
+    Allow, Arg, Ast, Block, EnvEntry, EnvTarget, EnvironmentDecl, ExceptionDecl, Field, Item,
     ResourceDecl, StateDecl, Task, TaskKind, state_type,
 };
 use crate::diagnostic::Diagnostic;
@@ -34,6 +34,8 @@ pub(crate) fn parse_tag_tokens(tokens: TokenStream) -> syn::Result<crate::ast::T
 /// Parsing context: the diagnostics found so far.
 pub(crate) struct Cx {
     pub(crate) diags: Vec<Diagnostic>,
+    /// The `#[allow(tdl::…)]` lints found so far.
+    pub(crate) allows: Vec<Allow>,
     /// Hint for the error being returned, set by the innermost parser that knows one.
     pub(crate) hint: Option<&'static str>,
     /// Where "unexpected end of input" points: the closing delimiter of the group being parsed,
@@ -47,6 +49,7 @@ impl Cx {
     pub(crate) fn new(eof: Option<Span>) -> Cx {
         Cx {
             diags: Vec::new(),
+            allows: Vec::new(),
             hint: None,
             str_mode: eof.is_some(),
             eof,
@@ -61,6 +64,23 @@ impl Cx {
         } else {
             format!("{span:?}") == format!("{:?}", Span::call_site())
         }
+    }
+
+    /// Records the TDL lints of `attrs` as allows covering `from` to `to`, and their errors.
+    pub(crate) fn allow(&mut self, attrs: &[syn::Attribute], to: Span) {
+        let found = crate::lint::lint_attrs(attrs);
+        self.diags.extend(found.errors);
+        let Some(first) = attrs.first() else {
+            return;
+        };
+        let from = first.pound_token.span;
+        self.allows
+            .extend(found.allowed.into_iter().map(|(lint, span)| Allow {
+                lint,
+                span,
+                from,
+                to,
+            }));
     }
 
     /// Records a `syn` error as diagnostics, with `hint` if given.
@@ -82,13 +102,14 @@ impl Cx {
 }
 
 /// Runs `f` on a fork of `input`; on success the input advances past what `f` consumed, on
-/// failure nothing is consumed and the diagnostics `f` pushed are dropped.
+/// failure nothing is consumed and the diagnostics and allows `f` pushed are dropped.
 pub(crate) fn attempt<T>(
     input: ParseStream,
     cx: &mut Cx,
     f: impl FnOnce(ParseStream, &mut Cx) -> syn::Result<T>,
 ) -> syn::Result<T> {
     let mark = cx.diags.len();
+    let allows = cx.allows.len();
     let fork = input.fork();
     match f(&fork, cx) {
         Ok(it) => {
@@ -97,6 +118,7 @@ pub(crate) fn attempt<T>(
         }
         Err(err) => {
             cx.diags.truncate(mark);
+            cx.allows.truncate(allows);
             Err(err)
         }
     }
@@ -212,7 +234,9 @@ pub(crate) fn parse_file(input: ParseStream, cx: &mut Cx) -> Ast {
             }
         }
     }
-    Ast { items }
+    let mut allows = std::mem::take(&mut cx.allows);
+    allows.sort_by_key(|it| crate::diagnostic::LineCol::start_of(it.from));
+    Ast { items, allows }
 }
 
 const TASK_HINT: &str = "a task reads `goal name(arg: Type, ...) [-> Type] [with constraint, ...] { ... }`; \
@@ -267,9 +291,10 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
                 ),
             ));
         }
-        return input
-            .parse::<syn::Item>()
-            .map(|it| Item::Rust(Box::new(it)));
+        let it = input.parse::<syn::Item>()?;
+        cx.diags
+            .extend(crate::lint::misplaced(rust_item_attrs(&it), "a Rust item"));
+        return Ok(Item::Rust(Box::new(it)));
     }
     let attrs = input.call(syn::Attribute::parse_outer)?;
     let vis: syn::Visibility = input.parse()?;
@@ -301,6 +326,13 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
                 };
                 cx.diags.push(not_blocking(span, what));
             }
+            let what = match other {
+                "resource" => "a resource declaration",
+                "state" => "a state variable",
+                "environment" => "an environment",
+                _ => "an exception",
+            };
+            cx.diags.extend(crate::lint::misplaced(&attrs, what));
             return match other {
                 "resource" => resource(input, attrs, persistent, keyword.span(), cx),
                 "state" => state(input, attrs, persistent, keyword.span(), cx),
@@ -314,6 +346,28 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
             .push(not_blocking(span, &format!("a {}", kind.as_str())));
     }
     task(input, cx, attrs, vis, persistent, blocking, kind)
+}
+
+/// The outer attributes of a Rust item.
+fn rust_item_attrs(item: &syn::Item) -> &[syn::Attribute] {
+    match item {
+        syn::Item::Const(it) => &it.attrs,
+        syn::Item::Enum(it) => &it.attrs,
+        syn::Item::ExternCrate(it) => &it.attrs,
+        syn::Item::Fn(it) => &it.attrs,
+        syn::Item::ForeignMod(it) => &it.attrs,
+        syn::Item::Impl(it) => &it.attrs,
+        syn::Item::Macro(it) => &it.attrs,
+        syn::Item::Mod(it) => &it.attrs,
+        syn::Item::Static(it) => &it.attrs,
+        syn::Item::Struct(it) => &it.attrs,
+        syn::Item::Trait(it) => &it.attrs,
+        syn::Item::TraitAlias(it) => &it.attrs,
+        syn::Item::Type(it) => &it.attrs,
+        syn::Item::Union(it) => &it.attrs,
+        syn::Item::Use(it) => &it.attrs,
+        _ => &[],
+    }
 }
 
 /// `blocking` on what is not a command.
@@ -621,7 +675,9 @@ fn task(
     };
     let constraints = parse_task_constraints(input, cx)?;
     let body_group = take_group(input, Delimiter::Brace, "`{` and the task body")?;
+    let body_end = body_group.close;
     let body = parse_block(body_group, cx);
+    cx.allow(&attrs, body_end);
     let span = name.span();
     Ok(Item::Task(Task {
         attrs,

@@ -656,3 +656,47 @@ fn conditions_with_errors_generate_nothing() {
         ]
     );
 }
+
+/// `#[allow(tdl::…)]` accepts the warning and never reaches the generated Rust (rustc would
+/// reject a lint of the unknown tool `tdl`); the Rust lints of a mixed attribute and the
+/// other attributes stay, on the task and on a Rust statement alike.
+#[test]
+fn tdl_lint_attributes_are_stripped_and_rust_ones_kept() {
+    let src = "exception Fault;\n\
+        #[allow(tdl::unhandled_exception, dead_code)]\n\
+        #[doc(alias = \"stop\")]\n\
+        #[allow(tdl::redundant_parallel)]\n\
+        goal g(x: u32) {\n\
+            spawn a() with parallel;\n\
+            #[allow(tdl::unhandled_exception, unused_variables)]\n\
+            let y = x;\n\
+            fail Fault;\n\
+        }\n\
+        command a() {}\n\
+        #[allow(tdl::fail_without_exception)]\n\
+        handler h() handles Fault for a { fail; }\n";
+    let (tokens, diags) = compile_str("t.tdl", src);
+    // The task's allow accepts the `fail`; the one of `let y` accepts nothing, and says so.
+    let left: Vec<(Option<crate::Lint>, usize)> =
+        diags.iter().map(|d| (d.lint(), d.line())).collect();
+    assert_eq!(left, [(Some(crate::Lint::UnusedAllow), 7)], "{diags:?}");
+    let out = pretty(&tokens.expect("no errors"));
+    assert!(!out.contains("tdl::unhandled_exception"), "{out}");
+    assert!(!out.contains("tdl::redundant_parallel"), "{out}");
+    assert!(!out.contains("tdl::fail_without_exception"), "{out}");
+    assert!(
+        has(&out, "#[allow(dead_code)] #[doc(alias = \"stop\")]"),
+        "{out}"
+    );
+    assert!(has(&out, "#[allow(unused_variables)] let y = x;"), "{out}");
+    // The macro's expansion too.
+    let expanded = crate::expand_macro(src.parse().expect("tokens")).to_string();
+    for lint in [
+        "unhandled_exception",
+        "redundant_parallel",
+        "fail_without_exception",
+    ] {
+        assert!(!expanded.contains(&format!("tdl :: {lint}")), "{expanded}");
+    }
+    assert!(expanded.contains("allow (dead_code)"), "{expanded}");
+}

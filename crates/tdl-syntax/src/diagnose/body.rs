@@ -15,7 +15,7 @@ use crate::ast::{
     Constraint, ConstraintKind, ConstraintStmt, ExternalName, Fail, Spawn, Tag, TagIndex, TagKind,
     Task, TaskKind, Then, When,
 };
-use crate::diagnostic::Diagnostic;
+use crate::diagnostic::{Diagnostic, Lint};
 use crate::hir::{
     BodyScope, Def, FileScope, IndexError, LoopId, Named, NodeUse, Refers, Resolution, Tdl, refers,
 };
@@ -151,7 +151,7 @@ impl<'a> Body<'_, 'a> {
         if let [only] = spawn.constraints.as_slice() {
             if matches!(only.kind, ConstraintKind::Parallel) {
                 diags.push(
-                    Diagnostic::warning(only.span, "`parallel` on a single spawn has no effect")
+                    Diagnostic::warning(Lint::RedundantParallel, only.span, "`parallel` on a single spawn has no effect")
                         .with_hint("spawns are parallel by default; use `parallel` on a `with (parallel) { ... }` group"),
                 );
             }
@@ -202,12 +202,20 @@ impl<'a> Body<'_, 'a> {
         match &fail.exception {
             Some(exc) => exception(self.file, exc, diags),
             None if self.task.kind == TaskKind::Handler => diags.push(
-                Diagnostic::warning(fail.span, "`fail;` without an exception in a handler")
-                    .with_hint("to pass the exception on to the next handler write `bypass;`"),
+                Diagnostic::warning(
+                    Lint::FailWithoutException,
+                    fail.span,
+                    "`fail;` without an exception in a handler",
+                )
+                .with_hint("to pass the exception on to the next handler write `bypass;`"),
             ),
             None => diags.push(
-                Diagnostic::warning(fail.span, "`fail` without an exception")
-                    .with_hint("name the exception so a handler can match it: `fail Exc;`"),
+                Diagnostic::warning(
+                    Lint::FailWithoutException,
+                    fail.span,
+                    "`fail` without an exception",
+                )
+                .with_hint("name the exception so a handler can match it: `fail Exc;`"),
             ),
         }
     }
@@ -229,7 +237,7 @@ impl<'a> Body<'_, 'a> {
         );
         if terminates && matches!(stmt.tag.kind, TagKind::Child | TagKind::Parent) {
             diags.push(
-                Diagnostic::warning(stmt.tag.span, "terminate constraint on the enclosing task")
+                Diagnostic::warning(Lint::TerminateSelf, stmt.tag.span, "terminate constraint on the enclosing task")
                     .with_hint("this terminates the task running this body; use `succeed;` or `fail Exc;` to end it"),
             );
         }

@@ -20,7 +20,7 @@ use proc_macro2::Ident;
 
 use super::flow::{Flow, Node};
 use crate::ast::{Ast, ConstraintKind, Item, Point, Task, TaskConstraintKind, TaskKind};
-use crate::diagnostic::Diagnostic;
+use crate::diagnostic::{Diagnostic, Lint};
 use crate::hir::{BodyScope, FileScope, Tdl};
 
 /// A spawn of a task: where its failures go next.
@@ -92,6 +92,7 @@ pub(super) fn check(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagnostic>
 
 fn diagnostic(file: &FileScope<'_>, exc: &Ident, ends: &[String]) -> Diagnostic {
     let mut diag = Diagnostic::warning(
+        Lint::UnhandledException,
         exc.span(),
         format!("no handler in this program handles `{exc}` raised here"),
     );

@@ -21,7 +21,7 @@ use super::graph;
 use crate::ast::{
     Ast, Block, Constraint, ConstraintKind, Else, Item, Spawn, Stmt, Task, TaskKind, Then, When,
 };
-use crate::diagnostic::Diagnostic;
+use crate::diagnostic::{Diagnostic, Lint};
 use crate::hir::{Def, FileScope, Tdl};
 
 /// Warns at each cycle of tasks that spawn one another on every path through their bodies.
@@ -94,7 +94,7 @@ fn diagnostic(
         }
         format!("{chain}, each on every path through its body: the recursion never ends")
     };
-    let mut diag = Diagnostic::warning(spawn.task.span(), message);
+    let mut diag = Diagnostic::warning(Lint::UnboundedRecursion, spawn.task.span(), message);
     for (task, spawn) in &steps[1..] {
         if file.is_local(task) {
             diag = diag.with_label(

@@ -12,7 +12,7 @@ use crate::ast::{
     Ast, Constraint, ConstraintKind, Count, Item, Priority, ResourceAmount, Task,
     TaskConstraintKind,
 };
-use crate::diagnostic::Diagnostic;
+use crate::diagnostic::{Diagnostic, Lint};
 use crate::hir::{FileScope, Tdl};
 
 /// Diagnoses the resources of `ast`, one file of the program `file` resolves.
@@ -96,6 +96,7 @@ fn task_uses(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
             };
             diags.push(
                 Diagnostic::warning(
+                    Lint::UnusedResourceOption,
                     c.span,
                     format!(
                         "`{word}` has no effect: `{}` uses no resource",

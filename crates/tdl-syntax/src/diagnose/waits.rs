@@ -14,7 +14,7 @@ use std::collections::{BTreeMap, VecDeque};
 
 use super::flow::{Flow, Node, Shape, blocked, gate};
 use crate::ast::{Facet, Tag, TagKind, TaskKind};
-use crate::diagnostic::Diagnostic;
+use crate::diagnostic::{Diagnostic, Lint};
 use crate::hir::{BodyScope, SpawnId};
 
 /// A spawn's event the wait needs, and how the search got there.
@@ -199,7 +199,7 @@ fn diagnostic(
         format!("this wait can never end: {story}, {why}")
     };
     let mut diag = if approximate {
-        Diagnostic::warning(wait.span, message)
+        Diagnostic::warning(Lint::WaitMayNotEnd, wait.span, message)
     } else {
         Diagnostic::error(wait.span, message)
     };

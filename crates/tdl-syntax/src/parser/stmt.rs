@@ -175,6 +175,15 @@ fn resource_op(cursor: Cursor<'_>) -> Option<ResourceOp> {
 }
 
 fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
+    if input.peek(Token![#]) {
+        let fork = input.fork();
+        if let Ok(attrs) = fork.call(syn::Attribute::parse_outer) {
+            if attrs.iter().any(crate::lint::is_tdl) {
+                input.advance_to(&fork);
+                return allowed_stmt(input, cx, &attrs);
+            }
+        }
+    }
     let mut labels = Vec::new();
     while input.peek(syn::Ident) && input.peek2(Token![:]) && !input.peek2(Token![::]) {
         labels.push(input.parse::<Ident>()?);
@@ -259,6 +268,49 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
         return Ok(it);
     }
     rust_stmt(input, cx).map(Stmt::Rust)
+}
+
+/// The statement after `attrs`, attributes of which some name TDL lints: those lints are allowed
+/// over the statement (docs/language.md, "Accepting a warning"). The other attributes stay on a
+/// Rust statement; a TDL statement takes none.
+fn allowed_stmt(input: ParseStream, cx: &mut Cx, attrs: &[syn::Attribute]) -> syn::Result<Stmt> {
+    let Some(first) = attrs.first() else {
+        return stmt(input, cx);
+    };
+    if input.is_empty() || input.peek(Token![;]) {
+        cx.hint = Some(
+            "an allow goes right before the statement whose warning it accepts, or on the task",
+        );
+        return Err(syn::Error::new(
+            syn::spanned::Spanned::span(first),
+            "expected a statement after `#[allow(tdl::…)]`",
+        ));
+    }
+    let start = input.cursor();
+    let mut it = stmt(input, cx)?;
+    let covered = tokens_between(start, input.cursor());
+    let to = crate::last_span(&covered).unwrap_or(first.pound_token.span);
+    cx.allow(attrs, to);
+    let rust = crate::lint::rust_attrs(attrs);
+    match &mut it {
+        Stmt::Rust(stmt) => {
+            let mut tokens: TokenStream = rust.into_iter().map(|(_, it)| it).collect();
+            tokens.extend(std::mem::take(&mut stmt.tokens));
+            stmt.tokens = tokens;
+        }
+        _ => {
+            if let Some((span, _)) = rust.first() {
+                cx.hint = Some(
+                    "a TDL statement takes no Rust attribute; only `#[allow(tdl::…)]` goes on it",
+                );
+                return Err(syn::Error::new(
+                    *span,
+                    "Rust attributes cannot go on a TDL statement",
+                ));
+            }
+        }
+    }
+    Ok(it)
 }
 
 /// True when the cursor is at `set IDENT =` (not `==`).
@@ -714,7 +766,9 @@ fn match_stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Match> {
 }
 
 fn arm(input: ParseStream, cx: &mut Cx) -> syn::Result<Arm> {
-    let _attrs = input.call(syn::Attribute::parse_outer)?;
+    // Only the TDL lints of an arm's attributes are kept: allowed over the arm.
+    let attrs = input.call(syn::Attribute::parse_outer)?;
+    let start = input.cursor();
     let pat = input.call(syn::Pat::parse_multi_with_leading_vert)?;
     let guard = if input.peek(Token![if]) {
         input.parse::<Token![if]>()?;
@@ -757,6 +811,9 @@ fn arm(input: ParseStream, cx: &mut Cx) -> syn::Result<Arm> {
             span,
         }
     };
+    if let Some(to) = crate::last_span(&tokens_between(start, input.cursor())) {
+        cx.allow(&attrs, to);
+    }
     Ok(Arm { pat, guard, body })
 }
 
