@@ -3,7 +3,9 @@
 //!
 //! - `tdl check FILE...` checks the files as one program (task and exception names resolve across
 //!   them) and prints every diagnostic (errors and warnings) as rustc does (`error: message`,
-//!   ` --> file:line:col`, the source with the span underlined, a hint), in colour on a terminal.
+//!   ` --> file:line:col`, the source with the span underlined, a hint), in colour on a terminal;
+//!   with `--quiet` (as `graph` and `doc`), the errors only and a line with how many warnings it
+//!   left out.
 //! - `tdl expand FILE` prints the generated Rust, formatted, or the diagnostics.
 //! - `tdl graph FILE...` prints the program's static structure as Graphviz `dot` or Mermaid
 //!   (`graph.rs`, over the structure `model.rs` finds); `tdl doc FILE... -o DIR` writes its HTML
@@ -68,6 +70,9 @@ enum Command {
         /// The `.tdl` files of the program.
         #[arg(required = true)]
         files: Vec<PathBuf>,
+        /// Print errors only, and how many warnings were not shown.
+        #[arg(short, long)]
+        quiet: bool,
     },
     /// Print the Rust code a file compiles to (or its diagnostics, exit 1).
     Expand {
@@ -98,6 +103,9 @@ enum Command {
         /// Output format: Graphviz `dot` (render with `dot -Tsvg`) or a Mermaid flowchart.
         #[arg(long, value_enum, default_value = "dot")]
         format: graph::Format,
+        /// Print the program's errors only, and how many warnings were not shown.
+        #[arg(short, long)]
+        quiet: bool,
     },
     /// Write HTML documentation of a program: `index.html` (tasks by kind, exceptions, the graph)
     /// and a page per task. The graph is an SVG when Graphviz's `dot` is on PATH, Mermaid text
@@ -109,6 +117,9 @@ enum Command {
         /// The directory to write into (created if needed).
         #[arg(short, long, value_name = "DIR")]
         out: PathBuf,
+        /// Print the program's errors only, and how many warnings were not shown.
+        #[arg(short, long)]
+        quiet: bool,
     },
     /// Explore every behaviour of a program within bounds and check its properties (no stuck
     /// state, no unhandled exception, every run ends, the trace checker, and `--property`);
@@ -229,8 +240,8 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
     let found = |clean: bool| if clean { 0 } else { 1 };
     let mut out = std::io::stdout().lock();
     match cli.command {
-        Command::Check { files } => {
-            let (rendered, clean) = compile_checked(&files, stdout_colour(), |_| Ok(()))?;
+        Command::Check { files, quiet } => {
+            let (rendered, clean) = compile_checked(&files, stdout_colour(), quiet, |_| Ok(()))?;
             out.write_all(rendered.as_bytes())?;
             Ok(found(clean.is_some()))
         }
@@ -238,8 +249,9 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
             files,
             task,
             format,
+            quiet,
         } => {
-            let text = with_checked_program(&files, |program| {
+            let text = with_checked_program(&files, quiet, |program| {
                 let program = model::Program::new(program);
                 let options = graph::Options {
                     task: task.as_deref(),
@@ -253,8 +265,12 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
             out.write_all(text.as_bytes())?;
             Ok(0)
         }
-        Command::Doc { files, out: dir } => {
-            let written = with_checked_program(&files, |program| {
+        Command::Doc {
+            files,
+            out: dir,
+            quiet,
+        } => {
+            let written = with_checked_program(&files, quiet, |program| {
                 let names: Vec<String> = program
                     .files()
                     .iter()
@@ -413,10 +429,11 @@ fn render(diagnostics: &[tdl_syntax::Diagnostic], name: &str, src: &str, colour:
 
 /// The files of a program compiled as one program, as `tdl check` does: every diagnostic rendered
 /// (files separated by a blank line), and what `then` makes of the resolved program when no file
-/// has an error.
+/// has an error. With `quiet`, warnings are left out, and a last line says how many.
 fn compile_checked<R>(
     files: &[PathBuf],
     colour: bool,
+    quiet: bool,
     then: impl FnOnce(&tdl_syntax::hir::Program<'_>) -> anyhow::Result<R>,
 ) -> anyhow::Result<(String, Option<R>)> {
     let sources = files.iter().map(read).collect::<anyhow::Result<Vec<_>>>()?;
@@ -427,16 +444,29 @@ fn compile_checked<R>(
         .collect();
     tdl_syntax::compile_program_with(&named, |program, results| {
         let mut clean = true;
+        let mut hidden = 0;
         let mut rendered = String::new();
-        for ((name, src), (_, diagnostics)) in named.iter().zip(&results) {
+        for ((name, src), (_, mut diagnostics)) in named.iter().zip(results) {
             clean &= !diagnostics.iter().any(tdl_syntax::Diagnostic::is_error);
+            if quiet {
+                let all = diagnostics.len();
+                diagnostics.retain(tdl_syntax::Diagnostic::is_error);
+                hidden += all - diagnostics.len();
+            }
             if diagnostics.is_empty() {
                 continue;
             }
             if !rendered.is_empty() {
                 rendered.push('\n');
             }
-            rendered.push_str(&render(diagnostics, name, src, colour));
+            rendered.push_str(&render(&diagnostics, name, src, colour));
+        }
+        if hidden > 0 {
+            if !rendered.is_empty() {
+                rendered.push('\n');
+            }
+            let s = if hidden == 1 { "" } else { "s" };
+            rendered.push_str(&format!("{hidden} warning{s} not shown (--quiet)\n"));
         }
         let made = if clean { Some(then(program)?) } else { None };
         Ok((rendered, made))
@@ -444,12 +474,13 @@ fn compile_checked<R>(
 }
 
 /// What `then` makes of a program for `graph` and `doc`, after printing its diagnostics on
-/// standard error; `None` when there are errors.
+/// standard error (errors only with `quiet`); `None` when there are errors.
 fn with_checked_program<R>(
     files: &[PathBuf],
+    quiet: bool,
     then: impl FnOnce(&tdl_syntax::hir::Program<'_>) -> anyhow::Result<R>,
 ) -> anyhow::Result<Option<R>> {
-    let (rendered, made) = compile_checked(files, stderr_colour(), then)?;
+    let (rendered, made) = compile_checked(files, stderr_colour(), quiet, then)?;
     eprint!("{rendered}");
     Ok(made)
 }

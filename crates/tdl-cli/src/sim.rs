@@ -20,8 +20,8 @@ use std::time::{Duration, Instant};
 use tdl_verify::{Builtin, Control, Options, SimOptions, SimProgress, SimReport};
 
 use crate::verify::{
-    builtin, finish, load_program, load_properties, print_counterexample, print_errors_and_notes,
-    print_unchecked, slug, stop_on_ctrl_c, write_trace,
+    builtin, finish, hide_notes, load_program, load_properties, print_counterexample,
+    print_errors_and_notes, print_hidden, print_unchecked, slug, stop_on_ctrl_c, write_trace,
 };
 
 /// The exit statuses of `tdl sim`, as `--help` gives them.
@@ -112,6 +112,10 @@ pub(crate) struct Args {
     /// Where the traces of failing runs are written.
     #[arg(long, value_name = "DIR", default_value = "target/tdl-sim")]
     out: PathBuf,
+    /// Do not print the notes on what the checker abstracts, only how many there are, as for
+    /// `tdl verify`.
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 /// Runs `tdl sim`: as [`crate::verify::run`] ([`EXIT_STATUS`]).
@@ -165,7 +169,10 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<u8> {
             &mut |p| display.update(p),
         )
     };
+    let mut report = report;
+    let hidden = hide_notes(args.quiet, &mut report.notes);
     print_report(&report, &args.out, out)?;
+    print_hidden(hidden, out)?;
     finish(report.status(), true, out)
 }
 

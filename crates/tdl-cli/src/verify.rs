@@ -105,6 +105,10 @@ pub(crate) struct Args {
     /// Where counterexample traces are written.
     #[arg(long, value_name = "DIR", default_value = "target/tdl-verify")]
     out: PathBuf,
+    /// Do not print the notes on what the checker abstracts, only how many there are; the
+    /// checker's errors are still printed.
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 /// Runs `tdl verify`: the exit status, 0 ok, 1 violated or 3 undecided, or an error (exit 2,
@@ -179,8 +183,35 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<u8> {
     if let Some(e) = failed {
         return Err(e);
     }
+    let mut report = report;
+    let hidden = hide_notes(args.quiet, &mut report.notes);
     print_report(&report, &written, out)?;
+    print_hidden(hidden, out)?;
     finish(report.status(), false, out)
+}
+
+/// With `--quiet`, takes the notes on what the checker abstracts out of a report (its errors
+/// stay): how many there were.
+pub(crate) fn hide_notes(quiet: bool, notes: &mut Vec<String>) -> usize {
+    if !quiet {
+        return 0;
+    }
+    std::mem::take(notes).len()
+}
+
+/// The one line that says how many notes `--quiet` hid, if any.
+pub(crate) fn print_hidden(hidden: usize, out: &mut impl Write) -> anyhow::Result<()> {
+    match hidden {
+        0 => Ok(()),
+        1 => Ok(writeln!(
+            out,
+            "1 note on what the checker abstracts not shown (--quiet)"
+        )?),
+        n => Ok(writeln!(
+            out,
+            "{n} notes on what the checker abstracts not shown (--quiet)"
+        )?),
+    }
 }
 
 /// Ends `tdl verify` or `tdl sim` (`sim`) with `status` ([`EXIT_STATUS`]) after a line that says it:

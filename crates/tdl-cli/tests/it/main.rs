@@ -175,6 +175,56 @@ fn check_prints_warnings_and_exits_0_on_every_warn_file() {
     }
 }
 
+/// Issue 48, point 4: `--quiet` prints the errors only, and one line with how many warnings it
+/// did not show, on `tdl check` (standard output) and on `tdl graph` and `tdl doc` (standard
+/// error, where their diagnostics go); the exit status is unchanged.
+#[test]
+fn quiet_prints_errors_only_and_counts_the_warnings_it_hides() {
+    let warn = "../tdl-syntax/test_data/warn/unhandled_exception.tdl";
+    let (code, out, _) = tdl(&["check", warn]);
+    assert_eq!(code, 0, "{out}");
+    let warnings = out.lines().filter(|l| l.starts_with("warning: ")).count();
+    assert_eq!(warnings, 3, "{out}");
+    let hidden = "3 warnings not shown (--quiet)\n";
+    assert_eq!(
+        tdl(&["check", "--quiet", warn]),
+        (0, hidden.to_owned(), String::new())
+    );
+
+    // Errors are still printed, warnings not.
+    let (code, out, _) = tdl(&["check", "-q", "../tdl-syntax/test_data/err/warnings.tdl"]);
+    assert_eq!(code, 1, "{out}");
+    let errors = out.lines().filter(|l| l.starts_with("error: ")).count();
+    assert_eq!(errors, 2, "{out}");
+    assert!(!out.contains("warning: "), "{out}");
+    assert!(out.ends_with("\n4 warnings not shown (--quiet)\n"), "{out}");
+
+    let (code, out, err) = tdl(&["graph", "--quiet", warn]);
+    assert_eq!((code, err.as_str()), (0, hidden), "{out}");
+    assert!(out.starts_with("digraph"), "{out}");
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("tdl-doc-quiet");
+    let dir = dir.display().to_string();
+    let (code, out, err) = tdl(&["doc", "--quiet", warn, "-o", &dir]);
+    assert_eq!((code, err.as_str()), (0, hidden), "{out}");
+
+    // A clean file says nothing, quiet or not.
+    assert_eq!(
+        tdl(&["check", "--quiet", "tests/data/good.tdl"]),
+        (0, String::new(), String::new())
+    );
+}
+
+/// Issue 48, point 4: every warning accepted at its site with `#[allow(tdl::…)]` leaves `tdl
+/// check` silent; an allow that accepts nothing is itself a warning.
+#[test]
+fn allowed_warnings_are_not_printed_and_unused_allows_are() {
+    let allowed = "../tdl-syntax/test_data/ok/allowed_warnings.tdl";
+    assert_eq!(tdl(&["check", allowed]), (0, String::new(), String::new()));
+    let (code, out, _) = tdl(&["check", "../tdl-syntax/test_data/warn/unused_allow.tdl"]);
+    assert_eq!(code, 0, "{out}");
+    assert_eq!(out.matches("accepts no warning").count(), 3, "{out}");
+}
+
 /// Issue 12, point 3: `tdl check` takes the files of one program and resolves names across them.
 #[test]
 fn check_resolves_names_across_the_files_of_a_program() {

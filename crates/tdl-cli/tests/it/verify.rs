@@ -433,3 +433,35 @@ fn sigint_stops_the_search_with_what_was_found() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--quiet` leaves out the notes on what the checker abstracts and says how many there were,
+/// in `tdl verify` and `tdl sim` alike; the verdict and the exit status are unchanged.
+#[test]
+fn quiet_leaves_out_the_notes_and_counts_them() {
+    let (file, _) = program(
+        "quiet",
+        "command step() {}\ngoal main() {\n    raise (format!(\"done/{}\", 1));\n    spawn step();\n}\n",
+    );
+    for command in ["verify", "sim"] {
+        let dir = out_dir(&format!("quiet-{command}"));
+        let (code, out, _) = tdl(&[command, &file, "--out", &dir]);
+        assert_eq!(code, 0, "{out}");
+        assert!(out.contains("what the checker abstracts here:"), "{out}");
+        assert!(
+            out.contains("a raised event's name is computed in Rust"),
+            "{out}"
+        );
+        let (code, quiet, _) = tdl(&[command, "--quiet", &file, "--out", &dir]);
+        assert_eq!(code, 0, "{quiet}");
+        assert!(
+            !quiet.contains("what the checker abstracts here"),
+            "{quiet}"
+        );
+        assert!(!quiet.contains("computed in Rust"), "{quiet}");
+        assert!(
+            quiet.contains("\n2 notes on what the checker abstracts not shown (--quiet)\n"),
+            "{quiet}"
+        );
+        assert_eq!(last_line(&quiet), last_line(&out));
+    }
+}
