@@ -235,6 +235,7 @@ mod tests {
             };
             let ok = types.iter().any(|t| match *t {
                 "integer" => value.is_u64() || value.is_i64(),
+                "number" => value.is_number(),
                 "string" => value.is_string(),
                 "boolean" => value.is_boolean(),
                 "null" => value.is_null(),
