@@ -228,6 +228,15 @@ class TaskContext:
         thread."""
         self._agent._from_any_thread(self._agent._heartbeat, self._key)
 
+    def set_state(self, var: str, value: Json) -> None:
+        """Sets the state variable ``var`` of the executive's run (docs/semantics.md, "State and
+        conditions"): ``True``/``False``, an ``int``, a ``float``, a ``str``, or ``None`` for
+        unknown. The executive's conditions that read it answer; a value of another type than
+        the variable's is refused there, with a warning in its trace. Safe from any thread."""
+        if isinstance(value, float) and value != value:
+            raise ValueError("a state value is finite: use None for unknown")
+        self._agent._from_any_thread(self._agent._set_state, self._key, var, value)
+
 
 @dataclass
 class _Running:
@@ -454,6 +463,15 @@ class Agent:
 
     def _from_any_thread(self, f: Callable[..., None], *args: Any) -> None:
         loop = self._loop
+        try:
+            running: Optional[asyncio.AbstractEventLoop] = asyncio.get_running_loop()
+        except RuntimeError:
+            running = None
+        if running is not None and running is loop:
+            # Already on the loop (an async body): at once, so that what the body sends keeps
+            # its order with the body's end.
+            f(*args)
+            return
         if loop is not None and not loop.is_closed():
             try:
                 loop.call_soon_threadsafe(f, *args)
@@ -742,6 +760,11 @@ class Agent:
         r = self._running.get(key)
         if r is not None:
             self._send(key, r, wire.heartbeat())
+
+    def _set_state(self, key: Tuple[str, int], var: str, value: Json) -> None:
+        r = self._running.get(key)
+        if r is not None:
+            self._send(key, r, wire.set_state(var, value))
 
     def _end(self, key: Tuple[str, int]) -> None:
         r = self._running.pop(key, None)

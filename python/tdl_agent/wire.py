@@ -168,6 +168,13 @@ def heartbeat() -> Dict[str, Json]:
     return {"kind": "heartbeat"}
 
 
+def set_state(var: str, value: Json) -> Dict[str, Json]:
+    """Agent to executive: the body sets the state variable ``var`` of the executive's run to
+    ``value`` (``None`` for unknown; a ``float`` for a ``float`` variable, an ``int`` for an
+    ``int`` one)."""
+    return {"kind": "set_state", "var": var, "value": value}
+
+
 def done(value: Json) -> Dict[str, Json]:
     """Agent to executive: the body ended with ``value``."""
     return {"kind": "done", "result": {"Ok": value}}

@@ -56,6 +56,15 @@ class Encoding(unittest.TestCase):
         )
         self.assertEqual(wire.encode(1, 4, wire.cancelled()), b'{"task":1,"seq":4,"body":{"kind":"cancelled"}}')
         self.assertEqual(wire.encode(1, 5, wire.heartbeat()), b'{"task":1,"seq":5,"body":{"kind":"heartbeat"}}')
+        # As serde writes ToExec::SetState: the value itself (null for unknown).
+        self.assertEqual(
+            wire.encode(1, 6, wire.set_state("battery", 90.5)),
+            b'{"task":1,"seq":6,"body":{"kind":"set_state","var":"battery","value":90.5}}',
+        )
+        self.assertEqual(
+            wire.encode(1, 7, wire.set_state("range", None)),
+            b'{"task":1,"seq":7,"body":{"kind":"set_state","var":"range","value":null}}',
+        )
 
     def test_values_json_cannot_say_are_refused(self) -> None:
         with self.assertRaises(ValueError):
@@ -162,6 +171,23 @@ class ExactlyOnce(unittest.TestCase):
 
     def settle(self) -> None:
         self.loop.run_until_complete(asyncio.sleep(0.05))
+
+    def test_a_body_sets_state_in_order_with_its_other_messages(self) -> None:
+        async def sense(ctx: tdl_agent.TaskContext, _: Any) -> None:
+            ctx.set_state("battery", 20.0)
+            ctx.set_state("battery", 90.0)
+            with self.assertRaises(ValueError):
+                ctx.set_state("battery", float("nan"))
+
+        self.agent.command("sense", sense)
+        self.deliver(2, 1, wire.start(6, "sense", "command", None))
+        self.settle()
+        self.assertEqual(self.out.sent, [
+            (2, 1, {"kind": "started"}),
+            (2, 2, {"kind": "set_state", "var": "battery", "value": 20.0}),
+            (2, 3, {"kind": "set_state", "var": "battery", "value": 90.0}),
+            (2, 4, {"kind": "done", "result": {"Ok": None}}),
+        ])
 
     def test_a_duplicated_start_runs_the_body_once(self) -> None:
         self.deliver(1, 1, wire.start(5, "slow", "command", 1))

@@ -222,6 +222,19 @@ impl RemoteCtx {
         self.link.send(ToExec::Heartbeat).await;
     }
 
+    /// Sets a state variable of the executive's run (docs/semantics.md, "State and conditions"):
+    /// an input to its engine, recorded in its trace with the value, which the conditions that
+    /// read it answer. A variable the run has not declared is declared with the value's type; a
+    /// value of another type than the variable's is refused there, with a warning in its trace.
+    pub async fn set_state(&self, var: &str, value: impl Into<tcm::StateValue>) {
+        self.link
+            .send(ToExec::SetState {
+                var: var.to_string(),
+                value: value.into(),
+            })
+            .await;
+    }
+
     /// Starts building the spawn of `child` under this body's node.
     pub fn spawn(&self, child: Child) -> RemoteSpawn<'_> {
         RemoteSpawn {

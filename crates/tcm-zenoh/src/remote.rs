@@ -451,6 +451,15 @@ async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
                     Incoming::Msg(ToExec::Heartbeat) => {
                         hb = opts.heartbeat.map(|d| Instant::now() + d);
                     }
+                    Incoming::Msg(ToExec::SetState { var, value }) => {
+                        if let Err(e) = ctx.set_state_named(&var, value) {
+                            let text = format!(
+                                "agent {agent} set state variable `{var}` for remote task {task}: {e}"
+                            );
+                            tracing::warn!("{text}");
+                            let _ = ctx.warn(text);
+                        }
+                    }
                     Incoming::Msg(ToExec::Done { result }) => {
                         link.ended = true;
                         if link.cancelled {

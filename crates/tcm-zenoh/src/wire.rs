@@ -133,6 +133,9 @@ pub(crate) enum ToExec {
     Cancelled,
     /// A request of a goal's body to the executive's tree.
     Call { call: u64, op: Op },
+    /// The body sets a state variable of the executive's run (docs/semantics.md, "State and
+    /// conditions"); `value` is the value itself in JSON (`null` for unknown).
+    SetState { var: String, value: tcm::StateValue },
 }
 
 impl ToAgent {
@@ -155,6 +158,7 @@ impl ToExec {
             ToExec::Done { .. } => "done",
             ToExec::Cancelled => "cancelled",
             ToExec::Call { .. } => "call",
+            ToExec::SetState { .. } => "set_state",
         }
     }
 }

@@ -160,6 +160,14 @@ impl Ctx {
         })
     }
 
+    /// Sets the variable `name` (declared by the program or the runtime; an undeclared one is
+    /// declared with the value's type): for code that names variables at run time, as a
+    /// distribution layer does for an agent's sets.
+    pub fn set_state_named(&self, name: &str, value: impl Into<StateValue>) -> Result<(), Error> {
+        let value = value.into();
+        self.with_engine(|e, now| set_by_name(e, now, name, value))
+    }
+
     /// The value of the variable `name`, if it is declared.
     pub fn state(&self, name: &str) -> Result<Option<StateValue>, Error> {
         self.with_engine(|e, _| {

@@ -526,3 +526,46 @@ fn the_python_modules_unit_tests_pass() {
     // unittest reports on stderr: "Ran N tests", then "OK".
     assert!(err.contains("\nOK"), "{err}");
 }
+
+/// A Python body sets a state variable of the executive's run; a step waits on a condition over
+/// it (docs/semantics.md, "State and conditions").
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_python_body_sets_a_state_variable_a_condition_waits_on() {
+    let Some(python) = python() else { return };
+    bounded(async {
+        let net = Net::new("py-state").await;
+        let agent = PythonAgent::join(&python, &net, "py", "sense").await;
+        let exec = net.exec.clone();
+        let battery = tcm::StateVar::new("battery", tcm::StateType::Float, 50.0);
+        let rt = Runtime::new().state(battery.clone());
+        let main = Task::goal("main", move |ctx| async move {
+            let charged = ctx.condition(
+                &[battery],
+                tcm::Expr::bin(
+                    tcm::BinOp::Gt,
+                    tcm::Expr::var("battery"),
+                    tcm::Expr::lit(80.0),
+                ),
+            )?;
+            ctx.spawn(exec.remote("py", "sense", [20.0, 90.0]).task())
+                .start()?;
+            ctx.spawn(Task::command("drive", |_| async { Ok(()) }))
+                .with(tcm::Constraint::disable(
+                    tcm::Facet::Handling,
+                    tcm::When::Condition(charged),
+                ))
+                .start()?;
+            Ok(())
+        });
+        let (report, trace) = run_checked(rt, main).await;
+        assert!(report.is_clean(), "{report}");
+        agent.expect("start sense", READY).await;
+        let story = untimed(&trace);
+        assert_eq!(
+            tcm::testing::only(&story, &["set battery"]),
+            ["set battery = 20.0", "set battery = 90.0"]
+        );
+        assert_order(&story, &["set battery = 90.0", "drive handling active"]);
+    })
+    .await;
+}

@@ -71,6 +71,13 @@ def main(argv: List[str]) -> int:
         say(f"start grasp {ctx.node}")
         raise NoGrasp(x)
 
+    @agent.command("sense")
+    def sense(ctx: tdl_agent.TaskContext, values: List[float]) -> None:
+        say(f"start sense {ctx.node}")
+        for v in values:
+            ctx.set_state("battery", v)
+            time.sleep(0.02)
+
     @agent.command("crash")
     def crash(ctx: tdl_agent.TaskContext, _: Any) -> None:
         raise KeyError("nothing here")
