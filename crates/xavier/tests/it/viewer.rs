@@ -221,7 +221,15 @@ fn the_viewer_shows_a_mission_trace_why_a_node_waits_and_replays_it() -> anyhow:
                 Duration::from_secs(10),
             )
             .await?;
-        let failed_moves = stats[4].as_str().unwrap_or_default();
+        // The column headed `failed` (columns: task, kind, nodes, ok, skipped, failed, …).
+        let failed_at = b
+            .eval(
+                "[...document.querySelectorAll('#tab-stats th')].findIndex(h => h.textContent === 'failed')",
+            )
+            .await?
+            .as_u64()
+            .unwrap_or(5) as usize;
+        let failed_moves = stats[failed_at].as_str().unwrap_or_default();
         ensure!(failed_moves == "1", "guardedMove's row: {stats}");
 
         // The event list, filtered by name and time range.
