@@ -74,3 +74,38 @@ fn a_step_held_by_nothing_is_found_starting_while_the_lander_is_unhealthy() {
     );
     assert!(cx.trace_violations.is_empty(), "{:?}", cx.trace_violations);
 }
+
+fn simulate(src: String, name: String, seeds: std::ops::Range<u64>) -> tdl_verify::SimReport {
+    let program = Program::load(&[(name, src)]).expect("the plan loads");
+    tdl_verify::simulate(
+        &program,
+        "day",
+        &tdl_verify::SimOptions::default(),
+        &properties(),
+        None,
+        seeds,
+        &Control::default(),
+        &mut |_| {},
+    )
+}
+
+/// `tdl sim` draws the outside's changes from the environment declaration: the day passes 300
+/// seeded runs; without the pause, some seed starts a step while the charge is low.
+#[test]
+fn seeded_runs_draw_the_environment_and_find_the_dropped_pause() {
+    let (name, src) = source();
+    let report = simulate(src.clone(), name.clone(), 0..300);
+    assert_eq!(report.runs, 300);
+    assert!(report.ok(), "{:#?}", report.results);
+    assert!(report.finished > 200, "{report:#?}");
+
+    let pause = " with pause while battery < 20.0 || temperature > 40.0";
+    let report = simulate(src.replace(pause, ""), name, 0..300);
+    let broken: u64 = report
+        .results
+        .iter()
+        .filter(|r| r.property.starts_with("never active("))
+        .map(|r| r.failures)
+        .sum();
+    assert!(broken > 0, "{:#?}", report.results);
+}

@@ -538,6 +538,11 @@ fn walk(
     let checks = |b: Builtin| cx.opts.checks(b);
     // A run `every run ends` is not checked on ends at the bound, as a run cut by one.
     let mut cut = s.cut.clone();
+    // Waiting on the outside, which has used up what its declaration allows: the run is not
+    // stuck (as in the search), it ends there, counted with the runs a bound ended.
+    if !finished && cut.is_none() && s.fault.is_none() {
+        cut = s.held_by_environment(cx);
+    }
     if !checks(Builtin::RunsEnd) {
         if let Some(why) = too_long.take() {
             cut.get_or_insert(why);
