@@ -1,3 +1,6 @@
+//! Tests of the expression language: three-valued logic, numbers, type errors, the canonical
+//! text, the JSON form, and properties over generated expressions.
+
 use crate::{BinOp, Expr, ExprError, Type, Value};
 use proptest::prelude::*;
 
