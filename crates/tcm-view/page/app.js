@@ -525,6 +525,9 @@ async function loadRuns() {
 }
 
 function open(id) {
+  // Two lists of runs fetched at once (a slow first one, then the periodic one) both find no
+  // run open: the second must not reset the page the first opened.
+  if (S.runId === id && S.ws) return;
   if (S.ws) { S.ws.onclose = null; S.ws.close(); }
   S.runId = id; reset(); S.selected = null;
   history.replaceState(null, '', '#run=' + id);

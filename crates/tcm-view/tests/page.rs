@@ -29,8 +29,30 @@ async fn mission() -> Vec<TraceEvent> {
 const NODES: &str =
     "JSON.stringify(S.nodes.map((n) => n && [n.n, n.p, n.k, n.name, n.m, n.agent, n.kids]))";
 
+/// Clicks `selector` from the page's own script: a row of the tree is clicked where it is now,
+/// even if the page's layout moved since the browser last measured it (the lanes of the state
+/// variables are drawn once the snapshot came).
+async fn js_click(b: &mut Browser, selector: &str) -> anyhow::Result<()> {
+    let clicked = b
+        .eval(&format!(
+            "(() => {{ const e = document.querySelector('{selector}'); if (e) e.click(); return e !== null; }})()"
+        ))
+        .await?;
+    anyhow::ensure!(clicked == true, "nothing matches {selector}");
+    Ok(())
+}
+
+/// The browser tests of this file, one at a time: several Chromium instances drawing at once on a
+/// loaded machine made their pages miss their own timers.
+fn one_browser_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    static ONE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    ONE.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 #[test]
 fn a_live_page_builds_the_rows_a_page_reads_from_the_snapshot() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
     let chromium =
         test_support::ensure_tool("chromium", "chromium").map_err(|e| anyhow::anyhow!(e))?;
     let trace = tokio::runtime::Builder::new_current_thread()
@@ -163,6 +185,7 @@ fn set_cursor(seq: u64) -> String {
 
 #[test]
 fn a_monitors_many_activations_fold_into_one_row_with_their_count() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
     let (viewer, records) = serve_patrol()?;
     let url = viewer.url();
     tokio::runtime::Builder::new_current_thread()
@@ -185,7 +208,7 @@ fn a_monitors_many_activations_fold_into_one_row_with_their_count() -> anyhow::R
             let listed = b
                 .wait_for(
                     &format!("(() => {{ const r = {ROWS}; return r.filter((n) => n === 'ACT-tick').length === 10 ? r : null; }})()"),
-                    Duration::from_secs(5),
+                    Duration::from_secs(15),
                 )
                 .await?;
             ensure!(
@@ -196,7 +219,7 @@ fn a_monitors_many_activations_fold_into_one_row_with_their_count() -> anyhow::R
             b.click("#tree .row[data-group]").await?;
             b.wait_for(
                 &format!("!{ROWS}.includes('ACT-tick')"),
-                Duration::from_secs(5),
+                Duration::from_secs(15),
             )
             .await?;
 
@@ -208,7 +231,7 @@ fn a_monitors_many_activations_fold_into_one_row_with_their_count() -> anyhow::R
             b.eval(&set_cursor(second)).await?;
             b.wait_for(
                 &format!("{ROWS}.includes('ACT-tick ×2')"),
-                Duration::from_secs(5),
+                Duration::from_secs(15),
             )
             .await?;
 
@@ -220,7 +243,7 @@ fn a_monitors_many_activations_fold_into_one_row_with_their_count() -> anyhow::R
             b.eval(&format!("select({fifth}, true)")).await?;
             b.wait_for(
                 &format!("!!document.querySelector('#tree .row.sel[data-n=\"{fifth}\"]')"),
-                Duration::from_secs(5),
+                Duration::from_secs(15),
             )
             .await?;
             anyhow::Ok(())
@@ -243,7 +266,7 @@ async fn search(b: &mut Browser, text: &str) -> anyhow::Result<String> {
                 "S.query === {text}.trim() && !S.dirty \
                  && [document.getElementById('matches').textContent]"
             ),
-            Duration::from_secs(5),
+            Duration::from_secs(15),
         )
         .await?;
     Ok(said[0].as_str().unwrap_or_default().to_string())
@@ -251,6 +274,7 @@ async fn search(b: &mut Browser, text: &str) -> anyhow::Result<String> {
 
 #[test]
 fn search_matches_names_and_paths_when_asked() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
     let (viewer, records) = serve_patrol()?;
     let url = viewer.url();
     tokio::runtime::Builder::new_current_thread()
@@ -282,7 +306,7 @@ fn search_matches_names_and_paths_when_asked() -> anyhow::Result<()> {
                 .await?;
             b.wait_for(
                 "(() => { const r = document.querySelector('#tree .row.sel .name'); return r && r.textContent === 'probe'; })()",
-                Duration::from_secs(5),
+                Duration::from_secs(15),
             )
             .await?;
 
@@ -305,6 +329,7 @@ fn detail(key: &str) -> String {
 
 #[test]
 fn a_nodes_details_are_those_at_the_cursor() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
     let (viewer, records) = serve_patrol()?;
     let url = viewer.url();
     tokio::runtime::Builder::new_current_thread()
@@ -326,9 +351,15 @@ fn a_nodes_details_are_those_at_the_cursor() -> anyhow::Result<()> {
                     .await?
                     == "watch"
             );
-            b.click(watch).await?;
+            js_click(&mut b, watch).await?;
             let at_first = format!("{0} === '1 · 0' && {0}", detail("activations · triggers"));
-            b.wait_for(&at_first, Duration::from_secs(5)).await?;
+            if let Err(e) = b.wait_for(&at_first, Duration::from_secs(15)).await {
+                let d = b.eval(&detail("activations · triggers")).await?;
+                let tab = b
+                    .eval("document.getElementById('tab-node').innerText.slice(0, 200)")
+                    .await?;
+                anyhow::bail!("{e}: the detail reads {d}; the node tab: {tab}");
+            }
             ensure!(b.eval(&detail("children")).await? == "1");
             b.screenshot(&shots().join("patrol-first-activation.png"))
                 .await?;
@@ -339,7 +370,7 @@ fn a_nodes_details_are_those_at_the_cursor() -> anyhow::Result<()> {
                 "{0}.startsWith('3 · ') && {0}",
                 detail("activations · triggers")
             );
-            b.wait_for(&at_end, Duration::from_secs(5)).await?;
+            b.wait_for(&at_end, Duration::from_secs(15)).await?;
             ensure!(b.eval(&detail("children")).await? == "3");
             anyhow::Ok(())
         })?;
@@ -349,6 +380,7 @@ fn a_nodes_details_are_those_at_the_cursor() -> anyhow::Result<()> {
 
 #[test]
 fn the_exceptions_tab_tells_a_failure_a_waiting_parent_took() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
     let (viewer, records) = serve_patrol()?;
     let url = viewer.url();
     tokio::runtime::Builder::new_current_thread()
@@ -381,7 +413,7 @@ fn the_exceptions_tab_tells_a_failure_a_waiting_parent_took() -> anyhow::Result<
             b.click("#tab-exceptions .exc .steps a.node").await?;
             b.wait_for(
                 "(() => { const r = document.querySelector('#tree .row.sel .name'); return r && r.textContent === 'fetch'; })()",
-                Duration::from_secs(5),
+                Duration::from_secs(15),
             )
             .await?;
             anyhow::Ok(())
@@ -411,6 +443,7 @@ async fn skipping() -> Vec<TraceEvent> {
 
 #[test]
 fn a_skipped_node_looks_skipped() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
     let trace = paused(skipping())?;
     let mut model = RunModel::new("skipping.jsonl");
     for ev in &trace {
@@ -451,11 +484,14 @@ fn a_skipped_node_looks_skipped() -> anyhow::Result<()> {
             b.wait_for(&format!("S.finished && {}", row(dock)), Duration::from_secs(20))
                 .await?;
             let undock = dock + 1;
-            ensure!(
-                b.eval(&look(dock)).await? == serde_json::json!([true, "sq s-skipped", "skipped"]),
-                "dock: {}",
-                b.eval(&look(dock)).await?
+            // Drawn once the page has redrawn after the last record.
+            let dock_look = format!(
+                "JSON.stringify({}) === JSON.stringify([true, 'sq s-skipped', 'skipped'])",
+                look(dock)
             );
+            if b.wait_for(&dock_look, Duration::from_secs(15)).await.is_err() {
+                anyhow::bail!("dock: {}", b.eval(&look(dock)).await?);
+            }
             ensure!(
                 b.eval(&look(undock)).await? == serde_json::json!([false, "sq s-completed", ""]),
                 "undock: {}",
@@ -466,15 +502,22 @@ fn a_skipped_node_looks_skipped() -> anyhow::Result<()> {
             b.eval(&set_cursor(skipped.seq - 1)).await?;
             b.wait_for(
                 &format!("{0} && !{0}.classList.contains('skipped')", row(dock)),
-                Duration::from_secs(5),
+                Duration::from_secs(15),
             )
             .await?;
             // Its history says so.
             b.eval(&set_cursor(1_000_000)).await?;
-            b.click(&format!("#tree .row[data-n=\"{dock}\"] .name")).await?;
+            // The row as drawn at that cursor (a pooled row keeps the number it last showed).
+            let dock_row = format!("#tree .row:not([hidden])[data-n=\"{dock}\"] .name");
+            b.wait_for(
+                &format!("document.querySelector('{dock_row}') !== null"),
+                Duration::from_secs(15),
+            )
+            .await?;
+            js_click(&mut b, &dock_row).await?;
             b.wait_for(
                 "[...document.querySelectorAll('#tab-node td')].some((d) => d.textContent.startsWith('skipped'))",
-                Duration::from_secs(5),
+                Duration::from_secs(15),
             )
             .await?;
             anyhow::Ok(())
@@ -489,6 +532,7 @@ const BATTERY: &str = "(() => { const d = document.querySelector('#statelabels [
 
 #[test]
 fn state_variables_show_their_value_at_the_cursor_and_a_wait_names_them() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
     let trace = paused(common::powered())?;
     let mut model = RunModel::new("powered.jsonl");
     for ev in &trace {
@@ -518,7 +562,7 @@ fn state_variables_show_their_value_at_the_cursor_and_a_wait_names_them() -> any
                     "(() => { const l = [...document.querySelectorAll('#statelabels .lane')]; \
                      return l.length === 5 && !document.getElementById('states').hidden \
                      && l.map((d) => d.dataset.var); })()",
-                    Duration::from_secs(5),
+                    Duration::from_secs(15),
                 )
                 .await?;
             ensure!(
@@ -530,7 +574,7 @@ fn state_variables_show_their_value_at_the_cursor_and_a_wait_names_them() -> any
             let value = b
                 .wait_for(
                     &format!("(() => {{ const v = {BATTERY}; return v && v[0] === 'false' && v; }})()"),
-                    Duration::from_secs(5),
+                    Duration::from_secs(15),
                 )
                 .await?;
             ensure!(value == serde_json::json!(["false", "since 2.000 s"]), "at 3 s: {value}");
@@ -539,7 +583,7 @@ fn state_variables_show_their_value_at_the_cursor_and_a_wait_names_them() -> any
             let value = b
                 .wait_for(
                     &format!("(() => {{ const v = {BATTERY}; return v && v[0] === 'true' && v; }})()"),
-                    Duration::from_secs(5),
+                    Duration::from_secs(15),
                 )
                 .await?;
             ensure!(value == serde_json::json!(["true", "since 5.000 s"]), "at 6 s: {value}");
@@ -555,7 +599,7 @@ fn state_variables_show_their_value_at_the_cursor_and_a_wait_names_them() -> any
                 .wait_for(
                     "(() => { const w = document.getElementById('waits'); \
                      return w && w.textContent.includes('waits for') && w.textContent; })()",
-                    Duration::from_secs(5),
+                    Duration::from_secs(15),
                 )
                 .await?;
             let waits = waits.as_str().unwrap_or_default();
@@ -579,7 +623,7 @@ fn state_variables_show_their_value_at_the_cursor_and_a_wait_names_them() -> any
                 .wait_for(
                     "(() => { const r = [...document.querySelectorAll('#tab-stats tr')].find((r) => r.cells[0].textContent === 'dock'); \
                      return r && [...r.cells].slice(3, 5).map((c) => c.textContent); })()",
-                    Duration::from_secs(5),
+                    Duration::from_secs(15),
                 )
                 .await?;
             ensure!(dock == serde_json::json!(["0", "1"]), "dock's ok and skipped: {dock}");
@@ -591,6 +635,7 @@ fn state_variables_show_their_value_at_the_cursor_and_a_wait_names_them() -> any
 
 #[test]
 fn a_live_page_builds_the_state_lanes_a_page_reads_from_the_snapshot() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
     let chromium =
         test_support::ensure_tool("chromium", "chromium").map_err(|e| anyhow::anyhow!(e))?;
     let trace = paused(common::powered())?;

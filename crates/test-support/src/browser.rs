@@ -58,6 +58,12 @@ impl Browser {
                 "--disable-dev-shm-usage",
                 "--no-first-run",
                 "--hide-scrollbars",
+                // A page under test keeps its timers and animation frames running when the
+                // machine is loaded and several browsers run at once (Chromium otherwise slows
+                // or stops them for pages it deems in the background).
+                "--disable-background-timer-throttling",
+                "--disable-backgrounding-occluded-windows",
+                "--disable-renderer-backgrounding",
                 "--remote-debugging-address=127.0.0.1",
                 "--remote-debugging-port=0",
             ])
