@@ -91,6 +91,7 @@ pub(crate) mod node;
 mod progress;
 mod report;
 mod resource;
+mod start;
 mod state;
 mod terminate;
 mod timers;

@@ -4,7 +4,7 @@
 //! handling completes (or its after-wiretaps start, or its handler bypasses), the `transition`
 //! fires the waiters left by constraints (`arm.rs`), and `settle` drains the work queue: each
 //! queued `progress` moves one node as far as its constraints allow, then the oldest ready node
-//! starts (`start`). Timers fire here too (`handle_timeout`).
+//! starts (`start`, in `start.rs`). Timers fire here too (`handle_timeout`).
 //!
 //! A node's progress, in the order `progress` tries it:
 //! 1. expansion, then execution, become enabled once nothing blocks them and the parent's same
@@ -15,7 +15,7 @@
 //! 4. a terminating node is terminated once its execution completed and its children are;
 //! 5. a completed node with no children left is reclaimed, unless persistent.
 
-use super::node::{Link, Node, Payload, WaitKind, Waiters};
+use super::node::{Link, Node, WaitKind, Waiters};
 use super::timers::TimerKind;
 use super::{ChildRun, Effect, Engine, EngineError, Job, MAX_RUNS, WatchOutcome, Work};
 use crate::NodeKind;
@@ -554,123 +554,6 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 }
             }
         }
-    }
-
-    fn start(&mut self, id: NodeId) {
-        let Some(n) = self.nodes.get_mut(id) else {
-            return;
-        };
-        if n.state(Facet::Handling) != State::Enabled || !n.alive() {
-            return;
-        }
-        if n.suspended {
-            n.parked = true;
-            // A grant it could not use yet goes back; it asks again once unsuspended.
-            if n.grant() == super::resource::Grant::Held {
-                self.release_resources(id);
-            }
-            return;
-        }
-        // Most nodes have no cold part (no resources, not a monitor, no wiretap checks made) and
-        // most runs no wiretap: then none of `start_checks` applies.
-        let (n, is_monitor) = if n.cold.is_none() && self.taps.is_empty() {
-            (n, false)
-        } else {
-            let Some(is_monitor) = self.start_checks(id) else {
-                return;
-            };
-            let Some(n) = self.nodes.get_mut(id) else {
-                return;
-            };
-            (n, is_monitor)
-        };
-        let payload = n.action.take();
-        if payload.is_none() && !is_monitor {
-            return;
-        }
-        let invariants = !n.invariant_conditions().is_empty();
-        let expands = n.kind.expands();
-        if !is_monitor {
-            self.running += 1;
-            n.holding = self.hold_default;
-        }
-        self.transition(id, Facet::Handling, State::Active);
-        // Figure 3: the expansion (goals) or execution (commands) of the node and of every ancestor
-        // is active once some node of the right kind in the subtree is active.
-        let facet = if expands {
-            Facet::Expansion
-        } else {
-            Facet::Execution
-        };
-        let mut cur = Some(id);
-        while let Some(c) = cur {
-            let n = self.node(c);
-            if n.kind == NodeKind::Root || n.state(facet) != State::Enabled {
-                break;
-            }
-            let parent = n.parent;
-            self.transition(c, facet, State::Active);
-            cur = parent;
-        }
-        match payload {
-            Some(Payload::Action(action)) => {
-                self.effects.push_back(Effect::Start { node: id, action })
-            }
-            Some(Payload::Invoke(body, purpose)) => {
-                self.effects.push_back(Effect::Invoke {
-                    job: Job::from(id),
-                    body,
-                    purpose,
-                });
-            }
-            None => self.monitor_started(id),
-        }
-        if invariants {
-            self.check_invariants(id);
-        }
-    }
-
-    /// The node's turn came while a `skip if` condition holds: it completes without running, its
-    /// handling going from enabled to completed (docs/semantics.md, "State and conditions").
-    fn skip(&mut self, id: NodeId) {
-        let display = self.node(id).display;
-        emit!(self, TraceKind::Skipped { node: display });
-        let n = self.node_mut(id);
-        n.cold_mut().skipped = true;
-        n.action = None;
-        self.transition(id, Facet::Handling, State::Completed);
-        self.bury_reservations(id);
-        self.queue_progress(id);
-    }
-
-    /// What must happen before a node with a cold part starts: its `skip if` conditions are
-    /// read (it is skipped if one holds), its resources are granted
-    /// (docs/semantics.md, "Resources": it waits, enabled, until then, or fails if it is refused),
-    /// and its "before" wiretaps approve it (it stays enabled until they report,
-    /// `tap_finished`). Returns whether it is a monitor, or `None` if it does not start now.
-    fn start_checks(&mut self, id: NodeId) -> Option<bool> {
-        let n = self.nodes.get(id)?;
-        if !n.skip_conditions().is_empty() && self.skips(id) {
-            self.skip(id);
-            return None;
-        }
-        let n = self.nodes.get(id)?;
-        if n.uses().is_some()
-            && n.grant() != super::resource::Grant::Held
-            && !self.request_resources(id)
-        {
-            return None;
-        }
-        let n = self.nodes.get_mut(id)?;
-        let is_monitor = n.monitor().is_some();
-        let tapped = n.tapped_before();
-        if !is_monitor && !tapped && !self.taps.is_empty() {
-            n.cold_mut().tapped_before = true;
-            if self.start_taps(id, crate::ids::TapWhen::Before) > 0 {
-                return None;
-            }
-        }
-        Some(is_monitor)
     }
 
     /// A retry whose execution completes without failing recovers the first run of its task,
