@@ -22,6 +22,8 @@
 //!   bounds and checks its properties (`verify.rs`, over the `tdl-verify` crate).
 //! - `tdl sim FILE.tdl...` / `tdl sim -p CRATE` runs a program once per seed on virtual time with
 //!   random durations, outcomes and events, and checks every run (`sim.rs`).
+//! - `tdl certs --system NAME --out DIR MEMBER...` makes a system's authority and its members'
+//!   certificates and keys for mutual TLS over zenoh (`certs.rs`).
 //!
 //! Exit codes (after ripgrep): 0 ok (warnings only or nothing), 1 errors found (or a property
 //! violated), 2 usage or I/O error, 3 undecided (`tdl verify` and `tdl sim` only: nothing broken,
@@ -37,6 +39,7 @@ use clap::{Parser, Subcommand};
 
 #[cfg(test)]
 mod agree;
+mod certs;
 mod doc;
 mod export;
 mod graph;
@@ -129,6 +132,11 @@ enum Command {
     /// outcomes, failures, external events), and check every run; a failing run is written as a
     /// trace file with the command line that runs its seed again (docs/verification.md).
     Sim(sim::Args),
+    /// Make a system's certificates for mutual TLS (docs/distributed.md, "Mutual TLS"): an
+    /// authority (`authority.pem`, its key `authority.key`) and, for each member, a certificate
+    /// it signed and its key (`<member>.pem`, `<member>.key`). Refuses to replace a file unless
+    /// `--force`.
+    Certs(certs::Args),
     /// Read a trace file (JSON lines, as written by `--trace` or `tcm::JsonLines`).
     Trace {
         #[command(subcommand)]
@@ -287,6 +295,7 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
         Command::Trace { what } => trace(what, &mut out).map(found),
         Command::Verify(args) => verify::run(args, &mut out),
         Command::Sim(args) => sim::run(args, &mut out),
+        Command::Certs(args) => certs::run(args, &mut out),
         Command::View { files, listen } => serve::view(&files, listen).map(found),
         Command::Expand { file } => {
             let (name, src) = read(&file)?;

@@ -1,10 +1,11 @@
 //! The one integration-test binary of the `tdl` CLI: runs the built binary on files in
 //! `tests/data` and checks output and exit codes. `tdl graph` and `tdl doc` have their own
 //! modules (`graph.rs`, `doc.rs`), as have `tdl trace export` (`export.rs`), `tdl verify`
-//! (`verify.rs`) and `tdl sim` (`sim.rs`).
+//! (`verify.rs`) and `tdl sim` (`sim.rs`), and `tdl certs` (`certs.rs`).
 
 use std::process::Command;
 
+mod certs;
 mod doc;
 mod export;
 mod graph;
