@@ -23,6 +23,23 @@ pub trait TraceSink: Send {
     }
 }
 
+/// A boxed sink is a sink: a program that chooses its sinks at run time (a file or not, a text
+/// log or not) keeps them as `Box<dyn TraceSink>` and gives them to [`crate::Runtime::with_sink`]
+/// as they are.
+impl<T: TraceSink + ?Sized> TraceSink for Box<T> {
+    fn record(&mut self, ev: &TraceEvent) {
+        (**self).record(ev);
+    }
+
+    fn flush(&mut self) {
+        (**self).flush();
+    }
+
+    fn logs_warnings(&self) -> bool {
+        (**self).logs_warnings()
+    }
+}
+
 /// Logs a `warning` record through `tracing`; other records are ignored.
 pub(crate) fn log_warning(ev: &TraceEvent) {
     if let TraceKind::Warning { node, message } = &ev.kind {

@@ -667,3 +667,27 @@ fn on_the_real_clock_a_scaled_run_takes_a_fraction_of_its_time() {
         "{late:?}"
     );
 }
+
+/// Sinks chosen at run time, kept as `Box<dyn TraceSink>`, are given to the runtime as they are.
+#[tokio::test(start_paused = true)]
+async fn a_boxed_sink_is_a_sink() {
+    let rec = tcm::Recorder::new();
+    let sinks: Vec<Box<dyn tcm::TraceSink>> = vec![Box::new(rec.clone())];
+    let mut rt = Runtime::new();
+    for sink in sinks {
+        rt = rt.with_sink(sink);
+    }
+    let report = rt
+        .run(Task::command("beep", |_| async { Ok(()) }))
+        .await
+        .expect("the run");
+    assert_eq!(report.outcome, tcm::RunOutcome::Completed);
+    let trace = rec.events();
+    tcm::testing::assert_checked(&trace);
+    assert!(
+        tcm::testing::story(&trace)
+            .iter()
+            .any(|l| l == "0 beep handling completed"),
+        "{trace:?}"
+    );
+}
