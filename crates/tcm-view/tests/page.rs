@@ -29,6 +29,32 @@ async fn mission() -> Vec<TraceEvent> {
 const NODES: &str =
     "JSON.stringify(S.nodes.map((n) => n && [n.n, n.p, n.k, n.name, n.m, n.agent, n.kids]))";
 
+/// Opens the page on a live run, and once it is subscribed (it has the empty snapshot, so every
+/// record comes live), feeds it `trace` through `sink` and waits until `done` holds. An
+/// evaluation the navigation cut short is asked again.
+async fn feed_live(
+    b: &mut Browser,
+    url: &str,
+    sink: &mut impl TraceSink,
+    trace: &[tcm::TraceEvent],
+    done: &str,
+) -> anyhow::Result<()> {
+    b.goto(url).await?;
+    let subscribed =
+        "S.runId === 0 && document.getElementById('status').textContent.startsWith('live')";
+    let mut tries = 0;
+    while let Err(e) = b.wait_for(subscribed, Duration::from_secs(20)).await {
+        tries += 1;
+        ensure!(tries < 3, "the page did not open the run: {e}");
+    }
+    for ev in trace {
+        sink.record(ev);
+    }
+    sink.flush();
+    b.wait_for(done, Duration::from_secs(20)).await?;
+    Ok(())
+}
+
 /// Clicks `selector` from the page's own script: a row of the tree is clicked where it is now,
 /// even if the page's layout moved since the browser last measured it (the lanes of the state
 /// variables are drawn once the snapshot came).
@@ -71,21 +97,7 @@ fn a_live_page_builds_the_rows_a_page_reads_from_the_snapshot() -> anyhow::Resul
         .build()?
         .block_on(async {
             let mut b = Browser::start(&chromium, 1200, 700).await?;
-            b.goto(&url).await?;
-            // The page has the (empty) snapshot, so it is subscribed: every record comes live.
-            // An evaluation that the navigation cut short is asked again.
-            let subscribed =
-                "S.runId === 0 && document.getElementById('status').textContent.startsWith('live')";
-            let mut tries = 0;
-            while let Err(e) = b.wait_for(subscribed, Duration::from_secs(20)).await {
-                tries += 1;
-                ensure!(tries < 3, "the page did not open the run: {e}");
-            }
-            for ev in &trace {
-                sink.record(ev);
-            }
-            sink.flush();
-            b.wait_for(&done, Duration::from_secs(20)).await?;
+            feed_live(&mut b, &url, &mut sink, &trace, &done).await?;
             let live = b.eval(NODES).await?;
             std::fs::create_dir_all(&shots)?;
             std::fs::write(
@@ -649,19 +661,7 @@ fn a_live_page_builds_the_state_lanes_a_page_reads_from_the_snapshot() -> anyhow
         .build()?
         .block_on(async {
             let mut b = Browser::start(&chromium, 1200, 700).await?;
-            b.goto(&url).await?;
-            let subscribed =
-                "S.runId === 0 && document.getElementById('status').textContent.startsWith('live')";
-            let mut tries = 0;
-            while let Err(e) = b.wait_for(subscribed, Duration::from_secs(20)).await {
-                tries += 1;
-                ensure!(tries < 3, "the page did not open the run: {e}");
-            }
-            for ev in &trace {
-                sink.record(ev);
-            }
-            sink.flush();
-            b.wait_for(&done, Duration::from_secs(20)).await?;
+            feed_live(&mut b, &url, &mut sink, &trace, &done).await?;
             let live = b.eval(states).await?;
             b.eval("open(0)").await?;
             b.wait_for(&done, Duration::from_secs(20)).await?;
