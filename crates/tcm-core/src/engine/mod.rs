@@ -47,8 +47,8 @@
 //!    become enabled, complete, the node terminates or is reclaimed). A node whose handling becomes
 //!    enabled joins the ready queue.
 //! 5. When no work is left, the oldest ready node starts: its action becomes an [`Effect::Start`]
-//!    (after its "before" wiretaps, `wiretap.rs`). Starting fires "active" waiters, so the loop
-//!    repeats until all is quiet.
+//!    (after its "before" wiretaps, `wiretap.rs`); a node terminated before it started completes
+//!    there instead. Starting fires "active" waiters, so the loop repeats until all is quiet.
 //!
 //! Work is queued, never recursive, so a 10,000-deep tree costs no stack. Aggregates (open children
 //! per facet) are counters kept on each parent (`tree.rs`): a transition costs O(1) plus the

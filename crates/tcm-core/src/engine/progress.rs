@@ -10,7 +10,8 @@
 //! 1. expansion, then execution, become enabled once nothing blocks them and the parent's same
 //!    facet is enabled (`expand first` and `delay expansion` add their conditions);
 //! 2. handling becomes enabled once its node's expansion (goal-like) or execution (command-like)
-//!    is, and the node joins the ready queue;
+//!    is, and the node joins the ready queue (a node terminated before it started too: at its
+//!    turn it completes without starting);
 //! 3. expansion, then execution, complete once the handling completed and no child is open;
 //! 4. a terminating node is terminated once its execution completed and its children are;
 //! 5. a completed node with no children left is reclaimed, unless persistent.
@@ -230,7 +231,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             // Children of a holding action are not enabled at all until it releases them (only
             // looked up while something is left to enable). A terminating node that had not
-            // started is still enabled in the plan's order; it just never starts.
+            // started is still enabled in the plan's order; at its turn it completes instead of
+            // starting.
             let g = if !terminated
                 && (h == State::Disabled || x == State::Disabled || e == State::Disabled)
             {
@@ -300,13 +302,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 if self.transition(id, Facet::Handling, State::Enabled) {
                     parent_gate = None;
                 }
-                if alive {
-                    self.ready.push_back(id);
-                } else {
-                    self.transition(id, Facet::Handling, State::Completed);
-                    self.bury_reservations(id);
-                    parent_gate = None;
-                }
+                // A node terminated before it started joins the queue too: it completes at its
+                // turn, after the nodes released before it started (`start`).
+                self.ready.push_back(id);
                 continue;
             }
             if x != State::Completed

@@ -1,7 +1,8 @@
 //! Starting a ready node: its `skip if` conditions read (it may be skipped instead), its
 //! resources granted and its "before" wiretaps approved, then its handling active (with its
 //! ancestors' expansion or execution, Figure 3) and its action handed to the shell; an invariant
-//! already false fails it at once. Called by `settle` (`progress.rs`) for the oldest ready node.
+//! already false fails it at once. Called by `settle` (`progress.rs`) for the oldest ready node;
+//! a node terminated before it started completes there, at its turn, without starting.
 
 use super::node::{Node, Payload};
 use super::{Effect, Engine, Job};
@@ -15,7 +16,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         let Some(n) = self.nodes.get_mut(id) else {
             return;
         };
-        if n.state(Facet::Handling) != State::Enabled || !n.alive() {
+        if n.state(Facet::Handling) != State::Enabled {
+            return;
+        }
+        if !n.alive() {
+            self.complete_unstarted(id);
             return;
         }
         if n.suspended {
@@ -83,6 +88,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if invariants {
             self.check_invariants(id);
         }
+    }
+
+    /// The turn of a node terminated before it started came: its handling completes without
+    /// running, after the nodes released before it started, as TCM marked such a node handled at
+    /// its turn on the agenda (docs/semantics.md, "Termination", step 4).
+    fn complete_unstarted(&mut self, id: NodeId) {
+        self.transition(id, Facet::Handling, State::Completed);
+        self.bury_reservations(id);
+        self.queue_progress(id);
     }
 
     /// The node's turn came while a `skip if` condition holds: it completes without running, its

@@ -240,6 +240,78 @@ fn a_node_terminated_before_it_started_does_not_wait_for_its_delays() {
 }
 
 #[test]
+fn a_node_terminated_before_it_started_completes_at_its_turn_after_the_siblings_released_before_it()
+{
+    // TDL: `spawn watch() with maximum activate 1; x: spawn x() with terminate; watch activate at
+    // x handling completed;`. The body ends at 0.5 s and releases both: `watch`, released first,
+    // starts first, and `x` completes at its own turn on the agenda, after that start. So the
+    // activation finds `watch` active (no "Trying to activate an inactive monitor"), its one
+    // activation completes it, and the run ends instead of waiting forever.
+    let r = check(
+        |e, root| {
+            let tdl_body = spawns(0.5, |e, me, now| {
+                e.hold_children(now, me, true).expect("hold");
+                let spec = super::monitor_spec(super::idle(), Some(1), None);
+                let watch = super::spawn_with(e, Spawn::monitor(me, "watch", spec), &[]);
+                let never_starts = body(|_, _, _| panic!("never starts"));
+                let x = cmd(
+                    e,
+                    me,
+                    "x",
+                    never_starts,
+                    &[Constraint::terminate(When::Now)],
+                );
+                let x_handled = Event::on(x, Facet::Handling, Point::Completed);
+                e.constrain(now, watch, Constraint::activate(When::Event(x_handled)))
+                    .expect("watch has not completed");
+            });
+            goal(e, root, "body", tdl_body, &[]);
+        },
+        "
+        0 body expansion enabled
+        0 body execution enabled
+        0 body handling enabled
+        0 body handling active
+        0 body expansion active
+        0 x terminating
+        0.5 body handling completed
+        0.5 watch execution enabled
+        0.5 watch handling enabled
+        0.5 x execution enabled
+        0.5 x handling enabled
+        0.5 body expansion completed
+        0.5 watch handling active
+        0.5 watch execution active
+        0.5 body execution active
+        0.5 x handling completed
+        0.5 watch handling completed
+        0.5 ACT-watch execution enabled
+        0.5 ACT-watch handling enabled
+        0.5 x execution completed
+        0.5 x terminated
+        0.5 ACT-watch handling active
+        0.5 ACT-watch execution active
+        0.5 ACT-watch handling completed
+        0.5 ACT-watch execution completed
+        0.5 watch execution completed
+        0.5 body execution completed
+        ",
+    );
+    assert_eq!(warnings(r.trace()), Vec::<String>::new());
+    let activations = r
+        .story
+        .iter()
+        .filter(|l| l.ends_with("ACT-watch handling active"));
+    assert_eq!(activations.count(), 1, "{:#?}", r.story);
+    assert!(
+        r.sim.engine.blocked().is_empty(),
+        "{:?}",
+        r.sim.engine.blocked()
+    );
+    assert_eq!(r.sim.engine.stats().live_nodes, 1, "only the root is left");
+}
+
+#[test]
 fn terminating_a_completed_persistent_goal_terminates_and_reclaims_its_subtree() {
     let r = check(
         |e, root| {
