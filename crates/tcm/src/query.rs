@@ -9,7 +9,7 @@
 
 use crate::Error;
 use crate::ctx::Ctx;
-use crate::host::lock;
+use crate::host::{Inner, lock};
 use std::any::Any;
 use std::sync::Arc;
 use tcm_core::{MonitorInfo, NodeId, NodeInfo};
@@ -42,22 +42,28 @@ impl Ctx {
 
     /// The name of the task `node` is an instance of (TCM's type name): the task's own name, which
     /// differs from the instance name once [`Task::named`](crate::Task::named) (TDL's `name`
-    /// constraint) renamed it. An activation node is an instance of its activation name, a handler
-    /// node of its handler. `None` once the node was reclaimed.
+    /// constraint) renamed it. An activation node's is its activation name (it is an instance of
+    /// its monitor's task as well, see [`Ctx::is_instance_of`]), a handler node's its handler's.
+    /// `None` once the node was reclaimed.
     pub fn task_name(&self, node: NodeId) -> Result<Option<String>, Error> {
-        let inner = lock(&self.shared)?;
-        let Some(info) = inner.engine.info(node) else {
-            return Ok(None);
-        };
-        Ok(Some(match inner.task_names.get(&node) {
-            Some(name) => name.to_string(),
-            None => info.name,
-        }))
+        Ok(task_name_of(&*lock(&self.shared)?, node))
     }
 
-    /// Whether `node` is an instance of the task named `task` (see [`Ctx::task_name`]).
+    /// Whether `node` is an instance of the task named `task`: its task name is `task` (see
+    /// [`Ctx::task_name`]), or it is a monitor's activation and its monitor's task name is `task`.
+    /// So, as in TDL, a monitor and each of its `ACT-` children are instances of the monitor's
+    /// task, and an activation is also an instance of its own activation name. A reclaimed node is
+    /// an instance of nothing.
     pub fn is_instance_of(&self, node: NodeId, task: &str) -> Result<bool, Error> {
-        Ok(self.task_name(node)?.is_some_and(|t| t == task))
+        let inner = lock(&self.shared)?;
+        if task_name_of(&inner, node).is_some_and(|t| t == task) {
+            return Ok(true);
+        }
+        let monitor = inner.engine.monitor_info(node).map(|m| m.monitor);
+        Ok(monitor
+            .filter(|m| *m != node)
+            .and_then(|m| task_name_of(&inner, m))
+            .is_some_and(|t| t == task))
     }
 
     /// A monitor's counts (activations, triggers) and parameters (maximum activations and
@@ -96,4 +102,13 @@ impl Ctx {
         let data = inner.activation_data.get(&self.node)?.clone();
         data.downcast::<T>().ok()
     }
+}
+
+/// The task name of `node` (see [`Ctx::task_name`]), `None` once it was reclaimed.
+fn task_name_of(inner: &Inner, node: NodeId) -> Option<String> {
+    let info = inner.engine.info(node)?;
+    Some(match inner.task_names.get(&node) {
+        Some(name) => name.to_string(),
+        None => info.name,
+    })
 }

@@ -242,7 +242,8 @@ impl Session {
         self.ctx.task_name(node)
     }
 
-    /// Whether a node is an instance of the task named `task` (see [`Ctx::is_instance_of`]).
+    /// Whether a node is an instance of the task named `task`, a monitor's activation also of its
+    /// monitor's task (see [`Ctx::is_instance_of`]).
     pub fn is_instance_of(&self, node: NodeId, task: &str) -> Result<bool, Error> {
         self.ctx.is_instance_of(node, task)
     }

@@ -146,6 +146,58 @@ async fn a_retried_node_is_an_instance_of_the_failed_task() {
 }
 
 #[tokio::test(start_paused = true)]
+async fn a_monitor_activation_is_an_instance_of_its_monitor_s_task() {
+    // As in TDL, a monitor and each of its `ACT-` children are instances of the monitor's task
+    // (`watch`, whatever the instance is named); an activation's own task name stays its
+    // activation name, and an instance name is no task.
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let s = seen.clone();
+    let params = Monitor {
+        max_activations: Some(1),
+        ..Monitor::default()
+    };
+    let task = Task::goal("g", move |ctx| async move {
+        let watch = Task::monitor("watch", params, move |ctx| {
+            let s = s.clone();
+            async move {
+                let me = ctx.node();
+                let is = |task: &str| ctx.is_instance_of(me, task);
+                let answers = (is("watch")?, is("ACT-door")?, is("door")?, is("g")?);
+                s.lock().expect("seen").push((ctx.task_name(me)?, answers));
+                Ok(())
+            }
+        });
+        let m = ctx
+            .spawn(watch.named("door"))
+            .activate(tcm::When::Now)
+            .start()?;
+        let step = ctx
+            .spawn(Task::command("step", |_| async { Ok(()) }))
+            .start()?;
+        assert!(ctx.is_instance_of(m, "watch")?);
+        assert!(!ctx.is_instance_of(m, "door")?);
+        assert!(!ctx.is_instance_of(step, "watch")?);
+        assert!(!ctx.is_instance_of(ctx.node(), "watch")?);
+        ctx.wait(m).await?;
+        Ok(())
+    });
+    let (report, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(
+        *seen.lock().expect("seen"),
+        [(Some("ACT-door".to_string()), (true, true, false, false))]
+    );
+    assert_order(
+        &story(&trace),
+        &[
+            "0 door handling completed",
+            "0 ACT-door handling active",
+            "0 door execution completed",
+        ],
+    );
+}
+
+#[tokio::test(start_paused = true)]
 async fn a_monitor_body_reads_its_counts_and_parameters() {
     let seen = Arc::new(Mutex::new(Vec::new()));
     let s = seen.clone();
