@@ -220,6 +220,23 @@ impl Spawner<'_> {
     /// handler above the child is searched for it and it is not reported unhandled (handlers on
     /// the child, and their retries, come first: a recovered child succeeded).
     pub async fn wait_outcome<T: 'static>(self) -> Result<Ended<T>, Error> {
+        match self.wait_outcome_erased().await? {
+            Ended::Succeeded(value) => match value.map(|v| v.downcast::<T>()) {
+                Some(Ok(v)) => Ok(Ended::Succeeded(*v)),
+                _ => Err(Error::NoValue(std::any::type_name::<T>())),
+            },
+            Ended::Failed(f) => Ok(Ended::Failed(f)),
+            Ended::Terminated => Ok(Ended::Terminated),
+            Ended::Skipped => Ok(Ended::Skipped),
+        }
+    }
+
+    /// As [`Spawner::wait_outcome`], the value as the action returned it, of whatever type (none
+    /// when the action's value was taken already): for a caller that learns the type only from
+    /// the value, as TDL's interpreter does.
+    pub async fn wait_outcome_erased(
+        self,
+    ) -> Result<Ended<Option<Box<dyn std::any::Any + Send>>>, Error> {
         let ctx = self.ctx;
         let id = {
             let mut inner = ctx.shared.enter()?;
@@ -238,17 +255,12 @@ impl Spawner<'_> {
                 _ => first,
             }
         };
-        match outcome {
-            WatchOutcome::Reached | WatchOutcome::Recovered { .. } => {
-                match value.map(|v| v.downcast::<T>()) {
-                    Some(Ok(v)) => Ok(Ended::Succeeded(*v)),
-                    _ => Err(Error::NoValue(std::any::type_name::<T>())),
-                }
-            }
-            WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => Ok(Ended::Failed(f)),
-            WatchOutcome::Terminated | WatchOutcome::Dead => Ok(Ended::Terminated),
-            WatchOutcome::Skipped => Ok(Ended::Skipped),
-        }
+        Ok(match outcome {
+            WatchOutcome::Reached | WatchOutcome::Recovered { .. } => Ended::Succeeded(value),
+            WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => Ended::Failed(f),
+            WatchOutcome::Terminated | WatchOutcome::Dead => Ended::Terminated,
+            WatchOutcome::Skipped => Ended::Skipped,
+        })
     }
 
     /// The child's failure that no handler on it takes fails this node, the parent, as if its
