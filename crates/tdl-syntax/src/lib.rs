@@ -89,6 +89,7 @@ pub use codegen::{
 pub use diagnostic::{Diagnostic, Label, LineCol, Severity, render_all, render_all_styled};
 pub use dump::dump;
 pub use lint::Lint;
+pub use parser::parse_tag_tokens;
 pub use time::format_nanos;
 
 /// The result of parsing: the tree and every diagnostic, errors and warnings, in source order.

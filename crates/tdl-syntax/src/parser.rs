@@ -27,7 +27,7 @@ use crate::diagnostic::Diagnostic;
 pub(crate) use constraint::parse_task_constraints;
 
 /// Parses `tokens` as exactly one tag (the inside of `node!(…)` in Rust code).
-pub(crate) fn parse_tag_tokens(tokens: TokenStream) -> syn::Result<crate::ast::Tag> {
+pub fn parse_tag_tokens(tokens: TokenStream) -> syn::Result<crate::ast::Tag> {
     constraint::parse_tag.parse2(tokens)
 }
 
