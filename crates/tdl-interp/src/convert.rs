@@ -1,0 +1,381 @@
+//! Conversions between Rust values and interpreted [`Value`]s, for what a registry offers: a
+//! registered function's parameters are [`FromValue`], its result [`IntoValue`] (or a `Result`
+//! of one, [`IntoOutcome`]). Plain types convert to plain values; a type of the user's becomes
+//! a host value with [`host_type!`](crate::host_type), which implements both for it.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::Duration;
+
+use tdl::{Ctx, Failure, NodeId};
+
+use crate::value::Value;
+
+/// A Rust value made from an interpreted value.
+pub trait FromValue: Sized {
+    /// The type as a message names it.
+    fn expected() -> String;
+    /// The value, or `None` when it is not one of this type.
+    fn from_value(v: &Value) -> Option<Self>;
+}
+
+/// A Rust value as an interpreted value.
+pub trait IntoValue {
+    /// The value.
+    fn into_value(self) -> Value;
+}
+
+/// What a registered function returns: a value, or a `Result` whose error fails the node.
+pub trait IntoOutcome {
+    /// The value, or the failure.
+    fn into_outcome(self) -> Result<Value, Failure>;
+}
+
+impl<T: IntoValue> IntoOutcome for T {
+    fn into_outcome(self) -> Result<Value, Failure> {
+        Ok(self.into_value())
+    }
+}
+
+impl<T: IntoValue, E: Into<Failure>> IntoOutcome for Result<T, E> {
+    fn into_outcome(self) -> Result<Value, Failure> {
+        self.map(IntoValue::into_value).map_err(Into::into)
+    }
+}
+
+impl IntoValue for Value {
+    fn into_value(self) -> Value {
+        self
+    }
+}
+
+impl FromValue for Value {
+    fn expected() -> String {
+        "any value".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        Some(v.clone())
+    }
+}
+
+impl IntoValue for () {
+    fn into_value(self) -> Value {
+        Value::Unit
+    }
+}
+
+impl FromValue for () {
+    fn expected() -> String {
+        "()".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        matches!(v, Value::Unit).then_some(())
+    }
+}
+
+impl IntoValue for bool {
+    fn into_value(self) -> Value {
+        Value::Bool(self)
+    }
+}
+
+impl FromValue for bool {
+    fn expected() -> String {
+        "bool".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        v.as_bool()
+    }
+}
+
+macro_rules! ints {
+    ($($t:ty),*) => {$(
+        impl IntoValue for $t {
+            fn into_value(self) -> Value {
+                Value::Int(i64::try_from(self).unwrap_or(i64::MAX))
+            }
+        }
+        impl FromValue for $t {
+            fn expected() -> String {
+                stringify!($t).into()
+            }
+            fn from_value(v: &Value) -> Option<Self> {
+                v.as_int().and_then(|i| <$t>::try_from(i).ok())
+            }
+        }
+    )*};
+}
+
+ints!(u8, u16, u32, u64, usize, i8, i16, i32, i64, isize);
+
+impl IntoValue for f64 {
+    fn into_value(self) -> Value {
+        Value::Float(self)
+    }
+}
+
+impl FromValue for f64 {
+    fn expected() -> String {
+        "f64".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        v.as_float()
+    }
+}
+
+impl IntoValue for f32 {
+    fn into_value(self) -> Value {
+        Value::Float(f64::from(self))
+    }
+}
+
+impl FromValue for f32 {
+    fn expected() -> String {
+        "f32".into()
+    }
+    #[allow(clippy::cast_possible_truncation, reason = "as Rust's `as f32`")]
+    fn from_value(v: &Value) -> Option<Self> {
+        v.as_float().map(|x| x as f32)
+    }
+}
+
+impl IntoValue for String {
+    fn into_value(self) -> Value {
+        Value::str(self)
+    }
+}
+
+impl IntoValue for &str {
+    fn into_value(self) -> Value {
+        Value::str(self)
+    }
+}
+
+impl FromValue for String {
+    fn expected() -> String {
+        "String".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        v.as_str().map(str::to_string)
+    }
+}
+
+impl IntoValue for Arc<str> {
+    fn into_value(self) -> Value {
+        Value::Str(self)
+    }
+}
+
+impl FromValue for Arc<str> {
+    fn expected() -> String {
+        "String".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::Str(s) => Some(s.clone()),
+            _ => None,
+        }
+    }
+}
+
+impl IntoValue for Duration {
+    fn into_value(self) -> Value {
+        Value::Duration(self)
+    }
+}
+
+impl FromValue for Duration {
+    fn expected() -> String {
+        "Duration".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::Duration(d) => Some(*d),
+            _ => None,
+        }
+    }
+}
+
+impl IntoValue for NodeId {
+    fn into_value(self) -> Value {
+        Value::Node(self)
+    }
+}
+
+impl FromValue for NodeId {
+    fn expected() -> String {
+        "NodeId".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::Node(n) => Some(*n),
+            _ => None,
+        }
+    }
+}
+
+impl FromValue for Ctx {
+    fn expected() -> String {
+        "the action's context (`&ctx`)".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::Ctx(ctx) => Some(ctx.clone()),
+            _ => None,
+        }
+    }
+}
+
+impl IntoValue for Failure {
+    fn into_value(self) -> Value {
+        Value::Failure(Arc::new(self))
+    }
+}
+
+impl FromValue for Failure {
+    fn expected() -> String {
+        "a failure".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::Failure(f) => Some((**f).clone()),
+            _ => None,
+        }
+    }
+}
+
+impl<T: IntoValue> IntoValue for Vec<T> {
+    fn into_value(self) -> Value {
+        Value::list(self.into_iter().map(IntoValue::into_value))
+    }
+}
+
+impl<T: FromValue> FromValue for Vec<T> {
+    fn expected() -> String {
+        format!("Vec<{}>", T::expected())
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::List(items) => items.iter().map(T::from_value).collect(),
+            _ => None,
+        }
+    }
+}
+
+impl<T: IntoValue> IntoValue for Option<T> {
+    fn into_value(self) -> Value {
+        Value::option(self.map(IntoValue::into_value))
+    }
+}
+
+impl<T: FromValue> FromValue for Option<T> {
+    fn expected() -> String {
+        format!("Option<{}>", T::expected())
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::Variant(var) if &*var.ty == "Option" => match var.fields.first() {
+                Some(inner) => T::from_value(inner).map(Some),
+                None => Some(None),
+            },
+            _ => None,
+        }
+    }
+}
+
+impl<T: IntoValue> IntoValue for BTreeMap<String, T> {
+    fn into_value(self) -> Value {
+        Value::Map(Arc::new(
+            self.into_iter().map(|(k, v)| (k, v.into_value())).collect(),
+        ))
+    }
+}
+
+impl<T: FromValue> FromValue for BTreeMap<String, T> {
+    fn expected() -> String {
+        format!("BTreeMap<String, {}>", T::expected())
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::Map(map) => map
+                .iter()
+                .map(|(k, v)| Some((k.clone(), T::from_value(v)?)))
+                .collect(),
+            _ => None,
+        }
+    }
+}
+
+impl IntoValue for serde_json::Value {
+    fn into_value(self) -> Value {
+        Value::from_json(&self)
+    }
+}
+
+impl FromValue for serde_json::Value {
+    fn expected() -> String {
+        "a value with a JSON form".into()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        v.to_json().ok()
+    }
+}
+
+macro_rules! tuples {
+    ($(($($t:ident $i:tt),+)),*) => {$(
+        impl<$($t: IntoValue),+> IntoValue for ($($t,)+) {
+            fn into_value(self) -> Value {
+                Value::tuple(vec![$(self.$i.into_value()),+])
+            }
+        }
+        impl<$($t: FromValue),+> FromValue for ($($t,)+) {
+            fn expected() -> String {
+                let parts: Vec<String> = vec![$($t::expected()),+];
+                format!("({})", parts.join(", "))
+            }
+            fn from_value(v: &Value) -> Option<Self> {
+                match v {
+                    Value::Tuple(items) | Value::List(items) => {
+                        Some(($($t::from_value(items.get($i)?)?,)+))
+                    }
+                    _ => None,
+                }
+            }
+        }
+    )*};
+}
+
+tuples!((A 0, B 1), (A 0, B 1, C 2), (A 0, B 1, C 2, D 3));
+
+/// Makes a Rust type of the user's a host type: its values cross into a program as host values
+/// of that name (printed with its `Debug`, compared by identity), and back out by downcasting.
+/// The type must be `Clone + Debug + Send + Sync + 'static`; register it too
+/// ([`Registry::host_type`](crate::Registry::host_type)) so that the program may name it.
+///
+/// ```ignore
+/// tdl_interp::host_type!(Robot);
+/// ```
+#[macro_export]
+macro_rules! host_type {
+    ($t:ty) => {
+        $crate::host_type!($t, stringify!($t));
+    };
+    ($t:ty, $name:expr) => {
+        impl $crate::IntoValue for $t {
+            fn into_value(self) -> $crate::Value {
+                $crate::Value::host($name, self)
+            }
+        }
+        impl $crate::FromValue for $t {
+            fn expected() -> ::std::string::String {
+                ::std::string::String::from($name)
+            }
+            fn from_value(v: &$crate::Value) -> ::core::option::Option<Self> {
+                match v {
+                    $crate::Value::Host(h) => h.downcast::<$t>().cloned(),
+                    _ => ::core::option::Option::None,
+                }
+            }
+        }
+    };
+}
