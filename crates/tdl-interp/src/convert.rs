@@ -347,6 +347,41 @@ macro_rules! tuples {
 
 tuples!((A 0, B 1), (A 0, B 1, C 2), (A 0, B 1, C 2, D 3));
 
+/// A value of any Rust type, crossing into a program as a host value named by its type's short
+/// name (`Walker` for `ambler::world::Walker`), printed with its `Debug`, and back out by
+/// downcasting: for a registered function's parameters and results, from any crate. Register
+/// the name too ([`Registry::host_type`](crate::Registry::host_type)) so that the program may
+/// name the type.
+#[derive(Clone, Debug)]
+pub struct Host<T>(pub T);
+
+impl<T: Clone + std::fmt::Debug + Send + Sync + 'static> IntoValue for Host<T> {
+    fn into_value(self) -> Value {
+        Value::host(short_name::<T>(), self.0)
+    }
+}
+
+impl<T: Clone + std::fmt::Debug + Send + Sync + 'static> FromValue for Host<T> {
+    fn expected() -> String {
+        short_name::<T>().to_string()
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        match v {
+            Value::Host(h) => h.downcast::<T>().cloned().map(Host),
+            // A failure carrying a `T` (an error a registered function returned).
+            Value::Failure(f) => f.data::<T>().map(|t| Host((*t).clone())),
+            _ => None,
+        }
+    }
+}
+
+/// The short name of a type: `Walker` for `ambler::world::Walker`.
+pub(crate) fn short_name<T: ?Sized>() -> &'static str {
+    let full = std::any::type_name::<T>();
+    let base = full.split('<').next().unwrap_or(full);
+    base.rsplit("::").next().unwrap_or(base)
+}
+
 /// Makes a Rust type of the user's a host type: its values cross into a program as host values
 /// of that name (printed with its `Debug`, compared by identity), and back out by downcasting.
 /// The type must be `Clone + Debug + Send + Sync + 'static`; register it too

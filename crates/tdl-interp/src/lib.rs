@@ -31,6 +31,7 @@ mod registry;
 mod ty;
 mod value;
 
+pub use convert::Host;
 pub use convert::{FromValue, IntoOutcome, IntoValue};
 pub use exec::Budget;
 pub use program::Program;
@@ -38,7 +39,7 @@ pub use registry::{
     BoxFuture, Call, Function, IntoAsyncFunction, IntoFunction, IntoTaskFn, Registry, TaskFn,
 };
 pub use ty::Ty;
-pub use value::{Args, Host, Record, Value, Variant};
+pub use value::{Args, HostValue, Record, Value, Variant};
 
 /// Why a program cannot be loaded.
 #[derive(Debug, thiserror::Error)]

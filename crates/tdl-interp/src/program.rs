@@ -343,21 +343,24 @@ pub(crate) fn handler(
     let s = shared.clone();
     let attached = def.for_task.is_some();
     let mut h = Handler::new(name, exception, move |ctx: Ctx| {
-        let args = if attached {
-            // A handler attached with `for` reads the arguments of the node it recovers.
-            ctx.attached_args::<Args>().map(|a| a.0.clone())
-        } else {
-            Some(args.clone())
-        };
-        let (s, cells) = (s.clone(), cells.clone());
+        let (s, cells, args) = (s.clone(), cells.clone(), args.clone());
         async move {
-            let Some(args) = args else {
-                return Err(Failure::new(
-                    "NotAttached",
-                    format!(
-                        "`{name}` ran outside a failure of the task it is attached to, so it has no arguments to read"
-                    ),
-                ));
+            // A handler attached with `for` reads the arguments of the node it recovers (inside
+            // its action, as the generated code does: not while the runtime hands it out).
+            let args = if attached {
+                match ctx.attached_args::<Args>() {
+                    Some(a) => a.0.clone(),
+                    None => {
+                        return Err(Failure::new(
+                            "NotAttached",
+                            format!(
+                                "`{name}` ran outside a failure of the task it is attached to, so it has no arguments to read"
+                            ),
+                        ));
+                    }
+                }
+            } else {
+                args
             };
             run(s, idx, ctx, args, cells).await
         }

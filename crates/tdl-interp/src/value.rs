@@ -49,7 +49,7 @@ pub enum Value {
     /// A failure: an exception caught or a child's.
     Failure(Arc<tdl::Failure>),
     /// A value of a host type: a Rust value the program holds without looking inside.
-    Host(Host),
+    Host(HostValue),
 }
 
 /// A struct value: its type's name and its fields in order.
@@ -85,7 +85,7 @@ pub struct Variant {
 
 /// A value of a Rust type the program does not look inside: its type's name and the value.
 #[derive(Clone)]
-pub struct Host {
+pub struct HostValue {
     /// The registered name of its type.
     pub ty: Arc<str>,
     /// The value.
@@ -94,7 +94,7 @@ pub struct Host {
     pub debug: fn(&(dyn Any + Send + Sync), &mut fmt::Formatter<'_>) -> fmt::Result,
 }
 
-impl Host {
+impl HostValue {
     /// The value, if it is a `T`.
     pub fn downcast<T: Any + Send + Sync>(&self) -> Option<&T> {
         self.value.downcast_ref::<T>()
@@ -247,7 +247,7 @@ impl Value {
                 None => f.write_str("<host value>"),
             }
         }
-        Value::Host(Host {
+        Value::Host(HostValue {
             ty: Arc::from(ty),
             value: Arc::new(value),
             debug: debug::<T>,
