@@ -312,7 +312,16 @@ pub(crate) fn ctx_method(ctx: &Ctx, name: &str, args: &[Value]) -> Option<Call> 
         Value::Str(s) => Ok(s.to_string()),
         other => Err(bad(&format!("ctx.{name}"), other)),
     };
-    let done = |r: Result<(), tdl::Error>| r.map(|()| Value::Unit).map_err(Failure::from);
+    // What returns a `Result` in Rust is a `Result` value here: `?` takes it apart.
+    let result = |r: Result<Value, tdl::Error>| match r {
+        Ok(v) => Ok(Value::variant("Result", "Ok", vec![v])),
+        Err(e) => Ok(Value::variant(
+            "Result",
+            "Err",
+            vec![Value::Failure(Arc::new(Failure::from(e)))],
+        )),
+    };
+    let done = |r: Result<(), tdl::Error>| result(r.map(|()| Value::Unit));
     let r: Result<Value, Failure> = match name {
         "sleep" => {
             let ctx = ctx.clone();
@@ -325,10 +334,7 @@ pub(crate) fn ctx_method(ctx: &Ctx, name: &str, args: &[Value]) -> Option<Call> 
             });
         }
         "node" => Ok(Value::Node(ctx.node())),
-        "parent" => ctx
-            .parent()
-            .map(|p| Value::option(p.map(Value::Node)))
-            .map_err(Failure::from),
+        "parent" => result(ctx.parent().map(|p| Value::option(p.map(Value::Node)))),
         "now" => Ok(Value::Duration(ctx.now())),
         "reserve_resource" => res(&arg(0)).and_then(|r| {
             let n = node(arg(1))?;

@@ -37,9 +37,25 @@ impl<T: IntoValue> IntoOutcome for T {
     }
 }
 
-impl<T: IntoValue, E: Into<Failure>> IntoOutcome for Result<T, E> {
+/// A `Result` is a value, `Ok(v)` or `Err(e)`, as in Rust: `?` takes the value or fails the
+/// node with the error's failure, `match` looks at either.
+impl<T: IntoValue, E: Into<Failure> + std::fmt::Debug> IntoOutcome for Result<T, E> {
     fn into_outcome(self) -> Result<Value, Failure> {
-        self.map(IntoValue::into_value).map_err(Into::into)
+        Ok(match self {
+            Ok(v) => Value::variant("Result", "Ok", vec![v.into_value()]),
+            Err(e) => {
+                let debug = format!("{e:?}");
+                let failure = e.into();
+                Value::variant(
+                    "Result",
+                    "Err",
+                    vec![Value::Error(Arc::new(crate::value::ErrorValue {
+                        failure,
+                        debug,
+                    }))],
+                )
+            }
+        })
     }
 }
 
@@ -237,10 +253,25 @@ impl FromValue for Failure {
         "a failure".into()
     }
     fn from_value(v: &Value) -> Option<Self> {
-        match v {
-            Value::Failure(f) => Some((**f).clone()),
-            _ => None,
+        v.as_failure().cloned()
+    }
+}
+
+impl<T: FromValue> FromValue for tdl::Ended<T> {
+    fn expected() -> String {
+        format!("Ended<{}>", T::expected())
+    }
+    fn from_value(v: &Value) -> Option<Self> {
+        let Value::Variant(var) = v else { return None };
+        if &*var.ty != "Ended" {
+            return None;
         }
+        Some(match &*var.name {
+            "Succeeded" => tdl::Ended::Succeeded(T::from_value(var.fields.first()?)?),
+            "Failed" => tdl::Ended::Failed(var.fields.first()?.as_failure()?.clone()),
+            "Terminated" => tdl::Ended::Terminated,
+            _ => tdl::Ended::Skipped,
+        })
     }
 }
 
@@ -369,8 +400,10 @@ impl<T: Clone + std::fmt::Debug + Send + Sync + 'static> FromValue for Host<T> {
         match v {
             Value::Host(h) => h.downcast::<T>().cloned().map(Host),
             // A failure carrying a `T` (an error a registered function returned).
-            Value::Failure(f) => f.data::<T>().map(|t| Host((*t).clone())),
-            _ => None,
+            other => other
+                .as_failure()
+                .and_then(|f| f.data::<T>())
+                .map(|t| Host((*t).clone())),
         }
     }
 }

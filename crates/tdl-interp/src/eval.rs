@@ -441,7 +441,9 @@ impl Frame {
         }
         let ty = match recv {
             Value::Host(h) => Some(h.ty.to_string()),
-            Value::Failure(f) => Some(f.exception.to_string()),
+            Value::Failure(_) | Value::Error(_) => {
+                recv.as_failure().map(|f| f.exception.to_string())
+            }
             Value::Record(r) => Some(r.name.to_string()),
             Value::Variant(v) => Some(v.ty.to_string()),
             _ => None,

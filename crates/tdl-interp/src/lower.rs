@@ -172,6 +172,11 @@ impl<'s, 'a> Lower<'s, 'a> {
         slot
     }
 
+    /// The type written `ty`, its names read through the registry's aliases.
+    pub(crate) fn ty(&self, ty: &syn::Type) -> crate::ty::Ty {
+        crate::ty::Ty::of(ty).rename(&|n| self.registry.aliases.get(n).cloned())
+    }
+
     /// How many locals and TDL slots the body's frame needs.
     pub(crate) fn sizes(&self) -> (usize, usize) {
         (self.next_slot as usize, self.next_tdl as usize)

@@ -541,7 +541,20 @@ fn locals(f: &mut Frame, def: &TaskDef, ctx: &Ctx) -> Result<(), Failure> {
 /// against it), unit for the others.
 fn ending(def: &TaskDef, r: Result<Value, Flow>) -> Result<Value, Failure> {
     let v = match r {
-        Ok(v) | Err(Flow::Return(v)) => v,
+        Ok(v) => v,
+        // `return Err(e)` fails the node, `return Ok(v)` gives `v`, as from a Rust body.
+        Err(Flow::Return(Value::Variant(var))) if &*var.ty == "Result" => {
+            match (&*var.name, var.fields.first()) {
+                ("Err", Some(e)) => {
+                    return Err(e
+                        .as_failure()
+                        .cloned()
+                        .unwrap_or_else(|| Failure::new("Error", format!("{e:?}"))));
+                }
+                (_, v) => v.cloned().unwrap_or_default(),
+            }
+        }
+        Err(Flow::Return(v)) => v,
         Err(flow) => return Err(failure_of(flow)),
     };
     match &def.result {

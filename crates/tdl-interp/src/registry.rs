@@ -179,7 +179,7 @@ arities!(
 );
 
 /// How a registered task's value (what its action returned) becomes a value of the program.
-pub(crate) type ValueOf = fn(Box<dyn Any + Send>) -> Option<Value>;
+pub(crate) type ValueOf = Arc<dyn Fn(Box<dyn Any + Send>) -> Option<Value> + Send + Sync>;
 
 /// A task built in Rust.
 #[derive(Clone)]
@@ -239,6 +239,7 @@ pub struct Registry {
     pub(crate) fields: BTreeMap<(String, String), Function>,
     pub(crate) constants: BTreeMap<String, Value>,
     pub(crate) host_types: BTreeSet<String>,
+    pub(crate) aliases: BTreeMap<String, String>,
     pub(crate) exceptions: BTreeMap<String, Vec<String>>,
 }
 
@@ -256,7 +257,7 @@ impl Registry {
             name.to_string(),
             TaskEntry {
                 make: f.into_task_fn(format!("`{name}`")),
-                value: plain_value,
+                value: Arc::new(plain_value),
             },
         );
         self
@@ -272,7 +273,27 @@ impl Registry {
             name.to_string(),
             TaskEntry {
                 make: f.into_task_fn(format!("`{name}`")),
-                value: typed_value::<T>,
+                value: Arc::new(typed_value::<T>),
+            },
+        );
+        self
+    }
+
+    /// A task built in Rust whose value is a `T`, made a value by `convert` (for a type of
+    /// another crate: `|path: Vec<Waypoint>| Value::list(path.into_iter().map(|w| Host(w).into_value()))`).
+    pub fn task_returning_with<T: 'static, M>(
+        &mut self,
+        name: &str,
+        f: impl IntoTaskFn<M>,
+        convert: impl Fn(T) -> Value + Send + Sync + 'static,
+    ) -> &mut Registry {
+        self.tasks.insert(
+            name.to_string(),
+            TaskEntry {
+                make: f.into_task_fn(format!("`{name}`")),
+                value: Arc::new(move |v: Box<dyn Any + Send>| {
+                    v.downcast::<T>().ok().map(|x| convert(*x))
+                }),
             },
         );
         self
@@ -337,6 +358,14 @@ impl Registry {
         self
     }
 
+    /// Another name of a host type (a Rust type alias, `type Waypoint = Point;`): a program
+    /// writing `name` means the host type `target`, whose values carry that name.
+    pub fn alias(&mut self, name: &str, target: &str) -> &mut Registry {
+        self.aliases.insert(name.to_string(), target.to_string());
+        self.host_types.insert(target.to_string());
+        self
+    }
+
     /// An exception raised by Rust code the program calls, with its ancestors (nearest first),
     /// for programs that handle it without declaring it.
     pub fn exception(&mut self, name: &str, ancestry: &[&str]) -> &mut Registry {
@@ -355,6 +384,7 @@ impl Registry {
         self.fields.extend(other.fields.clone());
         self.constants.extend(other.constants.clone());
         self.host_types.extend(other.host_types.iter().cloned());
+        self.aliases.extend(other.aliases.clone());
         self.exceptions.extend(other.exceptions.clone());
         self
     }

@@ -125,6 +125,22 @@ impl Ty {
         }
     }
 
+    /// The same type, each name `n` replaced by `f(n)` where that gives one.
+    pub fn rename(self, f: &dyn Fn(&str) -> Option<String>) -> Ty {
+        match self {
+            Ty::Named(n) => match f(&n) {
+                Some(to) => Ty::Named(Arc::from(to.as_str())),
+                None => Ty::Named(n),
+            },
+            Ty::List(t) => Ty::List(Box::new(t.rename(f))),
+            Ty::Option(t) => Ty::Option(Box::new(t.rename(f))),
+            Ty::Map(t) => Ty::Map(Box::new(t.rename(f))),
+            Ty::Ended(t) => Ty::Ended(Box::new(t.rename(f))),
+            Ty::Tuple(ts) => Ty::Tuple(ts.into_iter().map(|t| t.rename(f)).collect()),
+            other => other,
+        }
+    }
+
     /// The named types it mentions: host types the registry must know.
     pub fn named(&self, out: &mut BTreeSet<Arc<str>>) {
         match self {

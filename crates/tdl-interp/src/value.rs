@@ -48,6 +48,9 @@ pub enum Value {
     Ctx(Ctx),
     /// A failure: an exception caught or a child's.
     Failure(Arc<tdl::Failure>),
+    /// The error a registered function returned (`Err(e)`), as a failure that prints as the
+    /// error's `Debug`.
+    Error(Arc<ErrorValue>),
     /// A value of a host type: a Rust value the program holds without looking inside.
     Host(HostValue),
 }
@@ -81,6 +84,15 @@ pub struct Variant {
     pub name: Arc<str>,
     /// Its fields, in order.
     pub fields: Vec<Value>,
+}
+
+/// The error a registered function returned: the failure it makes, and its `Debug`.
+#[derive(Clone, Debug)]
+pub struct ErrorValue {
+    /// The failure (`Failure::from(e)`: the error's type name, its text, the error as data).
+    pub failure: tdl::Failure,
+    /// How the error prints with `{:?}`.
+    pub debug: String,
 }
 
 /// A value of a Rust type the program does not look inside: its type's name and the value.
@@ -142,6 +154,7 @@ impl fmt::Debug for Value {
             Value::Node(n) => fmt::Debug::fmt(n, f),
             Value::Ctx(_) => f.write_str("Ctx"),
             Value::Failure(failure) => fmt::Debug::fmt(&**failure, f),
+            Value::Error(e) => f.write_str(&e.debug),
             Value::Host(h) => (h.debug)(&*h.value, f),
         }
     }
@@ -157,6 +170,7 @@ impl fmt::Display for Value {
             Value::Float(x) => fmt::Display::fmt(x, f),
             Value::Bool(b) => fmt::Display::fmt(b, f),
             Value::Failure(failure) => fmt::Display::fmt(&**failure, f),
+            Value::Error(e) => f.write_str(&e.failure.message),
             other => fmt::Debug::fmt(other, f),
         }
     }
@@ -186,6 +200,7 @@ impl PartialEq for Value {
             (Value::Duration(a), Value::Duration(b)) => a == b,
             (Value::Node(a), Value::Node(b)) => a == b,
             (Value::Failure(a), Value::Failure(b)) => a == b,
+            (Value::Error(a), Value::Error(b)) => a.failure == b.failure,
             (Value::Host(a), Value::Host(b)) => Arc::ptr_eq(&a.value, &b.value),
             _ => false,
         }
@@ -270,7 +285,8 @@ impl Value {
             Value::Duration(_) => "Duration".into(),
             Value::Node(_) => "NodeId".into(),
             Value::Ctx(_) => "Ctx".into(),
-            Value::Failure(_) => "Failure".into(),
+            Value::Failure(f) => f.exception.to_string(),
+            Value::Error(e) => e.failure.exception.to_string(),
             Value::Host(h) => h.ty.to_string(),
         }
     }
@@ -280,6 +296,15 @@ impl Value {
         let mut out = String::new();
         let _ = write!(out, "{self:?}");
         out
+    }
+
+    /// The failure a failure or an error value is.
+    pub fn as_failure(&self) -> Option<&tdl::Failure> {
+        match self {
+            Value::Failure(f) => Some(f),
+            Value::Error(e) => Some(&e.failure),
+            _ => None,
+        }
     }
 
     /// The value as a boolean, if it is one.
@@ -359,7 +384,11 @@ impl Value {
                 ),
             },
             Value::Duration(d) => J::from(d.as_secs_f64()),
-            Value::Node(_) | Value::Ctx(_) | Value::Failure(_) | Value::Host(_) => {
+            Value::Node(_)
+            | Value::Ctx(_)
+            | Value::Failure(_)
+            | Value::Error(_)
+            | Value::Host(_) => {
                 return Err(format!("a {} has no JSON form", self.kind()));
             }
         })

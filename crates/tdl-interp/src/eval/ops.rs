@@ -174,7 +174,11 @@ pub(crate) fn try_value(v: Value) -> R<Value> {
     match &v {
         Value::Variant(var) if &*var.ty == "Result" => match (&*var.name, var.fields.first()) {
             ("Ok", Some(inner)) => Ok(inner.clone()),
-            ("Err", Some(Value::Failure(f))) => Err(Flow::Fail((**f).clone())),
+            ("Err", Some(e)) if e.as_failure().is_some() => Err(Flow::Fail(
+                e.as_failure()
+                    .cloned()
+                    .unwrap_or_else(|| Failure::new("Error", "")),
+            )),
             ("Err", Some(other)) => Err(fail("Error", format!("{other:?}"))),
             _ => Ok(Value::Unit),
         },
@@ -237,13 +241,15 @@ pub(super) fn field(base: &Value, name: &str) -> Result<Value, Failure> {
             .get(name)
             .cloned()
             .ok_or_else(|| Failure::new("UnknownField", format!("no field `{name}` in the map"))),
-        Value::Failure(f) => match f.data::<Value>() {
-            Some(data) => field(&data, name),
-            None => Err(Failure::new(
-                "UnknownField",
-                format!("the exception `{}` carries no field `{name}`", f.exception),
-            )),
-        },
+        Value::Failure(_) | Value::Error(_) => {
+            match base.as_failure().and_then(|f| f.data::<Value>()) {
+                Some(data) => field(&data, name),
+                None => Err(Failure::new(
+                    "UnknownField",
+                    format!("the exception `{}` carries no field `{name}`", base.kind()),
+                )),
+            }
+        }
         other => Err(bad(&format!("`.{name}`"), other)),
     }
 }
@@ -602,11 +608,36 @@ pub(super) fn method(
             Some(x) if x >= 0.0 => Ok(V::Duration(d.mul_f64(x))),
             _ => Err(bad("`.mul_f64()`", &arg(0))),
         },
-        ("name" | "exception", V::Failure(f)) => Ok(V::str(&*f.exception)),
-        ("message", V::Failure(f)) => Ok(V::str(&f.message)),
-        ("data", V::Failure(f)) => Ok(V::option(f.data::<Value>().map(|d| (*d).clone()))),
-        ("is_a", V::Failure(f)) => Ok(V::Bool(arg(0).as_str().is_some_and(|n| f.is_a(n)))),
-        ("downcast" | "is", V::Failure(f)) => {
+        ("name" | "exception" | "message" | "data" | "is_a" | "downcast" | "is", v)
+            if v.as_failure().is_some() =>
+        {
+            let Some(f) = v.as_failure() else {
+                return Err(bad(name, v));
+            };
+            failure_method(f, name, &arg(0), turbofish, shared)
+        }
+        _ => Err(Failure::new(
+            "UnknownMethod",
+            format!("{} `{recv:?}` has no method `{name}`", recv.kind()),
+        )),
+    }
+}
+
+/// A method of a failure (a caught exception, a child's failure, an error).
+fn failure_method(
+    f: &Failure,
+    name: &str,
+    arg: &Value,
+    turbofish: Option<&str>,
+    shared: &Shared,
+) -> Result<Value, Failure> {
+    use Value as V;
+    match name {
+        "name" | "exception" => Ok(V::str(&*f.exception)),
+        "message" => Ok(V::str(&f.message)),
+        "data" => Ok(V::option(f.data::<Value>().map(|d| (*d).clone()))),
+        "is_a" => Ok(V::Bool(arg.as_str().is_some_and(|n| f.is_a(n)))),
+        _ => {
             let Some(ty) = turbofish else {
                 return Err(Failure::new(
                     "Interpreter",
@@ -621,10 +652,6 @@ pub(super) fn method(
                 f.data::<Value>().filter(|_| matches).map(|d| (*d).clone()),
             ))
         }
-        _ => Err(Failure::new(
-            "UnknownMethod",
-            format!("{} `{recv:?}` has no method `{name}`", recv.kind()),
-        )),
     }
 }
 

@@ -266,7 +266,7 @@ impl Frame {
         let value_of = self.value_of(&s.task);
         let ended = sp.wait_outcome_erased().await?;
         let value = |v: Option<Box<dyn std::any::Any + Send>>| {
-            v.and_then(value_of).ok_or_else(|| {
+            v.and_then(|v| value_of(v)).ok_or_else(|| {
                 Flow::Fail(Failure::new(
                     "NoValue",
                     format!(
@@ -329,8 +329,14 @@ impl Frame {
     /// How the value of the called task becomes a value.
     fn value_of(&self, call: &TaskCall) -> crate::registry::ValueOf {
         match call {
-            TaskCall::Rust(entry, _) => entry.value,
-            _ => crate::program::value_of_value,
+            TaskCall::Rust(entry, _) => entry.value.clone(),
+            // An agent's value comes back as JSON; the binding's type reads it.
+            TaskCall::Remote { .. } => std::sync::Arc::new(|v: Box<dyn std::any::Any + Send>| {
+                v.downcast::<serde_json::Value>()
+                    .ok()
+                    .map(|j| Value::from_json(&j))
+            }),
+            _ => std::sync::Arc::new(crate::program::value_of_value),
         }
     }
 

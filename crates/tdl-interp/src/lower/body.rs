@@ -379,7 +379,7 @@ impl<'a> Lower<'_, 'a> {
         }
         let binding = spawn.binding.as_ref().map(|b| {
             let ty = match (&b.ty, outcome) {
-                (Some(ty), _) => Ty::of(ty),
+                (Some(ty), _) => self.ty(ty),
                 (None, true) => Ty::Ended(Box::new(self.value_type(spawn))),
                 (None, false) => self.value_type(spawn),
             };
@@ -420,7 +420,7 @@ impl<'a> Lower<'_, 'a> {
     /// The type of a waited spawn's value: the callee's declared result, else unit.
     fn value_type(&mut self, spawn: &Spawn) -> Ty {
         match self.file.task(&spawn.task.to_string()) {
-            Some(task) => task.result.as_ref().map_or(Ty::Unit, Ty::of),
+            Some(task) => task.result.as_ref().map_or(Ty::Unit, |t| self.ty(t)),
             None => Ty::Any,
         }
     }

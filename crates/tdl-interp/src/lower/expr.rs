@@ -175,7 +175,7 @@ impl Lower<'_, '_> {
             }
             E::Block(b) if b.label.is_none() => Ex::Block(Box::new(self.block(&b.block))),
             E::Closure(c) => self.closure(c),
-            E::Cast(c) => Ex::Cast(Box::new(self.expr(&c.expr)), Ty::of(&c.ty)),
+            E::Cast(c) => Ex::Cast(Box::new(self.expr(&c.expr)), self.ty(&c.ty)),
             E::Let(l) => {
                 let value = self.expr(&l.expr);
                 let pat = self.pat(&l.pat);
@@ -397,7 +397,7 @@ impl Lower<'_, '_> {
         let recv = self.expr(&m.receiver);
         let name = m.method.to_string();
         let turbofish = m.turbofish.as_ref().and_then(|t| match t.args.first() {
-            Some(syn::GenericArgument::Type(ty)) => match Ty::of(ty) {
+            Some(syn::GenericArgument::Type(ty)) => match self.ty(ty) {
                 Ty::Named(n) => Some(n),
                 _ => None,
             },

@@ -27,13 +27,13 @@ pub(crate) fn lower_task(
     let mut l = Lower::new(registry, names, file, file_name, scope, diags);
     let mut params = Vec::new();
     for arg in &task.args {
-        let ty = Ty::of(&arg.ty);
+        let ty = l.ty(&arg.ty);
         l.check_type(&ty, arg.name.span());
         l.declare(&arg.name.to_string());
         params.push((Arc::from(arg.name.to_string()), ty));
     }
     let result = task.result.as_ref().map(|t| {
-        let ty = Ty::of(t);
+        let ty = l.ty(t);
         l.check_type(&ty, task.name.span());
         ty
     });
@@ -116,7 +116,7 @@ pub(crate) fn lower_task(
     // Persistent variables, in order; their initial values see the parameters.
     for c in &task.constraints {
         if let TaskConstraintKind::Persistent(p) = &c.kind {
-            let ty = Ty::of(&p.ty);
+            let ty = l.ty(&p.ty);
             let init = p.init.as_ref().map(|e| l.expr(e));
             let slot = l.declare(&p.name.to_string());
             def.persistents.push((slot, ty, init));

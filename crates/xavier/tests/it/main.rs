@@ -3,6 +3,7 @@
 
 mod binary;
 mod distributed;
+mod interpreted;
 mod scenarios;
 mod util;
 mod viewer;
