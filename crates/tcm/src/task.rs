@@ -59,7 +59,17 @@ where
     Fut: Future<Output = Result<T, Failure>> + Send + 'static,
     T: Any + Send,
 {
-    Box::pin(async move { fut.await.map(|v| Box::new(v) as Value) })
+    Box::pin(async move { fut.await.map(value) })
+}
+
+/// An action's value, erased: a value that is already erased (an action returning `Value`, whose
+/// type is chosen at run time, as TDL's interpreter does) is taken as it is, not boxed again.
+fn value<T: Any + Send>(v: T) -> Value {
+    let boxed: Value = Box::new(v);
+    match boxed.downcast::<Value>() {
+        Ok(inner) => *inner,
+        Err(boxed) => boxed,
+    }
 }
 
 /// A reusable action: a monitor's body (once per activation), a handler (once per use), a retryable
@@ -289,7 +299,7 @@ impl Task {
             let task_name = task_name.clone();
             Box::pin(async move {
                 match fut {
-                    Some(fut) => fut.await.map(|v| Box::new(v) as Value),
+                    Some(fut) => fut.await.map(value),
                     None => Err(Failure::new(
                         "NoArgs",
                         format!(
