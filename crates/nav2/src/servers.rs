@@ -17,7 +17,7 @@ use std::time::Duration;
 use tdl::patterns::{InTurn, Preemption};
 use tdl::tokio::sync::watch;
 use tdl::tokio::time::{Instant, sleep};
-use tdl::{Ended, Failure};
+use tdl::{Ended, Failure, Task};
 
 /// Time to compute a path.
 pub const PLANNING: Duration = Duration::from_millis(100);
@@ -147,13 +147,19 @@ impl Nav {
     /// ([`Nav::new_goal`]) ends the one running.
     pub fn recoveries(&self) -> InTurn {
         let nav = self.clone();
-        InTurn::new(4, move |i| match i {
+        self.recoveries_with(move |i| match i {
             0 => clearing_actions(nav.clone()),
             1 => spin(nav.clone()),
             2 => wait_a_while(nav.clone()),
             _ => back_up(nav.clone()),
         })
-        .preempted_by(self.preemption.clone())
+    }
+
+    /// The four recoveries, in turn, built by `make` from their place (0: clear both costmaps,
+    /// 1: spin, 2: wait, 3: back up), preempted by a new goal: for the same recoveries of
+    /// another build of the program (its tasks loaded at run time).
+    pub fn recoveries_with(&self, make: impl Fn(usize) -> Task + Send + Sync + 'static) -> InTurn {
+        InTurn::new(4, make).preempted_by(self.preemption.clone())
     }
 
     /// The next runs of the planner fail with `errors`, in order.

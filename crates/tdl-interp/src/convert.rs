@@ -379,20 +379,20 @@ macro_rules! tuples {
 tuples!((A 0, B 1), (A 0, B 1, C 2), (A 0, B 1, C 2, D 3));
 
 /// A value of any Rust type, crossing into a program as a host value named by its type's short
-/// name (`Walker` for `ambler::world::Walker`), printed with its `Debug`, and back out by
+/// name (`Walker` for `ambler::world::Walker`), printed as that name, and back out by
 /// downcasting: for a registered function's parameters and results, from any crate. Register
 /// the name too ([`Registry::host_type`](crate::Registry::host_type)) so that the program may
 /// name the type.
 #[derive(Clone, Debug)]
 pub struct Host<T>(pub T);
 
-impl<T: Clone + std::fmt::Debug + Send + Sync + 'static> IntoValue for Host<T> {
+impl<T: Clone + Send + Sync + 'static> IntoValue for Host<T> {
     fn into_value(self) -> Value {
-        Value::host(short_name::<T>(), self.0)
+        Value::opaque(short_name::<T>(), self.0)
     }
 }
 
-impl<T: Clone + std::fmt::Debug + Send + Sync + 'static> FromValue for Host<T> {
+impl<T: Clone + Send + Sync + 'static> FromValue for Host<T> {
     fn expected() -> String {
         short_name::<T>().to_string()
     }
@@ -406,6 +406,28 @@ impl<T: Clone + std::fmt::Debug + Send + Sync + 'static> FromValue for Host<T> {
                 .map(|t| Host((*t).clone())),
         }
     }
+}
+
+/// `Ok(v)`, as a value.
+pub fn ok(v: impl IntoValue) -> Value {
+    Value::variant("Result", "Ok", vec![v.into_value()])
+}
+
+/// `Err(e)` for an error of a type that is not a Rust error (an enum of error codes): the
+/// failure `?` raises is named after the type, its message is its `Debug`, and it carries `e`
+/// (so [`Host<E>`] reads it back, and a registered method of `E` takes it).
+pub fn host_err<E: Clone + std::fmt::Debug + Send + Sync + 'static>(e: E) -> Value {
+    let debug = format!("{e:?}");
+    let mut failure = Failure::new(short_name::<E>(), debug.clone());
+    failure.data = Some(Arc::new(e));
+    Value::variant(
+        "Result",
+        "Err",
+        vec![Value::Error(Arc::new(crate::value::ErrorValue {
+            failure,
+            debug,
+        }))],
+    )
 }
 
 /// The short name of a type: `Walker` for `ambler::world::Walker`.

@@ -31,15 +31,15 @@ mod registry;
 mod ty;
 mod value;
 
-pub use convert::Host;
 pub use convert::{FromValue, IntoOutcome, IntoValue};
+pub use convert::{Host, host_err, ok};
 pub use exec::Budget;
 pub use program::Program;
 pub use registry::{
     BoxFuture, Call, Function, IntoAsyncFunction, IntoFunction, IntoTaskFn, Registry, TaskFn,
 };
 pub use ty::Ty;
-pub use value::{Args, HostValue, Record, Value, Variant};
+pub use value::{Args, ErrorValue, HostValue, Record, Value, Variant};
 
 /// Why a program cannot be loaded.
 #[derive(Debug, thiserror::Error)]

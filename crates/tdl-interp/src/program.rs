@@ -204,9 +204,12 @@ pub(crate) fn intern(name: &str) -> &'static str {
     leaked
 }
 
-/// The value an interpreted task's action returned.
+/// The value an interpreted task's action returned (`()` for a task without a result type).
 pub(crate) fn value_of_value(v: Box<dyn std::any::Any + Send>) -> Option<Value> {
-    v.downcast::<Value>().ok().map(|v| *v)
+    match v.downcast::<Value>() {
+        Ok(v) => Some(*v),
+        Err(v) => v.downcast::<()>().ok().map(|_| Value::Unit),
+    }
 }
 
 /// The failure `fail E { fields }` raises: as `tdl::Exception::raise` makes it for the generated
@@ -277,13 +280,25 @@ pub(crate) fn task(shared: &Arc<Shared>, idx: TaskIdx, args: Vec<Value>) -> Resu
                 NodeKind::Goal
             };
             let (s, stored) = (shared.clone(), Arc::new(args.clone()));
+            // A task with a result gives its value; one without gives Rust's `()`, so that Rust
+            // code waiting for it (a pattern, a registered function) reads it as a compiled
+            // task's.
+            let unit = def.result.is_none();
             let t = Task::retryable(kind, name, move |ctx: Ctx| {
                 // A re-run reads the arguments kept for its node (`retry with`).
                 let args = match ctx.args_ref::<Args>() {
                     Some(a) => a.0.clone(),
                     None => (*stored).clone(),
                 };
-                run(s.clone(), idx, ctx, args, None)
+                let run = run(s.clone(), idx, ctx, args, None);
+                async move {
+                    let v = run.await?;
+                    Ok::<Box<dyn std::any::Any + Send>, Failure>(if unit {
+                        Box::new(())
+                    } else {
+                        Box::new(v)
+                    })
+                }
             });
             if args.is_empty() {
                 t

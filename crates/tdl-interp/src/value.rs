@@ -269,6 +269,19 @@ impl Value {
         })
     }
 
+    /// A value of a host type without `Debug`: it prints as its type's name.
+    pub fn opaque<T: Any + Send + Sync>(ty: &str, value: T) -> Value {
+        fn name(v: &(dyn Any + Send + Sync), f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            let _ = v;
+            f.write_str("<host value>")
+        }
+        Value::Host(HostValue {
+            ty: Arc::from(ty),
+            value: Arc::new(value),
+            debug: name,
+        })
+    }
+
     /// What kind of value it is, for messages: `int`, `string`, `Mission`, ...
     pub fn kind(&self) -> String {
         match self {
