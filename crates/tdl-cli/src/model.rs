@@ -211,7 +211,8 @@ impl<'a> Program<'a> {
             let file = it.name.to_string();
             for item in &it.ast.items {
                 match item {
-                    Item::Resource(_) | Item::State(_) | Item::Environment(_) => {}
+                    Item::Resource(_) | Item::State(_) | Item::Environment(_) | Item::Extern(_) => {
+                    }
                     Item::Task(task) => {
                         let name = task.name.to_string();
                         tasks.push(TaskInfo {

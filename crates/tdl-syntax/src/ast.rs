@@ -66,8 +66,31 @@ pub enum Item {
     /// `environment { … }`: what the outside may change, for the tools (docs/verification.md,
     /// "The environment").
     Environment(EnvironmentDecl),
+    /// `extern goal|command name(args) [-> T];`: a task implemented outside TDL (in Rust, by an
+    /// agent, by ROS 2), declared so that its arguments and value are typed.
+    Extern(ExternDecl),
     /// Any Rust item (`fn`, `use`, `struct`, ...), passed through verbatim.
     Rust(Box<syn::Item>),
+}
+
+/// `extern goal|command name(args) [-> T];`: the signature of a task implemented elsewhere. The
+/// compiled program calls the Rust function of that name; an interpreted one, what its registry
+/// or an agent offers under that name (docs/language.md, "Running programs without compiling
+/// them").
+#[derive(Clone, Debug)]
+pub struct ExternDecl {
+    /// Outer attributes, including doc comments.
+    pub attrs: Vec<syn::Attribute>,
+    /// Goal or command.
+    pub kind: TaskKind,
+    /// Task name.
+    pub name: Ident,
+    /// Its parameters.
+    pub args: Vec<Arg>,
+    /// `-> T`: the value a waited spawn of it yields.
+    pub result: Option<syn::Type>,
+    /// Span of the name.
+    pub span: Span,
 }
 
 /// The kind of a task definition (docs/semantics.md, "Task kinds").

@@ -63,7 +63,8 @@ fn generate_in(file: &FileScope<'_>, ast: &Ast, source: Option<&str>) -> Generat
             Item::Exception(exc) => tokens.extend(exception_items(file, exc)),
             // A resource is declared by the spawns that use it (`uses_expr`), a state variable by
             // each use (`state.rs`): no item of their own.
-            Item::Resource(_) | Item::State(_) | Item::Environment(_) => {}
+            // An extern task is the Rust function of its name, written elsewhere.
+            Item::Resource(_) | Item::State(_) | Item::Environment(_) | Item::Extern(_) => {}
             Item::Rust(item) => tokens.extend(quote!(#item)),
         }
     }
@@ -89,7 +90,8 @@ pub fn stubs(ast: &Ast) -> TokenStream {
                 tokens.extend(task_shell(task, &body, Allow::Stub));
             }
             Item::Exception(exc) => tokens.extend(exception_items(&file, exc)),
-            Item::Resource(_) | Item::State(_) | Item::Environment(_) => {}
+            // An extern task is the Rust function of its name, written elsewhere.
+            Item::Resource(_) | Item::State(_) | Item::Environment(_) | Item::Extern(_) => {}
             Item::Rust(item) => tokens.extend(quote!(#item)),
         }
     }

@@ -100,6 +100,7 @@ pub(crate) fn diagnose_in(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagn
                 }
             }
             Item::Resource(_) | Item::Rust(_) => {}
+            Item::Extern(decl) => externs(file, decl, diags),
             Item::State(decl) => state::declaration(decl, diags),
             Item::Environment(env) => state::environment(file, env, diags),
         }
@@ -295,4 +296,19 @@ fn inconsistent_expansion(expand_first: Span, delay_expansion: Span) -> Diagnost
         "`expand first` finishes expansion before execution starts, `delay expansion` waits for \
          execution to be enabled; keep one",
     )
+}
+
+/// An extern task: its name is not also a task of the program.
+fn externs(file: &FileScope<'_>, decl: &crate::ast::ExternDecl, diags: &mut Vec<Diagnostic>) {
+    let name = decl.name.to_string();
+    if let Some(task) = file.task(&name) {
+        diags.push(
+            Diagnostic::error(
+                decl.span,
+                format!("`{name}` is declared `extern` and defined in TDL"),
+            )
+            .with_label(task.span, "defined here")
+            .with_hint("a task is either written in TDL or declared `extern`: remove one"),
+        );
+    }
 }

@@ -57,6 +57,25 @@ pub fn dump(ast: &Ast) -> String {
                     let _ = writeln!(out, "  {}", crate::print::env_entry(e));
                 }
             }
+            Item::Extern(e) => {
+                let args: Vec<String> = e
+                    .args
+                    .iter()
+                    .map(|it| format!("{}: {}", it.name, tokens(&it.ty)))
+                    .collect();
+                let result = e
+                    .result
+                    .as_ref()
+                    .map(|it| format!(" -> {}", tokens(it)))
+                    .unwrap_or_default();
+                let _ = writeln!(
+                    out,
+                    "extern {} {}({}){result}",
+                    e.kind.as_str(),
+                    e.name,
+                    args.join(", ")
+                );
+            }
             Item::Rust(item) => {
                 let _ = writeln!(out, "rust item: {}", tokens(item.as_ref()));
             }

@@ -195,6 +195,19 @@ impl<'a> Program<'a> {
     }
 
     /// The entries of the program's environment declarations, in file order (docs/
+    /// Every `extern` task declaration, file by file in source order.
+    pub fn externs(&self) -> Vec<&'a crate::ast::ExternDecl> {
+        self.files
+            .iter()
+            .flat_map(|it| {
+                it.ast.items.iter().filter_map(|item| match item {
+                    Item::Extern(e) => Some(e),
+                    _ => None,
+                })
+            })
+            .collect()
+    }
+
     /// verification.md, "The environment"), and whether it has one at all.
     pub fn environment(&self) -> Option<Vec<&'a EnvEntry>> {
         let mut found = false;

@@ -9,6 +9,7 @@
 
 mod cond;
 mod constraint;
+mod externs;
 mod stmt;
 
 use proc_macro2::{Delimiter, Ident, Span, TokenStream, TokenTree};
@@ -267,6 +268,11 @@ fn tdl_item_keyword(input: ParseStream) -> Option<String> {
         return (fork.peek(syn::Ident) && fork.peek2(Token![:]) && !fork.peek2(Token![::]))
             .then_some(word);
     }
+    // `extern goal|command NAME(…)` declares a task implemented elsewhere.
+    if word == "extern" {
+        let next = fork.call(Ident::parse_any).ok()?.to_string();
+        return matches!(next.as_str(), "goal" | "command").then_some(word);
+    }
     matches!(
         word.as_str(),
         "goal" | "command" | "monitor" | "handler" | "exception"
@@ -298,6 +304,10 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
     }
     let attrs = input.call(syn::Attribute::parse_outer)?;
     let vis: syn::Visibility = input.parse()?;
+    if input.peek(Token![extern]) {
+        input.parse::<Token![extern]>()?;
+        return externs::extern_decl(input, cx, attrs);
+    }
     let mut persistent = false;
     let mut blocking = None;
     let mut keyword = input.call(Ident::parse_any)?;
@@ -609,16 +619,8 @@ fn exception(
     }))
 }
 
-fn task(
-    input: ParseStream,
-    cx: &mut Cx,
-    attrs: Vec<syn::Attribute>,
-    vis: syn::Visibility,
-    persistent: bool,
-    blocking: Option<Span>,
-    kind: TaskKind,
-) -> syn::Result<Item> {
-    let name: Ident = input.parse()?;
+/// A task's arguments in parentheses and its result type, if any.
+fn signature(input: ParseStream, cx: &mut Cx) -> syn::Result<(Vec<Arg>, Option<Type>)> {
     let args_group = take_group(
         input,
         Delimiter::Parenthesis,
@@ -640,6 +642,20 @@ fn task(
     } else {
         None
     };
+    Ok((args, result))
+}
+
+fn task(
+    input: ParseStream,
+    cx: &mut Cx,
+    attrs: Vec<syn::Attribute>,
+    vis: syn::Visibility,
+    persistent: bool,
+    blocking: Option<Span>,
+    kind: TaskKind,
+) -> syn::Result<Item> {
+    let name: Ident = input.parse()?;
+    let (args, result) = signature(input, cx)?;
     let handles = if kind == TaskKind::Handler {
         if !input.peek(syn::Ident) || input.fork().call(Ident::parse_any)? != "handles" {
             return Err(

@@ -318,7 +318,14 @@ impl<'a> Gen<'_, 'a> {
         if let Some(ty) = &binding.ty {
             return quote!(#ty);
         }
-        match self.file.task(&spawn.task.to_string()) {
+        let name = spawn.task.to_string();
+        if let (None, Some(decl)) = (self.file.task(&name), self.file.extern_decl(&name)) {
+            return match &decl.result {
+                Some(ty) => quote!(#ty),
+                None => quote!(()),
+            };
+        }
+        match self.file.task(&name) {
             Some(task) => match &task.result {
                 Some(ty) => quote!(#ty),
                 None => quote!(()),

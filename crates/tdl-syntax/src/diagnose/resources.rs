@@ -49,7 +49,11 @@ pub(super) fn diagnose(file: &FileScope<'_>, ast: &Ast, diags: &mut Vec<Diagnost
                 }
             }
             Item::Task(task) => task_uses(file, task, diags),
-            Item::Exception(_) | Item::State(_) | Item::Environment(_) | Item::Rust(_) => {}
+            Item::Exception(_)
+            | Item::State(_)
+            | Item::Environment(_)
+            | Item::Extern(_)
+            | Item::Rust(_) => {}
         }
     }
 }

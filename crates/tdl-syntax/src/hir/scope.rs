@@ -42,6 +42,8 @@ pub struct FileScope<'a> {
     pub elsewhere: Vec<Elsewhere<'a>>,
     /// The resolved body of every task of the program.
     bodies: Rc<Bodies<'a>>,
+    /// The `extern` tasks of the program (the first declaration of a name).
+    externs: BTreeMap<String, &'a crate::ast::ExternDecl>,
 }
 
 /// A declaration of a name declared before in the same file: (this one, the first).
@@ -82,7 +84,7 @@ impl<'a> Decl<'a> {
             Item::Exception(it) => Some(Decl::Exception(it)),
             Item::Resource(it) => Some(Decl::Resource(it)),
             Item::State(it) => Some(Decl::State(it)),
-            Item::Environment(_) | Item::Rust(_) => None,
+            Item::Environment(_) | Item::Extern(_) | Item::Rust(_) => None,
         }
     }
 
@@ -134,6 +136,7 @@ impl<'a> FileScope<'a> {
             other_exceptions: BTreeMap::new(),
             elsewhere: Vec::new(),
             bodies,
+            externs: BTreeMap::new(),
         };
         for item in &ast.items {
             match item {
@@ -161,6 +164,9 @@ impl<'a> FileScope<'a> {
                         scope.states.insert(v.name.to_string(), v);
                     }
                 },
+                Item::Extern(e) => {
+                    scope.externs.entry(e.name.to_string()).or_insert(e);
+                }
                 Item::Environment(_) | Item::Rust(_) => {}
             }
         }
@@ -177,6 +183,13 @@ impl<'a> FileScope<'a> {
         let mut scope = FileScope::with_bodies(files[at].1, bodies);
         // The first declaration of each name in the files before this one.
         let mut earlier: BTreeMap<(u8, String), (&'a str, Span)> = BTreeMap::new();
+        for (i, (_, other)) in files.iter().enumerate() {
+            for item in &other.items {
+                if let (Item::Extern(e), false) = (item, i == at) {
+                    scope.externs.entry(e.name.to_string()).or_insert(e);
+                }
+            }
+        }
         for (i, (file, other)) in files.iter().enumerate() {
             for decl in other.items.iter().filter_map(Decl::of) {
                 let name = decl.name().to_string();
@@ -233,6 +246,11 @@ impl<'a> FileScope<'a> {
         self.bodies
             .get(&std::ptr::from_ref(task))
             .expect("every task of the program is resolved with it")
+    }
+
+    /// The `extern` task of this name declared in the source or another file of the program.
+    pub fn extern_decl(&self, name: &str) -> Option<&'a crate::ast::ExternDecl> {
+        self.externs.get(name).copied()
     }
 
     /// The task of this name defined in the source or another file of the program.

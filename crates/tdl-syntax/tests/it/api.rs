@@ -425,3 +425,40 @@ fn an_environment_declaration_is_read_and_checked() {
         ]
     );
 }
+
+#[test]
+fn an_extern_task_is_a_signature_the_generator_leaves_to_rust() {
+    let src = "/// Digs.\nextern command dig(x: f64, y: f64) -> f64;\n\
+               goal g() {\n    let d = spawn dig(1.0, 2.0) with wait;\n}\n";
+    let parse = tdl_syntax::parse_str("x.tdl", src);
+    assert!(!parse.has_errors(), "{:?}", parse.diagnostics);
+    let Item::Extern(e) = &parse.file.items[0] else {
+        panic!("not an extern: {:?}", parse.file.items[0]);
+    };
+    assert_eq!(e.name, "dig");
+    assert_eq!(e.args.len(), 2);
+    assert!(e.result.is_some());
+    let dump = tdl_syntax::dump(&parse.file);
+    assert!(
+        dump.contains("extern command dig(x: f64, y: f64) -> f64"),
+        "{dump}"
+    );
+    // The waited value is typed by the declaration; nothing is generated for `dig` itself.
+    let (code, diags) = tdl_syntax::compile_str("x.tdl", src);
+    assert!(diags.iter().all(|d| !d.is_error()), "{diags:?}");
+    let code = code.expect("code").to_string();
+    assert!(code.contains("wait_value :: < f64 >"), "{code}");
+    assert!(!code.contains("struct Dig"), "{code}");
+}
+
+#[test]
+fn an_extern_task_also_written_in_tdl_is_an_error() {
+    let src = "extern command dig(x: f64);\ncommand dig(x: f64) {}\n";
+    let (_, diags) = tdl_syntax::compile_str("x.tdl", src);
+    assert!(
+        diags
+            .iter()
+            .any(|d| d.is_error() && d.message().contains("declared `extern` and defined in TDL")),
+        "{diags:?}"
+    );
+}
