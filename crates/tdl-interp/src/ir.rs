@@ -247,7 +247,8 @@ pub(crate) enum TaskCall {
     /// A task of the program.
     Tdl(TaskIdx, Vec<Ex>),
     /// A task built in Rust.
-    Rust(TaskEntry, Vec<Ex>),
+    /// A task built in Rust; the parameter types of its `extern` declaration, if any.
+    Rust(TaskEntry, Vec<Ex>, Option<Arc<Vec<Ty>>>),
     /// A task of an agent (`on AGENT`), by the run's placer.
     Remote {
         agent: Ex,

@@ -77,10 +77,17 @@ fn names(program: &hir::Program<'_>) -> ProgramNames {
         let var = tdl::StateVar::new(s.name.to_string(), ty, s.initial());
         states.insert(s.name.to_string(), (var, ty));
     }
+    let mut externs = BTreeMap::new();
+    for e in program.externs() {
+        let params = e.args.iter().map(|a| crate::ty::Ty::of(&a.ty)).collect();
+        let result = e.result.as_ref().map(crate::ty::Ty::of);
+        externs.insert(e.name.to_string(), (params, result));
+    }
     ProgramNames {
         tasks,
         exceptions,
         states,
+        externs,
     }
 }
 
@@ -120,7 +127,32 @@ fn build(
                         )),
                     );
                 }
-                Item::Exception(_) | Item::Resource(_) | Item::State(_) | Item::Environment(_) => {}
+                Item::Extern(e) if !registry.tasks.contains_key(&e.name.to_string()) => {
+                    let offered = registry.task_names();
+                    diags.push(
+                        Diagnostic::error(
+                            e.span,
+                            format!(
+                                "the program declares the extern {} `{}`, which no registry offers",
+                                e.kind.as_str(),
+                                e.name
+                            ),
+                        )
+                        .with_hint(if offered.is_empty() {
+                            "register it (`Registry::task`), or start the agent that offers it".to_string()
+                        } else {
+                            format!(
+                                "register it (`Registry::task`), or start the agent that offers it; offered: {}",
+                                crate::lower::list(&offered)
+                            )
+                        }),
+                    );
+                }
+                Item::Exception(_)
+                | Item::Resource(_)
+                | Item::State(_)
+                | Item::Environment(_)
+                | Item::Extern(_) => {}
             }
         }
         diags.sort_by_key(|d| d.start());

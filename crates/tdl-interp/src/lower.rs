@@ -24,6 +24,7 @@ use tdl_syntax::hir::{BodyScope, FileScope, LoopId};
 use crate::ir::{Loc, Slot, TSlot, TaskIdx};
 use crate::registry::Registry;
 
+pub(crate) use expr::list;
 pub(crate) use task::lower_task;
 
 /// A declared exception: its ancestors (nearest first) and its fields in order.
@@ -35,6 +36,8 @@ pub(crate) struct ProgramNames {
     /// Declared exceptions: their ancestors (nearest first) and fields in order.
     pub(crate) exceptions: BTreeMap<String, ExceptionInfo>,
     pub(crate) states: BTreeMap<String, (tdl::StateVar, tcm_expr::Type)>,
+    /// The `extern` tasks: their parameters' and result's types.
+    pub(crate) externs: BTreeMap<String, (Vec<crate::ty::Ty>, Option<crate::ty::Ty>)>,
 }
 
 /// The hint of every diagnostic of a construct outside the subset.

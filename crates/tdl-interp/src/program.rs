@@ -416,7 +416,7 @@ fn modifiers(shared: &Arc<Shared>, def: &TaskDef, args: &[Value]) -> Result<Vec<
                     let vals = eval_all(&mut f, exs)?;
                     Built::OnTerminate(task(shared, *i, vals)?)
                 }
-                crate::ir::TaskCall::Rust(entry, exs) => {
+                crate::ir::TaskCall::Rust(entry, exs, _) => {
                     let vals = eval_all(&mut f, exs)?;
                     Built::OnTerminate((entry.make)(&vals)?)
                 }

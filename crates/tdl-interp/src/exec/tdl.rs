@@ -155,8 +155,17 @@ impl Frame {
                 let args = self.eval_all(args)?;
                 Ok(crate::program::task(&self.shared, *idx, args)?)
             }
-            TaskCall::Rust(entry, args) => {
-                let args = self.eval_all(args)?;
+            TaskCall::Rust(entry, args, params) => {
+                let mut args = self.eval_all(args)?;
+                // Typed by its `extern` declaration: a value of the wrong type fails the node.
+                if let Some(params) = params {
+                    for (i, (v, ty)) in args.iter_mut().zip(params.iter()).enumerate() {
+                        let given = std::mem::take(v);
+                        *v = ty.coerce(given).map_err(|e| {
+                            Failure::new("TypeMismatch", format!("argument {}: {e}", i + 1))
+                        })?;
+                    }
+                }
                 Ok((entry.make)(&args)?)
             }
             TaskCall::Remote {
@@ -329,7 +338,7 @@ impl Frame {
     /// How the value of the called task becomes a value.
     fn value_of(&self, call: &TaskCall) -> crate::registry::ValueOf {
         match call {
-            TaskCall::Rust(entry, _) => entry.value.clone(),
+            TaskCall::Rust(entry, ..) => entry.value.clone(),
             // An agent's value comes back as JSON; the binding's type reads it.
             TaskCall::Remote { .. } => std::sync::Arc::new(|v: Box<dyn std::any::Any + Send>| {
                 v.downcast::<serde_json::Value>()

@@ -419,9 +419,13 @@ impl<'a> Lower<'_, 'a> {
 
     /// The type of a waited spawn's value: the callee's declared result, else unit.
     fn value_type(&mut self, spawn: &Spawn) -> Ty {
-        match self.file.task(&spawn.task.to_string()) {
+        let name = spawn.task.to_string();
+        match self.file.task(&name) {
             Some(task) => task.result.as_ref().map_or(Ty::Unit, |t| self.ty(t)),
-            None => Ty::Any,
+            None => match self.names.externs.get(&name) {
+                Some((_, result)) => result.clone().unwrap_or(Ty::Unit),
+                None => Ty::Any,
+            },
         }
     }
 

@@ -203,7 +203,25 @@ impl Lower<'_, '_> {
             return Some(TaskCall::Tdl(*idx, args));
         }
         if let Some(entry) = self.registry.tasks.get(&text) {
-            return Some(TaskCall::Rust(entry.clone(), args));
+            let params = self
+                .names
+                .externs
+                .get(&text)
+                .map(|(p, _)| Arc::new(p.clone()));
+            if let Some(p) = &params {
+                if p.len() != args.len() {
+                    self.error(
+                        name.span(),
+                        format!(
+                            "`{text}` takes {} argument(s) (its `extern` declaration), given {}",
+                            p.len(),
+                            args.len()
+                        ),
+                        "give one argument per parameter".into(),
+                    );
+                }
+            }
+            return Some(TaskCall::Rust(entry.clone(), args, params));
         }
         let offered = self.registry.task_names();
         self.error(

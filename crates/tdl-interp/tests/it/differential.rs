@@ -216,3 +216,34 @@ both!(events {
 async fn resources_and_external_events_run_alike() {
     alike(events::wait_for_go(), events::SRC, "wait_for_go", vec![]).await;
 }
+
+#[tokio::test(start_paused = true)]
+async fn an_extern_task_is_typed_by_its_declaration() {
+    let mut r = Registry::new();
+    r.task_returning::<f64, _>("dig", |x: f64, y: f64| {
+        tdl::Task::command(
+            "dig",
+            move |_| async move { Ok::<f64, tdl::Failure>(x * y) },
+        )
+    });
+    let src = "extern command dig(x: f64, y: f64) -> f64;\n\
+               pub goal g(x: i64) -> f64 {\n    let d = spawn dig(x, 2.5) with wait;\n    d + 1.0\n}\n\
+               pub goal bad() {\n    spawn dig(\"far\", 2.5) with wait;\n}\n";
+    let program = load(src, &r);
+    // An integer for an `f64` parameter is converted, as a literal would be.
+    let task = program.task("g", vec![Value::Int(4)]).expect("a task");
+    let trace = trace_of(Runtime::new(), task).await;
+    assert!(
+        trace.iter().any(|l| l.contains("\"name\":\"dig\"")),
+        "{trace:?}"
+    );
+    // A string for an `f64` fails the spawning node with a typed exception.
+    let task = program.task("bad", vec![]).expect("a task");
+    let trace = trace_of(Runtime::new(), task).await;
+    let failed = trace
+        .iter()
+        .find(|l| l.contains("\"ev\":\"failed\""))
+        .expect("the node failed");
+    assert!(failed.contains("TypeMismatch"), "{failed}");
+    assert!(failed.contains("expected f64"), "{failed}");
+}
