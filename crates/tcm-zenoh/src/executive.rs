@@ -361,6 +361,21 @@ impl Executive {
             .unwrap_or_default()
     }
 
+    /// Every task the live agents offer, with the live agents offering it, by name.
+    pub fn offers(&self) -> std::collections::BTreeMap<String, Vec<String>> {
+        let s = self.inner.lock();
+        s.offers
+            .iter()
+            .map(|(task, agents)| {
+                (
+                    task.clone(),
+                    agents.intersection(&s.live).cloned().collect::<Vec<_>>(),
+                )
+            })
+            .filter(|(_, agents)| !agents.is_empty())
+            .collect()
+    }
+
     /// The executive's counters.
     pub fn stats(&self) -> Stats {
         self.inner.lock().stats
