@@ -299,6 +299,24 @@ impl Registry {
         self
     }
 
+    /// A task built from its arguments as values, for what the typed registrations cannot say
+    /// (a task an agent offers, its arguments crossing as JSON); its value is read as a plain
+    /// value (JSON included).
+    pub fn task_dynamic(
+        &mut self,
+        name: &str,
+        make: impl Fn(&[Value]) -> Result<Task, Failure> + Send + Sync + 'static,
+    ) -> &mut Registry {
+        self.tasks.insert(
+            name.to_string(),
+            TaskEntry {
+                make: Arc::new(make),
+                value: Arc::new(plain_value),
+            },
+        );
+        self
+    }
+
     /// A function, called by its name (a path such as `f64::from` is named as written).
     pub fn function<M>(&mut self, name: &str, f: impl IntoFunction<M>) -> &mut Registry {
         let f = f.into_function(format!("`{name}`"));

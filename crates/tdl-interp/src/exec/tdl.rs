@@ -185,6 +185,7 @@ impl Frame {
                 })?;
                 // One argument crosses as itself, several as an array (as a tuple serializes).
                 let json = match json.len() {
+                    0 => serde_json::Value::Null,
                     1 => json.into_iter().next().unwrap_or_default(),
                     _ => serde_json::Value::Array(json),
                 };

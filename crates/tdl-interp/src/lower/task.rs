@@ -123,8 +123,10 @@ pub(crate) fn lower_task(
         }
     }
     if task.kind == TaskKind::Handler {
-        if let (Some(exc), Some(var)) = (&task.handles, &task.caught) {
+        if let Some(exc) = &task.handles {
             l.check_exception(exc);
+        }
+        if let (Some(_), Some(var)) = (&task.handles, &task.caught) {
             def.caught = Some(l.declare(&var.to_string()));
         }
         let failing = l.declare("failing");
@@ -144,6 +146,28 @@ pub(crate) fn lower_task(
     def.tdl_slots = tdl_slots;
     def
 }
+
+/// The exceptions the runtime, the distribution layer and the interpreter raise themselves: a
+/// program handles them without declaring them.
+const RUNTIME_EXCEPTIONS: &[&str] = &[
+    "Fail",
+    "ResourceDenied",
+    "ResourceDropped",
+    "InvariantFailed",
+    "AgentLost",
+    "RemoteError",
+    "RemoteTimeout",
+    "RemoteCancelled",
+    "RemoteRefused",
+    "StepBudgetExceeded",
+    "TypeMismatch",
+    "NoMatch",
+    "NoneValue",
+    "Overflow",
+    "DivisionByZero",
+    "IndexOutOfRange",
+    "NotRetryable",
+];
 
 impl Lower<'_, '_> {
     /// Refuses a type that names a type no registry declares.
@@ -182,6 +206,7 @@ impl Lower<'_, '_> {
         let name = exc.to_string();
         if !self.names.exceptions.contains_key(&name)
             && !self.registry.exceptions.contains_key(&name)
+            && !RUNTIME_EXCEPTIONS.contains(&name.as_str())
         {
             self.error(
                 exc.span(),
@@ -228,7 +253,7 @@ impl Lower<'_, '_> {
             name.span(),
             format!("`{text}` is not a task of the program, nor one the registry offers"),
             if offered.is_empty() {
-                "define it in TDL, declare it `extern`, or register it with `Registry::task`".into()
+                "define it in TDL, or declare it `extern` and register it (`Registry::task`) or start the agent that offers it".into()
             } else {
                 format!(
                     "define it in TDL or register it with `Registry::task`; the registry offers {}",
