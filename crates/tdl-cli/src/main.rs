@@ -44,6 +44,7 @@ mod doc;
 mod export;
 mod graph;
 mod model;
+mod run;
 mod serve;
 mod sim;
 mod verify;
@@ -132,6 +133,11 @@ enum Command {
     /// outcomes, failures, external events), and check every run; a failing run is written as a
     /// trace file with the command line that runs its seed again (docs/verification.md).
     Sim(sim::Args),
+    /// Load a program's `.tdl` files, check them, and run a task of it without a Rust build: the
+    /// commands it does not write in TDL come from agents (Rust or Python) that connect to
+    /// 127.0.0.1 (docs/language.md, "Running programs without compiling them"). Prints the run's
+    /// report.
+    Run(run::Args),
     /// Make a system's certificates for mutual TLS (docs/distributed.md, "Mutual TLS"): an
     /// authority (`authority.pem`, its key `authority.key`) and, for each member, a certificate
     /// it signed and its key (`<member>.pem`, `<member>.key`). Refuses to replace a file unless
@@ -295,6 +301,7 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
         Command::Trace { what } => trace(what, &mut out).map(found),
         Command::Verify(args) => verify::run(args, &mut out),
         Command::Sim(args) => sim::run(args, &mut out),
+        Command::Run(args) => run::run(args),
         Command::Certs(args) => certs::run(args, &mut out),
         Command::View { files, listen } => serve::view(&files, listen).map(found),
         Command::Expand { file } => {

@@ -9,6 +9,7 @@ mod certs;
 mod doc;
 mod export;
 mod graph;
+mod run;
 mod sim;
 mod verify;
 mod view;

@@ -1,0 +1,299 @@
+//! `tdl run`: a program's `.tdl` files loaded, checked and run without a Rust build
+//! (docs/language.md, "Running programs without compiling them"). The commands it spawns that it
+//! does not write in TDL come from agents: an executive listens on 127.0.0.1, the agents (Rust or
+//! Python) connect, and every task they offer is registered for the program, its arguments and
+//! value crossing as JSON. The run's trace goes to a file and to the viewer, live, if asked; the
+//! report is printed, and the exit status says how the run ended.
+
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use tdl_interp::{Program, Registry, Value};
+
+const EXIT_STATUS: &str = "Exit status: 0 when the task completed and nothing failed unhandled; \
+1 when the program was refused (its diagnostics are printed, nothing was started); 3 when the run \
+ended with an unhandled failure or stuck; 2 when the run could not start.";
+
+/// Options of `tdl run`.
+#[derive(clap::Args)]
+#[command(after_help = EXIT_STATUS)]
+pub(crate) struct Args {
+    /// The `.tdl` files of the program, checked as one program.
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    /// The task to run (default: the only goal or command no task of the program spawns).
+    #[arg(long)]
+    task: Option<String>,
+    /// The task's arguments, as JSON: an array of one value per parameter, or the value of a
+    /// task of one parameter.
+    #[arg(long, value_name = "JSON")]
+    args: Option<String>,
+    /// The system agents join (their `Agent(system, name)`).
+    #[arg(long, default_value = "tdl")]
+    system: String,
+    /// The port of 127.0.0.1 the executive listens on for agents.
+    #[arg(long, default_value_t = 7447)]
+    port: u16,
+    /// Wait for these agents before starting (default: wait until every task the program needs
+    /// from outside is offered).
+    #[arg(long, value_delimiter = ',')]
+    agents: Vec<String>,
+    /// How long to wait for agents, in seconds.
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    wait: f64,
+    /// Write the run's trace to this file (JSON lines).
+    #[arg(long, value_name = "FILE")]
+    trace: Option<PathBuf>,
+    /// Serve the viewer on the run, live (and after it, until interrupted).
+    #[arg(long)]
+    view: bool,
+    /// The most loop iterations a body may take without ending (its node fails past them).
+    #[arg(long, value_name = "N")]
+    max_steps: Option<u64>,
+}
+
+/// The files, read.
+fn read(files: &[PathBuf]) -> anyhow::Result<Vec<(String, String)>> {
+    files
+        .iter()
+        .map(|p| {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            Ok((p.display().to_string(), text))
+        })
+        .collect()
+}
+
+/// The diagnostics of the files checked as one program, rendered, when any is an error.
+fn errors(files: &[(String, String)]) -> Option<String> {
+    let named: Vec<(&str, &str)> = files
+        .iter()
+        .map(|(n, s)| (n.as_str(), s.as_str()))
+        .collect();
+    let results = tdl_syntax::compile_program(&named);
+    let mut out = String::new();
+    for ((name, src), (_, diags)) in named.iter().zip(results) {
+        let errors: Vec<_> = diags.into_iter().filter(|d| d.is_error()).collect();
+        if !errors.is_empty() {
+            out.push_str(&tdl_syntax::render_all(&errors, name, Some(src)));
+            out.push('\n');
+        }
+    }
+    (!out.is_empty()).then_some(out)
+}
+
+/// The tasks the program spawns that it does not write in TDL (its `extern` tasks included), and
+/// the kind of each extern one.
+fn outside(files: &[(String, String)]) -> Vec<(String, tdl::NodeKind)> {
+    let named: Vec<(&str, &str)> = files
+        .iter()
+        .map(|(n, s)| (n.as_str(), s.as_str()))
+        .collect();
+    tdl_syntax::compile_program_with(&named, |program, _| {
+        let mut out: Vec<(String, tdl::NodeKind)> = Vec::new();
+        let mut seen = BTreeSet::new();
+        for e in program.externs() {
+            let kind = match e.kind {
+                tdl_syntax::TaskKind::Goal => tdl::NodeKind::Goal,
+                _ => tdl::NodeKind::Command,
+            };
+            if seen.insert(e.name.to_string()) {
+                out.push((e.name.to_string(), kind));
+            }
+        }
+        for t in program.tasks() {
+            for name in program.spawned(t.task) {
+                let name = name.to_string();
+                if program.task(&name).is_none() && seen.insert(name.clone()) {
+                    out.push((name, tdl::NodeKind::Command));
+                }
+            }
+        }
+        out
+    })
+}
+
+/// The task to run: the one asked for, else the program's only goal no other task spawns.
+fn root(
+    program: &Program,
+    files: &[(String, String)],
+    asked: Option<&str>,
+) -> anyhow::Result<String> {
+    if let Some(t) = asked {
+        return Ok(t.to_string());
+    }
+    let named: Vec<(&str, &str)> = files
+        .iter()
+        .map(|(n, s)| (n.as_str(), s.as_str()))
+        .collect();
+    let spawned: BTreeSet<String> = tdl_syntax::compile_program_with(&named, |p, _| {
+        p.tasks()
+            .flat_map(|t| {
+                p.spawned(t.task)
+                    .into_iter()
+                    .map(ToString::to_string)
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    });
+    let roots: Vec<&str> = program
+        .tasks()
+        .into_iter()
+        .filter(|t| !spawned.contains(*t))
+        .collect();
+    match roots.as_slice() {
+        [one] => Ok((*one).to_string()),
+        [] => bail!("the program has no task to run: name one with --task"),
+        many => bail!(
+            "the program has several tasks no other spawns ({}): name one with --task",
+            many.join(", ")
+        ),
+    }
+}
+
+/// Runs the program: its exit status (see [`EXIT_STATUS`]).
+pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
+    let files = read(&a.files)?;
+    if let Some(text) = errors(&files) {
+        eprint!("{text}");
+        eprintln!("tdl: the program has errors: nothing was started");
+        return Ok(1);
+    }
+    let outside = outside(&files);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    rt.block_on(async move {
+        let mut registry = Registry::new();
+        let exec = if outside.is_empty() && a.agents.is_empty() {
+            None
+        } else {
+            Some(connect(&a, &outside, &mut registry).await?)
+        };
+        let mut program = match Program::from_sources(&files, &registry) {
+            Ok(p) => p,
+            Err(e) => {
+                eprintln!("{e}");
+                eprintln!("tdl: the program was refused: nothing was started");
+                return Ok(1);
+            }
+        };
+        if let Some(max) = a.max_steps {
+            program = program.with_budget(tdl_interp::Budget {
+                max_steps: max,
+                ..tdl_interp::Budget::default()
+            });
+        }
+        let name = root(&program, &files, a.task.as_deref())?;
+        let args: serde_json::Value = match &a.args {
+            Some(text) => serde_json::from_str(text).context("--args is not JSON")?,
+            None => serde_json::Value::Null,
+        };
+        let task = program.task_json(&name, &args)?;
+        let mut runtime = tdl::Runtime::new();
+        for h in program.attached() {
+            runtime = runtime.attach(h);
+        }
+        if let Some(exec) = &exec {
+            runtime = runtime.placer(exec.clone());
+        }
+        if let Some(path) = &a.trace {
+            let file = std::fs::File::create(path)
+                .with_context(|| format!("cannot write the trace {}", path.display()))?;
+            runtime = runtime.with_sink(tdl::JsonLines(std::io::BufWriter::new(file)));
+        }
+        let viewer = if a.view {
+            let viewer = tcm_view::Viewer::start(None)?;
+            eprintln!("viewer: {}", viewer.url());
+            runtime = runtime.with_sink(viewer.live(name.clone()));
+            Some(viewer)
+        } else {
+            None
+        };
+        eprintln!("running {name}");
+        let report = runtime.run(task).await?;
+        println!("{report}");
+        if let Some(exec) = exec {
+            exec.close().await;
+        }
+        if let Some(viewer) = viewer {
+            eprintln!("the run ended; the viewer serves it until interrupted");
+            viewer.wait();
+        }
+        Ok(
+            if report.outcome == tdl::RunOutcome::Completed && report.is_clean() {
+                0
+            } else {
+                3
+            },
+        )
+    })
+}
+
+/// Opens the executive, waits for the agents (those named, or until every task the program
+/// needs is offered), and registers every task they offer.
+async fn connect(
+    a: &Args,
+    outside: &[(String, tdl::NodeKind)],
+    registry: &mut Registry,
+) -> anyhow::Result<tcm_zenoh::Executive> {
+    let config = tcm_zenoh::config::loopback_listen(a.port)?;
+    let exec = tcm_zenoh::Executive::open(&a.system, config)
+        .await
+        .with_context(|| format!("cannot listen on 127.0.0.1:{} for agents", a.port))?;
+    eprintln!(
+        "executive of system `{}` on tcp/127.0.0.1:{}: waiting for agents",
+        a.system, a.port
+    );
+    let wait = Duration::from_secs_f64(a.wait.max(0.0));
+    for agent in &a.agents {
+        exec.wait_for(agent, None, wait)
+            .await
+            .with_context(|| format!("the agent `{agent}` did not come"))?;
+    }
+    let deadline = tokio::time::Instant::now() + wait;
+    loop {
+        let offers = exec.offers();
+        let missing: Vec<&str> = outside
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .filter(|n| !offers.contains_key(*n))
+            .collect();
+        if missing.is_empty() || tokio::time::Instant::now() >= deadline {
+            if !missing.is_empty() {
+                eprintln!("no agent offers {} after {wait:?}", missing.join(", "));
+            }
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    for (task, agents) in exec.offers() {
+        let Some(agent) = agents.first().cloned() else {
+            continue;
+        };
+        let kind = outside
+            .iter()
+            .find(|(n, _)| *n == task)
+            .map_or(tdl::NodeKind::Command, |(_, k)| *k);
+        eprintln!("  {task} on {agent}");
+        let (e, name) = (exec.clone(), task.clone());
+        registry.task_dynamic(&task, move |args: &[Value]| {
+            let json: Result<Vec<serde_json::Value>, String> =
+                args.iter().map(Value::to_json).collect();
+            let json = json.map_err(|why| tdl::Failure::new("Args", why))?;
+            // One argument crosses as itself, several as an array (as the compiled code sends
+            // a tuple), none as null.
+            let json = match json.len() {
+                0 => serde_json::Value::Null,
+                1 => json.into_iter().next().unwrap_or_default(),
+                _ => serde_json::Value::Array(json),
+            };
+            tdl::Placer::place(&e, &agent, &name, kind, json).map_err(tdl::Failure::from)
+        });
+    }
+    Ok(exec)
+}
