@@ -3,6 +3,7 @@
 //! record (`differential.rs`); what the subset refuses is refused with located diagnostics
 //! (`refused.rs`).
 
+mod budget;
 mod differential;
 mod refused;
 mod util;
