@@ -20,12 +20,6 @@ use crate::registry::Call;
 use crate::value::Value;
 
 pub(crate) use ops::compare;
-pub(crate) use ops::walk_any as ops_walk;
-
-/// The integers of `lo..hi` (or `lo..=hi`), as a list.
-pub(crate) fn range_value(lo: &Value, hi: &Value, closed: bool) -> R<Value> {
-    ops::range(Some(lo), Some(hi), closed)
-}
 
 /// How control leaves an expression or statement other than by its value.
 pub(crate) enum Flow {
@@ -629,5 +623,5 @@ pub(crate) fn truth(v: &Value) -> R<bool> {
 
 /// Whether an expression contains an `.await` (outside closures, which cannot await).
 pub(crate) fn has_await(ex: &Ex) -> bool {
-    ops::walk_any(ex, &|e| matches!(e, Ex::Await(_)))
+    crate::walk::ex(ex, &crate::walk::awaits)
 }

@@ -49,55 +49,7 @@ fn over_budget(l: &LoopSt, steps: u64) -> Flow {
 
 /// Whether a statement may await: it runs as a future.
 fn st_awaits(st: &St) -> bool {
-    match st {
-        St::Let(_, init, els) => {
-            init.as_ref().is_some_and(has_await) || els.as_deref().is_some_and(block_awaits)
-        }
-        St::Expr(e) => has_await(e),
-        St::Spawn(s) => s.wait || s.binding.is_some(),
-        St::With(w) => block_awaits(&w.body),
-        St::Constrain(c) => matches!(**c, crate::ir::ConstrainSt::Wait(_)),
-        St::Retry(_) | St::Loop(_) => true,
-        St::Bind(..)
-        | St::Succeed
-        | St::Fail(_)
-        | St::Bypass
-        | St::Trigger
-        | St::Resource(..)
-        | St::Set(..)
-        | St::Raise(_) => false,
-    }
-}
-
-fn block_awaits(b: &Block) -> bool {
-    b.stmts.iter().any(st_awaits) || b.tail.as_ref().is_some_and(has_await)
-}
-
-/// Whether `f` holds for an expression of a block.
-pub(crate) fn block_any(b: &Block, f: &dyn Fn(&Ex) -> bool) -> bool {
-    b.stmts.iter().any(|st| st_any(st, f))
-        || b.tail.as_ref().is_some_and(|e| crate::eval::ops_walk(e, f))
-}
-
-/// Whether `f` holds for an expression of a loop (a loop counts as one that awaits).
-pub(crate) fn loop_any(l: &LoopSt, f: &dyn Fn(&Ex) -> bool) -> bool {
-    if f(&Ex::Await(Box::new(Ex::Lit(Value::Unit)))) {
-        return true;
-    }
-    block_any(&l.body, f)
-}
-
-fn st_any(st: &St, f: &dyn Fn(&Ex) -> bool) -> bool {
-    let ex = |e: &Ex| crate::eval::ops_walk(e, f);
-    match st {
-        St::Let(_, init, els) => {
-            init.as_ref().is_some_and(ex) || els.as_ref().is_some_and(|b| block_any(b, f))
-        }
-        St::Expr(e) => ex(e),
-        St::With(w) => block_any(&w.body, f),
-        St::Loop(l) => loop_any(l, f),
-        _ => st_awaits(st) && f(&Ex::Await(Box::new(Ex::Lit(Value::Unit)))),
-    }
+    crate::walk::st(st, &crate::walk::awaits)
 }
 
 impl Frame {
@@ -110,6 +62,17 @@ impl Frame {
             Some(e) => self.eval(e),
             None => Ok(Value::Unit),
         }
+    }
+
+    /// Runs a block: synchronously when none of its statements awaits, else as a future.
+    pub(crate) async fn block(&mut self, b: &Block) -> R<Value> {
+        let flags = b
+            .awaits
+            .get_or_init(|| b.stmts.iter().map(st_awaits).collect());
+        if !flags.iter().any(|a| *a) && !b.tail.as_ref().is_some_and(has_await) {
+            return self.block_sync(b);
+        }
+        self.block_async(b).await
     }
 
     /// Runs a block; its value.
@@ -241,18 +204,19 @@ impl Frame {
             match &l.kind {
                 LoopKind::For(pat, iter) => {
                     let items = self.iterate(iter).await?;
-                    for it in items.iter() {
+                    for i in 0..items.len() {
+                        let it = items.get(i);
                         if self.iteration(l)? {
                             tokio::task::yield_now().await;
                         }
                         self.count(l);
-                        if !self.bind(pat, it) {
+                        if !self.bind(pat, &it) {
                             return Err(Flow::Fail(Failure::new(
                                 "NoMatch",
                                 format!("the pattern of a `for` does not take `{it:?}`"),
                             )));
                         }
-                        let r = self.block_async(&l.body).await;
+                        let r = self.block(&l.body).await;
                         if !Self::after_body(l, r)? {
                             break;
                         }
@@ -266,7 +230,7 @@ impl Frame {
                         break;
                     }
                     self.count(l);
-                    let r = self.block_async(&l.body).await;
+                    let r = self.block(&l.body).await;
                     if !Self::after_body(l, r)? {
                         break;
                     }
@@ -276,7 +240,7 @@ impl Frame {
                         tokio::task::yield_now().await;
                     }
                     self.count(l);
-                    let r = self.block_async(&l.body).await;
+                    let r = self.block(&l.body).await;
                     if !Self::after_body(l, r)? {
                         break;
                     }
@@ -331,15 +295,41 @@ impl Frame {
 
     /// What a `for` goes over: a range's integers (without making a list of them for a range
     /// written in the loop), a list's items, an option's.
-    async fn iterate(&mut self, iter: &Ex) -> R<Arc<Vec<Value>>> {
+    async fn iterate(&mut self, iter: &Ex) -> R<Items> {
         if let Ex::Range(Some(lo), Some(hi), closed) = iter {
             let lo = self.eval_async(lo).await?;
             let hi = self.eval_async(hi).await?;
-            let v = crate::eval::range_value(&lo, &hi, *closed)?;
-            return items_of(&v);
+            let (Value::Int(lo), Value::Int(hi)) = (&lo, &hi) else {
+                return Err(Flow::Fail(builtin::bad("a range's bound", &lo)));
+            };
+            let hi = if *closed { hi.saturating_add(1) } else { *hi };
+            return Ok(Items::Range(*lo, hi.max(*lo)));
         }
         let v = self.eval_async(iter).await?;
-        items_of(&v)
+        Ok(Items::List(items_of(&v)?))
+    }
+}
+
+/// What a `for` goes over.
+enum Items {
+    /// The integers `lo..hi`.
+    Range(i64, i64),
+    List(Arc<Vec<Value>>),
+}
+
+impl Items {
+    fn len(&self) -> usize {
+        match self {
+            Items::Range(lo, hi) => usize::try_from(hi - lo).unwrap_or(0),
+            Items::List(items) => items.len(),
+        }
+    }
+
+    fn get(&self, i: usize) -> Value {
+        match self {
+            Items::Range(lo, _) => Value::Int(lo + i64::try_from(i).unwrap_or(0)),
+            Items::List(items) => items.get(i).cloned().unwrap_or_default(),
+        }
     }
 }
 

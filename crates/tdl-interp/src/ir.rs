@@ -208,8 +208,8 @@ pub(crate) enum St {
 /// `fail [E { fields }]`.
 #[derive(Clone)]
 pub(crate) struct FailSt {
-    pub(crate) exception: Option<Arc<str>>,
-    pub(crate) ancestry: Vec<Arc<str>>,
+    pub(crate) exception: Option<&'static str>,
+    pub(crate) ancestry: Vec<&'static str>,
     pub(crate) fields: Vec<(Arc<str>, Ex)>,
 }
 
@@ -223,8 +223,8 @@ pub(crate) enum NameEx {
 /// A resource: declared by the program (with its capacity and pending limit), or only named.
 #[derive(Clone)]
 pub(crate) enum ResRef {
-    Declared(Arc<str>, u32, Option<u32>),
-    Named(Arc<str>),
+    Declared(&'static str, u32, Option<u32>),
+    Named(&'static str),
 }
 
 /// A count (`maximum activate N`): a literal or an expression.
@@ -272,7 +272,7 @@ pub(crate) enum NodeEx {
     /// The reservation in a TDL slot.
     Reserved(TSlot),
     /// The entry of an iteration map for these indexes, reserved on first use.
-    Slot(TSlot, Vec<KeyEx>, Arc<str>),
+    Slot(TSlot, Vec<KeyEx>, &'static str),
     /// A tag bound at run time (`node!(tag)` fails when it is not bound yet).
     Bound(TSlot, Arc<str>),
     This,
@@ -284,7 +284,7 @@ pub(crate) enum NodeEx {
     /// The node computed before the spawn (`SpawnSt::pre`).
     Pre,
     /// A fresh reservation for the spawn (a waited spawn some tag needs, named by no tag).
-    Fresh(Arc<str>),
+    Fresh(&'static str),
 }
 
 /// An iteration index.
@@ -442,7 +442,7 @@ pub(crate) enum ConstrainSt {
 
 /// A task of the program, ready to be built into `tdl::Task`s.
 pub(crate) struct TaskDef {
-    pub(crate) name: Arc<str>,
+    pub(crate) name: &'static str,
     pub(crate) kind: TaskKind,
     pub(crate) params: Vec<(Arc<str>, Ty)>,
     pub(crate) result: Option<Ty>,
@@ -462,6 +462,8 @@ pub(crate) struct TaskDef {
     /// TDL slots initialised at the top of the body, in the generator's order.
     pub(crate) prelude: Vec<(TSlot, Init)>,
     pub(crate) body: Block,
+    /// Whether the body may make children (it then holds them until it ends or waits).
+    pub(crate) holds: bool,
     pub(crate) locals: usize,
     pub(crate) tdl_slots: usize,
     pub(crate) loc: Loc,
@@ -484,7 +486,7 @@ pub(crate) enum Modifier {
 #[derive(Clone)]
 pub(crate) enum Init {
     /// `ctx.reserve(name)`.
-    Reserve(Arc<str>),
+    Reserve(&'static str),
     /// An empty map of reservations by iteration.
     Map,
     /// An empty list of a group's members.

@@ -30,6 +30,7 @@ mod program;
 mod registry;
 mod ty;
 mod value;
+mod walk;
 
 pub use convert::{FromValue, IntoOutcome, IntoValue};
 pub use convert::{Host, host_err, ok};

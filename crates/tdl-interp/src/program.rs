@@ -98,7 +98,7 @@ impl Program {
             .tasks
             .iter()
             .filter(|t| matches!(t.kind, TaskKind::Goal | TaskKind::Command))
-            .map(|t| &*t.name)
+            .map(|t| t.name)
             .collect()
     }
 
@@ -220,11 +220,11 @@ pub(crate) fn raise(f: &FailSt, fields: Vec<(Arc<str>, Value)>) -> Failure {
         return Failure::new("Fail", "fail without an exception");
     };
     let record = Value::Record(Arc::new(Record {
-        name: name.clone(),
+        name: Arc::from(*name),
         fields,
     }));
-    let mut failure = Failure::new(intern(name), record.debug())
-        .with_ancestry(f.ancestry.iter().map(|a| intern(a).into()).collect());
+    let mut failure = Failure::new(*name, record.debug())
+        .with_ancestry(f.ancestry.iter().map(|a| (*a).into()).collect());
     failure.data = Some(Arc::new(record));
     failure
 }
@@ -270,7 +270,7 @@ fn frame(shared: &Arc<Shared>, def: &TaskDef, ctx: Option<Ctx>, args: &[Value]) 
 /// The task `idx` with `args`, as its generated `into_task` builds it.
 pub(crate) fn task(shared: &Arc<Shared>, idx: TaskIdx, args: Vec<Value>) -> Result<Task, Failure> {
     let def = &shared.tasks[idx];
-    let name = intern(&def.name);
+    let name = def.name;
     let prelude = modifiers(shared, def, &args)?;
     let mut task = match def.kind {
         TaskKind::Goal | TaskKind::Command => {
@@ -279,26 +279,16 @@ pub(crate) fn task(shared: &Arc<Shared>, idx: TaskIdx, args: Vec<Value>) -> Resu
             } else {
                 NodeKind::Goal
             };
-            let (s, stored) = (shared.clone(), Arc::new(args.clone()));
-            // A task with a result gives its value; one without gives Rust's `()`, so that Rust
-            // code waiting for it (a pattern, a registered function) reads it as a compiled
-            // task's.
-            let unit = def.result.is_none();
+            let s = shared.clone();
+            let stored = (!args.is_empty()).then(|| Arc::new(args.clone()));
             let t = Task::retryable(kind, name, move |ctx: Ctx| {
                 // A re-run reads the arguments kept for its node (`retry with`).
-                let args = match ctx.args_ref::<Args>() {
-                    Some(a) => a.0.clone(),
-                    None => (*stored).clone(),
+                let args = match (ctx.args_ref::<Args>(), &stored) {
+                    (Some(a), _) => a.0.clone(),
+                    (None, Some(stored)) => (**stored).clone(),
+                    (None, None) => Vec::new(),
                 };
-                let run = run(s.clone(), idx, ctx, args, None);
-                async move {
-                    let v = run.await?;
-                    Ok::<Box<dyn std::any::Any + Send>, Failure>(if unit {
-                        Box::new(())
-                    } else {
-                        Box::new(v)
-                    })
-                }
+                run(s.clone(), idx, ctx, args, None)
             });
             if args.is_empty() {
                 t
@@ -351,7 +341,7 @@ pub(crate) fn handler(
     args: Vec<Value>,
 ) -> Result<Handler, Failure> {
     let def = &shared.tasks[idx];
-    let name = intern(&def.name);
+    let name = def.name;
     let prelude = modifiers(shared, def, &args)?;
     let exception = def.handles.as_deref().map_or("", intern);
     let cells = cells(shared, def, &args)?;
@@ -405,6 +395,9 @@ enum Built {
 /// The modifiers of a task, built with its arguments, in the generator's order.
 fn modifiers(shared: &Arc<Shared>, def: &TaskDef, args: &[Value]) -> Result<Vec<Built>, Failure> {
     let mut out = Vec::new();
+    if def.modifiers.is_empty() {
+        return Ok(out);
+    }
     let mut f = frame(shared, def, None, args);
     let eval_all = |f: &mut Frame, exs: &[crate::ir::Ex]| f.eval_all(exs).map_err(failure_of);
     for m in &def.modifiers {
@@ -497,7 +490,11 @@ fn prologue(
     ctx: &Ctx,
     cells: Option<&Arc<Mutex<Vec<Value>>>>,
 ) -> Result<(), Failure> {
-    ctx.hold_children(true)?;
+    // A body that makes no children has none to hold (the generated code holds them anyway;
+    // nothing tells the two apart).
+    if def.holds {
+        ctx.hold_children(true)?;
+    }
     if let Some(slot) = def.caught {
         match ctx.failure() {
             Some(failure) => f.set_local(slot, Value::Failure(Arc::new(failure.clone()))),
@@ -542,7 +539,7 @@ fn locals(f: &mut Frame, def: &TaskDef, ctx: &Ctx) -> Result<(), Failure> {
     }
     for (slot, init) in &def.prelude {
         let v = match init {
-            Init::Reserve(name) => TdlVal::Node(ctx.reserve(intern(name))?),
+            Init::Reserve(name) => TdlVal::Node(ctx.reserve(name)?),
             Init::Map => TdlVal::Map(BTreeMap::new()),
             Init::Nodes => TdlVal::Nodes(Vec::new()),
             Init::Maybe => TdlVal::Maybe(None),
@@ -583,43 +580,71 @@ fn ending(def: &TaskDef, r: Result<Value, Flow>) -> Result<Value, Failure> {
     }
 }
 
-/// One run of the body of task `idx`.
-pub(crate) async fn run(
+/// What an action returns: its value, boxed as the runtime keeps values.
+type Run = std::pin::Pin<
+    Box<dyn std::future::Future<Output = Result<Box<dyn std::any::Any + Send>, Failure>> + Send>,
+>;
+
+/// One run of the body of task `idx`, as a boxed future (moved around as a pointer, not as the
+/// body's state). A task with a result gives its value; one without gives Rust's `()`, so that
+/// Rust code waiting for it (a pattern, a registered function) reads it as a compiled task's.
+pub(crate) fn run(
     shared: Arc<Shared>,
     idx: TaskIdx,
     ctx: Ctx,
     args: Vec<Value>,
     cells: Option<Arc<Mutex<Vec<Value>>>>,
-) -> Result<Value, Failure> {
-    let def = &shared.tasks[idx];
-    let mut f = frame(&shared, def, Some(ctx.clone()), &args);
-    if def.blocking {
-        // A `blocking command`: the body runs on a blocking thread, and the action waits for it.
-        let s = shared.clone();
-        return ctx
-            .blocking(move |ctx: Ctx| {
-                let def = &s.tasks[idx];
-                f.ctx = Some(ctx.clone());
-                prologue(&mut f, def, &ctx, None)?;
-                locals(&mut f, def, &ctx)?;
-                let r = f.block_sync(&def.body);
-                ending(def, r)
-            })
-            .await;
+) -> Run {
+    if shared.tasks[idx].blocking {
+        return Box::pin(run_blocking(shared, idx, ctx, args));
     }
-    prologue(&mut f, def, &ctx, cells.as_ref())?;
-    let r = match locals(&mut f, def, &ctx) {
-        Ok(()) => f.block_async(&def.body).await,
-        Err(failure) => Err(Flow::Fail(failure)),
-    };
-    // Each run starts from the stored values and stores its own back however its body ends.
-    if let Some(cells) = &cells {
-        let mut stored = lock(cells);
-        for (i, (slot, ..)) in def.persistents.iter().enumerate() {
-            if let Some(cell) = stored.get_mut(i) {
-                *cell = f.local(*slot);
+    Box::pin(async move {
+        let def = &shared.tasks[idx];
+        let mut f = frame(&shared, def, Some(ctx.clone()), &args);
+        prologue(&mut f, def, &ctx, cells.as_ref())?;
+        let r = match locals(&mut f, def, &ctx) {
+            Ok(()) => f.block(&def.body).await,
+            Err(failure) => Err(Flow::Fail(failure)),
+        };
+        // Each run starts from the stored values and stores its own back however its body ends.
+        if let Some(cells) = &cells {
+            let mut stored = lock(cells);
+            for (i, (slot, ..)) in def.persistents.iter().enumerate() {
+                if let Some(cell) = stored.get_mut(i) {
+                    *cell = f.local(*slot);
+                }
             }
         }
-    }
-    ending(def, r)
+        boxed(def, ending(def, r)?)
+    })
+}
+
+/// The value as the runtime keeps it: `()` for a task without a result type.
+fn boxed(def: &TaskDef, v: Value) -> Result<Box<dyn std::any::Any + Send>, Failure> {
+    Ok(if def.result.is_none() {
+        Box::new(())
+    } else {
+        Box::new(v)
+    })
+}
+
+/// A `blocking command`: the body runs on a blocking thread, and the action waits for it.
+async fn run_blocking(
+    shared: Arc<Shared>,
+    idx: TaskIdx,
+    ctx: Ctx,
+    args: Vec<Value>,
+) -> Result<Box<dyn std::any::Any + Send>, Failure> {
+    let s = shared.clone();
+    let v = ctx
+        .blocking(move |ctx: Ctx| {
+            let def = &s.tasks[idx];
+            let mut f = frame(&s, def, Some(ctx.clone()), &args);
+            prologue(&mut f, def, &ctx, None)?;
+            locals(&mut f, def, &ctx)?;
+            let r = f.block_sync(&def.body);
+            ending(def, r)
+        })
+        .await?;
+    boxed(&shared.tasks[idx], v)
 }

@@ -373,49 +373,6 @@ pub(super) fn what(ex: &Ex) -> &'static str {
     }
 }
 
-/// Whether `f` holds for `ex` or any expression inside it (closures and nested blocks
-/// included).
-pub(crate) fn walk_any(ex: &Ex, f: &dyn Fn(&Ex) -> bool) -> bool {
-    if f(ex) {
-        return true;
-    }
-    let any = |es: &[Ex]| es.iter().any(|e| walk_any(e, f));
-    match ex {
-        Ex::Lit(_) | Ex::Local(_) | Ex::Ctx | Ex::Break(_) | Ex::Continue(_) | Ex::State(..) => {
-            false
-        }
-        Ex::Node(_) => false,
-        Ex::Not(e) | Ex::Neg(e) | Ex::Await(e) | Ex::Try(e) | Ex::Cast(e, _) => walk_any(e, f),
-        Ex::Field(e, _) | Ex::TupleField(e, _) => walk_any(e, f),
-        Ex::Bin(_, l, r) | Ex::And(l, r) | Ex::Or(l, r) | Ex::Index(l, r) => {
-            walk_any(l, f) || walk_any(r, f)
-        }
-        Ex::Call(_, args) | Ex::Tuple(args) | Ex::List(args) | Ex::Format(_, args) => any(args),
-        Ex::Method { recv, args, .. } => walk_any(recv, f) || any(args),
-        Ex::Record(_, fields) => fields.iter().any(|(_, e)| walk_any(e, f)),
-        Ex::Range(lo, hi, _) => {
-            lo.as_deref().is_some_and(|e| walk_any(e, f))
-                || hi.as_deref().is_some_and(|e| walk_any(e, f))
-        }
-        Ex::If(c, then, els) => {
-            walk_any(c, f)
-                || crate::exec::block_any(then, f)
-                || els.as_deref().is_some_and(|e| walk_any(e, f))
-        }
-        Ex::Match(s, arms) => {
-            walk_any(s, f)
-                || arms.iter().any(|a| {
-                    walk_any(&a.body, f) || a.guard.as_ref().is_some_and(|g| walk_any(g, f))
-                })
-        }
-        Ex::Block(b) => crate::exec::block_any(b, f),
-        Ex::Closure(c) => walk_any(&c.body, f),
-        Ex::Let(_, e) | Ex::Assign(_, e) | Ex::AssignOp(_, _, e) => walk_any(e, f),
-        Ex::Return(e) => e.as_deref().is_some_and(|e| walk_any(e, f)),
-        Ex::Loop(l) => crate::exec::loop_any(l, f),
-    }
-}
-
 /// A method of a plain value.
 pub(super) fn method(
     recv: &Value,

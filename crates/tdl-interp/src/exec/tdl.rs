@@ -648,7 +648,7 @@ impl Frame {
                         return Ok(*n);
                     }
                 }
-                let node = self.ctx()?.reserve(crate::program::intern(name))?;
+                let node = self.ctx()?.reserve(name)?;
                 if let Some(TdlVal::Map(map)) = self.tdl.get_mut(*slot as usize) {
                     map.insert(keys, node);
                 }
@@ -667,7 +667,7 @@ impl Frame {
             },
             NodeEx::Own | NodeEx::Parent => self.ctx()?.node(),
             NodeEx::Pre => pre.ok_or_else(|| no_node("the spawn's node was not made"))?,
-            NodeEx::Fresh(name) => self.ctx()?.reserve(crate::program::intern(name))?,
+            NodeEx::Fresh(name) => self.ctx()?.reserve(name)?,
             NodeEx::This | NodeEx::Nothing => return Err(no_node("`self` names no node here")),
         })
     }
@@ -720,13 +720,13 @@ fn event(ev: &crate::ir::EventEx, n: NodeRef) -> Event {
 pub(crate) fn resource(r: &ResRef) -> ResourceRef {
     match r {
         ResRef::Declared(name, capacity, pending) => {
-            let mut res = ::tdl::Resource::new(crate::program::intern(name), *capacity);
+            let mut res = ::tdl::Resource::new(*name, *capacity);
             if let Some(p) = pending {
                 res = res.pending_limit(*p);
             }
             ResourceRef::from(res)
         }
-        ResRef::Named(name) => ResourceRef::from(crate::program::intern(name)),
+        ResRef::Named(name) => ResourceRef::from(*name),
     }
 }
 

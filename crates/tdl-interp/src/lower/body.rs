@@ -76,7 +76,10 @@ impl<'a> Lower<'_, 'a> {
         for (var, task, no_loops) in reserved.chain(cleanups) {
             let slot = self.tdl_slot(&var.to_string());
             if no_loops {
-                out.push((slot, Init::Reserve(Arc::from(task.to_string()))));
+                out.push((
+                    slot,
+                    Init::Reserve(crate::program::intern(&task.to_string())),
+                ));
             } else {
                 out.push((slot, Init::Map));
             }
@@ -310,8 +313,8 @@ impl<'a> Lower<'_, 'a> {
         // As the struct prints them: in the order they are declared.
         fields.sort_by_key(|(n, _)| order.iter().position(|o| o == n).unwrap_or(usize::MAX));
         FailSt {
-            exception: Some(Arc::from(name.as_str())),
-            ancestry,
+            exception: Some(crate::program::intern(&name)),
+            ancestry: ancestry.iter().map(|a| crate::program::intern(a)).collect(),
             fields,
         }
     }
@@ -371,7 +374,7 @@ impl<'a> Lower<'_, 'a> {
             }
         }
         if needs_id && spawn.binding.is_some() && id.is_none() {
-            pre = Some(NodeEx::Fresh(Arc::from(task_name.as_str())));
+            pre = Some(NodeEx::Fresh(crate::program::intern(&task_name)));
             id = Some(NodeEx::Pre);
         }
         if let Some(id) = &id {
@@ -440,7 +443,7 @@ impl<'a> Lower<'_, 'a> {
             .iter()
             .map(|l| crate::ir::KeyEx::Current(self.tdl_slot(&format!("tdl_i_{l}"))))
             .collect();
-        NodeEx::Slot(slot, keys, Arc::from(name))
+        NodeEx::Slot(slot, keys, crate::program::intern(name))
     }
 
     /// The builder steps of a spawn inside the loops `loops`, from the constraints of the

@@ -89,13 +89,13 @@ impl Lower<'_, '_> {
         let text = name.to_string();
         match self.file.resource(&text) {
             Some(decl) => ResRef::Declared(
-                Arc::from(text.as_str()),
+                crate::program::intern(&text),
                 decl.capacity.base10_parse::<u32>().unwrap_or(0),
                 decl.pending
                     .as_ref()
                     .and_then(|p| p.base10_parse::<u32>().ok()),
             ),
-            None => ResRef::Named(Arc::from(text.as_str())),
+            None => ResRef::Named(crate::program::intern(&text)),
         }
     }
 
@@ -209,7 +209,7 @@ impl Lower<'_, '_> {
                 }
             })
             .collect();
-        let name: Arc<str> = Arc::from(info.spawn.task.to_string());
+        let name = crate::program::intern(&info.spawn.task.to_string());
         if keys.len() == depth {
             return Nodes::One(NodeEx::Slot(var, keys, name));
         }

@@ -38,7 +38,7 @@ pub(crate) fn lower_task(
         ty
     });
     let mut def = TaskDef {
-        name: Arc::from(task.name.to_string()),
+        name: crate::program::intern(&task.name.to_string()),
         kind: task.kind,
         params,
         result,
@@ -55,6 +55,7 @@ pub(crate) fn lower_task(
         persistents: Vec::new(),
         prelude: Vec::new(),
         body: crate::ir::Block::default(),
+        holds: true,
         locals: 0,
         tdl_slots: 0,
         loc: l.loc(task.name.span()),
@@ -141,6 +142,7 @@ pub(crate) fn lower_task(
         def.prelude = prelude;
         def.body = body;
     }
+    def.holds = crate::walk::block(&def.body, &crate::walk::makes_children);
     let (locals, tdl_slots) = l.sizes();
     def.locals = locals;
     def.tdl_slots = tdl_slots;
