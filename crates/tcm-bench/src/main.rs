@@ -4,8 +4,9 @@
 //! `cargo run --release -p tcm-bench -- --json` prints one JSON object per line:
 //! `{"workload","layer","n","ns_per_node","floor_ns_per_node","ratio","high_water"}`.
 //! The floor is the same number of boxed no-op closures run through a `VecDeque`.
-//! `layer` is `core` (the engine driven synchronously, actions finishing at once) or `shell`
-//! (the full async runtime on tokio: one task per action, with tracing off).
+//! `layer` is `core` (the engine driven synchronously, actions finishing at once), `shell`
+//! (the full async runtime on tokio: one task per action, with tracing off) or `interp` (the
+//! same workload written in TDL and run by the interpreter on the shell, `interp.rs`).
 //!
 //! Workloads: W1 a root spawns N no-op commands, each `serial previous`; W2 N unordered no-op
 //! commands; W3 a goal spawning the same goal recursively to depth N, each child sequential on the
@@ -13,10 +14,12 @@
 //! with a `terminate in` timer that never fires; W4 a monitor polling every 1 ms for 2 s on real time, its lateness against the
 //! ideal schedule beside a thread sleeping to the same deadlines; W6 N commands failing with an
 //! exception handled three levels up; W7 1,000 blocking 1 ms actions on 1 and 2 blocking
-//! threads, and a 1 kHz monitor beside them (see `w7.rs`). W1 also runs at 10k, 100k and 1M to
-//! show the per-node cost does not grow.
+//! threads, and a 1 kHz monitor beside them (see `w7.rs`); W8 an interpreted `loop {}` beside a
+//! 1 kHz monitor, its lateness against the monitor alone; `load` the time to load and check the
+//! Xavier mission at run time. W1 also runs at 10k, 100k and 1M to show the per-node cost does
+//! not grow.
 //!
-//! `--workload W1|W2|W3|W4|W5|W6|W7|W1-scale`, `--layer core|shell`, `--n N` and `--depth D` run one
+//! `--workload W1|W2|W3|W4|W5|W6|W7|W8|load|W1-scale`, `--layer core|shell|interp`, `--n N` and `--depth D` run one
 //! workload, one layer, one size (W1-scale then runs only that size); `--hold` makes the core
 //! layer's W1-scale spawn every command before any runs (layer `core-hold`), so all N are alive at
 //! once as in the shell. `bench/compare` runs each workload in a process of its own with these, to
@@ -27,6 +30,7 @@
 //! which (`heap`: `kept` or `cold`).
 
 mod heap;
+mod interp;
 mod w7;
 
 use std::collections::VecDeque;
@@ -498,8 +502,8 @@ struct Options {
     cold_heap: bool,
 }
 
-const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W5|W6|W7|W1-scale] \
-[--layer core|shell] [--n N] [--depth D] [--hold] [--cold-heap]";
+const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W5|W6|W7|W8|load|W1-scale] \
+[--layer core|shell|interp] [--n N] [--depth D] [--hold] [--cold-heap]";
 
 fn parse_args() -> Result<Options, String> {
     let mut o = Options {
@@ -531,7 +535,7 @@ fn parse_args() -> Result<Options, String> {
                 let w = value("--workload")?;
                 if !matches!(
                     w.as_str(),
-                    "W1" | "W2" | "W3" | "W4" | "W5" | "W6" | "W7" | "W1-scale"
+                    "W1" | "W2" | "W3" | "W4" | "W5" | "W6" | "W7" | "W8" | "load" | "W1-scale"
                 ) {
                     return Err(format!("unknown workload {w:?}"));
                 }
@@ -539,7 +543,7 @@ fn parse_args() -> Result<Options, String> {
             }
             "--layer" => {
                 let l = value("--layer")?;
-                if !matches!(l.as_str(), "core" | "shell") {
+                if !matches!(l.as_str(), "core" | "shell" | "interp") {
                     return Err(format!("unknown layer {l:?}"));
                 }
                 o.layer = Some(l);
@@ -573,8 +577,9 @@ fn main() {
         eprintln!("note: a debug build; run with --release for meaningful figures");
     }
     let on = |w: &str| o.workload.as_deref().is_none_or(|x| x == w);
-    let core = o.layer.as_deref() != Some("shell");
-    let shell = o.layer.as_deref() != Some("core");
+    let core = o.layer.as_deref().is_none_or(|l| l == "core");
+    let shell = o.layer.as_deref().is_none_or(|l| l == "shell");
+    let interp = o.layer.as_deref().is_none_or(|l| l == "interp");
     let n = o.n.unwrap_or(if quick { 10_000 } else { 100_000 });
     let depth = o.depth.unwrap_or(if quick { 1_000 } else { 10_000 });
     if on("W1") || on("W2") {
@@ -586,6 +591,9 @@ fn main() {
             if shell {
                 report(json, "W1", "shell", n, shell_flat(n, true), f);
             }
+            if interp {
+                report(json, "W1", "interp", n, interp::interp_flat(n, true), f);
+            }
         }
         if on("W2") {
             if core {
@@ -593,6 +601,9 @@ fn main() {
             }
             if shell {
                 report(json, "W2", "shell", n, shell_flat(n, false), f);
+            }
+            if interp {
+                report(json, "W2", "interp", n, interp::interp_flat(n, false), f);
             }
         }
     }
@@ -630,6 +641,12 @@ fn main() {
     }
     if on("W7") && shell {
         w7::run(json);
+    }
+    if on("W8") && interp {
+        interp::w8(json);
+    }
+    if on("load") && interp {
+        interp::load_xavier(json);
     }
     if on("W1-scale") {
         let default: &[usize] = if quick {
