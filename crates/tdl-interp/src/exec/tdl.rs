@@ -241,7 +241,14 @@ impl Frame {
                 }
             }
             if let Some(prev) = s.prev {
-                self.set_tdl(prev, TdlVal::Maybe(Some(vec![id])));
+                match self.tdl.get_mut(prev as usize) {
+                    // The list of one node kept: no allocation per spawn.
+                    Some(TdlVal::Maybe(Some(m))) => {
+                        m.clear();
+                        m.push(id);
+                    }
+                    _ => self.set_tdl(prev, TdlVal::Maybe(Some(vec![id]))),
+                }
             }
         }
         Ok(())
@@ -397,6 +404,12 @@ impl Frame {
                         sp = self.low_method(sp, low, n)?;
                     }
                     Nodes::None => {}
+                    // `previous` of one node (a spawn after a spawn): no list made.
+                    Nodes::Entity(e) if self.single(e).is_some() => {
+                        if let Some(one) = self.single(e) {
+                            sp = self.low_method(sp, low, NodeRef::Node(one))?;
+                        }
+                    }
                     Nodes::Entity(e) => {
                         let members = self.members(e)?;
                         for m in members.iter().flatten() {
@@ -574,6 +587,20 @@ impl Frame {
             Nodes::Entity(e) => self.members(e)?.unwrap_or_default(),
             Nodes::None => Vec::new(),
         })
+    }
+
+    /// The one member of an entity held in a slot (`previous` after a spawn), if it has exactly
+    /// one.
+    fn single(&self, e: &EntityEx) -> Option<NodeId> {
+        match e {
+            EntityEx::Prev(slot) | EntityEx::Held(slot) => match self.tdl.get(*slot as usize) {
+                Some(TdlVal::Maybe(Some(m)) | TdlVal::Nodes(m)) if m.len() == 1 => {
+                    m.first().copied()
+                }
+                _ => None,
+            },
+            EntityEx::Prefix(..) => None,
+        }
     }
 
     /// An entity's members; `None` when there is no entity at all.
