@@ -26,6 +26,43 @@ pub goal w2(n: u32) {
 command noop() {}
 ";
 
+/// The same program compiled by `tdl!` (layer `tdl`): what the interpreter is held to.
+#[allow(clippy::all, unused_variables)]
+mod compiled {
+    tdl::tdl! {
+        pub goal w1(n: u32) {
+            for i in 0..n {
+                spawn noop() with serial previous;
+            }
+        }
+
+        pub goal w2(n: u32) {
+            for i in 0..n {
+                spawn noop();
+            }
+        }
+
+        command noop() {}
+    }
+}
+
+/// W1 (`chained`) or W2 compiled from TDL, on the shell.
+pub(crate) fn tdl_flat(n: usize, chained: bool) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = super::best(|| {
+        let n32 = u32::try_from(n).unwrap_or(u32::MAX);
+        let task = if chained {
+            compiled::w1(n32)
+        } else {
+            compiled::w2(n32)
+        };
+        let (ns, h) = super::shell(n, || task);
+        hw = h;
+        ns
+    });
+    (ns, hw)
+}
+
 fn flat_program() -> Program {
     match Program::from_sources(&[("flat.tdl".into(), FLAT.into())], &Registry::new()) {
         Ok(p) => p,

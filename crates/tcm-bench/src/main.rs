@@ -6,7 +6,8 @@
 //! The floor is the same number of boxed no-op closures run through a `VecDeque`.
 //! `layer` is `core` (the engine driven synchronously, actions finishing at once), `shell`
 //! (the full async runtime on tokio: one task per action, with tracing off) or `interp` (the
-//! same workload written in TDL and run by the interpreter on the shell, `interp.rs`).
+//! same workload written in TDL and run by the interpreter on the shell, `interp.rs`), beside
+//! `tdl` (that TDL compiled by `tdl!`, on the shell).
 //!
 //! Workloads: W1 a root spawns N no-op commands, each `serial previous`; W2 N unordered no-op
 //! commands; W3 a goal spawning the same goal recursively to depth N, each child sequential on the
@@ -592,6 +593,7 @@ fn main() {
                 report(json, "W1", "shell", n, shell_flat(n, true), f);
             }
             if interp {
+                report(json, "W1", "tdl", n, interp::tdl_flat(n, true), f);
                 report(json, "W1", "interp", n, interp::interp_flat(n, true), f);
             }
         }
@@ -603,6 +605,7 @@ fn main() {
                 report(json, "W2", "shell", n, shell_flat(n, false), f);
             }
             if interp {
+                report(json, "W2", "tdl", n, interp::tdl_flat(n, false), f);
                 report(json, "W2", "interp", n, interp::interp_flat(n, false), f);
             }
         }
