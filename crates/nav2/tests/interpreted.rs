@@ -100,27 +100,13 @@ fn recoveries(program: &Program, nav: &Nav) -> InTurn {
     })
 }
 
-fn lines(trace: &[TraceEvent]) -> Vec<String> {
-    // The run's number counts the process's runs: the one field two runs never share.
-    trace
-        .iter()
-        .map(|ev| {
-            let mut json = serde_json::to_value(ev).unwrap_or_default();
-            if let Some(obj) = json.as_object_mut() {
-                obj.remove("run");
-            }
-            json.to_string()
-        })
-        .collect()
-}
-
 /// Runs a navigation on a fresh `Nav` made by `setup`, with a new goal sent once `preempt_on`
 /// is logged (if given); its trace and log.
 async fn navigate(
     setup: &dyn Fn() -> Nav,
     preempt_on: Option<&'static str>,
     task: &dyn Fn(&Nav) -> Task,
-) -> (Vec<String>, Vec<Entry>) {
+) -> (Vec<TraceEvent>, Vec<Entry>) {
     let nav = setup();
     let rt = Runtime::new();
     let events = rt.events();
@@ -146,7 +132,7 @@ async fn navigate(
     }
     let trace = rec.events();
     tdl::testing::assert_checked(&trace);
-    (lines(&trace), nav.log())
+    (trace, nav.log())
 }
 
 /// The navigation of `setup`, compiled and interpreted: the same trace and the same log.
@@ -167,10 +153,7 @@ async fn alike(setup: &dyn Fn() -> Nav, preempt_on: Option<&'static str>) {
         }
     })
     .await;
-    for (i, (c, n)) in compiled.0.iter().zip(&interpreted.0).enumerate() {
-        assert_eq!(c, n, "record {i} differs (compiled, then interpreted)");
-    }
-    assert_eq!(compiled.0.len(), interpreted.0.len());
+    tdl::testing::assert_same_trace(&compiled.0, &interpreted.0, "compiled, then interpreted");
     let what = |log: &[Entry]| {
         log.iter()
             .map(|e| (e.at, e.what.clone()))

@@ -77,3 +77,18 @@ pub fn assert_checked(trace: &[TraceEvent]) {
 pub fn lines(trace: &[TraceEvent]) -> Vec<String> {
     trace.iter().skip(1).map(tcm_trace::to_line).collect()
 }
+
+/// Asserts that two runs gave the same trace, record for record ([`lines`]), naming the first
+/// record that differs (`what` says which runs, for the message).
+#[track_caller]
+pub fn assert_same_trace(first: &[TraceEvent], second: &[TraceEvent], what: &str) {
+    let (a, b) = (lines(first), lines(second));
+    for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+        assert_eq!(x, y, "{what}: record {} differs", i + 1);
+    }
+    assert_eq!(
+        a.len(),
+        b.len(),
+        "{what}: the traces have different lengths"
+    );
+}

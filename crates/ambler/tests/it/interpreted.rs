@@ -6,7 +6,7 @@ use ambler::world::{
     ARC_PLANNING, BODY_MOVE, LEG_MOVE, NOMINAL_LIFT, Obstacle, RAISED_LIFT, SHUFFLE, SHUFFLED_LIFT,
     STEP_PLANNING, Terrain, Walker,
 };
-use tdl::{Ctx, Failure, Recorder, Runtime, TapWhen, TraceEvent};
+use tdl::{Ctx, Failure, Recorder, Runtime, TapWhen};
 use tdl_interp::{Args, FromValue, Host, IntoValue, Program, Registry, Value};
 
 /// The Ambler's world, as the program calls it.
@@ -119,20 +119,6 @@ fn monitored(program: &Program) -> Runtime {
     })
 }
 
-fn lines(trace: &[TraceEvent]) -> Vec<String> {
-    // The run's number counts the process's runs: the one field two runs never share.
-    trace
-        .iter()
-        .map(|ev| {
-            let mut json = serde_json::to_value(ev).unwrap_or_default();
-            if let Some(obj) = json.as_object_mut() {
-                obj.remove("run");
-            }
-            json.to_string()
-        })
-        .collect()
-}
-
 /// Walks `terrain` compiled and interpreted; asserts the same trace and the same walk.
 fn alike(terrain: &Terrain) {
     let run = async {
@@ -158,11 +144,7 @@ fn alike(terrain: &Terrain) {
         Ok(done) => done,
         Err(e) => panic!("{e}"),
     };
-    let (ct, it) = (lines(&ct), lines(&it));
-    for (i, (c, n)) in ct.iter().zip(&it).enumerate() {
-        assert_eq!(c, n, "record {i} differs (compiled, then interpreted)");
-    }
-    assert_eq!(ct.len(), it.len());
+    tdl::testing::assert_same_trace(&ct, &it, "compiled, then interpreted");
     assert_eq!(cw.log(), iw.log());
 }
 

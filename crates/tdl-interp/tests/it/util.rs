@@ -26,17 +26,7 @@ pub(crate) async fn trace_of(rt: Runtime, task: Task) -> Vec<String> {
     let trace: Vec<TraceEvent> = rec.events();
     tdl::testing::assert_checked(&trace);
     tdl::testing::assert_no_panics(&report, &trace);
-    // The run's number counts the process's runs: the one field two runs never share.
-    trace
-        .iter()
-        .map(|ev| {
-            let mut json = serde_json::to_value(ev).expect("a record serializes");
-            if let Some(obj) = json.as_object_mut() {
-                obj.remove("run");
-            }
-            json.to_string()
-        })
-        .collect()
+    tdl::testing::lines(&trace)
 }
 
 /// The program of `src`, loaded with `registry`.

@@ -2,7 +2,7 @@
 //! robot's commands and functions registered in Rust, runs as the compiled round runs: the same
 //! trace, record for record, and the same deliveries, on every scenario and three seeds each.
 
-use tdl::{Ctx, Failure, Recorder, Runtime, TraceEvent};
+use tdl::{Ctx, Failure, Recorder, Runtime};
 use tdl_interp::{Host, IntoValue, Program, Registry, Value};
 use xavier::mission::{self, Mission};
 use xavier::robot::{self, Robot};
@@ -85,20 +85,6 @@ fn program() -> Program {
     }
 }
 
-fn lines(trace: &[TraceEvent]) -> Vec<String> {
-    // The run's number counts the process's runs: the one field two runs never share.
-    trace
-        .iter()
-        .map(|ev| {
-            let mut json = serde_json::to_value(ev).unwrap_or_default();
-            if let Some(obj) = json.as_object_mut() {
-                obj.remove("run");
-            }
-            json.to_string()
-        })
-        .collect()
-}
-
 /// Runs the round on `scenario` with `seed`, compiled and interpreted; asserts the same trace
 /// and the same deliveries.
 fn alike(program: &Program, scenario: Scenario, seed: u64) {
@@ -131,14 +117,8 @@ fn alike(program: &Program, scenario: Scenario, seed: u64) {
         Ok(done) => done,
         Err(e) => panic!("{e}"),
     };
-    let (ct, it) = (lines(&ct), lines(&it));
-    for (i, (c, n)) in ct.iter().zip(&it).enumerate() {
-        assert_eq!(
-            c, n,
-            "{scenario:?} seed {seed}: record {i} differs (compiled, then interpreted)"
-        );
-    }
-    assert_eq!(ct.len(), it.len(), "{scenario:?} seed {seed}");
+    let what = format!("{scenario:?} seed {seed}, compiled then interpreted");
+    tdl::testing::assert_same_trace(&ct, &it, &what);
     assert_eq!(cm.notifications(), im.notifications());
     assert_eq!(cm.undeliverable(), im.undeliverable());
 }
