@@ -346,7 +346,9 @@ pub(crate) fn handler(
     let exception = def.handles.as_deref().map_or("", intern);
     let cells = cells(shared, def, &args)?;
     let s = shared.clone();
-    let attached = def.for_task.is_some();
+    // A handler attached with `for` reads the arguments of the node it recovers, when it has
+    // parameters to read them into (as the generated code does).
+    let attached = def.for_task.is_some() && !def.params.is_empty();
     let mut h = Handler::new(name, exception, move |ctx: Ctx| {
         let (s, cells, args) = (s.clone(), cells.clone(), args.clone());
         async move {

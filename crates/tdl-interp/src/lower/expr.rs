@@ -596,7 +596,11 @@ impl Lower<'_, '_> {
                 ArgRef::Name(n) => match named.iter().find(|(name, _)| name == n) {
                     Some((_, i)) => *i,
                     None => {
-                        let Some(slot) = self.local(n) else {
+                        let found = self.local(n);
+                        if let Some(slot) = found {
+                            self.used.insert(slot);
+                        }
+                        let Some(slot) = found else {
                             self.error(
                                 s.span(),
                                 format!("format string: `{n}` is not a local nor a named argument"),

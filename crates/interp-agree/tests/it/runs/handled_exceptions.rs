@@ -1,11 +1,8 @@
 //! `handled_exceptions.tdl`: every exception raised has a handler on some way up (at the spawn,
 //! two levels up, attached with `for`, a handler's own failure handled above), or the body takes
-//! the failure. `log` and `backup` (a command) are Rust here. Every goal and command runs.
-//!
-//! The handler `unjam`, attached `for lift` and without parameters, fails in the interpreted
-//! runs (`NotAttached`: it "ran outside a failure of the task it is attached to, so it has no
-//! arguments to read") where the compiled one recovers `lift`: `carry` and `lift` are the two
-//! ignored tests until the interpreter runs it.
+//! the failure. `log` and `backup` (a command) are Rust here. Every goal and command runs,
+//! `lift` and `carry` recovered by `unjam`, attached `for lift` and without parameters (it reads
+//! no arguments of the node it recovers).
 
 use tdl::Task;
 use tdl_interp::Registry;
@@ -65,13 +62,11 @@ async fn failing_commands_run_alike() {
 }
 
 #[tokio::test(start_paused = true)]
-#[ignore = "interpreter gap: a `for` handler without parameters (`unjam` for `lift`) fails with NotAttached"]
 async fn a_goal_recovered_by_an_attached_handler_without_parameters_runs_alike() {
     case().alike(carry(), "carry", vec![]).await;
 }
 
 #[tokio::test(start_paused = true)]
-#[ignore = "interpreter gap: a `for` handler without parameters (`unjam` for `lift`) fails with NotAttached"]
 async fn a_command_recovered_by_an_attached_handler_without_parameters_runs_alike() {
     case().alike(lift(), "lift", vec![]).await;
 }
