@@ -6,13 +6,6 @@
 //! (`REFUSED`) is loaded and its diagnostics snapshotted (`refused.rs`). A file of
 //! `test_data/ok` in neither list fails `every_ok_program_is_classified`.
 
-/// The source marker `tdl_syntax::pretty` leaves in generated code when the printer wrapped it
-/// over three lines (a long `.tdl` path in a nested statement): it says where a statement comes
-/// from and expands to nothing.
-macro_rules! __tdl_source {
-    ($($source:tt)*) => {};
-}
-
 mod refused;
 mod runs;
 mod util;

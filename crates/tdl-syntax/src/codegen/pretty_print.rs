@@ -36,12 +36,33 @@ fn source_comments(text: &str) -> String {
     // The markers in force: (indentation, source).
     let mut stack: Vec<(usize, Option<&str>)> = Vec::new();
     let mut out = String::with_capacity(text.len() * 2);
+    // A marker the printer wrapped over several lines (a long file name in a nested statement):
+    // its indentation and argument, until its `);`.
+    let mut wrapped: Option<(usize, Option<&str>)> = None;
     for (i, line) in text.lines().enumerate() {
         let n = i + 1;
         let trimmed = line.trim_start();
         let indent = line.len() - trimmed.len();
         // A line that starts inside a literal says nothing of blocks.
         let continues = starts_inside.contains(&n);
+        if let Some((at, arg)) = wrapped {
+            if trimmed == ");" {
+                wrapped = None;
+                stack.retain(|(i, _)| *i < at);
+                let source = arg
+                    .map(|a| a.trim_end_matches(','))
+                    .and_then(|a| a.strip_prefix('"'))
+                    .and_then(|it| it.strip_suffix('"'));
+                stack.push((at, source));
+            } else {
+                wrapped = Some((at, arg.or(Some(trimmed))));
+            }
+            continue;
+        }
+        if trimmed == prefix && !continues {
+            wrapped = Some((indent, None));
+            continue;
+        }
         let marker = trimmed
             .strip_prefix(&prefix)
             .and_then(|rest| rest.strip_suffix(");"))

@@ -508,6 +508,37 @@ lines\";
     assert!(!out.contains("__tdl_source"), "{out}");
 }
 
+/// A marker the printer wraps over several lines (a long file name in a deeply nested
+/// statement) is still a comment, never code left behind.
+#[test]
+fn wrapped_source_markers_become_comments_too() {
+    let src = "goal walk(n: u32) {
+    for i in 0..n {
+        if i > 0 {
+            while i < n {
+                match i {
+                    1 => {
+                        spawn step(i) with sequential execution previous;
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+}
+";
+    let name = "crates/a_crate_with_a_rather_long_name/src/missions/with_a_long_path/walk_the_long_way_round.tdl";
+    let (tokens, diags) = crate::compile_program(&[(name, src)]).remove(0);
+    assert!(diags.is_empty(), "{diags:?}");
+    let out = pretty(&tokens.expect("no errors"));
+    assert!(!out.contains("__tdl_source"), "{out}");
+    let spawn = out
+        .lines()
+        .find(|line| line.contains("ctx.spawn"))
+        .unwrap_or_else(|| panic!("no spawn in:\n{out}"));
+    assert!(spawn.ends_with(&format!(" // {name}:7")), "{out}");
+}
+
 /// The `tdl!` macro's expansion carries no source markers: its spans point at the source.
 #[test]
 fn macro_expansion_has_no_source_markers() {
