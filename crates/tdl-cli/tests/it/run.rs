@@ -220,3 +220,51 @@ fn killing_the_agent_mid_run_raises_agent_lost_in_the_tree() {
         "{records}"
     );
 }
+
+#[test]
+fn with_view_the_run_is_served_live_and_after_it_ends() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tdl"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "run",
+            "tests/data/run/steps.tdl",
+            "--args",
+            "[2, 9]",
+            "--view",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run tdl");
+    let stderr = child.stderr.take().expect("its stderr");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let addr = loop {
+        let line = rx
+            .recv_timeout(Duration::from_secs(60))
+            .expect("tdl run prints the viewer's address");
+        if let Some(rest) = line.strip_prefix("viewer: http://") {
+            break rest.split('/').next().unwrap_or_default().to_string();
+        }
+    };
+    // The run ends within a second; the viewer keeps serving it, finished, with its records.
+    let start = Instant::now();
+    let runs = loop {
+        let runs = crate::view::get(&addr, "/api/runs");
+        if runs.contains("\"finished\":true") || start.elapsed() > Duration::from_secs(30) {
+            break runs;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(runs.contains("\"name\":\"steps\""), "{runs}");
+    assert!(runs.contains("\"finished\":true"), "{runs}");
+    assert!(!runs.contains("\"records\":0"), "{runs}");
+}

@@ -63,7 +63,7 @@ fn serve(args: &[&str]) -> Served {
 }
 
 /// The body of `GET path`.
-fn get(addr: &str, path: &str) -> String {
+pub(crate) fn get(addr: &str, path: &str) -> String {
     let mut s = TcpStream::connect(addr).expect("connect");
     s.set_read_timeout(Some(Duration::from_secs(10)))
         .expect("timeout");
