@@ -464,6 +464,8 @@ pub(crate) struct TaskDef {
     pub(crate) body: Block,
     /// Whether the body may make children (it then holds them until it ends or waits).
     pub(crate) holds: bool,
+    /// Whether the body may await (else it runs within its action's first poll).
+    pub(crate) awaits: bool,
     pub(crate) locals: usize,
     pub(crate) tdl_slots: usize,
     pub(crate) loc: Loc,

@@ -596,11 +596,22 @@ pub(crate) fn run(
     ctx: Ctx,
     args: Vec<Value>,
     cells: Option<Arc<Mutex<Vec<Value>>>>,
-) -> Run {
-    if shared.tasks[idx].blocking {
-        return Box::pin(run_blocking(shared, idx, ctx, args));
+) -> RunFut {
+    let def = &shared.tasks[idx];
+    if def.blocking {
+        return RunFut::Boxed(Box::pin(run_blocking(shared, idx, ctx, args)));
     }
-    Box::pin(async move {
+    // A body that never awaits runs within its first poll, without a boxed future of its own.
+    if !def.awaits {
+        return RunFut::Sync(Some(SyncRun {
+            shared,
+            idx,
+            ctx,
+            args,
+            cells,
+        }));
+    }
+    RunFut::Boxed(Box::pin(async move {
         let def = &shared.tasks[idx];
         let mut f = frame(&shared, def, Some(ctx.clone()), &args);
         prologue(&mut f, def, &ctx, cells.as_ref())?;
@@ -608,17 +619,75 @@ pub(crate) fn run(
             Ok(()) => f.block(&def.body).await,
             Err(failure) => Err(Flow::Fail(failure)),
         };
-        // Each run starts from the stored values and stores its own back however its body ends.
-        if let Some(cells) = &cells {
-            let mut stored = lock(cells);
-            for (i, (slot, ..)) in def.persistents.iter().enumerate() {
-                if let Some(cell) = stored.get_mut(i) {
-                    *cell = f.local(*slot);
+        store(def, &f, cells.as_ref());
+        boxed(def, ending(def, r)?)
+    }))
+}
+
+/// An action's run: a body that never awaits, run when first polled; any other, boxed.
+pub(crate) enum RunFut {
+    Sync(Option<SyncRun>),
+    Boxed(Run),
+}
+
+/// What a body that never awaits needs to run.
+pub(crate) struct SyncRun {
+    shared: Arc<Shared>,
+    idx: TaskIdx,
+    ctx: Ctx,
+    args: Vec<Value>,
+    cells: Option<Arc<Mutex<Vec<Value>>>>,
+}
+
+impl std::future::Future for RunFut {
+    type Output = Result<Box<dyn std::any::Any + Send>, Failure>;
+
+    fn poll(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<Self::Output> {
+        match self.get_mut() {
+            RunFut::Boxed(f) => f.as_mut().poll(cx),
+            RunFut::Sync(run) => {
+                let Some(SyncRun {
+                    shared,
+                    idx,
+                    ctx,
+                    args,
+                    cells,
+                }) = run.take()
+                else {
+                    return std::task::Poll::Ready(Err(Failure::new(
+                        "Interpreter",
+                        "an action polled after it ended",
+                    )));
+                };
+                let def = &shared.tasks[idx];
+                let mut f = frame(&shared, def, Some(ctx.clone()), &args);
+                if let Err(failure) = prologue(&mut f, def, &ctx, cells.as_ref()) {
+                    return std::task::Poll::Ready(Err(failure));
                 }
+                let r = locals(&mut f, def, &ctx)
+                    .map_err(Flow::Fail)
+                    .and_then(|()| f.block_sync(&def.body));
+                store(def, &f, cells.as_ref());
+                std::task::Poll::Ready(ending(def, r).and_then(|v| boxed(def, v)))
             }
         }
-        boxed(def, ending(def, r)?)
-    })
+    }
+}
+
+/// Each run starts from the stored values of the persistent variables and stores its own back
+/// however its body ends.
+fn store(def: &TaskDef, f: &Frame, cells: Option<&Arc<Mutex<Vec<Value>>>>) {
+    if let Some(cells) = cells {
+        let mut stored = lock(cells);
+        for (i, (slot, ..)) in def.persistents.iter().enumerate() {
+            if let Some(cell) = stored.get_mut(i) {
+                *cell = f.local(*slot);
+            }
+        }
+    }
 }
 
 /// The value as the runtime keeps it: `()` for a task without a result type.

@@ -56,6 +56,7 @@ pub(crate) fn lower_task(
         prelude: Vec::new(),
         body: crate::ir::Block::default(),
         holds: true,
+        awaits: true,
         locals: 0,
         tdl_slots: 0,
         loc: l.loc(task.name.span()),
@@ -143,6 +144,7 @@ pub(crate) fn lower_task(
         def.body = body;
     }
     def.holds = crate::walk::block(&def.body, &crate::walk::makes_children);
+    def.awaits = crate::walk::block(&def.body, &crate::walk::awaits);
     let (locals, tdl_slots) = l.sizes();
     def.locals = locals;
     def.tdl_slots = tdl_slots;
