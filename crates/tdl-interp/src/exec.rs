@@ -157,11 +157,20 @@ impl Frame {
     /// One iteration's bookkeeping: the count of a counted loop, the budget; whether to yield.
     fn iteration(&mut self, l: &LoopSt) -> R<bool> {
         self.steps += 1;
-        if self.steps > self.shared.budget.max_steps {
+        if self.steps
+            > self
+                .shared
+                .max_steps
+                .load(std::sync::atomic::Ordering::Relaxed)
+        {
             return Err(over_budget(l, self.steps));
         }
         self.since_yield += 1;
-        let yield_now = self.since_yield >= self.shared.budget.yield_every;
+        let yield_now = self.since_yield
+            >= self
+                .shared
+                .yield_every
+                .load(std::sync::atomic::Ordering::Relaxed);
         if yield_now {
             self.since_yield = 0;
         }

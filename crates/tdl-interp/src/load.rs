@@ -177,7 +177,8 @@ fn build(
             registry: registry.clone(),
             tasks,
             by_name: names.tasks,
-            budget,
+            yield_every: std::sync::atomic::AtomicU32::new(budget.yield_every.max(1)),
+            max_steps: std::sync::atomic::AtomicU64::new(budget.max_steps),
             ancestry,
         }),
     })

@@ -22,7 +22,9 @@ pub(crate) struct Shared {
     pub(crate) registry: Registry,
     pub(crate) tasks: Vec<TaskDef>,
     pub(crate) by_name: BTreeMap<String, TaskIdx>,
-    pub(crate) budget: Budget,
+    /// The budget of bodies that compute without waiting: iterations between yields, and in all.
+    pub(crate) yield_every: std::sync::atomic::AtomicU32,
+    pub(crate) max_steps: std::sync::atomic::AtomicU64,
     /// Every exception's ancestors, nearest first: the program's and the registry's.
     pub(crate) ancestry: BTreeMap<String, Vec<Arc<str>>>,
 }
@@ -78,18 +80,17 @@ impl Program {
         crate::load::load(files, registry, Budget::default())
     }
 
-    /// The same program with another budget for bodies that compute without waiting.
+    /// The same program with another budget for bodies that compute without waiting; its
+    /// clones (and the tasks already built from it) share the program, and so the budget.
     pub fn with_budget(self, budget: Budget) -> Program {
-        let mut shared = match Arc::try_unwrap(self.shared) {
-            Ok(s) => s,
-            Err(arc) => {
-                return Program { shared: arc };
-            }
-        };
-        shared.budget = budget;
-        Program {
-            shared: Arc::new(shared),
-        }
+        use std::sync::atomic::Ordering;
+        self.shared
+            .yield_every
+            .store(budget.yield_every.max(1), Ordering::Relaxed);
+        self.shared
+            .max_steps
+            .store(budget.max_steps, Ordering::Relaxed);
+        self
     }
 
     /// The names of the program's goals and commands, which can be run.
