@@ -57,9 +57,28 @@ pub struct CondId(pub(crate) u32);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct WatchToken(pub u64);
 
+/// A handler attached from outside to a task (`Engine::handler_for`, `Engine::attach`), for
+/// `Engine::detach`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct AttachId(pub(crate) u32);
+
+impl AttachId {
+    /// Its number, as the trace's `handler_attached` record gives it.
+    pub fn number(self) -> u32 {
+        self.0
+    }
+}
+
 /// A wiretap registered with `Engine::wiretap`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct WiretapId(pub(crate) u32);
+
+impl WiretapId {
+    /// Its number, as the trace's `tapped` records give it.
+    pub fn number(self) -> u32 {
+        self.0
+    }
+}
 
 /// When a wiretap runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]

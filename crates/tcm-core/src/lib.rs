@@ -54,7 +54,9 @@ pub use engine::{
     ResourceDropped, ResourceInfo, Spawn, Stats, Uses, WatchOutcome,
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
-pub use ids::{CondId, ExternalId, NodeId, ResourceId, StateId, TapWhen, WatchToken, WiretapId};
+pub use ids::{
+    AttachId, CondId, ExternalId, NodeId, ResourceId, StateId, TapWhen, WatchToken, WiretapId,
+};
 pub use tcm_expr::{BinOp, Expr, ExprError, Type, TypeMismatch, Value};
 pub use tcm_trace::{Facet, NodeKind, Outcome, Point, State, Termination};
 pub use time::{Clock, Time};

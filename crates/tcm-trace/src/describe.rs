@@ -27,7 +27,7 @@ pub enum RecordClass {
     Wiretap,
     /// Monitor parameters, activations and triggers.
     Monitor,
-    /// External events and timer callbacks.
+    /// External events, timer callbacks and control from outside the run.
     Event,
     /// Resources: declarations, requests, grants, releases, refusals, reservations and locks.
     Resource,
@@ -266,6 +266,36 @@ impl TraceKind {
                 Some(*node),
                 format!("wiretap {tap} checks {when}"),
             ),
+            K::HandlerAttached {
+                attach,
+                task,
+                handler,
+                exception,
+            } => (
+                C::Handler,
+                None,
+                format!("handler {handler} ({exception}) attached to {task} as {attach}"),
+            ),
+            K::HandlerDetached { attach } => (
+                C::Handler,
+                None,
+                format!("attached handler {attach} removed"),
+            ),
+            K::TapAdded {
+                tap,
+                task,
+                instance,
+                when,
+            } => (
+                C::Wiretap,
+                None,
+                format!(
+                    "wiretap {tap} added on {} {task}, {when}",
+                    if *instance { "instance" } else { "task" }
+                ),
+            ),
+            K::TapRemoved { tap } => (C::Wiretap, None, format!("wiretap {tap} removed")),
+            K::Control { what, by } => (C::Event, None, format!("control: {what} (by {by})")),
             K::CallbackSet { name, node, .. } => (C::Event, *node, format!("callback {name} set")),
             K::CallbackRan { name, .. } => (C::Event, None, format!("callback {name} ran")),
             K::Resource {

@@ -9,7 +9,7 @@ use crate::state::{Facet, NodeKind, Outcome, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 7;
+pub const TRACE_FORMAT_VERSION: u32 = 8;
 
 /// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
 pub const OLDEST_READABLE_VERSION: u32 = 1;
@@ -329,6 +329,10 @@ pub enum TraceKind {
         kind: NodeKind,
         /// Instance name.
         name: String,
+        /// The version of the program whose definition the node runs, when its program was
+        /// loaded at run time under one (a serving executive's content hash); absent otherwise.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        version: Option<String>,
     },
     /// A constraint was applied to a node.
     Constrained {
@@ -595,6 +599,49 @@ pub enum TraceKind {
         /// The agent's name.
         agent: String,
     },
+    /// A handler was attached from outside to a task while the run ran: the task's live nodes
+    /// and those spawned from now on try it after their own handlers.
+    HandlerAttached {
+        /// The attachment's number; `handler_detached` names it again.
+        attach: u32,
+        /// The task whose nodes it is attached to.
+        task: String,
+        /// The handler's instance name.
+        handler: String,
+        /// The exception it handles.
+        exception: String,
+    },
+    /// A handler attached while the run ran was removed: no node tries it from now on (a use
+    /// already running goes on).
+    HandlerDetached {
+        /// The attachment's number.
+        attach: u32,
+    },
+    /// A wiretap was added while the run ran.
+    TapAdded {
+        /// The wiretap's number, as `tapped` records name it.
+        tap: u32,
+        /// The task (or, with `instance`, the instance name) it taps.
+        task: String,
+        /// Whether it matches instance names instead of task names.
+        instance: bool,
+        /// `before` or `after`.
+        #[cfg_attr(feature = "schema", schemars(extend("enum" = ["before", "after"])))]
+        when: String,
+    },
+    /// A wiretap was removed: no check of it starts from now on.
+    TapRemoved {
+        /// The wiretap's number.
+        tap: u32,
+    },
+    /// An operation from outside the run on it: a program loaded into it, a run stopped or
+    /// swapped, an operator's request.
+    Control {
+        /// What was done, for people (`load tidy@3f2a…`, `stop`).
+        what: String,
+        /// Who asked (a client's name or identity, as the executive knows it).
+        by: String,
+    },
     /// Something worth a person's attention; the run goes on.
     Warning {
         /// Node concerned, if any.
@@ -616,7 +663,12 @@ impl TraceKind {
             | TraceKind::Resource { .. }
             | TraceKind::ResourceUnreserved { .. }
             | TraceKind::ResourceLocked { .. }
-            | TraceKind::ResourceUnlocked { .. } => None,
+            | TraceKind::ResourceUnlocked { .. }
+            | TraceKind::HandlerAttached { .. }
+            | TraceKind::HandlerDetached { .. }
+            | TraceKind::TapAdded { .. }
+            | TraceKind::TapRemoved { .. }
+            | TraceKind::Control { .. } => None,
             TraceKind::Warning { node, .. } | TraceKind::CallbackSet { node, .. } => *node,
             TraceKind::Reserved { node, .. }
             | TraceKind::Spawned { node, .. }

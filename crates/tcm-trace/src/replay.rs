@@ -461,6 +461,7 @@ impl Replay {
                 parent,
                 kind,
                 name,
+                ..
             } => self.apply_spawned(t, *node, *parent, *kind, name)?,
             TraceKind::Constrained { node, constraint } => {
                 self.node_mut(*node)?.constraints.push(constraint.clone());
@@ -536,7 +537,12 @@ impl Replay {
             | TraceKind::Warning { .. }
             | TraceKind::Tapped { .. }
             | TraceKind::CallbackSet { .. }
-            | TraceKind::CallbackRan { .. } => {}
+            | TraceKind::CallbackRan { .. }
+            | TraceKind::HandlerAttached { .. }
+            | TraceKind::HandlerDetached { .. }
+            | TraceKind::TapAdded { .. }
+            | TraceKind::TapRemoved { .. }
+            | TraceKind::Control { .. } => {}
             TraceKind::MonitorParams {
                 node,
                 max_activations,

@@ -142,6 +142,7 @@ mod tests {
                     parent: 0,
                     kind: NodeKind::Command,
                     name: "move".into(),
+                    version: None,
                 },
             ),
             ev(

@@ -58,6 +58,7 @@ impl Tb {
             parent,
             kind,
             name: name.to_string(),
+            version: None,
         })
     }
 

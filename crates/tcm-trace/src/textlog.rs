@@ -169,6 +169,7 @@ impl TextLog {
                     parent,
                     kind,
                     name,
+                    ..
                 },
                 _,
             ) => lines.push(format!(

@@ -29,6 +29,7 @@
 
 mod cancel;
 mod clock;
+mod control;
 mod ctx;
 mod host;
 mod invoke;
@@ -47,6 +48,7 @@ pub mod testing;
 mod timer;
 
 pub use cancel::DEFAULT_GRACE;
+pub use control::Control;
 pub use ctx::{Ctx, Ended, Spawner};
 pub use host::Panicked;
 pub use place::{Json, Placer, remote_args, remote_value};
@@ -61,12 +63,13 @@ pub use task::{
     Action, ActionFuture, Attached, Exception, Factory, Handler, Monitor, Task, Value, factory,
 };
 pub use tcm_core::{
+    AttachId, EachActivation, Outcome, Overrun, PassedOn, ResourceInfo, TapWhen, Then, When,
+    WiretapId,
+};
+pub use tcm_core::{
     Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,
     FatalFailure, MonitorInfo, NodeId, NodeInfo, NodeKind, NodeRef, Point, State, Stats,
     Termination, Time, WatchOutcome,
-};
-pub use tcm_core::{
-    EachActivation, Outcome, Overrun, PassedOn, ResourceInfo, TapWhen, Then, When, WiretapId,
 };
 pub use tcm_trace::{TraceEvent, TraceKind};
 

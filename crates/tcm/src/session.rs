@@ -8,6 +8,7 @@
 //! so the program's own waiting never counts as a parked action.
 
 use crate::Error;
+use crate::control::Control;
 use crate::ctx::Ctx;
 use crate::host::{Shared, lock};
 use crate::runtime::{EventHandle, Report, RunOutcome, end_run, report};
@@ -57,14 +58,15 @@ impl Session {
     /// Inserts `task` as a top-level task (a child of the root); it starts at once. The run's
     /// outcome at [`Session::finish`] takes every top-level task into account.
     pub fn spawn(&self, task: Task) -> Result<NodeId, Error> {
-        let mut inner = self.shared().enter()?;
-        if inner.ended {
-            return Err(Error::RunEnded);
+        spawn_top(self.shared(), task)
+    }
+
+    /// A handle to control the run from other tasks and threads while it runs: top-level tasks,
+    /// events, handlers and wiretaps added and removed (see [`Control`]).
+    pub fn control(&self) -> Control {
+        Control {
+            ctx: self.ctx.clone(),
         }
-        let now = self.shared().now();
-        let root = inner.engine.root();
-        let (spec, kept) = task.into_parts(root);
-        Ok(inner.spawn_root(now, spec, kept)?)
     }
 
     /// Waits until the run is *quiescent*: nothing more can happen without input from outside the
@@ -277,6 +279,18 @@ impl Session {
     {
         self.ctx.invoke_at(name, at, f)
     }
+}
+
+/// Inserts `task` as a top-level task of the run.
+pub(crate) fn spawn_top(shared: &Arc<Shared>, task: Task) -> Result<NodeId, Error> {
+    let mut inner = shared.enter()?;
+    if inner.ended {
+        return Err(Error::RunEnded);
+    }
+    let now = shared.now();
+    let root = inner.engine.root();
+    let (spec, kept) = task.into_parts(root);
+    Ok(inner.spawn_root(now, spec, kept)?)
 }
 
 impl Drop for Session {

@@ -177,6 +177,7 @@ impl TraceSink for TracingSink {
                 parent,
                 kind,
                 name,
+                ..
             } => {
                 self.names.insert(*node, name.clone());
                 tracing::debug!(target: "tcm", t_ns, node = *node, name = name.as_str(), parent = *parent, kind = ?kind, "spawned");

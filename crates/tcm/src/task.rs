@@ -222,6 +222,8 @@ pub struct Task {
     pub(crate) args: Option<AnyArgs>,
     pub(crate) grace: Option<Duration>,
     pub(crate) wanted: Option<Box<crate::resource::Wanted>>,
+    // The version of the program that defines it (`Task::version`).
+    pub(crate) version: Option<Arc<str>>,
 }
 
 impl Task {
@@ -240,6 +242,7 @@ impl Task {
             args: None,
             grace: None,
             wanted: None,
+            version: None,
         }
     }
 
@@ -491,6 +494,14 @@ impl Task {
         self
     }
 
+    /// Names the version of the program that defines this task (a program loaded at run time
+    /// under its content hash): the node's `spawned` record carries it, so a trace in which two
+    /// versions ran tells which node ran which (docs/trace-format.md).
+    pub fn version(mut self, version: Arc<str>) -> Task {
+        self.version = Some(version);
+        self
+    }
+
     /// Renames the instance (TDL's `name` constraint); the task name stays (see
     /// [`Task::task_name`]).
     pub fn named(mut self, name: impl Into<Name>) -> Task {
@@ -528,6 +539,7 @@ impl Task {
             retry: self.retry,
             // Resolved by name when the spawn is made (`Kept::wanted`).
             uses: None,
+            version: self.version,
         };
         (spawn, kept)
     }

@@ -107,6 +107,9 @@ pub struct Spawn<A, F = ()> {
     pub retry: Option<F>,
     /// The resources it uses, granted before it starts (docs/semantics.md, "Resources").
     pub uses: Option<Box<Uses>>,
+    /// The version of the program that defines its task, when the program was loaded under one
+    /// (a serving executive's content hash): its `spawned` record names it.
+    pub version: Option<std::sync::Arc<str>>,
 }
 
 impl<A, F: Clone> Spawn<A, F> {
@@ -126,6 +129,7 @@ impl<A, F: Clone> Spawn<A, F> {
             handlers: Vec::new(),
             retry: None,
             uses: None,
+            version: None,
         }
     }
 
@@ -145,6 +149,7 @@ impl<A, F: Clone> Spawn<A, F> {
             handlers: Vec::new(),
             retry: None,
             uses: None,
+            version: None,
         }
     }
 

@@ -49,6 +49,8 @@ pub struct HandlerSpec<F> {
 pub(crate) struct HandlerEntry<F> {
     pub(crate) spec: HandlerSpec<F>,
     pub(crate) uses: u32,
+    // The attachment it came from (`Engine::handler_for`), 0 for the node's own handlers.
+    pub(crate) attach: u32,
 }
 
 /// What a handler node handles, for bypass and retry.

@@ -86,6 +86,7 @@ mod arm;
 mod callback;
 mod canon;
 mod exception;
+mod extend;
 mod monitor;
 pub(crate) mod node;
 mod progress;
@@ -100,7 +101,7 @@ mod wiretap;
 
 use crate::arena::{Arena, Keep, Lookup, Owned};
 use crate::failure::{FailurePolicy, FatalFailure};
-use crate::ids::{ExternalId, NodeId};
+use crate::ids::{AttachId, ExternalId, NodeId};
 use crate::time::{Clock, Time};
 use crate::{Name, NodeKind};
 pub use api::{Effect, EngineError, Job, Spawn, Stats, WatchOutcome};
@@ -200,8 +201,11 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     hold_default: bool,
     fatal: Option<FatalFailure>,
     taps: Vec<Wiretap<F>>,
-    // Handlers attached from outside to a task name (`Engine::handler_for`), in the order attached.
-    class_handlers: BTreeMap<Name, Vec<HandlerSpec<F>>>,
+    // Handlers attached from outside to a task name (`Engine::handler_for`, `Engine::attach`), in
+    // the order attached, each with its number.
+    class_handlers: BTreeMap<Name, Vec<(AttachId, HandlerSpec<F>)>>,
+    // The number of the last attachment (`AttachId`s start at 1).
+    attachments: u32,
     // Resources and the requests waiting for them (`resource.rs`).
     res: resource::Resources,
     // State variables, conditions and their watches (`state.rs`).
@@ -246,6 +250,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             fatal: None,
             taps: Vec::new(),
             class_handlers: BTreeMap::new(),
+            attachments: 0,
             res: resource::Resources::default(),
             states: state::States::default(),
         };
@@ -286,11 +291,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// node's own handlers; handlers attached to the same task are tried in the order attached.
     /// Each node counts its own uses (`maximum activate`). A retried node has none of its own: its
     /// failures meet those of the node it retries (docs/semantics.md, "Handlers attached to a task").
-    pub fn handler_for(&mut self, task: impl Into<Name>, spec: HandlerSpec<F>) {
+    /// Returns the attachment's number, for [`Engine::detach`].
+    pub fn handler_for(&mut self, task: impl Into<Name>, spec: HandlerSpec<F>) -> AttachId {
+        self.attachments += 1;
+        let id = AttachId(self.attachments);
         self.class_handlers
             .entry(task.into())
             .or_default()
-            .push(spec);
+            .push((id, spec));
+        id
     }
 
     /// The root node: top-level tasks are its children.

@@ -64,6 +64,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             handlers,
             retry,
             mut uses,
+            version,
         } = spec;
         self.live(parent)?;
         if let Some(u) = uses.as_mut() {
@@ -126,7 +127,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             } else {
                 node.cold_mut().handlers = handlers
                     .into_iter()
-                    .map(|spec| HandlerEntry { spec, uses: 0 })
+                    .map(|spec| HandlerEntry {
+                        spec,
+                        uses: 0,
+                        attach: 0,
+                    })
                     .collect();
             }
             if retry.is_some() {
@@ -151,9 +156,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 .map(|specs| {
                     specs
                         .iter()
-                        .map(|spec| HandlerEntry {
+                        .map(|(id, spec)| HandlerEntry {
                             spec: spec.clone(),
                             uses: 0,
+                            attach: id.0,
                         })
                         .collect()
                 });
@@ -162,7 +168,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
         }
         self.link(parent, id);
-        let display = self.emit_spawned(id, parent);
+        let display = self.emit_spawned(id, parent, version.as_ref());
         if self.tracing {
             let n = self.node(id);
             if let Some(m) = n.monitor() {
@@ -414,7 +420,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         node.suspended = self.node(parent).suspended;
         let id = self.nodes.insert(node);
         self.link(parent, id);
-        self.emit_spawned(id, parent);
+        self.emit_spawned(id, parent, None);
         if self.node(id).suspended {
             emit!(self, TraceKind::Suspended { node: display });
         }
@@ -444,7 +450,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         node.action = Some(payload);
         node.suspended = suspended;
         self.link(parent, r);
-        let display = self.emit_spawned(r, parent);
+        let display = self.emit_spawned(r, parent, None);
         if suspended {
             emit!(self, TraceKind::Suspended { node: display });
         }
@@ -467,7 +473,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
 
     /// Traces a node's insertion under `parent`; returns its display number.
     #[inline(always)]
-    fn emit_spawned(&mut self, id: NodeId, parent: NodeId) -> u64 {
+    fn emit_spawned(
+        &mut self,
+        id: NodeId,
+        parent: NodeId,
+        version: Option<&std::sync::Arc<str>>,
+    ) -> u64 {
         let display = self.node(id).display;
         // The record (and its copy of the name) is only built when someone reads the trace.
         if self.tracing {
@@ -479,6 +490,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 parent,
                 kind,
                 name,
+                version: version.map(ToString::to_string),
             });
         }
         display

@@ -28,6 +28,8 @@ pub(crate) struct Wiretap<F> {
     pub(crate) instance: bool,
     pub(crate) when: TapWhen,
     pub(crate) body: F,
+    // Removed (`Engine::untap`): no check of it starts any more. Its number stays taken.
+    pub(crate) removed: bool,
 }
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
@@ -57,6 +59,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             instance,
             when,
             body,
+            removed: false,
         });
         id
     }
@@ -127,7 +130,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             .taps
             .iter()
             .enumerate()
-            .filter(|(_, t)| t.when == when && &t.task == if t.instance { &name } else { &task })
+            .filter(|(_, t)| {
+                !t.removed && t.when == when && &t.task == if t.instance { &name } else { &task }
+            })
             .map(|(i, t)| (WiretapId(i as u32), t.body.clone()))
             .collect();
         let k = matching.len() as u32;

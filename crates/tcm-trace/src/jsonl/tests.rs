@@ -10,7 +10,7 @@ fn lines_serialise_flat_with_tags() {
     let t = small_run();
     assert_eq!(
         to_line(&t[0]),
-        r#"{"seq":0,"t":0,"ev":"run_started","version":7,"run":0}"#
+        r#"{"seq":0,"t":0,"ev":"run_started","version":8,"run":0}"#
     );
     assert_eq!(
         to_line(&t[1]),
@@ -207,10 +207,10 @@ fn errors_name_the_line_and_the_problem() {
         e.starts_with("line 1: not a trace record: EOF while parsing"),
         "{e}"
     );
-    let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":9,\"run\":0}");
+    let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":10,\"run\":0}");
     assert_eq!(
         e,
-        "line 1: the trace has format version 9, but this reader reads versions 1 to 7"
+        "line 1: the trace has format version 10, but this reader reads versions 1 to 8"
     );
     assert!(matches!(
         read_jsonl(&b"\xff\n"[..]),
@@ -251,7 +251,7 @@ fn documented_examples_are_exact() {
             thens.insert(key(&value["constraint"]["then"]));
         }
     }
-    assert_eq!(kinds.len(), 39, "{kinds:?}");
+    assert_eq!(kinds.len(), 44, "{kinds:?}");
     assert_eq!(forms.len(), 3, "{forms:?}");
     // Every kind of "when" with every kind of "then" is shown (the empty string is not a trigger).
     assert_eq!(whens.len(), 8, "{whens:?}");

@@ -418,6 +418,7 @@ impl Replay {
                 parent,
                 kind,
                 name,
+                ..
             } => {
                 self.link(*node, *parent);
                 self.edit(*node, |row| {
@@ -593,6 +594,11 @@ impl Replay {
             | K::CallbackSet { .. }
             | K::CallbackRan { .. }
             | K::Resource { .. }
+            | K::HandlerAttached { .. }
+            | K::HandlerDetached { .. }
+            | K::TapAdded { .. }
+            | K::TapRemoved { .. }
+            | K::Control { .. }
             | K::Warning { node: None, .. } => {}
         }
     }

@@ -140,7 +140,8 @@ fn bad_records_are_refused() {
             node: 2,
             parent: 0,
             kind: NodeKind::Goal,
-            name: "x".into()
+            name: "x".into(),
+            version: None,
         })),
         Err(ReplayError::Duplicate { node: 2 })
     );
@@ -149,7 +150,8 @@ fn bad_records_are_refused() {
             node: 5,
             parent: 1,
             kind: NodeKind::Goal,
-            name: "x".into()
+            name: "x".into(),
+            version: None,
         })),
         Err(ReplayError::UnknownParent { node: 5, parent: 1 })
     );

@@ -8,6 +8,7 @@ mod activation_data;
 mod blocking;
 mod callbacks;
 mod cancel;
+mod control;
 mod determinism;
 mod exceptions;
 mod held_children;

@@ -1,0 +1,128 @@
+//! A run controlled from outside while it runs ([`Session::control`](crate::Session::control)):
+//! what a serving executive does to the runs it holds, from any task or thread.
+//!
+//! - Top-level tasks started, awaited and terminated; external events raised.
+//! - Handlers attached to a task and detached again, wiretaps added and removed (TCA's modules
+//!   extending a running tree; `tcm_core`'s `engine/extend.rs` gives the rules). Each is a trace
+//!   record, as is [`Control::note`], an operation from outside named with who asked.
+//!
+//! A control handle is not an open event handle: it does not keep a run with nothing left to do
+//! from ending.
+
+use crate::Error;
+use crate::ctx::Ctx;
+use crate::task::{Attached, Factory, Handler, Task};
+use std::any::Any;
+use tcm_core::{AttachId, NodeId, Stats, TapWhen, WatchOutcome, WiretapId};
+
+/// A handle on a running session: see the module's documentation. Cheap to clone.
+#[derive(Clone)]
+pub struct Control {
+    // A context of the root, of no job.
+    pub(crate) ctx: Ctx,
+}
+
+impl Control {
+    fn engine<T>(
+        &self,
+        f: impl FnOnce(&mut tcm_core::Engine<crate::task::Action, Factory>, tcm_core::Time) -> T,
+    ) -> Result<T, Error> {
+        let mut inner = self.ctx.shared.enter()?;
+        if inner.ended {
+            return Err(Error::RunEnded);
+        }
+        let now = self.ctx.shared.now();
+        Ok(f(&mut inner.engine, now))
+    }
+
+    /// Inserts `task` as a top-level task, as [`Session::spawn`](crate::Session::spawn) does.
+    pub fn spawn(&self, task: Task) -> Result<NodeId, Error> {
+        crate::session::spawn_top(&self.ctx.shared, task)
+    }
+
+    /// Waits until `node`'s execution completes (see [`Ctx::wait`]).
+    pub async fn wait(&self, node: NodeId) -> Result<WatchOutcome, Error> {
+        self.ctx.wait(node).await
+    }
+
+    /// Terminates `node` and its subtree (its on-terminate cleanup runs).
+    pub fn terminate(&self, node: NodeId) -> Result<(), Error> {
+        self.ctx.terminate(node)
+    }
+
+    /// Raises the external event `name`.
+    pub fn raise(&self, name: &str) -> Result<(), Error> {
+        self.engine(|e, now| {
+            let id = e.external(name);
+            e.handle_external(now, id);
+        })
+    }
+
+    /// The live top-level tasks, in spawn order.
+    pub fn top_level(&self) -> Result<Vec<NodeId>, Error> {
+        self.ctx.children(self.ctx.node)
+    }
+
+    /// The run's counts now (live nodes among them).
+    pub fn stats(&self) -> Result<Stats, Error> {
+        self.engine(|e, _| e.stats())
+    }
+
+    /// Attaches a handler built for one task (TDL's `handler h() handles E for T`) to that task's
+    /// nodes, alive and to come; returns its attachment, for [`Control::detach`].
+    pub fn attach(&self, attached: Attached) -> Result<AttachId, Error> {
+        self.handler_for(attached.task, attached.handler)
+    }
+
+    /// Attaches `handler` to the nodes of the task named `task`, alive and to come.
+    pub fn handler_for(
+        &self,
+        task: impl Into<tcm_core::Name>,
+        handler: Handler,
+    ) -> Result<AttachId, Error> {
+        let task = task.into();
+        self.engine(|e, now| e.attach(now, task, handler.spec))
+    }
+
+    /// Detaches a handler attached by [`Control::attach`]: `false` when it was not attached.
+    pub fn detach(&self, id: AttachId) -> Result<bool, Error> {
+        self.engine(|e, now| e.detach(now, id))
+    }
+
+    /// Adds a wiretap on the task named `task` (see
+    /// [`Runtime::wiretap`](crate::Runtime::wiretap)); returns it, for [`Control::untap`].
+    pub fn wiretap<F, Fut, T>(
+        &self,
+        task: impl Into<tcm_core::Name>,
+        when: TapWhen,
+        check: F,
+    ) -> Result<WiretapId, Error>
+    where
+        F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, tcm_core::Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        self.wiretap_factory(task, when, crate::task::factory(check))
+    }
+
+    /// As [`Control::wiretap`], with the check's factory built already.
+    pub fn wiretap_factory(
+        &self,
+        task: impl Into<tcm_core::Name>,
+        when: TapWhen,
+        check: Factory,
+    ) -> Result<WiretapId, Error> {
+        let task = task.into();
+        self.engine(|e, now| e.tap(now, task, false, when, check))
+    }
+
+    /// Removes a wiretap: `false` when it was not in place.
+    pub fn untap(&self, id: WiretapId) -> Result<bool, Error> {
+        self.engine(|e, now| e.untap(now, id))
+    }
+
+    /// Records an operation from outside the run in its trace: `what` was done, `by` asked.
+    pub fn note(&self, what: &str, by: &str) -> Result<(), Error> {
+        self.engine(|e, now| e.note_control(now, what, by))
+    }
+}
