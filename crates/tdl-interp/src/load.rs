@@ -180,6 +180,27 @@ fn build(
             yield_every: std::sync::atomic::AtomicU32::new(budget.yield_every.max(1)),
             max_steps: std::sync::atomic::AtomicU64::new(budget.max_steps),
             ancestry,
+            hash: content_hash(files),
+            version: std::sync::OnceLock::new(),
+            successor: std::sync::RwLock::new(None),
+            superseded: std::sync::atomic::AtomicBool::new(false),
         }),
     })
+}
+
+/// The program's content hash: the first 12 hex digits of the SHA-256 of its files' texts, in
+/// order (their names are left out, so the same program read from another place has the same
+/// hash).
+fn content_hash(files: &[(&str, &str)]) -> String {
+    use sha2::Digest;
+    let mut h = sha2::Sha256::new();
+    for (_, text) in files {
+        h.update((text.len() as u64).to_le_bytes());
+        h.update(text.as_bytes());
+    }
+    h.finalize()
+        .iter()
+        .take(6)
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }

@@ -7,3 +7,4 @@ mod budget;
 mod differential;
 mod refused;
 mod util;
+mod versions;
