@@ -35,6 +35,11 @@ impl Control {
         Ok(f(&mut inner.engine, now))
     }
 
+    /// The root node, the parent of every top-level task.
+    pub fn root(&self) -> NodeId {
+        self.ctx.node
+    }
+
     /// Inserts `task` as a top-level task, as [`Session::spawn`](crate::Session::spawn) does.
     pub fn spawn(&self, task: Task) -> Result<NodeId, Error> {
         crate::session::spawn_top(&self.ctx.shared, task)

@@ -255,6 +255,16 @@ impl Program {
         self.task(name, values)
     }
 
+    /// The tasks the handlers declared `for` a task are attached to, in declaration order.
+    pub fn attached_tasks(&self) -> Vec<String> {
+        self.shared
+            .tasks
+            .iter()
+            .filter(|d| d.kind == TaskKind::Handler)
+            .filter_map(|d| d.for_task.as_ref().map(ToString::to_string))
+            .collect()
+    }
+
     /// The handlers declared `for` a task, to attach to a run (`Runtime::attach`).
     pub fn attached(&self) -> Vec<Attached> {
         let mut out = Vec::new();

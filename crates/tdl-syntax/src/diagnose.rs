@@ -158,28 +158,34 @@ fn handler(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
 /// Checks `handler h(args) handles E for target`: `target` is a goal or command of the program,
 /// and `h` takes none or all of its arguments.
 fn attached_to(file: &FileScope<'_>, task: &Task, target: &Ident, diags: &mut Vec<Diagnostic>) {
-    let Some(found) = file.task(&target.to_string()) else {
-        diags.push(
-            Diagnostic::error(target.span(), format!("unknown task `{target}`"))
-                .with_hint(format!(
-                    "`for {target}` attaches the handler to a goal or command of the program; attach a handler to a task written in Rust with `Runtime::handler_for`"
-                )),
-        );
-        return;
+    let name = target.to_string();
+    // A task written elsewhere and declared `extern` takes handlers too (a program of recovery
+    // loaded beside the one it recovers).
+    let (kind, args) = match (file.task(&name), file.extern_decl(&name)) {
+        (Some(found), _) => (found.kind, &found.args),
+        (None, Some(e)) => (e.kind, &e.args),
+        (None, None) => {
+            diags.push(
+                Diagnostic::error(target.span(), format!("unknown task `{target}`"))
+                    .with_hint(format!(
+                        "`for {target}` attaches the handler to a goal or command of the program (or one it declares `extern`); attach a handler to a task written in Rust with `Runtime::handler_for`"
+                    )),
+            );
+            return;
+        }
     };
-    if !matches!(found.kind, TaskKind::Goal | TaskKind::Command) {
+    if !matches!(kind, TaskKind::Goal | TaskKind::Command) {
         diags.push(Diagnostic::error(
             target.span(),
             format!(
                 "`{target}` is a {}; a handler is attached to a goal or a command",
-                found.kind.as_str()
+                kind.as_str()
             ),
         ));
         return;
     }
-    if !task.args.is_empty() && task.args.len() != found.args.len() {
-        let theirs: Vec<String> = found
-            .args
+    if !task.args.is_empty() && task.args.len() != args.len() {
+        let theirs: Vec<String> = args
             .iter()
             .map(|a| format!("{}: {}", a.name, a.ty.to_token_stream()))
             .collect();
@@ -190,7 +196,7 @@ fn attached_to(file: &FileScope<'_>, task: &Task, target: &Ident, diags: &mut Ve
                     "`{}` takes {} argument(s) but `{target}` has {}",
                     task.name,
                     task.args.len(),
-                    found.args.len()
+                    args.len()
                 ),
             )
             .with_hint(format!(
