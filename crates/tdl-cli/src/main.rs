@@ -41,6 +41,7 @@ use clap::{Parser, Subcommand};
 mod agree;
 mod certs;
 mod doc;
+mod executive;
 mod export;
 mod graph;
 mod model;
@@ -138,6 +139,13 @@ enum Command {
     /// 127.0.0.1 (docs/language.md, "Running programs without compiling them"). Prints the run's
     /// report.
     Run(run::Args),
+    /// Serve programs while the robot runs (docs/distributed.md, "A serving executive"): a
+    /// long-lived executive on 127.0.0.1 that clients give programs to (`tdl load`), start tasks
+    /// of (`tdl start`), stop, raise events in and ask about (`tdl status`), and that agents join
+    /// with the tasks they offer. Each run's trace is a file of its own.
+    Serve(executive::ServeArgs),
+    #[command(flatten)]
+    Ask(executive::Ask),
     /// Make a system's certificates for mutual TLS (docs/distributed.md, "Mutual TLS"): an
     /// authority (`authority.pem`, its key `authority.key`) and, for each member, a certificate
     /// it signed and its key (`<member>.pem`, `<member>.key`). Refuses to replace a file unless
@@ -302,6 +310,8 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
         Command::Verify(args) => verify::run(args, &mut out),
         Command::Sim(args) => sim::run(args, &mut out),
         Command::Run(args) => run::run(args),
+        Command::Serve(args) => executive::serve(args),
+        Command::Ask(ask) => executive::ask(ask),
         Command::Certs(args) => certs::run(args, &mut out),
         Command::View { files, listen } => serve::view(&files, listen).map(found),
         Command::Expand { file } => {

@@ -5,12 +5,11 @@
 //! value crossing as JSON. The run's trace goes to a file and to the viewer, live, if asked; the
 //! report is printed, and the exit status says how the run ended.
 
-use std::collections::BTreeSet;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use anyhow::{Context, bail};
-use tdl_interp::{Program, Registry, Value};
+use anyhow::Context;
+use tdl_interp::{Program, Registry};
 
 const EXIT_STATUS: &str = "Exit status: 0 when the task completed and nothing failed unhandled; \
 1 when the program was refused (its diagnostics are printed, nothing was started); 3 when the run \
@@ -84,72 +83,16 @@ fn errors(files: &[(String, String)]) -> Option<String> {
     (!out.is_empty()).then_some(out)
 }
 
-/// The tasks the program spawns that it does not write in TDL (its `extern` tasks included), and
-/// the kind of each extern one.
-fn outside(files: &[(String, String)]) -> Vec<(String, tdl::NodeKind)> {
-    let named: Vec<(&str, &str)> = files
-        .iter()
-        .map(|(n, s)| (n.as_str(), s.as_str()))
-        .collect();
-    tdl_syntax::compile_program_with(&named, |program, _| {
-        let mut out: Vec<(String, tdl::NodeKind)> = Vec::new();
-        let mut seen = BTreeSet::new();
-        for e in program.externs() {
-            let kind = match e.kind {
-                tdl_syntax::TaskKind::Goal => tdl::NodeKind::Goal,
-                _ => tdl::NodeKind::Command,
-            };
-            if seen.insert(e.name.to_string()) {
-                out.push((e.name.to_string(), kind));
-            }
-        }
-        for t in program.tasks() {
-            for name in program.spawned(t.task) {
-                let name = name.to_string();
-                if program.task(&name).is_none() && seen.insert(name.clone()) {
-                    out.push((name, tdl::NodeKind::Command));
-                }
-            }
-        }
-        out
-    })
-}
-
 /// The task to run: the one asked for, else the program's only goal no other task spawns.
 fn root(
     program: &Program,
     files: &[(String, String)],
     asked: Option<&str>,
 ) -> anyhow::Result<String> {
-    if let Some(t) = asked {
-        return Ok(t.to_string());
-    }
-    let named: Vec<(&str, &str)> = files
-        .iter()
-        .map(|(n, s)| (n.as_str(), s.as_str()))
-        .collect();
-    let spawned: BTreeSet<String> = tdl_syntax::compile_program_with(&named, |p, _| {
-        p.tasks()
-            .flat_map(|t| {
-                p.spawned(t.task)
-                    .into_iter()
-                    .map(ToString::to_string)
-                    .collect::<Vec<_>>()
-            })
-            .collect()
-    });
-    let roots: Vec<&str> = program
-        .tasks()
-        .into_iter()
-        .filter(|t| !spawned.contains(*t))
-        .collect();
-    match roots.as_slice() {
-        [one] => Ok((*one).to_string()),
-        [] => bail!("the program has no task to run: name one with --task"),
-        many => bail!(
-            "the program has several tasks no other spawns ({}): name one with --task",
-            many.join(", ")
-        ),
+    match asked {
+        Some(t) => Ok(t.to_string()),
+        None => tdl_serve::default_task(program, files)
+            .map_err(|why| anyhow::anyhow!("{why} with --task")),
     }
 }
 
@@ -161,7 +104,7 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         eprintln!("tdl: the program has errors: nothing was started");
         return Ok(1);
     }
-    let outside = outside(&files);
+    let outside = tdl_serve::outside(&files);
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -271,29 +214,8 @@ async fn connect(
         }
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
-    for (task, agents) in exec.offers() {
-        let Some(agent) = agents.first().cloned() else {
-            continue;
-        };
-        let kind = outside
-            .iter()
-            .find(|(n, _)| *n == task)
-            .map_or(tdl::NodeKind::Command, |(_, k)| *k);
+    for (task, agent) in tdl_serve::register_offers(&exec, registry, outside) {
         eprintln!("  {task} on {agent}");
-        let (e, name) = (exec.clone(), task.clone());
-        registry.task_dynamic(&task, move |args: &[Value]| {
-            let json: Result<Vec<serde_json::Value>, String> =
-                args.iter().map(Value::to_json).collect();
-            let json = json.map_err(|why| tdl::Failure::new("Args", why))?;
-            // One argument crosses as itself, several as an array (as the compiled code sends
-            // a tuple), none as null.
-            let json = match json.len() {
-                0 => serde_json::Value::Null,
-                1 => json.into_iter().next().unwrap_or_default(),
-                _ => serde_json::Value::Array(json),
-            };
-            tdl::Placer::place(&e, &agent, &name, kind, json).map_err(tdl::Failure::from)
-        });
     }
     Ok(exec)
 }

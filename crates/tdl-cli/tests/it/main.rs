@@ -10,6 +10,7 @@ mod doc;
 mod export;
 mod graph;
 mod run;
+mod serve;
 mod sim;
 mod verify;
 mod view;
