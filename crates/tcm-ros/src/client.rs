@@ -16,6 +16,7 @@ use ros2_client::action_msgs::{CancelGoalResponseEnum, GoalStatusEnum};
 use ros2_client::{ActionTypeName, GoalId, Node, ServiceError, ServiceTypeName};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
+use std::any::Any;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::time::{Duration, Instant};
@@ -237,6 +238,17 @@ where
     pub fn task(self) -> Task {
         let name = self.name.clone();
         Task::command(name, move |ctx| run(ctx, self))
+    }
+
+    /// The goal as [`Goal::task`] makes it, its end passed through `then` before it is the
+    /// node's (`interp.rs` makes the result a value of an interpreted program).
+    pub(crate) fn task_then<T, E>(self, then: E) -> Task
+    where
+        T: Any + Send,
+        E: FnOnce(Result<R, Failure>) -> Result<T, Failure> + Send + 'static,
+    {
+        let name = self.name.clone();
+        Task::command(name, move |ctx| async move { then(run(ctx, self).await) })
     }
 }
 
@@ -536,6 +548,17 @@ where
     pub fn task(self) -> Task {
         let name = self.name.clone();
         Task::command(name, move |_ctx| self.run())
+    }
+
+    /// The request as [`Call::task`] makes it, its end passed through `then` before it is the
+    /// node's (`interp.rs` makes the response a value of an interpreted program).
+    pub(crate) fn task_then<T, E>(self, then: E) -> Task
+    where
+        T: Any + Send,
+        E: FnOnce(Result<A, Failure>) -> Result<T, Failure> + Send + 'static,
+    {
+        let name = self.name.clone();
+        Task::command(name, move |_ctx| async move { then(self.run().await) })
     }
 
     async fn run(self) -> Result<A, Failure> {

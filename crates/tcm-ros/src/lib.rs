@@ -14,6 +14,12 @@
 //!   a [`tcm::EventHandle`]) to the value a closure maps each message to, optionally skipping
 //!   numbers within a minimum change of the last value set; the tree's conditions over the
 //!   variable then act on what the topic says. Its [`FeedHandle`] stops it when dropped.
+//! - Interpreting: [`interp`] registers an action or a service in a `tdl_interp::Registry`, so a
+//!   TDL program run without compiling it declares it `extern command fib(order: i64) -> Json;`
+//!   and spawns it: the arguments make the goal, the result is the task's value (a map of its
+//!   fields), the failures are the exceptions above, which the program handles by name, and
+//!   terminating the node cancels the goal (docs/language.md, "Running programs without
+//!   compiling them").
 //!
 //! ```no_run
 //! # async fn demo(node: &tcm_ros::ros2_client::Node) -> Result<(), Box<dyn std::error::Error>> {
@@ -42,6 +48,7 @@
 mod client;
 mod failure;
 mod feed;
+pub mod interp;
 mod off_thread;
 mod server;
 
