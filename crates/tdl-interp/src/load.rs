@@ -98,6 +98,19 @@ fn build(
     budget: Budget,
 ) -> Result<Program, LoadError> {
     let names = names(program);
+    // What the program's bodies spawn: an extern task none spawns is only a name, the target of
+    // a handler declared `for` it (a program of recovery for another program's task), and needs
+    // no registry to offer it.
+    let spawned: std::collections::BTreeSet<String> = program
+        .tasks()
+        .flat_map(|t| {
+            program
+                .spawned(t.task)
+                .into_iter()
+                .map(|n| n.to_string())
+                .collect::<Vec<_>>()
+        })
+        .collect();
     let mut tasks: Vec<TaskDef> = Vec::new();
     let mut rendered = String::new();
     for (file, (name, src)) in program.files().iter().zip(files) {
@@ -127,7 +140,10 @@ fn build(
                         )),
                     );
                 }
-                Item::Extern(e) if !registry.tasks.contains_key(&e.name.to_string()) => {
+                Item::Extern(e)
+                    if spawned.contains(&e.name.to_string())
+                        && !registry.tasks.contains_key(&e.name.to_string()) =>
+                {
                     let offered = registry.task_names();
                     diags.push(
                         Diagnostic::error(

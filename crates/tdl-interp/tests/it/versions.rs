@@ -127,3 +127,30 @@ fn a_version_whose_tasks_take_other_arguments_is_refused() {
         vec!["`step` changes parameters: (i64) becomes (f64)".to_string()]
     );
 }
+
+#[test]
+fn a_program_of_recovery_alone_loads_without_a_registry_for_the_task_it_recovers() {
+    let text = "\
+exception Blocked;
+extern goal guarded_move(d: f64);
+
+handler back_off(d: f64) handles Blocked for guarded_move {
+}
+";
+    let program =
+        match Program::from_sources(&[("recovery.tdl".into(), text.into())], &Registry::new()) {
+            Ok(p) => p,
+            Err(e) => panic!("{e}"),
+        };
+    assert_eq!(program.attached_tasks(), vec!["guarded_move".to_string()]);
+    assert_eq!(program.attached().len(), 1);
+    assert!(program.tasks().is_empty());
+    // Spawning it is another matter: then a registry must offer it.
+    let spawns = format!("{text}\npub goal go() {{\n    spawn guarded_move(1.0);\n}}\n");
+    let refused = Program::from_sources(&[("recovery.tdl".into(), spawns)], &Registry::new())
+        .expect_err("an extern spawned but offered by no registry");
+    assert!(
+        refused.to_string().contains("which no registry offers"),
+        "{refused}"
+    );
+}
