@@ -58,14 +58,18 @@ pub fn with_mtls(mut c: zenoh::Config, certs: &Certs) -> Result<zenoh::Config, E
     Ok(c)
 }
 
-/// Who may be in a system, by the common names of their certificates: its executives and its
-/// agents (an agent's common name is its agent name).
+/// Who may be in a system, by the common names of their certificates: its executives, its
+/// agents (an agent's common name is its agent name) and the clients of its serving executives
+/// (`tdl load`, `tdl start`, …; a client's common name is its client name).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Roster {
     /// The executives' common names.
     pub executives: Vec<String>,
     /// The agents' common names, which are their names.
     pub agents: Vec<String>,
+    /// The clients' common names, which are their names: the only members that may send a
+    /// serving executive requests (`tdl/<system>/serve/**`), each under its own name only.
+    pub clients: Vec<String>,
 }
 
 /// `c` with zenoh's access control for `system` (docs/distributed.md, "Who may speak"), for use
@@ -74,7 +78,10 @@ pub struct Roster {
 /// speaks for another: an agent may not publish on another agent's inbox keys
 /// (`tdl/<system>/to-exec/*/<other>`), nor on any agent's (`tdl/<system>/to-agent/**`), nor hold
 /// an executive's token or another agent's; an executive may not publish on `to-exec` keys nor
-/// hold an agent's tokens. A peer that `roster` does not name is refused everything.
+/// hold an agent's tokens. Only a client may query a serving executive
+/// (`tdl/<system>/serve/<executive>/<client>`), and under its own name only; a client may not
+/// publish nor hold tokens in the system. A peer that `roster` does not name is refused
+/// everything.
 pub fn with_access(
     mut c: zenoh::Config,
     system: &str,
@@ -127,8 +134,45 @@ pub fn with_access(
         subjects
             .push(serde_json::json!({"id": format!("agent-{i}"), "cert_common_names": [agent]}));
         policies.push(serde_json::json!({
-            "rules": ["members", format!("agent-{i}-puts"), format!("agent-{i}-tokens")],
+            "rules": ["members", format!("agent-{i}-puts"), format!("agent-{i}-tokens"), "no-serve"],
             "subjects": [format!("agent-{i}")],
+        }));
+    }
+    // Requests to serving executives: from clients only.
+    rules.push(deny(
+        "no-serve".into(),
+        &["query"],
+        vec![format!("tdl/{system}/serve/**")],
+    ));
+    for (i, client) in roster.clients.iter().enumerate() {
+        // Under its own name only: every other name of the roster is denied to it (a name the
+        // roster does not hold is refused by the executive's own list of clients).
+        let others: Vec<String> = roster
+            .executives
+            .iter()
+            .chain(&roster.agents)
+            .chain(&roster.clients)
+            .filter(|o| *o != client)
+            .map(|o| format!("tdl/{system}/serve/*/{o}"))
+            .collect();
+        let mut own = vec![
+            serde_json::json!("members"),
+            serde_json::json!(format!("client-{i}-writes")),
+        ];
+        if !others.is_empty() {
+            rules.push(deny(format!("client-{i}-names"), &["query"], others));
+            own.push(serde_json::json!(format!("client-{i}-names")));
+        }
+        rules.push(deny(
+            format!("client-{i}-writes"),
+            &["put", "delete", "liveliness_token", "declare_queryable"],
+            vec![format!("tdl/{system}/**")],
+        ));
+        subjects
+            .push(serde_json::json!({"id": format!("client-{i}"), "cert_common_names": [client]}));
+        policies.push(serde_json::json!({
+            "rules": own,
+            "subjects": [format!("client-{i}")],
         }));
     }
     if !roster.executives.is_empty() {
@@ -150,7 +194,7 @@ pub fn with_access(
             "cert_common_names": roster.executives,
         }));
         policies.push(serde_json::json!({
-            "rules": ["members", "executive-puts", "executive-tokens"],
+            "rules": ["members", "executive-puts", "executive-tokens", "no-serve"],
             "subjects": ["executives"],
         }));
     }

@@ -31,6 +31,10 @@ pub(crate) struct To {
     /// How long to wait for the answer, in seconds.
     #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
     timeout: f64,
+    /// Speak over mutual TLS with the certificates `tdl certs` wrote in DIR: its
+    /// `authority.pem`, and the client's `<client>.pem` and `<client>.key`.
+    #[arg(long, value_name = "DIR")]
+    tls: Option<PathBuf>,
 }
 
 /// Options of `tdl serve`.
@@ -48,6 +52,28 @@ pub(crate) struct ServeArgs {
     /// Where each run's trace is written (`run-<n>.jsonl`).
     #[arg(long, value_name = "DIR", default_value = "tdl-runs")]
     traces: PathBuf,
+    /// Listen over mutual TLS only, with the certificates `tdl certs` wrote in DIR (its
+    /// `authority.pem`, and `<name>.pem`, `<name>.key` of this executive), and apply the
+    /// system's access rules: only the members named by `--agents` and `--clients` are let in,
+    /// and only clients may send requests, each under its own name.
+    #[arg(long, value_name = "DIR")]
+    tls: Option<PathBuf>,
+    /// With `--tls`: the agents that may join.
+    #[arg(long, value_delimiter = ',')]
+    agents: Vec<String>,
+    /// The clients whose requests are taken (default: any client's; with `--tls`, none but
+    /// these may even ask).
+    #[arg(long, value_delimiter = ',')]
+    clients: Vec<String>,
+}
+
+/// The certificates of `member` in `dir`, as `tdl certs` writes them.
+fn certs(dir: &std::path::Path, member: &str) -> tcm_zenoh::config::Certs {
+    tcm_zenoh::config::Certs {
+        authority: dir.join("authority.pem"),
+        certificate: dir.join(format!("{member}.pem")),
+        key: dir.join(format!("{member}.key")),
+    }
 }
 
 /// A client request, as the command line gives it.
@@ -149,11 +175,25 @@ fn runtime() -> anyhow::Result<tokio::runtime::Runtime> {
 /// `tdl serve`: serves until interrupted.
 pub(crate) fn serve(a: ServeArgs) -> anyhow::Result<u8> {
     runtime()?.block_on(async move {
-        let config = tcm_zenoh::config::loopback_listen(a.port)?;
+        let config = match &a.tls {
+            None => tcm_zenoh::config::loopback_listen(a.port)?,
+            Some(dir) => {
+                let roster = tcm_zenoh::config::Roster {
+                    executives: vec![a.name.clone()],
+                    agents: a.agents.clone(),
+                    clients: a.clients.clone(),
+                };
+                let config =
+                    tcm_zenoh::config::loopback_tls_listen(a.port, &certs(dir, &a.name))?;
+                tcm_zenoh::config::with_access(config, &a.system, &roster)?
+            }
+        };
         let exec = tcm_zenoh::Executive::open(&a.system, config)
             .await
             .with_context(|| format!("cannot listen on 127.0.0.1:{}", a.port))?;
-        let server = tdl_serve::Server::new(tdl_interp::Registry::new(), Some(exec.clone()), &a.traces);
+        let server =
+            tdl_serve::Server::new(tdl_interp::Registry::new(), Some(exec.clone()), &a.traces)
+                .clients(a.clients.clone());
         let serving = tdl_serve::serve(server, exec.session(), &a.system, &a.name).await?;
         eprintln!(
             "tdl serve: executive `{}` of system `{}` on tcp/127.0.0.1:{}; traces in {} (Ctrl-C to stop)",
@@ -237,7 +277,12 @@ pub(crate) fn ask(ask: Ask) -> anyhow::Result<u8> {
         .or_else(|| std::env::var("USER").ok())
         .unwrap_or_else(|| "tdl".into());
     runtime()?.block_on(async move {
-        let config = tcm_zenoh::config::loopback_connect(to.port)?;
+        let config = match &to.tls {
+            None => tcm_zenoh::config::loopback_connect(to.port)?,
+            Some(dir) => {
+                tcm_zenoh::config::loopback_tls_connect(to.port, &certs(dir, &client_name))?
+            }
+        };
         let client = Client::open(&to.system, &client_name, config)
             .await?
             .with_timeout(Duration::from_secs_f64(to.timeout.max(0.1)));

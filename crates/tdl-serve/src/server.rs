@@ -36,6 +36,8 @@ struct Inner {
     base: Registry,
     exec: Option<tcm_zenoh::Executive>,
     traces: PathBuf,
+    // The clients it takes requests from; any when empty.
+    clients: Vec<String>,
     state: Mutex<State>,
 }
 
@@ -82,9 +84,21 @@ impl Server {
                 base,
                 exec,
                 traces: traces.into(),
+                clients: Vec::new(),
                 state: Mutex::new(State::default()),
             }),
         }
+    }
+
+    /// The same server, taking requests only from the clients named in `clients` (the names in
+    /// the last segment of a request's key: with the system's access rules,
+    /// `tcm_zenoh::config::with_access` and its roster's clients, a client can ask under its own
+    /// name only). Any other's request is refused and changes nothing. Call before serving.
+    pub fn clients(mut self, clients: Vec<String>) -> Server {
+        if let Some(inner) = Arc::get_mut(&mut self.inner) {
+            inner.clients = clients;
+        }
+        self
     }
 
     /// The executive whose agents run the programs' outside tasks, if any.
@@ -102,6 +116,11 @@ impl Server {
     /// Carries out `request` for the client `by`. Must be called inside a tokio runtime (a start
     /// starts a run on it).
     pub fn handle(&self, request: Request, by: &str) -> Response {
+        if !self.inner.clients.is_empty() && !self.inner.clients.iter().any(|c| c == by) {
+            return Response::Refused(format!(
+                "the client `{by}` is not one this executive takes requests from; nothing changed"
+            ));
+        }
         let done = match request {
             Request::Load { name, files, swap } => self.load(&name, files, swap, by),
             Request::Unload { name } => self.unload(&name, by),

@@ -233,6 +233,7 @@ async fn under_access_control_a_member_cannot_speak_for_another_agent() {
         let roster = Roster {
             executives: vec!["exec".into()],
             agents: vec!["arm".into(), "fake".into()],
+            clients: Vec::new(),
         };
         let port = tcm_zenoh::config::free_port().expect("a port");
         let config = with_access(

@@ -11,6 +11,7 @@ mod export;
 mod graph;
 mod run;
 mod serve;
+mod serve_tls;
 mod sim;
 mod verify;
 mod view;
