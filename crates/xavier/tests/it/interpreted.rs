@@ -12,7 +12,7 @@ use xavier_world::{
 };
 
 /// The robot's commands and the mission's functions, as the program calls them.
-fn registry() -> Registry {
+pub(crate) fn registry() -> Registry {
     let mut r = Registry::new();
     let waypoints =
         |path: Vec<Waypoint>| Value::list(path.into_iter().map(|w| Host(w).into_value()));

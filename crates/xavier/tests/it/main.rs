@@ -5,6 +5,7 @@ mod binary;
 mod distributed;
 mod interpreted;
 mod scenarios;
+mod served;
 mod util;
 mod viewer;
 mod watched;
