@@ -65,6 +65,8 @@ struct RunEntry {
     running: bool,
     // The next version's task, to start when the root has ended (a swap by restart).
     pending: Option<(String, Task)>,
+    // The wiretap a swap `after` a task waits on, removed once the swap is made.
+    swap_tap: Option<tdl::WiretapId>,
     outcome: Option<String>,
     trace: PathBuf,
     // The handlers attached to this run, by the program that declares them.
@@ -250,8 +252,13 @@ impl Server {
                         }
                         async { Ok(()) }
                     });
-                if let Err(e) = tapped {
-                    return Err(format!("run {id}: cannot wait for `{task}`: {e}"));
+                match tapped {
+                    Ok(tap) => {
+                        if let Some(old) = run.swap_tap.replace(tap) {
+                            let _ = run.control.untap(old);
+                        }
+                    }
+                    Err(e) => return Err(format!("run {id}: cannot wait for `{task}`: {e}")),
                 }
             }
         }
@@ -345,6 +352,7 @@ impl Server {
             root: control.root(),
             running: true,
             pending: None,
+            swap_tap: None,
             outcome: None,
             trace: trace.clone(),
             attached: Vec::new(),
@@ -397,6 +405,9 @@ impl Server {
                         let _ = control.note(&format!("swapped to {version}"), "tdl serve");
                         run.root = node;
                         run.version = version;
+                        if let Some(tap) = run.swap_tap.take() {
+                            let _ = control.untap(tap);
+                        }
                     }
                 }
                 Err(_) => {

@@ -4,7 +4,7 @@
 //! spawns and by restart, and a run stopped. Real time (zenoh needs it); every wait bounded;
 //! every trace through the checker.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use tdl_interp::Registry;
 use tdl_serve::{Client, File, Reply, Request, Response, RunInfo, Server, Swap};
@@ -382,5 +382,89 @@ async fn a_client_of_no_executive_is_told_so_and_requests_for_nothing_are_refuse
         other => panic!("{other:?}"),
     }
     lost.close().await;
+    f.close().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_swap_after_a_task_restarts_the_run_when_that_task_next_completes() {
+    let f = fixture("after").await;
+    let Response::Ok(Reply::Loaded { version: v1, .. }) =
+        f.load("patrol", SWAP_V1, Swap::Spawns).await
+    else {
+        panic!("v1 loads")
+    };
+    let run = started(
+        f.ok(Request::Start {
+            program: "patrol".into(),
+            task: None,
+            args: serde_json::json!(400),
+        })
+        .await,
+    );
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    // A new patrol whose steps take a float: it cannot take new spawns, so it restarts the run,
+    // at the next completion of a step.
+    let v2_text = SWAP_V1
+        .replace("goal step(i: i64)", "goal step(i: f64)")
+        .replace("spawn step(i)", "spawn step(i as f64)")
+        .replace("bump(i * 2)", "bump(4)");
+    let v2 = match f
+        .load(
+            "patrol",
+            &v2_text,
+            Swap::After {
+                task: "step".into(),
+            },
+        )
+        .await
+    {
+        Response::Ok(Reply::Loaded {
+            version, swapped, ..
+        }) => {
+            assert_eq!(swapped, vec![run]);
+            version
+        }
+        other => panic!("{other:?}"),
+    };
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while f.status(run).await.version != v2 {
+        assert!(Instant::now() < deadline, "the run never took version 2");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert_eq!(f.ok(Request::Stop { run }).await, Reply::Done);
+    let end = f.ended(run).await;
+    let trace = f.trace(&end);
+    // The restart came right after a step of version 1 completed: the first patrol was
+    // terminated after that, and the next patrol is version 2's.
+    let tap = trace
+        .iter()
+        .position(|e| matches!(&e.kind, tdl::TraceKind::TapAdded { task, when, .. } if task == "step" && when == "after"))
+        .expect("the swap waits on step's completion");
+    let tapped = trace[tap..]
+        .iter()
+        .position(|e| matches!(e.kind, tdl::TraceKind::Tapped { .. }))
+        .map(|i| i + tap)
+        .expect("a step completed after the load");
+    let terminating = trace
+        .iter()
+        .position(|e| matches!(e.kind, tdl::TraceKind::Terminating { node } if node == 1))
+        .expect("the first patrol is terminated");
+    assert!(tapped < terminating, "terminated after the step completed");
+    let patrols: Vec<Option<String>> = trace
+        .iter()
+        .filter_map(|e| match &e.kind {
+            tdl::TraceKind::Spawned { name, version, .. } if name == "patrol" => {
+                Some(version.clone())
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(patrols, vec![Some(v1), Some(v2)]);
+    // Its wiretap is removed once the swap is made.
+    assert!(
+        trace
+            .iter()
+            .any(|e| matches!(e.kind, tdl::TraceKind::TapRemoved { .. }))
+    );
     f.close().await;
 }
