@@ -50,6 +50,7 @@ mod failure;
 mod feed;
 pub mod interp;
 mod off_thread;
+pub mod run_task;
 mod server;
 
 pub use client::{ActionClient, Call, DEFAULT_SERVER_TIMEOUT, Goal, ServiceClient};

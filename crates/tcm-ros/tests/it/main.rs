@@ -10,4 +10,5 @@ mod call_service;
 mod feed_state;
 mod interpreted;
 mod offer_action;
+mod run_task;
 mod util;
