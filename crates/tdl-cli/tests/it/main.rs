@@ -11,6 +11,7 @@ mod export;
 mod graph;
 mod run;
 mod serve;
+mod serve_killed;
 mod serve_tls;
 mod sim;
 mod verify;
