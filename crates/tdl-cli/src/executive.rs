@@ -94,6 +94,19 @@ pub(crate) enum Ask {
         /// restarts when a node of TASK completes).
         #[arg(long, default_value = "spawns", value_parser = parse_swap)]
         swap: Swap,
+        /// Model-check the program there first (`tdl verify`, from its default task or
+        /// `--verify-task`): refused if a property is broken within `--max-states`.
+        #[arg(long)]
+        verify: bool,
+        /// The task the model check starts from.
+        #[arg(long, value_name = "TASK", requires = "verify")]
+        verify_task: Option<String>,
+        /// The model check's bound on distinct states.
+        #[arg(long, value_name = "N", default_value_t = 100_000, requires = "verify")]
+        max_states: u64,
+        /// The program runs until stopped: the model check does not ask that every run ends.
+        #[arg(long, requires = "verify")]
+        runs_forever: bool,
         #[command(flatten)]
         to: To,
     },
@@ -218,8 +231,17 @@ pub(crate) fn ask(ask: Ask) -> anyhow::Result<u8> {
             files,
             name,
             swap,
+            verify,
+            verify_task,
+            max_states,
+            runs_forever,
             to,
         } => {
+            let verify = verify.then_some(tdl_serve::Verify {
+                task: verify_task,
+                max_states,
+                runs_forever,
+            });
             let name = match name {
                 Some(n) => n,
                 None => files
@@ -242,6 +264,7 @@ pub(crate) fn ask(ask: Ask) -> anyhow::Result<u8> {
                     name,
                     files: read,
                     swap,
+                    verify,
                 },
                 to,
             )
@@ -319,17 +342,28 @@ fn describe(reply: &Reply) -> String {
             ..
         } => format!("{version} was loaded already: nothing changed\n"),
         Reply::Loaded {
-            version, swapped, ..
-        } if swapped.is_empty() => format!("loaded {version}\n"),
-        Reply::Loaded {
-            version, swapped, ..
+            version,
+            swapped,
+            verified,
+            ..
         } => format!(
-            "loaded {version}; run(s) {} take it\n",
-            swapped
-                .iter()
-                .map(ToString::to_string)
-                .collect::<Vec<_>>()
-                .join(", ")
+            "loaded {version}{}{}\n",
+            verified
+                .as_ref()
+                .map(|v| format!(" (model check {v})"))
+                .unwrap_or_default(),
+            if swapped.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; run(s) {} take it",
+                    swapped
+                        .iter()
+                        .map(ToString::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            }
         ),
         Reply::Unloaded => "unloaded\n".into(),
         Reply::Programs(programs) => programs

@@ -87,6 +87,7 @@ async fn run_ticking(client: &Client, dir: &std::path::Path, churn: bool) -> (us
                     name: "handlers".into(),
                     files,
                     swap: Swap::Spawns,
+                    verify: None,
                 },
             )
             .await;
@@ -149,6 +150,7 @@ async fn main() -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
                 name: "hundred".into(),
                 files,
                 swap: Swap::Spawns,
+                verify: None,
             },
         )
         .await;
@@ -179,6 +181,7 @@ async fn main() -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
                 text: TICKING.into(),
             }],
             swap: Swap::Spawns,
+            verify: None,
         },
     )
     .await;

@@ -17,7 +17,7 @@ mod serve;
 mod server;
 
 pub use program::{default_task, outside, register_offers};
-pub use proto::{File, ProgramInfo, Reply, Request, Response, RunInfo, Swap};
+pub use proto::{File, ProgramInfo, Reply, Request, Response, RunInfo, Swap, Verify};
 pub use serve::{Client, DEFAULT_TIMEOUT, Serving, serve};
 pub use server::Server;
 

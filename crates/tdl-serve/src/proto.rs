@@ -38,6 +38,35 @@ pub enum Swap {
     },
 }
 
+/// A load's model check (`tdl verify`; docs/verification.md): the program is refused when a
+/// property is broken within the bounds; a search the bounds cut short does not refuse it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Verify {
+    /// The task verified (default: the program's default task).
+    #[serde(default)]
+    pub task: Option<String>,
+    /// The most distinct states explored.
+    #[serde(default = "default_max_states")]
+    pub max_states: u64,
+    /// The program is meant to run until stopped: "every run ends" is not checked.
+    #[serde(default)]
+    pub runs_forever: bool,
+}
+
+fn default_max_states() -> u64 {
+    100_000
+}
+
+impl Default for Verify {
+    fn default() -> Verify {
+        Verify {
+            task: None,
+            max_states: default_max_states(),
+            runs_forever: false,
+        }
+    }
+}
+
 /// A request to a serving executive.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "op")]
@@ -51,6 +80,9 @@ pub enum Request {
         /// When running runs take it, if it replaces a version they run.
         #[serde(default)]
         swap: Swap,
+        /// Model-check it first (`tdl verify`), within bounds: refused if a property is broken.
+        #[serde(default)]
+        verify: Option<Verify>,
     },
     /// Removes a program: its attached handlers leave every run. Refused while a run runs it.
     Unload {
@@ -134,6 +166,9 @@ pub enum Reply {
         version: String,
         /// Whether the same version was loaded already (nothing changed).
         unchanged: bool,
+        /// What the model check asked for said (`ok`, or `undecided` and why), if one was.
+        #[serde(default)]
+        verified: Option<String>,
         /// The runs that take the new version (by the swap asked for).
         swapped: Vec<u64>,
     },

@@ -24,7 +24,7 @@ use std::sync::{Arc, Mutex, PoisonError, Weak};
 use tdl::{AttachId, Control, NodeId, Task};
 use tdl_interp::{Program, Registry};
 
-use crate::proto::{File, ProgramInfo, Reply, Request, Response, RunInfo, Swap};
+use crate::proto::{File, ProgramInfo, Reply, Request, Response, RunInfo, Swap, Verify};
 
 /// A serving executive: see the module's rules. Cheap to clone.
 #[derive(Clone)]
@@ -124,7 +124,12 @@ impl Server {
             ));
         }
         let done = match request {
-            Request::Load { name, files, swap } => self.load(&name, files, swap, by),
+            Request::Load {
+                name,
+                files,
+                swap,
+                verify,
+            } => self.load(&name, files, swap, verify.as_ref(), by),
             Request::Unload { name } => self.unload(&name, by),
             Request::List => Ok(Reply::Programs(self.list())),
             Request::Start {
@@ -151,7 +156,14 @@ impl Server {
         r
     }
 
-    fn load(&self, name: &str, files: Vec<File>, swap: Swap, by: &str) -> Result<Reply, String> {
+    fn load(
+        &self,
+        name: &str,
+        files: Vec<File>,
+        swap: Swap,
+        verify: Option<&Verify>,
+        by: &str,
+    ) -> Result<Reply, String> {
         if name.is_empty() || name.contains(['/', '*', '$', '#', '?', '@']) {
             return Err(format!(
                 "`{name}` cannot name a program: use letters, digits, `-` and `_`"
@@ -161,6 +173,14 @@ impl Server {
         let program = Program::from_sources(&files, &self.registry(&files))
             .map_err(|e| format!("the program `{name}` was refused; nothing changed:\n{e}"))?;
         let version = format!("{name}@{}", program.hash());
+        let verified = match verify {
+            Some(v) => Some(model_check(&files, v).map_err(|why| {
+                format!(
+                    "the program `{name}` was refused by its model check; nothing changed:\n{why}"
+                )
+            })?),
+            None => None,
+        };
         let program = program.stamped(&version);
         let mut st = self.state();
         let old = st.programs.get(name).map(|l| l.program.clone());
@@ -168,6 +188,7 @@ impl Server {
             return Ok(Reply::Loaded {
                 version,
                 unchanged: true,
+                verified,
                 swapped: Vec::new(),
             });
         }
@@ -213,6 +234,7 @@ impl Server {
         Ok(Reply::Loaded {
             version,
             unchanged: false,
+            verified,
             swapped: if old.is_some() { users } else { Vec::new() },
         })
     }
@@ -514,4 +536,49 @@ fn detach_program(run: &mut RunEntry, name: &str) {
             true
         }
     });
+}
+
+/// The model check a load asked for: what it found when nothing is broken (`ok` or `undecided`,
+/// with the states explored), else the broken properties and their counterexamples in words.
+fn model_check(files: &[(String, String)], ask: &Verify) -> Result<String, String> {
+    let program = tdl_verify::Program::load(files).map_err(|e| e.to_string())?;
+    let task = program
+        .root_task(ask.task.as_deref())
+        .map_err(|e| e.to_string())?;
+    let options = tdl_verify::Options {
+        max_states: ask.max_states,
+        unchecked: if ask.runs_forever {
+            vec![tdl_verify::Builtin::RunsEnd]
+        } else {
+            Vec::new()
+        },
+        ..tdl_verify::Options::default()
+    };
+    let report = tdl_verify::verify(
+        &program,
+        &task,
+        &options,
+        &[],
+        None,
+        &tdl_verify::Control::default(),
+    );
+    match report.status() {
+        tdl_verify::Status::Ok => Ok(format!("ok: `{task}`, {} states", report.unique)),
+        tdl_verify::Status::Undecided => Ok(format!(
+            "undecided: `{task}`, {} states, the bounds cut the search",
+            report.unique
+        )),
+        tdl_verify::Status::Violated => Err(report
+            .results
+            .iter()
+            .filter_map(|r| match &r.verdict {
+                tdl_verify::Verdict::Violated(c) => {
+                    Some(format!("  VIOLATED {}: {}", r.property, c.summary))
+                }
+                _ => None,
+            })
+            .collect::<Vec<_>>()
+            .join("\n")),
+        tdl_verify::Status::Error => Err(format!("the model check failed: {:?}", report.notes)),
+    }
 }

@@ -106,6 +106,7 @@ impl Fixture {
                 text: text.into(),
             }],
             swap,
+            verify: None,
         })
         .await
     }
@@ -467,4 +468,60 @@ async fn a_swap_after_a_task_restarts_the_run_when_that_task_next_completes() {
             .any(|e| matches!(e.kind, tdl::TraceKind::TapRemoved { .. }))
     );
     f.close().await;
+}
+
+#[test]
+fn a_load_that_asks_for_a_model_check_is_refused_when_a_property_is_broken() {
+    let server = Server::new(Registry::new(), None, std::env::temp_dir());
+    let careless = "\
+exception Broken;
+
+pub goal go() {
+    spawn step();
+}
+
+command step() {
+    fail Broken;
+}
+";
+    let load = |text: &str, verify: Option<tdl_serve::Verify>| {
+        server.handle(
+            Request::Load {
+                name: "careless".into(),
+                files: vec![File {
+                    name: "careless.tdl".into(),
+                    text: text.into(),
+                }],
+                swap: Swap::Spawns,
+                verify,
+            },
+            "test",
+        )
+    };
+    match load(careless, Some(tdl_serve::Verify::default())) {
+        Response::Refused(why) => {
+            assert!(why.contains("VIOLATED no unhandled exception"), "{why}");
+        }
+        other => panic!("{other:?}"),
+    }
+    match server.handle(Request::List, "test") {
+        Response::Ok(Reply::Programs(p)) => assert!(p.is_empty(), "nothing was loaded: {p:?}"),
+        other => panic!("{other:?}"),
+    }
+    // The same program handling its exception passes, and says what the check found.
+    let careful = careless.replace(
+        "pub goal go() {",
+        "handler shrug() handles Broken {\n}\n\npub goal go() with exception handler shrug() {",
+    );
+    match load(&careful, Some(tdl_serve::Verify::default())) {
+        Response::Ok(Reply::Loaded {
+            verified: Some(v), ..
+        }) => assert!(v.starts_with("ok"), "{v}"),
+        other => panic!("{other:?}"),
+    }
+    // Without a check, a broken program loads: only the static checks apply.
+    assert!(matches!(
+        load(careless, None),
+        Response::Ok(Reply::Loaded { verified: None, .. })
+    ));
 }

@@ -81,6 +81,7 @@ async fn a_goal_runs_a_programs_task_and_returns_its_outcome_and_a_cancel_stops_
                     text: TICKS.into(),
                 }],
                 swap: Default::default(),
+                verify: None,
             },
             "test",
         );

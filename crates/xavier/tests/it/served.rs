@@ -140,6 +140,7 @@ async fn served() {
             name: "xavier".into(),
             files,
             swap: Swap::Spawns,
+            verify: None,
         },
     )
     .await;
@@ -169,6 +170,7 @@ async fn served() {
                 text: RECOVERY.into(),
             }],
             swap: Swap::Spawns,
+            verify: None,
         },
     )
     .await;
