@@ -339,6 +339,9 @@ impl State {
         s.settle(cx);
         s.observe(cx);
         s.done = s.compute_finished();
+        // A body that fails before anything ends (a goal's `fail`, run as it expands) fails in
+        // the initial state: no transition would see it.
+        s.note_unhandled(cx, 0);
         s
     }
 

@@ -394,12 +394,19 @@ impl State {
         s.settle(cx);
         s.observe(cx);
         s.done = s.compute_finished();
-        let unhandled = s.engine.unhandled();
-        if unhandled.len() > before && s.fault.is_none() {
+        s.note_unhandled(cx, before);
+        s
+    }
+
+    /// Records as the state's fault the first failure no handler took since the engine had
+    /// `before` of them (an exception allowed to go unhandled aside).
+    pub(crate) fn note_unhandled(&mut self, cx: &Ctx<'_>, before: usize) {
+        let unhandled = self.engine.unhandled();
+        if unhandled.len() > before && self.fault.is_none() {
             for f in &unhandled[before..] {
                 let name = f.failure.exception.to_string();
                 if !cx.opts.allowed.iter().any(|a| a == &name) {
-                    s.fault = Some(Fault::Unhandled {
+                    self.fault = Some(Fault::Unhandled {
                         exception: name,
                         path: f.path.clone(),
                     });
@@ -407,7 +414,6 @@ impl State {
                 }
             }
         }
-        s
     }
 
     /// Words for an action, for counterexamples.

@@ -220,3 +220,58 @@ fn every_run_ends_can_be_left_unchecked_for_a_program_that_runs_until_shutdown()
         assert_eq!(Builtin::from_id(b.id()), Some(b));
     }
 }
+
+/// A goal whose body fails as it expands fails before any transition: the initial state already
+/// holds the unhandled failure, and both the search and the simulation report it.
+#[test]
+fn a_failure_in_the_initial_state_is_found() {
+    let src = "\
+exception Broken;
+
+pub goal go() {
+    spawn step();
+}
+
+goal step() {
+    spawn other();
+    fail Broken;
+}
+
+command other() {
+}
+";
+    let program = Program::load(&[("broken.tdl".to_string(), src.to_string())]).expect("loads");
+    let report = verify(&program, "go", &small(), &[]);
+    assert_eq!(report.status(), Status::Violated);
+    match report.result(tdl_verify::NO_UNHANDLED).map(|r| &r.verdict) {
+        Some(Verdict::Violated(c)) => assert!(c.summary.contains("no handler"), "{}", c.summary),
+        other => panic!("{other:?}"),
+    }
+    let handled = src.replace(
+        "pub goal go() {",
+        "handler shrug() handles Broken {\n}\n\npub goal go() with exception handler shrug() {",
+    );
+    let program = Program::load(&[("handled.tdl".to_string(), handled)]).expect("loads");
+    assert_eq!(verify(&program, "go", &small(), &[]).status(), Status::Ok);
+    let sim = tdl_verify::simulate(
+        &program_of(src),
+        "go",
+        &SimOptions::default(),
+        &[],
+        None,
+        0..3,
+        &Control::default(),
+        &mut |_| {},
+    );
+    assert!(
+        sim.results
+            .iter()
+            .any(|r| r.property == tdl_verify::NO_UNHANDLED && r.failures == 3),
+        "the simulation finds it in every run: {:?}",
+        sim.results
+    );
+}
+
+fn program_of(src: &str) -> Program {
+    Program::load(&[("broken.tdl".to_string(), src.to_string())]).expect("loads")
+}
