@@ -6,9 +6,10 @@
 //! test checks that each was compiled.
 
 /// The files of each program, relative to this package.
-const PROGRAMS: [&[&str]; 19] = [
+const PROGRAMS: [&[&str]; 20] = [
     &["allowed_warnings"],
     &["attached_handlers"],
+    &["attached_to_extern", "drivers/attached_to_extern_driver"],
     &["blocking_commands"],
     &["bounded_recursion"],
     &["exceptions_handlers"],

@@ -512,7 +512,8 @@ fn task_items(
                     cell_clones,
                     modifiers,
                 };
-                return attached_handler(task, target, parts);
+                let declared = file.extern_decl(&target.to_string()).map(|e| &e.args[..]);
+                return attached_handler(task, target, declared, parts);
             }
             quote! {
                 #prelude
@@ -547,7 +548,14 @@ struct AttachedParts {
 /// `handler h(args) handles E for target`: a function building the `tdl::Attached` handler, which
 /// reads its arguments from the node it recovers, an instance of `target` (typed by the
 /// `TaskArgs` of `target`'s struct, so a mismatch is a compile error).
-fn attached_handler(task: &Task, target: &Ident, parts: AttachedParts) -> TokenStream {
+/// The handler `task` attached to `target`; `declared` holds the parameters of a target the
+/// program declares `extern` (a task written elsewhere, which has no generated type to name).
+fn attached_handler(
+    task: &Task,
+    target: &Ident,
+    declared: Option<&[crate::ast::Arg]>,
+    parts: AttachedParts,
+) -> TokenStream {
     let AttachedParts {
         exception,
         code,
@@ -566,6 +574,18 @@ fn attached_handler(task: &Task, target: &Ident, parts: AttachedParts) -> TokenS
     let name_str = task.name.to_string();
     let target_struct = struct_ident_of(target);
     let target_str = target.to_string();
+    // The arguments a node of the target keeps: the generated tuple of a TDL task's, the tuple
+    // of the declared types of an extern one's.
+    let (target_name, target_args) = match declared {
+        Some(args) => {
+            let types: Vec<&syn::Type> = args.iter().map(|it| &it.ty).collect();
+            (quote!(#target_str), quote!((#(#types,)*)))
+        }
+        None => (
+            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::NAME),
+            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::Args),
+        ),
+    };
     let read_args = if task.args.is_empty() {
         TokenStream::new()
     } else {
@@ -573,7 +593,7 @@ fn attached_handler(task: &Task, target: &Ident, parts: AttachedParts) -> TokenS
         let types: Vec<&syn::Type> = task.args.iter().map(|it| &it.ty).collect();
         quote! {
             let (#(#pats,)*): (#(#types,)*) = ::tdl::codegen::attached_args::<
-                <#target_struct as ::tdl::codegen::TaskArgs>::Args,
+                #target_args,
             >(&ctx, #name_str, #target_str)?;
         }
     };
@@ -593,7 +613,7 @@ fn attached_handler(task: &Task, target: &Ident, parts: AttachedParts) -> TokenS
             #prelude
             #cells
             ::tdl::Attached::new(
-                <#target_struct as ::tdl::codegen::TaskArgs>::NAME,
+                #target_name,
                 ::tdl::Handler::new(#name_str, #exception, move |ctx| {
                     #cell_clones
                     async move {

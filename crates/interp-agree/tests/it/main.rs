@@ -14,9 +14,10 @@ use std::path::Path;
 
 /// The programs the interpreter runs as the compiler does: each compiled by `build.rs`, with a
 /// module of its own in `runs/`.
-const RUNS: [&str; 19] = [
+const RUNS: [&str; 20] = [
     "allowed_warnings",
     "attached_handlers",
+    "attached_to_extern",
     "blocking_commands",
     "bounded_recursion",
     "exceptions_handlers",

@@ -4,6 +4,7 @@
 
 mod allowed_warnings;
 mod attached_handlers;
+mod attached_to_extern;
 mod blocking_commands;
 mod bounded_recursion;
 mod exceptions_handlers;

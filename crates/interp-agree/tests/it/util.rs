@@ -88,9 +88,8 @@ fn without_run(text: &str) -> String {
     mask_after(&mask_after(text, "@run"), "run: ")
 }
 
-/// Runs `task` on `rt`, recording its trace, and passes the trace through the trace checker
-/// (unless `checked` is false: for a program whose compiled trace the checker rejects).
-pub(crate) async fn run(rt: Runtime, task: Task, checked: bool) -> Run {
+/// Runs `task` on `rt`, recording its trace, and passes the trace through the trace checker.
+pub(crate) async fn run(rt: Runtime, task: Task) -> Run {
     reset();
     let rec = Recorder::new();
     // A run that never ends (a monitor polling forever) fails the test instead of hanging it.
@@ -99,9 +98,7 @@ pub(crate) async fn run(rt: Runtime, task: Task, checked: bool) -> Run {
         .expect("the run ends within an hour of virtual time")
         .expect("the run ends");
     let trace: Vec<TraceEvent> = rec.events();
-    if checked {
-        tdl::testing::assert_checked(&trace);
-    }
+    tdl::testing::assert_checked(&trace);
     tdl::testing::assert_no_panics(&report, &trace);
     let trace = tdl::testing::lines(&trace)
         .iter()
@@ -163,8 +160,6 @@ pub(crate) struct Case {
     /// Sets up the Rust items' world before each run.
     before: Box<dyn Fn()>,
     compare: Compare,
-    /// Whether the traces go through the trace checker.
-    checked: bool,
 }
 
 impl Case {
@@ -181,7 +176,6 @@ impl Case {
             events: Vec::new(),
             before: Box::new(|| {}),
             compare: Compare::All,
-            checked: true,
         }
     }
 
@@ -206,13 +200,6 @@ impl Case {
     /// Compares the runs so.
     pub(crate) fn compare(mut self, compare: Compare) -> Case {
         self.compare = compare;
-        self
-    }
-
-    /// Compares traces the trace checker rejects (for a case whose compiled trace it rejects,
-    /// reported by another test).
-    pub(crate) fn unchecked(mut self) -> Case {
-        self.checked = false;
         self
     }
 
@@ -241,12 +228,12 @@ impl Case {
 
     /// Runs `compiled`, then the interpreted task `name(args)`, and asserts they did the same.
     pub(crate) async fn alike(&self, compiled: Task, name: &str, args: Vec<Value>) {
-        let c = run(self.runtime((self.attached)()), compiled, self.checked).await;
+        let c = run(self.runtime((self.attached)()), compiled).await;
         let task = match self.program.task(name, args) {
             Ok(t) => t,
             Err(e) => panic!("the interpreted task `{name}`: {e}"),
         };
-        let i = run(self.runtime(self.program.attached()), task, self.checked).await;
+        let i = run(self.runtime(self.program.attached()), task).await;
         match self.compare {
             Compare::All | Compare::TraceOnly => assert_same(name, &c.trace, &i.trace),
             Compare::PerNode => assert_same(name, &per_node(&c.trace), &per_node(&i.trace)),

@@ -63,7 +63,19 @@ impl Checker {
                 ..
             }
         );
-        if !late_ok && self.window != Some(node) {
+        // An enablement of a facet still disabled (a constraint statement on a node its parent's
+        // body holds, after the spawn) can still take effect: it is not late.
+        let still_disabled = match constraint {
+            TraceConstraint::Trigger {
+                then: TraceThen::Enable(facet),
+                ..
+            } => self
+                .replay
+                .node(node)
+                .is_some_and(|n| n.state(*facet) == crate::state::State::Disabled),
+            _ => false,
+        };
+        if !late_ok && !still_disabled && self.window != Some(node) {
             let msg = format!(
                 "an enablement constraint ({constraint:?}) is applied to {} after its spawn records; only \
                  `terminate` and `activate` triggers may come later",
