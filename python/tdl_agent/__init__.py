@@ -48,6 +48,10 @@ than the last one applied of that task (its start is number 1; zenoh delivers on
 messages in order). A duplicated, late or out-of-order message, or one of a kind the agent does
 not know, is counted (:class:`AgentStats`) and logged (logger ``tdl_agent``), never applied, and
 does not change what the agent expects next.
+
+A program that drives a serving executive (``tdl serve``) rather than offering tasks to one uses
+:class:`Client` (module :mod:`tdl_agent.client`): load programs, start, stop and raise events in
+runs, and ask for their status.
 """
 
 from __future__ import annotations
@@ -66,6 +70,7 @@ from typing import Any, Awaitable, Callable, Dict, List, Optional, Sequence, Tup
 import zenoh
 
 from . import wire
+from .client import Client, ClientError, NoAnswer, ProtocolError, Refused
 from .wire import Failure, Json
 
 __all__ = [
@@ -79,6 +84,11 @@ __all__ = [
     "client_config",
     "with_mtls",
     "loopback_tls_config",
+    "Client",
+    "ClientError",
+    "Refused",
+    "NoAnswer",
+    "ProtocolError",
 ]
 
 log = logging.getLogger("tdl_agent")

@@ -1,7 +1,8 @@
 //! The one integration-test binary of the `tdl` CLI: runs the built binary on files in
 //! `tests/data` and checks output and exit codes. `tdl graph` and `tdl doc` have their own
 //! modules (`graph.rs`, `doc.rs`), as have `tdl trace export` (`export.rs`), `tdl verify`
-//! (`verify.rs`) and `tdl sim` (`sim.rs`), and `tdl certs` (`certs.rs`).
+//! (`verify.rs`) and `tdl sim` (`sim.rs`), and `tdl certs` (`certs.rs`); `tdl serve` is driven from
+//! the command line (`serve.rs`) and by the Python client (`serve_python.rs`).
 
 use std::process::Command;
 
@@ -12,6 +13,7 @@ mod graph;
 mod run;
 mod serve;
 mod serve_killed;
+mod serve_python;
 mod serve_tls;
 mod sim;
 mod verify;

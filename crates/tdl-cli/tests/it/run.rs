@@ -77,7 +77,8 @@ fn a_program_with_an_error_is_refused_with_located_diagnostics_and_nothing_start
 /// The zenoh release the Rust side is built with, which the Python side must match.
 const ZENOH: &str = "eclipse-zenoh==1.10.2";
 
-fn repo() -> PathBuf {
+/// The workspace's root.
+pub(crate) fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
@@ -135,7 +136,9 @@ fn run_example(port: u16, system: &str, items: u32, trace: &Path) -> Child {
         .expect("run tdl")
 }
 
-fn python() -> Option<PathBuf> {
+/// The test venv's Python with `eclipse-zenoh`, or `None` (with the reason printed) where
+/// `python3` is not on the path.
+pub(crate) fn python() -> Option<PathBuf> {
     if test_support::find_on_path("python3").is_none() {
         println!("skipped: python3 is not on PATH, so the Python agent cannot run");
         return None;

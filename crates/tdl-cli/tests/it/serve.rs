@@ -3,13 +3,14 @@
 //! status, an event raised, the run stopped and its trace checked; a client of no executive exits
 //! 2. Loopback only; the server is killed at the end whatever happens.
 
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::tdl;
 
 /// The server, killed when dropped.
-struct Serving(Child);
+pub(crate) struct Serving(Child);
 
 impl Drop for Serving {
     fn drop(&mut self) {
@@ -22,17 +23,16 @@ fn status_of(port: &str, run: &str) -> (i32, String, String) {
     tdl(&["status", run, "--port", port, "--client", "tester"])
 }
 
-#[test]
-fn programs_are_loaded_started_stopped_and_asked_about_through_the_command_line() {
-    let dir = std::env::temp_dir().join(format!("tdl-serve-cli-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+/// `tdl serve` on a free port of 127.0.0.1, writing its traces in `dir`, once it answers: the
+/// server (killed when dropped) and its port.
+pub(crate) fn serving(dir: &Path) -> (Serving, String) {
     let port = tcm_zenoh::config::free_port()
         .expect("a free port")
         .to_string();
-    let _serving = Serving(
+    let serving = Serving(
         Command::new(env!("CARGO_BIN_EXE_tdl"))
             .args(["serve", "--port", &port, "--traces"])
-            .arg(&dir)
+            .arg(dir)
             .current_dir(env!("CARGO_MANIFEST_DIR"))
             .stdout(Stdio::null())
             .stderr(Stdio::null())
@@ -49,6 +49,14 @@ fn programs_are_loaded_started_stopped_and_asked_about_through_the_command_line(
         assert!(Instant::now() < deadline, "tdl serve never answered");
         std::thread::sleep(Duration::from_millis(100));
     }
+    (serving, port)
+}
+
+#[test]
+fn programs_are_loaded_started_stopped_and_asked_about_through_the_command_line() {
+    let dir = std::env::temp_dir().join(format!("tdl-serve-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (_serving, port) = serving(&dir);
 
     let (code, out, err) = tdl(&[
         "load",
