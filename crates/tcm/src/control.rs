@@ -121,6 +121,12 @@ impl Control {
         self.engine(|e, now| e.tap(now, task, false, when, check))
     }
 
+    /// Adds a wiretap built for one task (TDL's `wiretap w() before T`); returns it, for
+    /// [`Control::untap`].
+    pub fn tap(&self, tap: crate::task::Tap) -> Result<WiretapId, Error> {
+        self.wiretap_factory(tap.task, tap.when, tap.check)
+    }
+
     /// Removes a wiretap: `false` when it was not in place.
     pub fn untap(&self, id: WiretapId) -> Result<bool, Error> {
         self.engine(|e, now| e.untap(now, id))

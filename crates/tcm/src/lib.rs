@@ -60,7 +60,7 @@ pub use state::{
     BinOp, CondId, Expr, FromState, InvariantFailed, StateId, StateType, StateValue, StateVar,
 };
 pub use task::{
-    Action, ActionFuture, Attached, Exception, Factory, Handler, Monitor, Task, Value, factory,
+    Action, ActionFuture, Attached, Exception, Factory, Handler, Monitor, Tap, Task, Value, factory,
 };
 pub use tcm_core::{
     AttachId, EachActivation, Outcome, Overrun, PassedOn, ResourceInfo, TapWhen, Then, When,

@@ -457,6 +457,15 @@ impl Runtime {
         self
     }
 
+    /// Adds a wiretap built for one task (TDL's `wiretap w() before T { … }`): the same as
+    /// [`Runtime::wiretap`] with the task and the point it names.
+    pub fn tap(self, tap: crate::task::Tap) -> Runtime {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner.engine.wiretap(tap.task, tap.when, tap.check);
+        }
+        self
+    }
+
     /// Attaches a handler built for one task (TDL's `handler h() handles E for T`): the same as
     /// [`Runtime::handler_for`] with the task it names.
     pub fn attach(self, attached: crate::task::Attached) -> Runtime {

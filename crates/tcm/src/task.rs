@@ -204,6 +204,51 @@ impl Attached {
     }
 }
 
+/// A wiretap built for one task ([`crate::Runtime::tap`], [`crate::Control::tap`]): a check that
+/// runs before every node of the task starts its action, or after it returned successfully, and
+/// fails the node when it fails. TDL's `wiretap w() before T { … }` builds one.
+#[derive(Clone)]
+pub struct Tap {
+    pub(crate) task: Name,
+    pub(crate) when: tcm_core::TapWhen,
+    pub(crate) check: Factory,
+}
+
+impl Tap {
+    /// A check of every node of the task named `task`, at `when`.
+    pub fn new<F, Fut, T>(task: impl Into<Name>, when: tcm_core::TapWhen, check: F) -> Tap
+    where
+        F: Fn(Ctx) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        Tap {
+            task: task.into(),
+            when,
+            check: factory(check),
+        }
+    }
+
+    /// As [`Tap::new`], with the check's factory built already.
+    pub fn from_factory(task: impl Into<Name>, when: tcm_core::TapWhen, check: Factory) -> Tap {
+        Tap {
+            task: task.into(),
+            when,
+            check,
+        }
+    }
+
+    /// The tapped task's name.
+    pub fn task(&self) -> &Name {
+        &self.task
+    }
+
+    /// When it checks.
+    pub fn when(&self) -> tcm_core::TapWhen {
+        self.when
+    }
+}
+
 /// Something to spawn: a node kind, an instance name and an action.
 pub struct Task {
     pub(crate) kind: NodeKind,

@@ -457,6 +457,8 @@ pub(crate) struct TaskDef {
     pub(crate) failing: Option<Slot>,
     pub(crate) attached: Option<Slot>,
     pub(crate) for_task: Option<Arc<str>>,
+    /// For a wiretap: whether it checks after (else before) the nodes of this task.
+    pub(crate) tap: Option<(bool, Arc<str>)>,
     /// Persistent variables: slot, type, initial value.
     pub(crate) persistents: Vec<(Slot, Ty, Option<Ex>)>,
     /// TDL slots initialised at the top of the body, in the generator's order.

@@ -28,8 +28,10 @@ mod load;
 mod lower;
 mod program;
 mod registry;
+mod tap;
 mod ty;
 mod value;
+mod versions;
 mod walk;
 
 pub use convert::{FromValue, IntoOutcome, IntoValue};

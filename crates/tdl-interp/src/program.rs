@@ -38,22 +38,6 @@ pub(crate) struct Shared {
 }
 
 impl Shared {
-    /// The newest version's definition of the task `name`, when a newer version superseded this
-    /// one and has it (with the same kind and parameters, as `Program::supersede` checked).
-    fn newest(&self, name: &str) -> Option<(Arc<Shared>, TaskIdx)> {
-        if !self.superseded.load(std::sync::atomic::Ordering::Acquire) {
-            return None;
-        }
-        let next = self
-            .successor
-            .read()
-            .unwrap_or_else(PoisonError::into_inner)
-            .clone()?;
-        next.shared
-            .newest(name)
-            .or_else(|| Some((next.shared.clone(), *next.shared.by_name.get(name)?)))
-    }
-
     /// Whether the exception `name` descends from `ancestor`.
     pub(crate) fn is_descendant(&self, name: &str, ancestor: &str) -> bool {
         self.ancestry
@@ -117,84 +101,12 @@ impl Program {
         self
     }
 
-    /// The content hash of the program's sources: the first 12 hex digits of the SHA-256 of the
-    /// files' texts, in order. Two loads of the same text have the same hash.
-    pub fn hash(&self) -> &str {
-        &self.shared.hash
-    }
-
-    /// The program whose tasks name `version` in their nodes' `spawned` records (a serving
-    /// executive gives `name@hash`), so a trace tells which version each node ran. Set once: a
-    /// program already stamped keeps its first version.
-    pub fn stamped(self, version: &str) -> Program {
-        let _ = self.shared.version.set(Arc::from(version));
-        self
-    }
-
-    /// The version set by [`Program::stamped`], if any.
-    pub fn version(&self) -> Option<&str> {
-        self.shared.version.get().map(|v| &**v)
-    }
-
-    /// What keeps `newer` from replacing this program's definitions in runs under way: a task
-    /// of this program that `newer` has with another kind or other parameter types (the bodies
-    /// already running would spawn it with arguments it does not take). Empty: it can.
-    pub fn incompatible(&self, newer: &Program) -> Vec<String> {
-        let mut out = Vec::new();
-        for def in &self.shared.tasks {
-            let Some(&j) = newer.shared.by_name.get(def.name) else {
-                continue;
-            };
-            let new = &newer.shared.tasks[j];
-            if new.kind != def.kind {
-                out.push(format!("`{}` changes kind", def.name));
-                continue;
-            }
-            let types = |d: &TaskDef| {
-                d.params
-                    .iter()
-                    .map(|(_, t)| t.describe())
-                    .collect::<Vec<_>>()
-            };
-            if types(def) != types(new) {
-                out.push(format!(
-                    "`{}` changes parameters: ({}) becomes ({})",
-                    def.name,
-                    types(def).join(", "),
-                    types(new).join(", ")
-                ));
-            }
-        }
-        out
-    }
-
-    /// Makes `newer` replace this program's definitions from now on: every task this program
-    /// builds afterwards (a body's spawn, a retry's fresh run excepted, which re-runs its node)
-    /// is built from the newest version that has a task of that name; tasks it no longer has
-    /// keep this version's. Refused, with what stands in the way, when they are incompatible
-    /// ([`Program::incompatible`]).
-    pub fn supersede(&self, newer: &Program) -> Result<(), Vec<String>> {
-        let problems = self.incompatible(newer);
-        if !problems.is_empty() {
-            return Err(problems);
-        }
-        *self
-            .shared
-            .successor
-            .write()
-            .unwrap_or_else(PoisonError::into_inner) = Some(newer.clone());
-        self.shared
-            .superseded
-            .store(true, std::sync::atomic::Ordering::Release);
-        Ok(())
-    }
-
     /// The names of the program's goals and commands, which can be run.
     pub fn tasks(&self) -> Vec<&str> {
         self.shared
             .tasks
             .iter()
-            .filter(|t| matches!(t.kind, TaskKind::Goal | TaskKind::Command))
+            .filter(|t| matches!(t.kind, TaskKind::Goal | TaskKind::Command) && t.tap.is_none())
             .map(|t| t.name)
             .collect()
     }
@@ -218,7 +130,7 @@ impl Program {
             offered: self.tasks().join(", "),
         })?;
         let def = &self.shared.tasks[idx];
-        if !matches!(def.kind, TaskKind::Goal | TaskKind::Command) {
+        if !matches!(def.kind, TaskKind::Goal | TaskKind::Command) || def.tap.is_some() {
             return Err(Error::NotRunnable(name.to_string()));
         }
         if def.params.len() != args.len() {
@@ -290,6 +202,9 @@ impl Program {
         let mut runtime = runtime;
         for a in self.attached() {
             runtime = runtime.attach(a);
+        }
+        for t in self.taps() {
+            runtime = runtime.tap(t);
         }
         runtime.run(task).await.map_err(Error::Run)
     }

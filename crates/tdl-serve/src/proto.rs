@@ -133,6 +133,9 @@ pub struct ProgramInfo {
     pub tasks: Vec<String>,
     /// The tasks its handlers are attached to (`handler h() handles E for T`).
     pub attaches_to: Vec<String>,
+    /// The tasks its wiretaps check (`wiretap w() before T`).
+    #[serde(default)]
+    pub taps: Vec<String>,
     /// Who loaded it.
     pub loaded_by: String,
 }

@@ -9,9 +9,9 @@
 //!    ([`Swap`]): for new spawns (refused when a task changes kind or parameters), or by
 //!    restarting each run's top-level task, at once or when a named task completes. The old
 //!    version's on-terminate cleanup runs before the new version's task starts.
-//! 3. The handlers a program declares `for` a task are attached to every run, present and to
-//!    come, whatever program it runs (TCA's modules adding recovery to the running tree), and
-//!    detached when the program is unloaded or replaced.
+//! 3. The handlers a program declares `for` a task, and its wiretaps, are attached to every run,
+//!    present and to come, whatever program it runs (TCA's modules adding recovery and wiretap
+//!    monitors to the running tree), and removed when the program is unloaded or replaced.
 //! 4. Every operation on a run is a `control` record of its trace, naming who asked; each run
 //!    writes its trace to a file of its own.
 //! 5. The state is behind one lock, never held across an await; a run's end is seen by a task of
@@ -71,6 +71,8 @@ struct RunEntry {
     trace: PathBuf,
     // The handlers attached to this run, by the program that declares them.
     attached: Vec<(String, AttachId)>,
+    // The wiretaps added to this run, by the program that declares them.
+    taps: Vec<(String, tdl::WiretapId)>,
 }
 
 impl Server {
@@ -323,6 +325,7 @@ impl Server {
                 version: l.version.clone(),
                 tasks: l.program.tasks().into_iter().map(String::from).collect(),
                 attaches_to: l.program.attached_tasks(),
+                taps: l.program.tapped_tasks(),
                 loaded_by: l.by.clone(),
             })
             .collect()
@@ -378,6 +381,7 @@ impl Server {
             outcome: None,
             trace: trace.clone(),
             attached: Vec::new(),
+            taps: Vec::new(),
         };
         for (pname, l) in &st.programs {
             attach_program(&mut entry, pname, &l.program);
@@ -516,21 +520,34 @@ fn restart_now(server: &Weak<Inner>, id: u64) {
     }
 }
 
-/// Attaches `program`'s `for` handlers to `run` (rule 3).
+/// Attaches `program`'s `for` handlers and its wiretaps to `run` (rule 3).
 fn attach_program(run: &mut RunEntry, name: &str, program: &Program) {
     for h in program.attached() {
         if let Ok(id) = run.control.attach(h) {
             run.attached.push((name.to_string(), id));
         }
     }
+    for t in program.taps() {
+        if let Ok(id) = run.control.tap(t) {
+            run.taps.push((name.to_string(), id));
+        }
+    }
 }
 
-/// Detaches the handlers `name` attached to `run`.
+/// Detaches the handlers and removes the wiretaps `name` added to `run`.
 fn detach_program(run: &mut RunEntry, name: &str) {
     let control = run.control.clone();
     run.attached.retain(|(p, id)| {
         if p == name {
             let _ = control.detach(*id);
+            false
+        } else {
+            true
+        }
+    });
+    run.taps.retain(|(p, id)| {
+        if p == name {
+            let _ = control.untap(*id);
             false
         } else {
             true

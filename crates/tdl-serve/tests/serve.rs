@@ -525,3 +525,76 @@ command step() {
         Response::Ok(Reply::Loaded { verified: None, .. })
     ));
 }
+
+/// A wiretap monitor loaded on its own: every bump that returns while it is loaded fails.
+const VETO: &str = "\
+exception Unsafe;
+extern command bump(i: i64);
+
+wiretap veto() after bump {
+    fail Unsafe;
+}
+";
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_wiretap_loaded_while_the_patrol_runs_checks_the_next_bumps_until_unloaded() {
+    let f = fixture("wiretap").await;
+    assert!(matches!(
+        f.load("patrol", PATROL, Swap::Spawns).await,
+        Response::Ok(Reply::Loaded { .. })
+    ));
+    let run = started(
+        f.ok(Request::Start {
+            program: "patrol".into(),
+            task: None,
+            args: serde_json::json!(60),
+        })
+        .await,
+    );
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert!(matches!(
+        f.load("veto", VETO, Swap::Spawns).await,
+        Response::Ok(Reply::Loaded { .. })
+    ));
+    match f.ok(Request::List).await {
+        Reply::Programs(p) => {
+            assert!(
+                p.iter()
+                    .any(|p| p.name == "veto" && p.taps == vec!["bump".to_string()])
+            )
+        }
+        other => panic!("{other:?}"),
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert_eq!(
+        f.ok(Request::Unload {
+            name: "veto".into()
+        })
+        .await,
+        Reply::Unloaded
+    );
+    let end = f.ended(run).await;
+    let trace = f.trace(&end);
+    let at = |pred: &dyn Fn(&tdl::TraceKind) -> bool| trace.iter().position(|e| pred(&e.kind));
+    let added = at(&|k| matches!(k, tdl::TraceKind::TapAdded { task, .. } if task == "bump"))
+        .expect("the wiretap is added to the running patrol");
+    let removed =
+        at(&|k| matches!(k, tdl::TraceKind::TapRemoved { .. })).expect("and removed when unloaded");
+    let vetoed: Vec<usize> = trace
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| matches!(&e.kind, tdl::TraceKind::Failed { exception, .. } if exception == "Unsafe"))
+        .map(|(i, _)| i)
+        .collect();
+    assert!(!vetoed.is_empty(), "bumps were vetoed while it was loaded");
+    assert!(
+        vetoed.iter().all(|i| *i > added),
+        "only once it was loaded: {vetoed:?}, added at {added}"
+    );
+    let tapped_after = trace[removed..]
+        .iter()
+        .filter(|e| matches!(e.kind, tdl::TraceKind::Tapped { .. }))
+        .count();
+    assert_eq!(tapped_after, 0, "no check starts once it is removed");
+    f.close().await;
+}

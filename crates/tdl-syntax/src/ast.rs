@@ -147,12 +147,24 @@ pub struct Task {
     /// it (TCA's recovery added without modifying existing components). Its arguments, if any, are
     /// that node's arguments.
     pub for_task: Option<Ident>,
+    /// For a wiretap (`wiretap w(args) before|after T { … }`, a command-like body never spawned):
+    /// the task it checks and when. Its arguments, if any, are the checked node's.
+    pub tap: Option<TapDecl>,
     /// Task-level constraints (docs/semantics.md, "Constraints").
     pub constraints: Vec<TaskConstraint>,
     /// The body.
     pub body: Block,
     /// Span of the task name.
     pub span: Span,
+}
+
+/// Where a wiretap checks (`before T` or `after T`).
+#[derive(Clone, Debug)]
+pub struct TapDecl {
+    /// `after` (the node's action returned successfully), else `before` (it is about to start).
+    pub after: bool,
+    /// The task whose nodes it checks.
+    pub target: Ident,
 }
 
 impl Task {

@@ -18,6 +18,7 @@
 //! yet; [`stubs`] returns the fallback items a macro emits next to its errors so that one mistake
 //! gives one error (thiserror's `fallback.rs` pattern).
 
+mod attached;
 mod body;
 mod lower;
 mod pretty_print;
@@ -34,6 +35,8 @@ use crate::ast::{
 use crate::diagnostic::Diagnostic;
 use crate::hir::FileScope;
 use crate::{Parse, parse_str};
+
+use attached::{AttachedParts, attached_handler, wiretap_fn};
 
 pub use pretty_print::pretty;
 
@@ -437,6 +440,12 @@ fn task_items(
         cell_clones.extend(quote!(let #cell = ::core::clone::Clone::clone(&#cell);));
     }
     let arg_clones = quote!(#(let #pats = ::core::clone::Clone::clone(&#names);)*);
+    if let Some(tap) = &task.tap {
+        let declared = file
+            .extern_decl(&tap.target.to_string())
+            .map(|e| &e.args[..]);
+        return wiretap_fn(task, tap, declared, &code, action.reassigns);
+    }
     let build = match task.kind {
         TaskKind::Goal | TaskKind::Command => {
             let kind = if task.kind == TaskKind::Command {
@@ -532,98 +541,6 @@ fn task_items(
         Allow::Nothing
     };
     task_shell(task, &build, allow)
-}
-
-/// What [`task_items`] built of a handler attached with `for`.
-struct AttachedParts {
-    exception: TokenStream,
-    code: TokenStream,
-    reassigns: bool,
-    prelude: TokenStream,
-    cells: TokenStream,
-    cell_clones: TokenStream,
-    modifiers: TokenStream,
-}
-
-/// `handler h(args) handles E for target`: a function building the `tdl::Attached` handler, which
-/// reads its arguments from the node it recovers, an instance of `target` (typed by the
-/// `TaskArgs` of `target`'s struct, so a mismatch is a compile error).
-/// The handler `task` attached to `target`; `declared` holds the parameters of a target the
-/// program declares `extern` (a task written elsewhere, which has no generated type to name).
-fn attached_handler(
-    task: &Task,
-    target: &Ident,
-    declared: Option<&[crate::ast::Arg]>,
-    parts: AttachedParts,
-) -> TokenStream {
-    let AttachedParts {
-        exception,
-        code,
-        reassigns,
-        prelude,
-        cells,
-        cell_clones,
-        modifiers,
-    } = parts;
-    let vis = &task.vis;
-    let attrs: Vec<TokenStream> = crate::lint::rust_attrs(&task.attrs)
-        .into_iter()
-        .map(|(_, it)| it)
-        .collect();
-    let fn_name = &task.name;
-    let name_str = task.name.to_string();
-    let target_struct = struct_ident_of(target);
-    let target_str = target.to_string();
-    // The arguments a node of the target keeps: the generated tuple of a TDL task's, the tuple
-    // of the declared types of an extern one's.
-    let (target_name, target_args) = match declared {
-        Some(args) => {
-            let types: Vec<&syn::Type> = args.iter().map(|it| &it.ty).collect();
-            (quote!(#target_str), quote!((#(#types,)*)))
-        }
-        None => (
-            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::NAME),
-            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::Args),
-        ),
-    };
-    let read_args = if task.args.is_empty() {
-        TokenStream::new()
-    } else {
-        let pats: Vec<TokenStream> = task.args.iter().map(arg_pat).collect();
-        let types: Vec<&syn::Type> = task.args.iter().map(|it| &it.ty).collect();
-        quote! {
-            let (#(#pats,)*): (#(#types,)*) = ::tdl::codegen::attached_args::<
-                #target_args,
-            >(&ctx, #name_str, #target_str)?;
-        }
-    };
-    let doc = format!(
-        " Builds the TDL handler `{name_str}`, attached to every `{target_str}`: give it to `Runtime::attach`."
-    );
-    let allow = if reassigns {
-        quote!(#[allow(unused_assignments)])
-    } else {
-        TokenStream::new()
-    };
-    quote! {
-        #(#attrs)*
-        #[doc = #doc]
-        #allow
-        #vis fn #fn_name() -> ::tdl::Attached {
-            #prelude
-            #cells
-            ::tdl::Attached::new(
-                #target_name,
-                ::tdl::Handler::new(#name_str, #exception, move |ctx| {
-                    #cell_clones
-                    async move {
-                        #read_args
-                        #code
-                    }
-                }) #modifiers,
-            )
-        }
-    }
 }
 
 fn arg_pat(arg: &crate::ast::Arg) -> TokenStream {

@@ -158,6 +158,12 @@ fn handler(file: &FileScope<'_>, name: &Ident, diags: &mut Vec<Diagnostic>) {
 /// Checks `handler h(args) handles E for target`: `target` is a goal or command of the program,
 /// and `h` takes none or all of its arguments.
 fn attached_to(file: &FileScope<'_>, task: &Task, target: &Ident, diags: &mut Vec<Diagnostic>) {
+    // How the declaration names its target, for the hints.
+    let (how, what) = match &task.tap {
+        Some(tap) if tap.after => ("after", "wiretap"),
+        Some(_) => ("before", "wiretap"),
+        None => ("for", "handler"),
+    };
     let name = target.to_string();
     // A task written elsewhere and declared `extern` takes handlers too (a program of recovery
     // loaded beside the one it recovers).
@@ -168,7 +174,7 @@ fn attached_to(file: &FileScope<'_>, task: &Task, target: &Ident, diags: &mut Ve
             diags.push(
                 Diagnostic::error(target.span(), format!("unknown task `{target}`"))
                     .with_hint(format!(
-                        "`for {target}` attaches the handler to a goal or command of the program (or one it declares `extern`); attach a handler to a task written in Rust with `Runtime::handler_for`"
+                        "`{how} {target}` attaches the {what} to a goal or command of the program (or one it declares `extern`); attach one to a task written in Rust with `Runtime::handler_for` or `Runtime::wiretap`"
                     )),
             );
             return;
@@ -178,7 +184,7 @@ fn attached_to(file: &FileScope<'_>, task: &Task, target: &Ident, diags: &mut Ve
         diags.push(Diagnostic::error(
             target.span(),
             format!(
-                "`{target}` is a {}; a handler is attached to a goal or a command",
+                "`{target}` is a {}; a handler or a wiretap is attached to a goal or a command",
                 kind.as_str()
             ),
         ));
@@ -200,7 +206,7 @@ fn attached_to(file: &FileScope<'_>, task: &Task, target: &Ident, diags: &mut Ve
                 ),
             )
             .with_hint(format!(
-                "a handler attached with `for` receives the arguments of the node it recovers: declare none, or all of `{target}`'s: ({})",
+                "a handler attached with `for` (or a wiretap) receives the arguments of the node it recovers (or checks): declare none, or all of `{target}`'s: ({})",
                 theirs.join(", ")
             )),
         );
@@ -232,6 +238,9 @@ fn task_header(file: &FileScope<'_>, task: &Task, diags: &mut Vec<Diagnostic>) {
     caught::check(task, diags);
     if let Some(target) = &task.for_task {
         attached_to(file, task, target, diags);
+    }
+    if let Some(tap) = &task.tap {
+        attached_to(file, task, &tap.target, diags);
     }
     let mut expand_first = None;
     let mut delay_expansion = None;

@@ -141,10 +141,19 @@ fn dump_task(out: &mut String, task: &Task) {
         .as_ref()
         .map(|it| format!(" for {it}"))
         .unwrap_or_default();
+    let tap = task
+        .tap
+        .as_ref()
+        .map(|t| format!(" {} {}", if t.after { "after" } else { "before" }, t.target))
+        .unwrap_or_default();
     let _ = writeln!(
         out,
-        "{vis}{persistent}{blocking}{} {}({}){result}{handles}{for_task}",
-        task.kind.as_str(),
+        "{vis}{persistent}{blocking}{} {}({}){result}{handles}{for_task}{tap}",
+        if task.tap.is_some() {
+            "wiretap"
+        } else {
+            task.kind.as_str()
+        },
         task.name,
         args.join(", ")
     );

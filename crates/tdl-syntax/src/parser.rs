@@ -21,7 +21,7 @@ use syn::{Token, Type};
 
 use crate::ast::{
     Allow, Arg, Ast, Block, EnvEntry, EnvTarget, EnvironmentDecl, ExceptionDecl, Field, Item,
-    ResourceDecl, StateDecl, Task, TaskKind, state_type,
+    ResourceDecl, StateDecl, TapDecl, Task, TaskKind, state_type,
 };
 use crate::diagnostic::Diagnostic;
 
@@ -275,7 +275,7 @@ fn tdl_item_keyword(input: ParseStream) -> Option<String> {
     }
     matches!(
         word.as_str(),
-        "goal" | "command" | "monitor" | "handler" | "exception"
+        "goal" | "command" | "monitor" | "handler" | "wiretap" | "exception"
     )
     .then_some(word)
 }
@@ -326,6 +326,8 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
         "command" => TaskKind::Command,
         "monitor" => TaskKind::Monitor,
         "handler" => TaskKind::Handler,
+        // A wiretap's body is a command's, run as a check, never spawned.
+        "wiretap" => return wiretap(input, cx, attrs, vis),
         other => {
             if let Some(span) = blocking {
                 let what = match other {
@@ -696,6 +698,7 @@ fn task(
     cx.allow(&attrs, body_end);
     let span = name.span();
     Ok(Item::Task(Task {
+        tap: None,
         attrs,
         vis,
         persistent,
@@ -725,4 +728,58 @@ pub(crate) fn parse_block(group: Group, cx: &mut Cx) -> Block {
         }
     };
     Block { stmts, span }
+}
+
+/// `wiretap NAME(args) before|after TASK { body }`: a check of every node of `TASK`, written as a
+/// command's body (it fails the node by failing), never spawned.
+fn wiretap(
+    input: ParseStream,
+    cx: &mut Cx,
+    attrs: Vec<syn::Attribute>,
+    vis: syn::Visibility,
+) -> syn::Result<Item> {
+    let name: Ident = input.parse()?;
+    let (args, result) = signature(input, cx)?;
+    let when = if input.peek(syn::Ident) {
+        input.call(Ident::parse_any)?.to_string()
+    } else {
+        String::new()
+    };
+    let after = match when.as_str() {
+        "before" => false,
+        "after" => true,
+        _ => {
+            return Err(input.error(
+                "expected `before TASK` or `after TASK` after the wiretap's arguments: it checks every node of TASK before its action starts or after it returned",
+            ));
+        }
+    };
+    if !input.peek(syn::Ident) {
+        return Err(input.error(format!(
+            "expected the name of the task the wiretap checks after `{when}`"
+        )));
+    }
+    let target: Ident = input.parse()?;
+    let body_group = take_group(input, Delimiter::Brace, "`{` and the wiretap's body")?;
+    let body_end = body_group.close;
+    let body = parse_block(body_group, cx);
+    cx.allow(&attrs, body_end);
+    let span = name.span();
+    Ok(Item::Task(Task {
+        tap: Some(TapDecl { after, target }),
+        attrs,
+        vis,
+        persistent: false,
+        blocking: None,
+        kind: TaskKind::Command,
+        name,
+        args,
+        result,
+        handles: None,
+        caught: None,
+        for_task: None,
+        constraints: Vec::new(),
+        body,
+        span,
+    }))
 }

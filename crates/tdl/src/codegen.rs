@@ -214,6 +214,23 @@ pub fn attached_args<A: Clone + Any + Send + Sync>(
     }
 }
 
+/// A wiretap's arguments: those of the node it checks, an instance of `task`.
+pub fn tapped_args<A: Clone + Any + Send + Sync>(
+    ctx: &Ctx,
+    wiretap: &str,
+    task: &str,
+) -> Result<A, Failure> {
+    match ctx.tapped_args::<A>() {
+        Some(args) => Ok((*args).clone()),
+        None => Err(Failure::new(
+            "NotTapped",
+            format!(
+                "`{wiretap}` ran on a node that is no `{task}` keeping its arguments, so it has no arguments to read"
+            ),
+        )),
+    }
+}
+
 /// A `maximum activate/trigger` count; values out of the `u32` range saturate.
 pub fn count<N: TryInto<u32>>(n: N) -> u32 {
     n.try_into().unwrap_or(u32::MAX)

@@ -155,6 +155,8 @@ pub(crate) struct Case {
     program: Program,
     /// The compiled program's `for` handlers, made afresh for each run.
     attached: fn() -> Vec<Attached>,
+    /// The compiled program's wiretaps, made afresh for each run.
+    taps: fn() -> Vec<tdl::Tap>,
     /// External events raised during each run: (virtual time in milliseconds, name).
     events: Vec<(u64, String)>,
     /// Sets up the Rust items' world before each run.
@@ -173,6 +175,7 @@ impl Case {
         Case {
             program,
             attached: Vec::new,
+            taps: Vec::new,
             events: Vec::new(),
             before: Box::new(|| {}),
             compare: Compare::All,
@@ -180,6 +183,12 @@ impl Case {
     }
 
     /// The compiled program's `for` handlers (the interpreted program's are its own).
+    /// Gives the compiled runs the program's wiretaps (the interpreted ones get the program's).
+    pub(crate) fn taps(mut self, taps: fn() -> Vec<tdl::Tap>) -> Case {
+        self.taps = taps;
+        self
+    }
+
     pub(crate) fn attached(mut self, attached: fn() -> Vec<Attached>) -> Case {
         self.attached = attached;
         self
@@ -203,9 +212,12 @@ impl Case {
         self
     }
 
-    fn runtime(&self, attached: Vec<Attached>) -> Runtime {
+    fn runtime(&self, attached: Vec<Attached>, taps: Vec<tdl::Tap>) -> Runtime {
         (self.before)();
         let mut rt = Runtime::new();
+        for t in taps {
+            rt = rt.tap(t);
+        }
         for a in attached {
             rt = rt.attach(a);
         }
@@ -228,12 +240,16 @@ impl Case {
 
     /// Runs `compiled`, then the interpreted task `name(args)`, and asserts they did the same.
     pub(crate) async fn alike(&self, compiled: Task, name: &str, args: Vec<Value>) {
-        let c = run(self.runtime((self.attached)()), compiled).await;
+        let c = run(self.runtime((self.attached)(), (self.taps)()), compiled).await;
         let task = match self.program.task(name, args) {
             Ok(t) => t,
             Err(e) => panic!("the interpreted task `{name}`: {e}"),
         };
-        let i = run(self.runtime(self.program.attached()), task).await;
+        let i = run(
+            self.runtime(self.program.attached(), self.program.taps()),
+            task,
+        )
+        .await;
         match self.compare {
             Compare::All | Compare::TraceOnly => assert_same(name, &c.trace, &i.trace),
             Compare::PerNode => assert_same(name, &per_node(&c.trace), &per_node(&i.trace)),

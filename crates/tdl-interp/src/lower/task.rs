@@ -52,6 +52,10 @@ pub(crate) fn lower_task(
         failing: None,
         attached: None,
         for_task: task.for_task.as_ref().map(|t| Arc::from(t.to_string())),
+        tap: task
+            .tap
+            .as_ref()
+            .map(|t| (t.after, Arc::from(t.target.to_string()))),
         persistents: Vec::new(),
         prelude: Vec::new(),
         body: crate::ir::Block::default(),

@@ -103,6 +103,22 @@ impl<'a> Body<'_, 'a> {
 
     fn spawn(&self, spawn: &'a Spawn, diags: &mut Vec<Diagnostic>) {
         self.constraint_list(&spawn.constraints, Site::Spawn(&spawn.task), diags);
+        if let Some(tap) = self
+            .file
+            .task(&spawn.task.to_string())
+            .and_then(|t| t.tap.as_ref())
+        {
+            diags.push(
+                Diagnostic::error(
+                    spawn.task.span(),
+                    format!("`{}` is a wiretap, which is not spawned", spawn.task),
+                )
+                .with_hint(format!(
+                    "it checks every node of `{}` by itself once the program gives it to the runtime (`Runtime::tap`, or loaded into a serving executive)",
+                    tap.target
+                )),
+            );
+        }
         let on = spawn
             .constraints
             .iter()

@@ -1,7 +1,7 @@
 //! `attached_to_extern.tdl`: a program of recovery alone, its handlers attached with `for` to
 //! `bump`, a task it only declares `extern` (a Rust command here, blocked for odd numbers).
 //! `drivers/attached_to_extern_driver.tdl` spawns three bumps; the first handler attached,
-//! `back_off`, takes each blocked one.
+//! `back_off`, takes each blocked one, and the wiretap `steady` checks each before it starts.
 
 use std::time::Duration;
 
@@ -32,9 +32,28 @@ fn case() -> Case {
         &registry,
     )
     .attached(|| vec![back_off(), retry_higher()])
+    .taps(|| vec![steady()])
 }
 
 #[tokio::test(start_paused = true)]
 async fn recovery_attached_to_an_extern_task_runs_alike() {
     case().alike(bumps(), "bumps", vec![]).await;
+}
+
+#[tokio::test(start_paused = true)]
+async fn the_wiretap_checks_every_bump() {
+    let rec = tdl::Recorder::new();
+    tdl::Runtime::new()
+        .tap(steady())
+        .attach(back_off())
+        .with_sink(rec.clone())
+        .run(bumps())
+        .await
+        .expect("the run ends");
+    let tapped = rec
+        .events()
+        .iter()
+        .filter(|e| matches!(&e.kind, tdl::TraceKind::Tapped { when, .. } if when == "before"))
+        .count();
+    assert_eq!(tapped, 3);
 }
