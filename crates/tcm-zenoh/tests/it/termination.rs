@@ -227,11 +227,10 @@ async fn a_remote_action_dropped_at_once_still_cancels_its_body() {
             tokio::time::sleep(ms(5)).await;
         }
         let stats = net.exec.stats();
-        assert_eq!(
-            (stats.cancels, stats.cancelled, stats.late),
-            (1, 0, 1),
-            "{stats:?}"
-        );
+        // The confirmation is late; on a loaded machine a message the agent sent before it saw
+        // the cancel may be too.
+        assert_eq!((stats.cancels, stats.cancelled), (1, 0), "{stats:?}");
+        assert!((1..=2).contains(&stats.late), "{stats:?}");
         assert_eq!(arm.stats().cancelled, 1);
     })
     .await;
