@@ -1,7 +1,7 @@
 //! `tcm-bench`: workloads of the TCM runtime, each printed beside a floor measured in the same
 //! process, so the ratio survives a noisy machine.
 //!
-//! `cargo run --release -p tcm-bench -- --json` prints one JSON object per line:
+//! `cargo run --profile perf -p tcm-bench -- --json` prints one JSON object per line:
 //! `{"workload","layer","n","ns_per_node","floor_ns_per_node","ratio","high_water"}`.
 //! The floor is the same number of boxed no-op closures run through a `VecDeque`.
 //! `layer` is `core` (the engine driven synchronously, actions finishing at once), `shell`
