@@ -5,8 +5,47 @@
 //! With `--distributed`, the robot's commands run in agent processes over zenoh (`distributed.rs`);
 //! `xavier robot-agent ...` is the robot agent those runs start (`robot_agent.rs`).
 
+#[cfg(feature = "distributed")]
 mod distributed;
+#[cfg(feature = "distributed")]
 mod robot_agent;
+
+/// Without the feature `distributed`: the agents cannot be started, and the command says how to
+/// build them in.
+#[cfg(not(feature = "distributed"))]
+mod distributed {
+    use xavier::Setup;
+    use xavier::robot::Robot;
+
+    /// What a distributed run holds (never made in this build).
+    pub(crate) struct Distributed {
+        pub(crate) robot: Robot,
+        pub(crate) voice: String,
+        pub(crate) exec: NoExecutive,
+    }
+
+    /// No executive: this build has no zenoh.
+    pub(crate) struct NoExecutive;
+
+    impl NoExecutive {
+        pub(crate) async fn close(&self) {}
+    }
+
+    pub(crate) async fn start(
+        _setup: &Setup,
+        _speed: f64,
+        _python: bool,
+    ) -> anyhow::Result<Distributed> {
+        anyhow::bail!(
+            "this xavier was built without the feature `distributed` (zenoh): run it with \
+             `cargo run --release -p xavier --features distributed -- --distributed`"
+        )
+    }
+}
+
+#[cfg(not(feature = "distributed"))]
+const NO_AGENT: &str = "xavier: this build has no robot agent (the feature `distributed` is off): \
+build it with `--features distributed`";
 
 use anyhow::Context as _;
 use clap::{Parser, ValueEnum};
@@ -128,13 +167,19 @@ fn create(path: &PathBuf) -> anyhow::Result<BufWriter<File>> {
 
 fn main() -> ExitCode {
     // tcm-zenoh's warnings, for this process and the robot agent alike.
+    #[cfg(feature = "distributed")]
     tcm_zenoh::log_to_stderr();
-    let mut args = std::env::args_os();
     if std::env::args_os()
         .nth(1)
         .is_some_and(|a| a == "robot-agent")
     {
-        return robot_agent::main(args.by_ref().skip(2));
+        #[cfg(feature = "distributed")]
+        return robot_agent::main(std::env::args_os().skip(2));
+        #[cfg(not(feature = "distributed"))]
+        {
+            eprintln!("{NO_AGENT}");
+            return ExitCode::FAILURE;
+        }
     }
     let cli = Cli::parse();
     match run(cli) {

@@ -1,6 +1,6 @@
-//! The robot a mission commands: the simulated world in this process ([`Robot::Local`]), or the
-//! world of a robot agent in another process, reached over zenoh ([`Robot::Remote`],
-//! docs/distributed.md, "The distributed Xavier"). The mission's TDL is one source for both: its
+//! The robot a mission commands: the simulated world in this process ([`Robot::Local`]), or, with
+//! the feature `distributed`, the world of a robot agent in another process, reached over zenoh
+//! (`Robot::Remote`, `robot/remote.rs`; docs/distributed.md, "The distributed Xavier"). The mission's TDL is one source for both: its
 //! command constructors here (`plan_path`, `turn`, ...) return xavier-world's local task, or a
 //! remote task of the same name placed on the robot agent (`speak` on the voice agent), whose value
 //! is read back into the same Rust type.
@@ -13,15 +13,13 @@
 //! hears the text; the answer is how long speaking it takes, in seconds of the agent's clock) and
 //! `summary` (what the run achieved, read at its end).
 
-use serde_json::{Value, json};
-use std::sync::{Arc, Mutex, PoisonError};
-use std::time::Duration;
-use tcm::{Exception, Failure, Task};
-use tcm_zenoh::{AgentBuilder, At, Executive, RemoteCtx, RemoteError, RemoteFailure};
-use xavier_world::{Point, Pose, SharedWorld, Summary, Waypoint, speech_duration};
+use tcm::{Failure, Task};
+use xavier_world::{Pose, SharedWorld, Summary};
 
-/// How long a query to the robot agent may take.
-const QUERY_TIMEOUT: Duration = Duration::from_secs(10);
+#[cfg(feature = "distributed")]
+mod remote;
+#[cfg(feature = "distributed")]
+pub use remote::{RemoteRobot, query, query_key, serve, serve_queries};
 
 /// The robot of a mission. Cheap to clone.
 #[derive(Clone, Debug)]
@@ -29,49 +27,23 @@ pub enum Robot {
     /// The simulated world, in this process.
     Local(SharedWorld),
     /// A robot agent's world, in another process.
-    Remote(Arc<RemoteRobot>),
-}
-
-/// A robot served by agents: the executive that places the commands, the agent that holds the
-/// world, and the one that speaks.
-pub struct RemoteRobot {
-    exec: Executive,
-    body: String,
-    voice: String,
-    summary: Mutex<Option<Summary>>,
-}
-
-impl std::fmt::Debug for RemoteRobot {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("RemoteRobot")
-            .field("system", &self.exec.system())
-            .field("body", &self.body)
-            .field("voice", &self.voice)
-            .finish()
-    }
-}
-
-/// The key of the robot agent's query `what` in `system`.
-pub fn query_key(system: &str, what: &str) -> String {
-    format!("tdl/{system}/xavier/{what}")
+    #[cfg(feature = "distributed")]
+    Remote(std::sync::Arc<RemoteRobot>),
 }
 
 impl Robot {
     /// The robot of agent `body`, which holds the world and offers every command, and of agent
     /// `voice` for `speak` (the same agent, or another), through `exec`.
-    pub fn remote(exec: Executive, body: &str, voice: &str) -> Robot {
-        Robot::Remote(Arc::new(RemoteRobot {
-            exec,
-            body: body.to_string(),
-            voice: voice.to_string(),
-            summary: Mutex::new(None),
-        }))
+    #[cfg(feature = "distributed")]
+    pub fn remote(exec: tcm_zenoh::Executive, body: &str, voice: &str) -> Robot {
+        Robot::Remote(std::sync::Arc::new(RemoteRobot::new(exec, body, voice)))
     }
 
     /// The local world, if the robot is in this process.
     pub fn world(&self) -> Option<&SharedWorld> {
         match self {
             Robot::Local(w) => Some(w),
+            #[cfg(feature = "distributed")]
             Robot::Remote(_) => None,
         }
     }
@@ -80,7 +52,8 @@ impl Robot {
     pub async fn pose(&self) -> Result<Pose, Failure> {
         match self {
             Robot::Local(w) => Ok(w.inspect(|w| w.pose())),
-            Robot::Remote(r) => pose_of(&r.query("pose", Vec::new()).await?).map_err(remote_error),
+            #[cfg(feature = "distributed")]
+            Robot::Remote(r) => r.pose().await,
         }
     }
 
@@ -88,11 +61,8 @@ impl Robot {
     pub async fn motor_temperature(&self) -> Result<f64, Failure> {
         match self {
             Robot::Local(w) => Ok(w.motor_temperature().await),
-            Robot::Remote(r) => r
-                .query("motor_temperature", Vec::new())
-                .await?
-                .as_f64()
-                .ok_or_else(|| remote_error("the motor temperature is not a number")),
+            #[cfg(feature = "distributed")]
+            Robot::Remote(r) => r.motor_temperature().await,
         }
     }
 
@@ -101,75 +71,19 @@ impl Robot {
     pub fn summary(&self) -> Summary {
         match self {
             Robot::Local(w) => w.summary(),
-            Robot::Remote(r) => r
-                .summary
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .clone()
-                .unwrap_or(Summary {
-                    delivered: Vec::new(),
-                    utterances: 0,
-                    distance_travelled: 0.0,
-                    time: Duration::ZERO,
-                }),
+            #[cfg(feature = "distributed")]
+            Robot::Remote(r) => r.summary(),
         }
     }
 
     /// For a remote robot: reads what the run achieved from its agent, for [`Robot::summary`].
     pub async fn fetch_summary(&self) -> Result<(), Failure> {
-        if let Robot::Remote(r) = self {
-            let s = summary_of(&r.query("summary", Vec::new()).await?).map_err(remote_error)?;
-            *r.summary.lock().unwrap_or_else(PoisonError::into_inner) = Some(s);
+        match self {
+            Robot::Local(_) => Ok(()),
+            #[cfg(feature = "distributed")]
+            Robot::Remote(r) => r.fetch_summary().await,
         }
-        Ok(())
     }
-}
-
-impl RemoteRobot {
-    /// Asks the robot agent `what`, with `payload`; its JSON answer.
-    async fn query(&self, what: &str, payload: Vec<u8>) -> Result<Value, Failure> {
-        let bytes = query(
-            self.exec.session(),
-            &query_key(self.exec.system(), what),
-            payload,
-        )
-        .await
-        .map_err(remote_error)?;
-        serde_json::from_slice(&bytes)
-            .map_err(|e| remote_error(format!("the robot's answer to {what} is not JSON: {e}")))
-    }
-}
-
-/// Sends query `key` with `payload` and returns the first reply's bytes.
-pub async fn query(
-    session: &zenoh::Session,
-    key: &str,
-    payload: Vec<u8>,
-) -> Result<Vec<u8>, String> {
-    let replies = session
-        .get(key)
-        .payload(payload)
-        .timeout(QUERY_TIMEOUT)
-        .await
-        .map_err(|e| format!("query {key}: {e}"))?;
-    let reply = replies
-        .recv_async()
-        .await
-        .map_err(|_| format!("query {key}: no answer within {QUERY_TIMEOUT:?}"))?;
-    match reply.result() {
-        Ok(sample) => Ok(sample.payload().to_bytes().to_vec()),
-        Err(e) => Err(format!(
-            "query {key}: {}",
-            String::from_utf8_lossy(&e.payload().to_bytes())
-        )),
-    }
-}
-
-fn remote_error(message: impl Into<String>) -> Failure {
-    RemoteError {
-        message: message.into(),
-    }
-    .raise()
 }
 
 // --- the mission's commands --------------------------------------------------------------------
@@ -178,10 +92,8 @@ fn remote_error(message: impl Into<String>) -> Failure {
 pub fn plan_path(robot: &Robot, room: u32) -> Task {
     match robot {
         Robot::Local(w) => xavier_world::plan_path(w, room),
-        Robot::Remote(r) => r
-            .exec
-            .remote(At::agent(&r.body), "planPath", room)
-            .task_map(|v| path_of(&v)),
+        #[cfg(feature = "distributed")]
+        Robot::Remote(r) => r.plan_path(room),
     }
 }
 
@@ -189,10 +101,8 @@ pub fn plan_path(robot: &Robot, room: u32) -> Task {
 pub fn turn(robot: &Robot, angle: f64) -> Task {
     match robot {
         Robot::Local(w) => xavier_world::turn(w, angle),
-        Robot::Remote(r) => r
-            .exec
-            .remote(At::agent(&r.body), "turn", angle)
-            .typed_task::<()>(),
+        #[cfg(feature = "distributed")]
+        Robot::Remote(r) => r.command::<(), _>("turn", angle),
     }
 }
 
@@ -200,10 +110,8 @@ pub fn turn(robot: &Robot, angle: f64) -> Task {
 pub fn guarded_move(robot: &Robot, dist: f64) -> Task {
     match robot {
         Robot::Local(w) => xavier_world::guarded_move(w, dist),
-        Robot::Remote(r) => r
-            .exec
-            .remote(At::agent(&r.body), "guardedMove", dist)
-            .typed_task::<()>(),
+        #[cfg(feature = "distributed")]
+        Robot::Remote(r) => r.command::<(), _>("guardedMove", dist),
     }
 }
 
@@ -211,10 +119,8 @@ pub fn guarded_move(robot: &Robot, dist: f64) -> Task {
 pub fn look_for_door(robot: &Robot, room: u32) -> Task {
     match robot {
         Robot::Local(w) => xavier_world::look_for_door(w, room),
-        Robot::Remote(r) => r
-            .exec
-            .remote(At::agent(&r.body), "lookForDoor", room)
-            .typed_task::<i32>(),
+        #[cfg(feature = "distributed")]
+        Robot::Remote(r) => r.command::<i32, _>("lookForDoor", room),
     }
 }
 
@@ -222,10 +128,8 @@ pub fn look_for_door(robot: &Robot, room: u32) -> Task {
 pub fn speak(robot: &Robot, text: impl Into<String>) -> Task {
     match robot {
         Robot::Local(w) => xavier_world::speak(w, text),
-        Robot::Remote(r) => r
-            .exec
-            .remote(At::agent(&r.voice), "speak", text.into())
-            .typed_task::<()>(),
+        #[cfg(feature = "distributed")]
+        Robot::Remote(r) => r.speak(text.into()),
     }
 }
 
@@ -233,10 +137,8 @@ pub fn speak(robot: &Robot, text: impl Into<String>) -> Task {
 pub fn mail_gone(robot: &Robot, room: u32) -> Task {
     match robot {
         Robot::Local(w) => xavier_world::mail_gone(w, room),
-        Robot::Remote(r) => r
-            .exec
-            .remote(At::agent(&r.body), "mailGone", room)
-            .typed_task::<bool>(),
+        #[cfg(feature = "distributed")]
+        Robot::Remote(r) => r.command::<bool, _>("mailGone", room),
     }
 }
 
@@ -244,202 +146,7 @@ pub fn mail_gone(robot: &Robot, room: u32) -> Task {
 pub fn motor_temperature(robot: &Robot) -> Task {
     match robot {
         Robot::Local(w) => xavier_world::motor_temperature(w),
-        Robot::Remote(r) => r
-            .exec
-            .remote(At::agent(&r.body), "motorTemperature", ())
-            .typed_task::<f64>(),
-    }
-}
-
-// --- JSON of the world's values ----------------------------------------------------------------
-
-fn num(v: &Value, field: &str) -> Result<f64, String> {
-    v.get(field)
-        .and_then(Value::as_f64)
-        .ok_or_else(|| format!("no number {field} in {v}"))
-}
-
-fn point_json(p: &Point) -> Value {
-    json!({"x": p.x, "y": p.y})
-}
-
-fn path_of(v: &Value) -> Result<Vec<Waypoint>, String> {
-    v.as_array()
-        .ok_or_else(|| format!("a path is a list of points, not {v}"))?
-        .iter()
-        .map(|p| Ok(Point::new(num(p, "x")?, num(p, "y")?)))
-        .collect()
-}
-
-fn pose_json(p: &Pose) -> Value {
-    json!({"x": p.x, "y": p.y, "heading": p.heading})
-}
-
-fn pose_of(v: &Value) -> Result<Pose, String> {
-    Ok(Pose {
-        x: num(v, "x")?,
-        y: num(v, "y")?,
-        heading: num(v, "heading")?,
-    })
-}
-
-fn summary_json(s: &Summary) -> Value {
-    json!({
-        "delivered": s.delivered,
-        "utterances": s.utterances,
-        "distance_travelled": s.distance_travelled,
-        "time_s": s.time.as_secs_f64(),
-    })
-}
-
-fn summary_of(v: &Value) -> Result<Summary, String> {
-    let delivered = v
-        .get("delivered")
-        .and_then(Value::as_array)
-        .ok_or_else(|| format!("no delivered rooms in {v}"))?
-        .iter()
-        .map(|r| {
-            r.as_u64()
-                .and_then(|r| u32::try_from(r).ok())
-                .ok_or_else(|| format!("not a room: {r}"))
-        })
-        .collect::<Result<Vec<u32>, String>>()?;
-    let utterances = v
-        .get("utterances")
-        .and_then(Value::as_u64)
-        .and_then(|n| usize::try_from(n).ok())
-        .ok_or_else(|| format!("no utterances in {v}"))?;
-    let time = num(v, "time_s")?;
-    Ok(Summary {
-        delivered,
-        utterances,
-        distance_travelled: num(v, "distance_travelled")?,
-        time: Duration::try_from_secs_f64(time).map_err(|e| format!("time {time}: {e}"))?,
-    })
-}
-
-// --- the robot agent ---------------------------------------------------------------------------
-
-/// A world's failure as it travels: its exception's name, message and ancestry.
-fn failed(e: xavier_world::RobotError) -> RemoteFailure {
-    RemoteFailure::from_failure(&Failure::from(e))
-}
-
-/// `builder` offering the robot's commands on `world`, each under its local task's name.
-/// `speak` is offered too, so the robot can speak itself when no voice agent is there.
-pub fn serve(world: &SharedWorld, builder: AgentBuilder) -> AgentBuilder {
-    let (w1, w2, w3, w4, w5, w6, w7) = (
-        world.clone(),
-        world.clone(),
-        world.clone(),
-        world.clone(),
-        world.clone(),
-        world.clone(),
-        world.clone(),
-    );
-    builder
-        .command("planPath", move |_: RemoteCtx, room: u32| {
-            let w = w1.clone();
-            async move {
-                let path = w.plan_path(room).await.map_err(failed)?;
-                Ok::<_, RemoteFailure>(Value::Array(path.iter().map(point_json).collect()))
-            }
-        })
-        .command("turn", move |_: RemoteCtx, angle: f64| {
-            let w = w2.clone();
-            async move { w.turn(angle).await.map_err(failed) }
-        })
-        .command("guardedMove", move |_: RemoteCtx, dist: f64| {
-            let w = w3.clone();
-            async move { w.guarded_move(dist).await.map_err(failed) }
-        })
-        .command("lookForDoor", move |_: RemoteCtx, room: u32| {
-            let w = w4.clone();
-            async move { w.look_for_door(room).await.map_err(failed) }
-        })
-        .command("speak", move |_: RemoteCtx, text: String| {
-            let w = w5.clone();
-            async move {
-                w.speak(&text).await;
-                Ok::<_, RemoteFailure>(())
-            }
-        })
-        .command("mailGone", move |_: RemoteCtx, room: u32| {
-            let w = w6.clone();
-            async move { w.mail_gone(room).await.map_err(failed) }
-        })
-        .command("motorTemperature", move |_: RemoteCtx, (): ()| {
-            let w = w7.clone();
-            async move { Ok::<_, RemoteFailure>(w.motor_temperature().await) }
-        })
-}
-
-/// The robot agent's queries (see the module's documentation), on its `session`, for `system`;
-/// `scale` is the world's time scale (`SharedWorld::scaled`). Keep the queryables: dropped, they
-/// are withdrawn.
-pub async fn serve_queries(
-    session: &zenoh::Session,
-    system: &str,
-    world: &SharedWorld,
-    scale: f64,
-) -> Result<Vec<zenoh::query::Queryable<()>>, zenoh::Error> {
-    let rt = tokio::runtime::Handle::current();
-    let mut out = Vec::new();
-    for what in ["pose", "motor_temperature", "hear", "summary"] {
-        let (world, rt) = (world.clone(), rt.clone());
-        let q = session
-            .declare_queryable(query_key(system, what))
-            .callback(move |query| {
-                let world = world.clone();
-                rt.spawn(async move {
-                    let answer = match what {
-                        "pose" => pose_json(&world.inspect(|w| w.pose())),
-                        "motor_temperature" => json!(world.motor_temperature().await),
-                        "hear" => {
-                            let text = query
-                                .payload()
-                                .map(|p| String::from_utf8_lossy(&p.to_bytes()).into_owned())
-                                .unwrap_or_default();
-                            world.synced(|w| w.speak(&text));
-                            json!(speech_duration(&text).as_secs_f64() / scale)
-                        }
-                        _ => summary_json(&world.summary()),
-                    };
-                    let key = query.key_expr().clone();
-                    if let Err(e) = query.reply(key, answer.to_string()).await {
-                        eprintln!("xavier-robot: cannot answer {what}: {e}");
-                    }
-                });
-            })
-            .await?;
-        out.push(q);
-    }
-    Ok(out)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_worlds_values_round_trip_through_json() {
-        let path = vec![Point::new(1.0, 2.5), Point::new(-3.0, 0.0)];
-        let v = Value::Array(path.iter().map(point_json).collect());
-        assert_eq!(path_of(&v), Ok(path));
-        let pose = Pose {
-            x: 1.0,
-            y: 2.0,
-            heading: -0.5,
-        };
-        assert_eq!(pose_of(&pose_json(&pose)), Ok(pose));
-        let s = Summary {
-            delivered: vec![3, 7],
-            utterances: 4,
-            distance_travelled: 61.5,
-            time: Duration::from_millis(152_300),
-        };
-        assert_eq!(summary_of(&summary_json(&s)), Ok(s));
-        assert!(path_of(&json!({"x": 1})).is_err());
-        assert!(pose_of(&json!({"x": 1, "y": 2})).is_err());
+        #[cfg(feature = "distributed")]
+        Robot::Remote(r) => r.command::<f64, _>("motorTemperature", ()),
     }
 }
