@@ -39,8 +39,10 @@ use clap::{Parser, Subcommand};
 
 #[cfg(test)]
 mod agree;
+#[cfg(feature = "net")]
 mod certs;
 mod doc;
+#[cfg(feature = "net")]
 mod executive;
 mod export;
 mod graph;
@@ -143,13 +145,16 @@ enum Command {
     /// long-lived executive on 127.0.0.1 that clients give programs to (`tdl load`), start tasks
     /// of (`tdl start`), stop, raise events in and ask about (`tdl status`), and that agents join
     /// with the tasks they offer. Each run's trace is a file of its own.
+    #[cfg(feature = "net")]
     Serve(executive::ServeArgs),
+    #[cfg(feature = "net")]
     #[command(flatten)]
     Ask(executive::Ask),
     /// Make a system's certificates for mutual TLS (docs/distributed.md, "Mutual TLS"): an
     /// authority (`authority.pem`, its key `authority.key`) and, for each member, a certificate
     /// it signed and its key (`<member>.pem`, `<member>.key`). Refuses to replace a file unless
     /// `--force`.
+    #[cfg(feature = "net")]
     Certs(certs::Args),
     /// Read a trace file (JSON lines, as written by `--trace` or `tcm::JsonLines`).
     Trace {
@@ -310,8 +315,11 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
         Command::Verify(args) => verify::run(args, &mut out),
         Command::Sim(args) => sim::run(args, &mut out),
         Command::Run(args) => run::run(args),
+        #[cfg(feature = "net")]
         Command::Serve(args) => executive::serve(args),
+        #[cfg(feature = "net")]
         Command::Ask(ask) => executive::ask(ask),
+        #[cfg(feature = "net")]
         Command::Certs(args) => certs::run(args, &mut out),
         Command::View { files, listen } => serve::view(&files, listen).map(found),
         Command::Expand { file } => {

@@ -6,9 +6,12 @@
 //! report is printed, and the exit status says how the run ended.
 
 use std::path::PathBuf;
+#[cfg(feature = "net")]
 use std::time::Duration;
 
 use anyhow::Context;
+#[cfg(not(feature = "net"))]
+use anyhow::bail;
 use tdl_interp::{Program, Registry};
 
 const EXIT_STATUS: &str = "Exit status: 0 when the task completed and nothing failed unhandled; \
@@ -91,7 +94,7 @@ fn root(
 ) -> anyhow::Result<String> {
     match asked {
         Some(t) => Ok(t.to_string()),
-        None => tdl_serve::default_task(program, files)
+        None => tdl_interp::default_task(program, files)
             .map_err(|why| anyhow::anyhow!("{why} with --task")),
     }
 }
@@ -104,7 +107,7 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         eprintln!("tdl: the program has errors: nothing was started");
         return Ok(1);
     }
-    let outside = tdl_serve::outside(&files);
+    let outside = tdl_interp::outside(&files);
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -141,6 +144,7 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         for h in program.attached() {
             runtime = runtime.attach(h);
         }
+        #[cfg(feature = "net")]
         if let Some(exec) = &exec {
             runtime = runtime.placer(exec.clone());
         }
@@ -160,9 +164,12 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         eprintln!("running {name}");
         let report = runtime.run(task).await?;
         println!("{report}");
+        #[cfg(feature = "net")]
         if let Some(exec) = exec {
             exec.close().await;
         }
+        #[cfg(not(feature = "net"))]
+        let _: Option<NoAgents> = exec;
         if let Some(viewer) = viewer {
             eprintln!("the run ended; the viewer serves it until interrupted");
             viewer.wait();
@@ -177,8 +184,27 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
     })
 }
 
+/// Without the feature `net`, no agent can be reached.
+#[cfg(not(feature = "net"))]
+enum NoAgents {}
+
+#[cfg(not(feature = "net"))]
+async fn connect(
+    _a: &Args,
+    outside: &[(String, tdl::NodeKind)],
+    _registry: &mut Registry,
+) -> anyhow::Result<NoAgents> {
+    let names: Vec<&str> = outside.iter().map(|(n, _)| n.as_str()).collect();
+    bail!(
+        "the program needs tasks from agents ({}), and this tdl was built without the feature \
+         `net` (zenoh): install it with its default features (`cargo install --path crates/tdl-cli`)",
+        names.join(", ")
+    )
+}
+
 /// Opens the executive, waits for the agents (those named, or until every task the program
 /// needs is offered), and registers every task they offer.
+#[cfg(feature = "net")]
 async fn connect(
     a: &Args,
     outside: &[(String, tdl::NodeKind)],

@@ -26,6 +26,7 @@ mod format;
 mod ir;
 mod load;
 mod lower;
+mod outside;
 mod program;
 mod registry;
 mod tap;
@@ -37,6 +38,7 @@ mod walk;
 pub use convert::{FromValue, IntoOutcome, IntoValue};
 pub use convert::{Host, host_err, ok};
 pub use exec::Budget;
+pub use outside::{default_task, outside};
 pub use program::Program;
 pub use registry::{
     BoxFuture, Call, Function, IntoAsyncFunction, IntoFunction, IntoTaskFn, Registry, TaskFn,

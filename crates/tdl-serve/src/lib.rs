@@ -7,8 +7,9 @@
 //! - [`Server`]: the programs, the runs and the operations on them (its module gives the rules).
 //! - [`serve`]: answers [`Request`]s over zenoh, on `tdl/<system>/serve/<executive>/<client>`.
 //! - [`Client`]: sends them (`tdl load`, `tdl start`, `tdl stop`, `tdl status`, `tdl raise`).
-//! - [`outside`], [`default_task`], [`register_offers`]: what a program needs from agents, which
-//!   task runs by default, and the agents' tasks registered for it (shared with `tdl run`).
+//! - [`register_offers`]: the agents' tasks registered for a program (shared with `tdl run`);
+//!   [`outside`] and [`default_task`] (from `tdl_interp`): what it needs from agents, and which
+//!   task runs by default.
 #![warn(missing_docs)]
 
 mod program;
@@ -16,10 +17,11 @@ pub mod proto;
 mod serve;
 mod server;
 
-pub use program::{default_task, outside, register_offers};
+pub use program::register_offers;
 pub use proto::{File, ProgramInfo, Reply, Request, Response, RunInfo, Swap, Verify};
 pub use serve::{Client, DEFAULT_TIMEOUT, Serving, serve};
 pub use server::Server;
+pub use tdl_interp::{default_task, outside};
 
 /// Errors of serving and of clients (a refused request is a [`Response::Refused`], not an error).
 #[derive(Debug, thiserror::Error)]

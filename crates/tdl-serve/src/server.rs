@@ -153,7 +153,7 @@ impl Server {
         let mut r = Registry::new();
         r.extend(&self.inner.base);
         if let Some(exec) = &self.inner.exec {
-            crate::program::register_offers(exec, &mut r, &crate::program::outside(files));
+            crate::program::register_offers(exec, &mut r, &tdl_interp::outside(files));
         }
         r
     }
@@ -345,7 +345,7 @@ impl Server {
             .ok_or_else(|| format!("no program `{program}` is loaded"))?;
         let name = match task {
             Some(t) => t.to_string(),
-            None => crate::program::default_task(&loaded.program, &loaded.files)?,
+            None => tdl_interp::default_task(&loaded.program, &loaded.files)?,
         };
         let root_task = loaded
             .program
