@@ -71,6 +71,11 @@ pub struct MonitorInfo {
     pub period: Option<Duration>,
     /// Whether the polling activation at start is skipped.
     pub initial_wait: bool,
+    /// The constraints between its successive activations (`serial`, `sequential …`, `expand
+    /// first`, `delay expansion` on each; TCM's per-activation constraints).
+    pub each: super::monitor::EachActivation,
+    /// What a poll due while the last activation runs does.
+    pub overrun: super::monitor::Overrun,
 }
 
 /// A node that cannot progress, and what it waits for.
@@ -157,6 +162,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             max_triggers: m.spec.max_triggers,
             period: m.spec.period,
             initial_wait: m.spec.initial_wait,
+            each: m.spec.each,
+            overrun: m.spec.overrun,
         })
     }
 

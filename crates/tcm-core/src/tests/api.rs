@@ -472,6 +472,9 @@ fn monitor_info_answers_for_the_monitor_and_its_activations() {
     let mut spec = MonitorSpec::new("body");
     spec.max_activations = Some(4);
     spec.period = Some(s(1.5));
+    spec.each.serial = true;
+    spec.each.delay_expansion = true;
+    spec.overrun = crate::Overrun::Skip;
     let m = e
         .spawn(Time::ZERO, Spawn::monitor(e.root(), "m", spec))
         .expect("spawn");
@@ -484,6 +487,10 @@ fn monitor_info_answers_for_the_monitor_and_its_activations() {
     assert_eq!(info.max_activations, Some(4));
     assert_eq!(info.period, Some(s(1.5)));
     assert!(!info.initial_wait);
+    // The per-activation constraints and the overrun policy, as given.
+    assert!(info.each.serial && info.each.delay_expansion);
+    assert!(!info.each.sequential_execution && !info.each.expand_first);
+    assert_eq!(info.overrun, crate::Overrun::Skip);
     assert_eq!(e.monitor_info(e.root()), None);
     checked_trace(&mut e);
 }
