@@ -26,12 +26,20 @@ fn status_of(port: &str, run: &str) -> (i32, String, String) {
 /// `tdl serve` on a free port of 127.0.0.1, writing its traces in `dir`, once it answers: the
 /// server (killed when dropped) and its port.
 pub(crate) fn serving(dir: &Path) -> (Serving, String) {
+    serving_with(dir, &[], &[])
+}
+
+/// As [`serving`], with `extra` arguments for the server, asked whether it answers with `probe`
+/// arguments for the client (its TLS and client name, say).
+pub(crate) fn serving_with(dir: &Path, extra: &[&str], probe: &[&str]) -> (Serving, String) {
     let port = tcm_zenoh::config::free_port()
         .expect("a free port")
         .to_string();
     let serving = Serving(
         Command::new(env!("CARGO_BIN_EXE_tdl"))
-            .args(["serve", "--port", &port, "--traces"])
+            .args(["serve", "--port", &port])
+            .args(extra)
+            .arg("--traces")
             .arg(dir)
             .current_dir(env!("CARGO_MANIFEST_DIR"))
             .stdout(Stdio::null())
@@ -42,7 +50,9 @@ pub(crate) fn serving(dir: &Path) -> (Serving, String) {
     // The server answers once it listens.
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
-        let (code, _, _) = tdl(&["programs", "--port", &port, "--timeout", "0.5"]);
+        let mut args = vec!["programs", "--port", &port, "--timeout", "0.5"];
+        args.extend_from_slice(probe);
+        let (code, _, _) = tdl(&args);
         if code == 0 {
             break;
         }

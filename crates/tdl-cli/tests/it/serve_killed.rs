@@ -3,43 +3,16 @@
 //! answers, holds either no new program or the whole one (its version is the file's), and the run
 //! it was running goes on. The server is killed at the end whatever happens.
 
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::{Command, Stdio};
+use std::time::Duration;
 
 use crate::tdl;
-
-/// The server, killed when dropped.
-struct Serving(Child);
-
-impl Drop for Serving {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 #[test]
 fn a_client_killed_mid_request_changes_nothing_it_did_not_finish() {
     let dir = std::env::temp_dir().join(format!("tdl-serve-killed-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let port = tcm_zenoh::config::free_port()
-        .expect("a free port")
-        .to_string();
-    let _serving = Serving(
-        Command::new(env!("CARGO_BIN_EXE_tdl"))
-            .args(["serve", "--port", &port, "--traces"])
-            .arg(&dir)
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("tdl serve starts"),
-    );
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while tdl(&["programs", "--port", &port, "--timeout", "0.5"]).0 != 0 {
-        assert!(Instant::now() < deadline, "tdl serve never answered");
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    let (_serving, port) = crate::serve::serving(&dir);
     let (code, _, err) = tdl(&["load", "tests/data/serve/watch.tdl", "--port", &port]);
     assert_eq!(code, 0, "{err}");
     let (code, _, err) = tdl(&["start", "watch", "--port", &port]);

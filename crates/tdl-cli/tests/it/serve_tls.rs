@@ -5,20 +5,9 @@
 //! killed at the end whatever happens.
 
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::tdl;
-
-/// The server, killed when dropped.
-struct Serving(Child);
-
-impl Drop for Serving {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 fn certs(dir: &Path, system: &str, members: &[&str]) {
     let out = dir.display().to_string();
@@ -39,44 +28,17 @@ fn with_mutual_tls_only_the_allowed_client_can_drive_the_executive() {
     );
     certs(&system, "tdl", &["main", "operator", "arm"]);
     certs(&stranger, "other", &["operator"]);
-    let port = tcm_zenoh::config::free_port()
-        .expect("a free port")
-        .to_string();
     let sys = system.display().to_string();
-    let _serving = Serving(
-        Command::new(env!("CARGO_BIN_EXE_tdl"))
-            .args([
-                "serve",
-                "--port",
-                &port,
-                "--tls",
-                &sys,
-                "--agents",
-                "arm",
-                "--clients",
-                "operator",
-                "--traces",
-            ])
-            .arg(&traces)
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("tdl serve starts"),
+    let (_serving, port) = crate::serve::serving_with(
+        &traces,
+        &["--tls", &sys, "--agents", "arm", "--clients", "operator"],
+        &["--tls", &sys, "--client", "operator"],
     );
     let as_operator = |args: &[&str]| {
         let mut all = args.to_vec();
         all.extend_from_slice(&["--port", &port, "--tls", &sys, "--client", "operator"]);
         tdl(&all)
     };
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while as_operator(&["programs", "--timeout", "0.5"]).0 != 0 {
-        assert!(
-            Instant::now() < deadline,
-            "tdl serve never answered the operator"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
     let (code, out, err) = as_operator(&["load", "tests/data/serve/watch.tdl"]);
     assert_eq!(code, 0, "{out}\n{err}");
     let (code, out, err) = as_operator(&["start", "watch"]);

@@ -25,30 +25,13 @@ pub(super) fn wiretap_fn(
         .collect();
     let fn_name = &task.name;
     let name_str = task.name.to_string();
-    let target = &tap.target;
-    let target_struct = struct_ident_of(target);
-    let target_str = target.to_string();
-    let (target_name, target_args) = match declared {
-        Some(args) => {
-            let types: Vec<&syn::Type> = args.iter().map(|it| &it.ty).collect();
-            (quote!(#target_str), quote!((#(#types,)*)))
-        }
-        None => (
-            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::NAME),
-            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::Args),
-        ),
-    };
-    let read_args = if task.args.is_empty() {
-        TokenStream::new()
-    } else {
-        let pats: Vec<TokenStream> = task.args.iter().map(arg_pat).collect();
-        let types: Vec<&syn::Type> = task.args.iter().map(|it| &it.ty).collect();
-        quote! {
-            let (#(#pats,)*): (#(#types,)*) = ::tdl::codegen::tapped_args::<
-                #target_args,
-            >(&ctx, #name_str, #target_str)?;
-        }
-    };
+    let target_str = tap.target.to_string();
+    let (target_name, read_args) = target_of(
+        task,
+        &tap.target,
+        declared,
+        quote!(::tdl::codegen::tapped_args),
+    );
     let when = if tap.after {
         quote!(::tdl::TapWhen::After)
     } else {
@@ -118,31 +101,13 @@ pub(super) fn attached_handler(
         .collect();
     let fn_name = &task.name;
     let name_str = task.name.to_string();
-    let target_struct = struct_ident_of(target);
     let target_str = target.to_string();
-    // The arguments a node of the target keeps: the generated tuple of a TDL task's, the tuple
-    // of the declared types of an extern one's.
-    let (target_name, target_args) = match declared {
-        Some(args) => {
-            let types: Vec<&syn::Type> = args.iter().map(|it| &it.ty).collect();
-            (quote!(#target_str), quote!((#(#types,)*)))
-        }
-        None => (
-            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::NAME),
-            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::Args),
-        ),
-    };
-    let read_args = if task.args.is_empty() {
-        TokenStream::new()
-    } else {
-        let pats: Vec<TokenStream> = task.args.iter().map(arg_pat).collect();
-        let types: Vec<&syn::Type> = task.args.iter().map(|it| &it.ty).collect();
-        quote! {
-            let (#(#pats,)*): (#(#types,)*) = ::tdl::codegen::attached_args::<
-                #target_args,
-            >(&ctx, #name_str, #target_str)?;
-        }
-    };
+    let (target_name, read_args) = target_of(
+        task,
+        target,
+        declared,
+        quote!(::tdl::codegen::attached_args),
+    );
     let doc = format!(
         " Builds the TDL handler `{name_str}`, attached to every `{target_str}`: give it to `Runtime::attach`."
     );
@@ -170,4 +135,39 @@ pub(super) fn attached_handler(
             )
         }
     }
+}
+
+/// The target's name as the generated code gives it, and the statement that reads `task`'s
+/// arguments from the node it recovers or checks with `reader` (`attached_args`, `tapped_args`):
+/// typed by the generated tuple of a TDL task's arguments, or by the declared types of an extern
+/// one's (`declared`); nothing to read when `task` takes no arguments.
+fn target_of(
+    task: &Task,
+    target: &Ident,
+    declared: Option<&[crate::ast::Arg]>,
+    reader: TokenStream,
+) -> (TokenStream, TokenStream) {
+    let target_struct = struct_ident_of(target);
+    let target_str = target.to_string();
+    let name_str = task.name.to_string();
+    let (target_name, target_args) = match declared {
+        Some(args) => {
+            let types: Vec<&syn::Type> = args.iter().map(|it| &it.ty).collect();
+            (quote!(#target_str), quote!((#(#types,)*)))
+        }
+        None => (
+            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::NAME),
+            quote!(<#target_struct as ::tdl::codegen::TaskArgs>::Args),
+        ),
+    };
+    let read_args = if task.args.is_empty() {
+        TokenStream::new()
+    } else {
+        let pats: Vec<TokenStream> = task.args.iter().map(arg_pat).collect();
+        let types: Vec<&syn::Type> = task.args.iter().map(|it| &it.ty).collect();
+        quote! {
+            let (#(#pats,)*): (#(#types,)*) = #reader::<#target_args>(&ctx, #name_str, #target_str)?;
+        }
+    };
+    (target_name, read_args)
 }
