@@ -57,6 +57,9 @@ pub struct Next {
     /// is pending ([`Engine::is_settled`]). A shell whose running actions all await the engine
     /// itself is stuck then (docs/semantics.md, "Run outcome").
     pub settled: bool,
+    /// The run is paused ([`Engine::is_paused`]): it is settled, but not stuck; it waits for
+    /// whoever steers it.
+    pub paused: bool,
 }
 
 /// The driver's steps (see the module documentation).
@@ -104,6 +107,7 @@ impl Driver {
             deadline: engine.poll_timeout(),
             idle: settled && engine.stats().running == 0,
             settled,
+            paused: engine.is_paused(),
         }
     }
 

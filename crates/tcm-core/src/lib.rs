@@ -49,9 +49,10 @@ pub use arena::{Keep, Owned, Shared};
 pub use constraint::{Constraint, Constraints, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{
-    Blocked, Canonical, EachActivation, Effect, Engine, EngineError, HandlerSpec, InvariantFailed,
-    Job, MonitorInfo, MonitorSpec, NodeInfo, OnTerminate, Overrun, Purpose, ResourceDenied,
-    ResourceDropped, ResourceInfo, Spawn, Stats, Uses, WatchOutcome,
+    Approval, ApprovalRefused, Blocked, BreakAt, Breakpoint, Canonical, EachActivation, Effect,
+    Engine, EngineError, Fault, FaultOutcome, HandlerSpec, InvariantFailed, Job, Matcher,
+    MonitorInfo, MonitorSpec, NodeInfo, OnTerminate, Overrun, Purpose, ResourceDenied,
+    ResourceDropped, ResourceInfo, Spawn, Stats, SteerId, Uses, WatchOutcome,
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
 pub use ids::{

@@ -168,11 +168,17 @@ impl Sim {
         &self.shell.notes
     }
 
-    /// Runs until nothing is left to do or virtual time passes `limit`. Returns the end time.
+    /// Runs until nothing is left to do, virtual time passes `limit`, or the run is paused.
+    /// Returns the end time.
     pub fn run_until(&mut self, limit: Time) -> Time {
         let sh = &mut self.shell;
         loop {
             let next = Driver::turn(&mut self.engine, sh, sh.now);
+            if next.paused {
+                // On virtual time a paused run's clock stops (docs/semantics.md, "Steering a
+                // run"): the caller steps or resumes it, then runs on.
+                return sh.now;
+            }
             let next_end = sh.pending.keys().next().map(|k| k.0);
             let Some(at) = [next_end, next.deadline].into_iter().flatten().min() else {
                 return sh.now;

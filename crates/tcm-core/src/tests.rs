@@ -16,6 +16,7 @@
 //! - `references`: reservations, forward and dead references, `previous`, held children;
 //! - `resources`: capacity, priority, all or nothing, reserve, lock, pending limit, denial, release, wait cycles;
 //! - `monitors`, `monitor_limits` (limits changed after the spawn) and `exceptions` (handlers, retry, wiretaps, unhandled failures);
+//! - `steering`: pausing, stepping, breakpoints, faults and approvals;
 //! - `api`: the engine's inputs, outputs and errors without the simulator, and memory.
 
 mod api;
@@ -27,6 +28,7 @@ mod monitor_limits;
 mod monitors;
 mod references;
 mod resources;
+mod steering;
 mod tcm_semantics;
 mod termination;
 mod triggers;

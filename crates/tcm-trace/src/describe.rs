@@ -296,6 +296,17 @@ impl TraceKind {
             ),
             K::TapRemoved { tap } => (C::Wiretap, None, format!("wiretap {tap} removed")),
             K::Control { what, by } => (C::Event, None, format!("control: {what} (by {by})")),
+            K::Paused { node, why } => (C::Event, *node, format!("run paused: {why}")),
+            K::Resumed { held_ns } => (
+                C::Event,
+                None,
+                format!("run resumed, its timers {} later", seconds(*held_ns)),
+            ),
+            K::Injected { node, outcome } => {
+                (C::Fail, Some(*node), format!("fault injected: {outcome}"))
+            }
+            K::Held { node } => (C::Event, Some(*node), "held for approval".to_string()),
+            K::Approved { node, by } => (C::Event, Some(*node), format!("approved by {by}")),
             K::CallbackSet { name, node, .. } => (C::Event, *node, format!("callback {name} set")),
             K::CallbackRan { name, .. } => (C::Event, None, format!("callback {name} ran")),
             K::Resource {

@@ -9,7 +9,7 @@ use crate::state::{Facet, NodeKind, Outcome, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 8;
+pub const TRACE_FORMAT_VERSION: u32 = 9;
 
 /// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
 pub const OLDEST_READABLE_VERSION: u32 = 1;
@@ -642,6 +642,40 @@ pub enum TraceKind {
         /// Who asked (a client's name or identity, as the executive knows it).
         by: String,
     },
+    /// The run paused (docs/semantics.md, "Steering a run"): no node starts and no timer of the
+    /// tree fires until `resumed`; what already runs goes on and its ends are applied.
+    Paused {
+        /// The node it paused at (a breakpoint's), if any.
+        node: Option<u64>,
+        /// Why, for people (`breakpoint 1: before centerOnDoor`, `step`, `asked by operator`).
+        why: String,
+    },
+    /// The run resumed after a pause; the timers of the tree pending then moved `held_ns` later,
+    /// the pause's length on the run's clock.
+    Resumed {
+        /// How long the pause held the tree's timers, in nanoseconds.
+        held_ns: u64,
+    },
+    /// A fault was injected into the node at its start: its action did not run, and the node
+    /// ends as `outcome` says (`fail Blocked: …`, `never ends`).
+    Injected {
+        /// The node.
+        node: u64,
+        /// The outcome that stands for its action's end, for people.
+        outcome: String,
+    },
+    /// The node's turn to start came, and it waits for an operator's approval first.
+    Held {
+        /// The node.
+        node: u64,
+    },
+    /// A node held for approval was approved, and starts at its turn.
+    Approved {
+        /// The node.
+        node: u64,
+        /// Who approved it.
+        by: String,
+    },
     /// Something worth a person's attention; the run goes on.
     Warning {
         /// Node concerned, if any.
@@ -668,7 +702,9 @@ impl TraceKind {
             | TraceKind::HandlerDetached { .. }
             | TraceKind::TapAdded { .. }
             | TraceKind::TapRemoved { .. }
-            | TraceKind::Control { .. } => None,
+            | TraceKind::Control { .. }
+            | TraceKind::Resumed { .. } => None,
+            TraceKind::Paused { node, .. } => *node,
             TraceKind::Warning { node, .. } | TraceKind::CallbackSet { node, .. } => *node,
             TraceKind::Reserved { node, .. }
             | TraceKind::Spawned { node, .. }
@@ -695,7 +731,10 @@ impl TraceKind {
             | TraceKind::Released { node, .. }
             | TraceKind::Withdrawn { node }
             | TraceKind::Denied { node, .. }
-            | TraceKind::Dropped { node, .. } => Some(*node),
+            | TraceKind::Dropped { node, .. }
+            | TraceKind::Injected { node, .. }
+            | TraceKind::Held { node }
+            | TraceKind::Approved { node, .. } => Some(*node),
             TraceKind::ResourceReserved { holder, .. } => Some(*holder),
             TraceKind::Triggered { monitor, .. } => Some(*monitor),
         }

@@ -313,6 +313,11 @@ pub struct Replay {
     run: Option<u32>,
     n_records: u64,
     last_t: u64,
+    // Why the run is paused, while it is (`paused` to `resumed`).
+    paused: Option<String>,
+    // Nodes held for an operator's approval (`held`, until `approved` or their handling
+    // completes).
+    held: std::collections::BTreeSet<u64>,
 }
 
 impl Default for Replay {
@@ -346,7 +351,25 @@ impl Replay {
             run: None,
             n_records: 0,
             last_t: 0,
+            paused: None,
+            held: std::collections::BTreeSet::new(),
         }
+    }
+
+    /// Why the run is paused after the records applied so far, if it is (docs/semantics.md,
+    /// "Steering a run").
+    pub fn paused(&self) -> Option<&str> {
+        self.paused.as_deref()
+    }
+
+    /// The nodes held for an operator's approval now (`held` records not yet followed by their
+    /// `approved`, nor by the end of their handling), in number order.
+    pub fn held(&self) -> impl Iterator<Item = u64> + '_ {
+        self.held.iter().copied().filter(|n| {
+            self.nodes
+                .get(n)
+                .is_some_and(|n| n.facets[0] != State::Completed)
+        })
     }
 
     /// The node with display number `number`, in any condition (reserved, dead, reclaimed).
@@ -542,7 +565,17 @@ impl Replay {
             | TraceKind::HandlerDetached { .. }
             | TraceKind::TapAdded { .. }
             | TraceKind::TapRemoved { .. }
-            | TraceKind::Control { .. } => {}
+            | TraceKind::Control { .. }
+            | TraceKind::Injected { .. } => {}
+            TraceKind::Paused { why, .. } => self.paused = Some(why.clone()),
+            TraceKind::Resumed { .. } => self.paused = None,
+            TraceKind::Held { node } => {
+                self.node_mut(*node)?;
+                self.held.insert(*node);
+            }
+            TraceKind::Approved { node, .. } => {
+                self.held.remove(node);
+            }
             TraceKind::MonitorParams {
                 node,
                 max_activations,

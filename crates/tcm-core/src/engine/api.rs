@@ -181,6 +181,9 @@ pub enum EngineError {
         /// This engine's run.
         run: u32,
     },
+    /// The node is not held for approval (docs/semantics.md, "Steering a run").
+    #[error("{0} is not held for approval")]
+    NotHeld(NodeId),
     /// The handle names a node that no longer exists.
     #[error("{0} no longer exists (it completed or was terminated and was reclaimed)")]
     Gone(NodeId),

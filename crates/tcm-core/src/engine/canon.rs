@@ -156,6 +156,10 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     (i128::from(k) - i128::from(next)).hash(h);
                 }
                 TimerKind::Notify { .. } => 2u8.hash(h),
+                TimerKind::Approval { node, .. } => {
+                    3u8.hash(h);
+                    c.node_ref(node, h);
+                }
             }
         }
         // External events by name (ids are numbered in the order names were first used).

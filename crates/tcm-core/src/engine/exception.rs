@@ -243,6 +243,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             None => Some(node),
         };
         self.node_mut(node).cold_mut().failure = Some(failure.clone());
+        if self.steer.is_some() {
+            self.break_at(super::BreakAt::Raised, node, Some(&failure));
+        }
         self.search(node, failure, from, 0, node);
     }
 
@@ -268,8 +271,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             return;
         }
         let monitor = p.monitor().is_some();
-        let running =
-            p.state(Facet::Handling) == State::Active && !monitor && p.taps_pending() == 0;
+        let running = p.state(Facet::Handling) == State::Active
+            && !monitor
+            && p.taps_pending() == 0
+            && !p.never_ends();
         let mut c = self.first_child(node);
         while let Some(ch) = c {
             if Some(ch) != spare {
@@ -462,6 +467,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 handler: self.node(id).name.to_string(),
             }
         );
+        if self.steer.is_some() {
+            self.break_at(super::BreakAt::Handler, id, Some(&failure));
+        }
         self.node_mut(id).cold_mut().handler = Some(Box::new(HandlerCtx {
             failure,
             failing,

@@ -94,6 +94,7 @@ mod report;
 mod resource;
 mod start;
 mod state;
+mod steer;
 mod terminate;
 mod timers;
 mod tree;
@@ -116,6 +117,9 @@ pub use report::{Blocked, MonitorInfo, NodeInfo};
 pub use resource::{ResourceDenied, ResourceDropped, ResourceInfo, Uses};
 pub use state::InvariantFailed;
 use std::collections::{BTreeMap, VecDeque};
+pub use steer::{
+    Approval, ApprovalRefused, BreakAt, Breakpoint, Fault, FaultOutcome, Matcher, SteerId,
+};
 use tcm_trace::{State, TRACE_FORMAT_VERSION, TraceEvent, TraceKind};
 use timers::Timers;
 use wiretap::Wiretap;
@@ -210,6 +214,8 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     res: resource::Resources,
     // State variables, conditions and their watches (`state.rs`).
     states: state::States,
+    // Pausing, breakpoints, faults and approvals, from the first request (`steer.rs`).
+    steer: Option<Box<steer::Steering>>,
 }
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
@@ -253,6 +259,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             attachments: 0,
             res: resource::Resources::default(),
             states: state::States::default(),
+            steer: None,
         };
         engine.push_trace(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,
@@ -426,7 +433,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     #[inline]
     pub fn poll_timeout(&mut self) -> Option<Time> {
         // The shell asks after every step; most steps of most runs have no timer.
-        if self.timers.is_empty() {
+        if self.timers.is_empty() || self.halted() {
             return None;
         }
         let nodes = &self.nodes;
@@ -443,8 +450,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// no timer is pending. A shell that knows every running action waits on the engine itself
     /// (parked in an await on a watch) knows the run is stuck then (docs/semantics.md, "Run
     /// outcome").
+    /// A paused run is settled: what is ready waits for it to resume (see [`Engine::is_paused`]).
     pub fn is_settled(&mut self) -> bool {
-        self.ready.is_empty() && self.work.is_empty() && self.poll_timeout().is_none()
+        (self.ready.is_empty() || self.halted())
+            && self.work.is_empty()
+            && self.poll_timeout().is_none()
     }
 
     /// Moves the engine's clock to `now`. It never skips a deadline: timers due before `now` fire

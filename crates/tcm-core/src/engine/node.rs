@@ -260,6 +260,10 @@ pub(crate) struct Cold<A, F> {
     pub(crate) skip_if: ThinVec<crate::ids::CondId>,
     pub(crate) invariants: ThinVec<crate::ids::CondId>,
     pub(crate) skipped: bool,
+    // Steering (`steer.rs`): approved after it was held for approval; a fault stands for its
+    // action and it never ends.
+    pub(crate) approved: bool,
+    pub(crate) never_ends: bool,
 }
 
 /// Where a node's failure goes when no handler on the node takes it.
@@ -302,6 +306,8 @@ impl<A, F> Default for Cold<A, F> {
             skip_if: ThinVec::new(),
             invariants: ThinVec::new(),
             skipped: false,
+            approved: false,
+            never_ends: false,
         }
     }
 }
@@ -517,6 +523,11 @@ impl<A, F> Node<A, F> {
 
     pub(crate) fn handled(&self) -> bool {
         self.cold.as_ref().is_some_and(|c| c.handled)
+    }
+
+    /// Whether a fault stands for its action and it never ends (`steer.rs`, rule 4).
+    pub(crate) fn never_ends(&self) -> bool {
+        self.cold.as_ref().is_some_and(|c| c.never_ends)
     }
 
     pub(crate) fn taps_pending(&self) -> usize {

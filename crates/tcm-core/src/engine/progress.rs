@@ -91,6 +91,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 }
             }
         }
+        if self.steer.is_some() {
+            self.break_at(super::BreakAt::End, node, None);
+        }
         self.settle();
         Ok(())
     }
@@ -155,6 +158,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// each at its own time.
     pub(super) fn fire_timers(&mut self, now: Time, inclusive: bool) {
         loop {
+            if self.halted() {
+                // A paused run's timers wait (`steer.rs`, rule 1).
+                break;
+            }
             let nodes = &self.nodes;
             let Some((at, entry)) = self
                 .timers
@@ -165,6 +172,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             if at > self.now {
                 self.now = at;
             }
+            let steps = self.steer.is_some() && self.timer_steps();
             match entry {
                 TimerKind::Trigger { target, then } => self.fire_trigger(target, then, true),
                 TimerKind::Poll { monitor, k } => self.poll(monitor, k),
@@ -172,6 +180,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     token,
                     outcome: Box::new(WatchOutcome::Reached),
                 }),
+                TimerKind::Approval { node, after } => self.approval_timed_out(node, after),
+            }
+            if steps {
+                self.pause_at(None, "step".into());
             }
             self.settle();
         }
@@ -198,6 +210,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             if self.res.dirty {
                 // Room was made: waiting requests that fit now are granted and queued.
                 self.scan_resources();
+            }
+            if self.halted() {
+                // A paused run's ready nodes wait (`steer.rs`, rule 1).
+                break;
             }
             match self.ready.pop_front() {
                 Some(id) => self.start(id),
@@ -679,6 +695,9 @@ pub(super) fn timer_is_live<A, F, S: Keep<Node<A, F>>>(
             .is_some_and(|n| n.alive() && n.state(Facet::Handling) == State::Active),
         // A timer callback belongs to no node: it matters until it fires.
         TimerKind::Notify { .. } => true,
+        TimerKind::Approval { node, .. } => nodes
+            .get(node)
+            .is_some_and(|n| n.alive() && n.state(Facet::Handling) == State::Enabled),
     }
 }
 

@@ -44,13 +44,29 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             };
             (n, is_monitor)
         };
-        let payload = n.action.take();
-        if payload.is_none() && !is_monitor {
+        if n.action.is_none() && !is_monitor {
             return;
+        }
+        let gate = if self.steer.is_some() {
+            match self.start_gate(id, is_monitor) {
+                super::steer::Gate::Stop => return,
+                super::steer::Gate::Go => None,
+                super::steer::Gate::Inject(outcome) => Some(outcome),
+            }
+        } else {
+            None
+        };
+        let Some(n) = self.nodes.get_mut(id) else {
+            return;
+        };
+        let mut payload = n.action.take();
+        if gate.is_some() {
+            // A fault stands for the action (`steer.rs`, rule 4): it never runs.
+            payload = None;
         }
         let invariants = !n.invariant_conditions().is_empty();
         let expands = n.kind.expands();
-        if !is_monitor {
+        if !is_monitor && gate.is_none() {
             self.running += 1;
             n.holding = self.hold_default;
         }
@@ -83,10 +99,17 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     purpose,
                 });
             }
-            None => self.monitor_started(id),
+            None if is_monitor => self.monitor_started(id),
+            None => {}
+        }
+        if let Some(outcome) = gate {
+            self.injected(id, outcome);
         }
         if invariants {
             self.check_invariants(id);
+        }
+        if self.steer.is_some() {
+            self.after_start();
         }
     }
 

@@ -150,7 +150,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             let action_running = h == State::Active
                 && self.node(c).monitor().is_none()
-                && self.node(c).taps_pending() == 0;
+                && self.node(c).taps_pending() == 0
+                && !self.node(c).never_ends();
             // Wiretap checks on it run to their end in the shell, but decide nothing any more:
             // they stop counting as running now, and their reports are refused.
             let checks = self.node_mut(c).take_cold(|c| &mut c.taps_open);

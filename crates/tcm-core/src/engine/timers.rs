@@ -19,6 +19,11 @@ pub(crate) enum TimerKind {
     Poll { monitor: NodeId, k: u64 },
     /// Tell the shell ([`super::Effect::Notify`]): a timer callback is due (`callback.rs`).
     Notify { token: WatchToken },
+    /// A node held for approval waited `after` for it (`steer.rs`).
+    Approval {
+        node: NodeId,
+        after: std::time::Duration,
+    },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,9 +101,23 @@ impl Timers {
             .into_iter()
             .filter_map(|e| match e.kind {
                 TimerKind::Trigger { target, then } => Some((target, then)),
-                TimerKind::Poll { .. } | TimerKind::Notify { .. } => None,
+                TimerKind::Poll { .. } | TimerKind::Notify { .. } | TimerKind::Approval { .. } => {
+                    None
+                }
             })
             .collect()
+    }
+
+    /// Moves every queued timer `by` later (a paused run resumes, `steer.rs`); their order stays.
+    pub(crate) fn shift(&mut self, by: std::time::Duration) {
+        let entries = std::mem::take(&mut self.heap).into_vec();
+        self.heap = entries
+            .into_iter()
+            .map(|Reverse(mut e)| {
+                e.at = e.at + by;
+                Reverse(e)
+            })
+            .collect();
     }
 
     /// Every timer still queued, live or not, in the order they would fire.

@@ -160,6 +160,18 @@ impl Checker {
                 if n.is_suspended() {
                     found.push((Rule::ActiveWhileSuspended, "the node is suspended".into()));
                 }
+                if let Some(why) = self.replay.paused() {
+                    found.push((
+                        Rule::ActiveWhilePaused,
+                        format!("the run is paused ({why})"),
+                    ));
+                }
+                if self.replay.held().any(|h| h == n.number()) {
+                    found.push((
+                        Rule::ActiveWhileHeld,
+                        "the node is held for approval and was not approved".into(),
+                    ));
+                }
             }
             Facet::Expansion => {
                 if !n.goal_started_below {

@@ -56,6 +56,10 @@ pub enum Rule {
     ActiveWhileTerminating,
     /// Handling became active while the node was suspended.
     ActiveWhileSuspended,
+    /// Handling became active while the run was paused (between `paused` and `resumed`).
+    ActiveWhilePaused,
+    /// Handling became active while the node was held for approval (`held`, no `approved`).
+    ActiveWhileHeld,
     /// Expansion became active while no goal-like node of the subtree had handling at least active.
     ExpansionActive,
     /// Execution became active while no command-like node of the subtree had handling at least active.
@@ -154,6 +158,8 @@ impl Rule {
             Rule::HandlingSkipsEnabled => "handling-skips-enabled",
             Rule::ActiveWhileTerminating => "active-while-terminating",
             Rule::ActiveWhileSuspended => "active-while-suspended",
+            Rule::ActiveWhilePaused => "active-while-paused",
+            Rule::ActiveWhileHeld => "active-while-held",
             Rule::ExpansionActive => "expansion-active",
             Rule::ExecutionActive => "execution-active",
             Rule::ExpansionComplete => "expansion-complete",

@@ -287,6 +287,37 @@ fn activation_rules() {
 }
 
 #[test]
+fn nothing_starts_while_paused_or_held() {
+    let paused = || TraceKind::Paused {
+        node: None,
+        why: "asked by operator".into(),
+    };
+    let mut b = Tb::new();
+    b.goal(1, 0, "a").tr(1, P, D, E).tr(1, H, D, E);
+    b.push(paused()).tr(1, H, E, A);
+    caught(&b.build(), Rule::ActiveWhilePaused);
+    let mut b = Tb::new();
+    b.goal(1, 0, "a").tr(1, P, D, E).tr(1, H, D, E);
+    b.push(paused())
+        .push(TraceKind::Resumed { held_ns: 5 })
+        .tr(1, H, E, A);
+    passes(&b.build());
+    let mut b = Tb::new();
+    b.goal(1, 0, "a").tr(1, P, D, E).tr(1, H, D, E);
+    b.push(TraceKind::Held { node: 1 }).tr(1, H, E, A);
+    caught(&b.build(), Rule::ActiveWhileHeld);
+    let mut b = Tb::new();
+    b.goal(1, 0, "a").tr(1, P, D, E).tr(1, H, D, E);
+    b.push(TraceKind::Held { node: 1 })
+        .push(TraceKind::Approved {
+            node: 1,
+            by: "operator".into(),
+        })
+        .tr(1, H, E, A);
+    passes(&b.build());
+}
+
+#[test]
 fn completion_rules() {
     // A goal child not handled yet keeps the parent's expansion open.
     let mut b = Tb::new();

@@ -10,7 +10,7 @@ fn lines_serialise_flat_with_tags() {
     let t = small_run();
     assert_eq!(
         to_line(&t[0]),
-        r#"{"seq":0,"t":0,"ev":"run_started","version":8,"run":0}"#
+        r#"{"seq":0,"t":0,"ev":"run_started","version":9,"run":0}"#
     );
     assert_eq!(
         to_line(&t[1]),
@@ -210,7 +210,7 @@ fn errors_name_the_line_and_the_problem() {
     let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":10,\"run\":0}");
     assert_eq!(
         e,
-        "line 1: the trace has format version 10, but this reader reads versions 1 to 8"
+        "line 1: the trace has format version 10, but this reader reads versions 1 to 9"
     );
     assert!(matches!(
         read_jsonl(&b"\xff\n"[..]),

@@ -599,6 +599,11 @@ impl Replay {
             | K::TapAdded { .. }
             | K::TapRemoved { .. }
             | K::Control { .. }
+            | K::Paused { .. }
+            | K::Resumed { .. }
+            | K::Injected { .. }
+            | K::Held { .. }
+            | K::Approved { .. }
             | K::Warning { node: None, .. } => {}
         }
     }
