@@ -9,6 +9,8 @@
 //! A control handle is not an open event handle: it does not keep a run with nothing left to do
 //! from ending.
 
+mod steer;
+
 use crate::Error;
 use crate::ctx::Ctx;
 use crate::task::{Attached, Factory, Handler, Task};

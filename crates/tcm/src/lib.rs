@@ -63,8 +63,8 @@ pub use task::{
     Action, ActionFuture, Attached, Exception, Factory, Handler, Monitor, Tap, Task, Value, factory,
 };
 pub use tcm_core::{
-    AttachId, EachActivation, Outcome, Overrun, PassedOn, ResourceInfo, TapWhen, Then, When,
-    WiretapId,
+    Approval, ApprovalRefused, AttachId, BreakAt, Breakpoint, EachActivation, Fault, FaultOutcome,
+    Matcher, Outcome, Overrun, PassedOn, ResourceInfo, SteerId, TapWhen, Then, When, WiretapId,
 };
 pub use tcm_core::{
     Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,

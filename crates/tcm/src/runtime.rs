@@ -650,7 +650,10 @@ impl RunLoop {
             None
         } else if let Some(outcome) = RunOutcome::of_roots(&inner.roots) {
             Some(outcome)
-        } else if quiet && self.shared.handles.load(Ordering::SeqCst) == 0 {
+        } else if quiet
+            && self.shared.handles.load(Ordering::SeqCst) == 0
+            && !inner.engine.waits_for_operator()
+        {
             // The stuck report scans every node: only when the run is over.
             let awaits = inner.parking.awaits();
             Some(RunOutcome::Stuck(inner.engine.blocked_awaiting(&awaits)))

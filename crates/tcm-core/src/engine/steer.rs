@@ -204,6 +204,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.steer.as_ref().is_some_and(|s| s.paused.is_some())
     }
 
+    /// Whether the run waits for whoever steers it: it is paused, or a node is held for approval.
+    /// Such a run is not stuck (docs/semantics.md, "Run outcome").
+    pub fn waits_for_operator(&self) -> bool {
+        self.steer
+            .as_ref()
+            .is_some_and(|s| s.paused.is_some() || s.held.iter().any(|n| self.is_held(*n)))
+    }
+
     /// Whether nothing starts and no timer fires now: paused, and no step lets one through.
     #[inline]
     pub(super) fn halted(&self) -> bool {
@@ -383,6 +391,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         s.approvals.push((id, rule));
         self.note(format!("{what} (#{})", id.0), by);
         id
+    }
+
+    /// The live node whose display number (the one traces show) is `number`; a linear search,
+    /// for requests from people.
+    pub fn node_by_display(&self, number: u64) -> Option<NodeId> {
+        self.nodes
+            .iter()
+            .find(|(_, n)| n.display == number)
+            .map(|(id, _)| id)
     }
 
     /// The nodes held for approval now, in the order held.

@@ -22,5 +22,6 @@ mod resources;
 mod runtime;
 mod session;
 mod state;
+mod steering;
 mod stuck;
 mod util;
