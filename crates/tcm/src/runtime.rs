@@ -457,6 +457,29 @@ impl Runtime {
         self
     }
 
+    /// Injects `fault` from the start of the run (docs/semantics.md, "Steering a run", rule 4):
+    /// the next ends of the nodes it matches are what it says, their actions never running. For
+    /// tests and simulation: `--faults faults.json` ([`read_faults`](crate::read_faults)).
+    pub fn inject(self, fault: tcm_core::Fault) -> Runtime {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner
+                .engine
+                .inject(tcm_core::Time::ZERO, fault, "faults file");
+        }
+        self
+    }
+
+    /// Adds a rule that holds the nodes it matches until an operator approves them through the
+    /// run's [`Control`](crate::Control) (docs/semantics.md, "Steering a run", rule 5).
+    pub fn require_approval(self, rule: tcm_core::Approval) -> Runtime {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner
+                .engine
+                .require_approval(tcm_core::Time::ZERO, rule, "the program");
+        }
+        self
+    }
+
     /// Adds a wiretap built for one task (TDL's `wiretap w() before T { … }`): the same as
     /// [`Runtime::wiretap`] with the task and the point it names.
     pub fn tap(self, tap: crate::task::Tap) -> Runtime {
