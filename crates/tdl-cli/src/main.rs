@@ -41,6 +41,7 @@ use clap::{Parser, Subcommand};
 mod agree;
 #[cfg(feature = "net")]
 mod certs;
+mod debug;
 mod doc;
 #[cfg(feature = "net")]
 mod executive;

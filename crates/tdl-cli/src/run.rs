@@ -54,6 +54,8 @@ pub(crate) struct Args {
     /// The most loop iterations a body may take without ending (its node fails past them).
     #[arg(long, value_name = "N")]
     max_steps: Option<u64>,
+    #[command(flatten)]
+    steer: crate::debug::Steer,
 }
 
 /// The files, read.
@@ -140,7 +142,7 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
             None => serde_json::Value::Null,
         };
         let task = program.task_json(&name, &args)?;
-        let mut runtime = tdl::Runtime::new();
+        let mut runtime = a.steer.prepare(tdl::Runtime::new())?;
         for h in program.attached() {
             runtime = runtime.attach(h);
         }
@@ -162,7 +164,14 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
             None
         };
         eprintln!("running {name}");
-        let report = runtime.run(task).await?;
+        let report = if a.steer.interactive() {
+            let session = runtime.start()?;
+            a.steer.start(&session.control())?;
+            session.spawn(task)?;
+            session.finish().await?
+        } else {
+            runtime.run(task).await?
+        };
         println!("{report}");
         #[cfg(feature = "net")]
         if let Some(exec) = exec {

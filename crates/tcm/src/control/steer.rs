@@ -88,6 +88,11 @@ impl Control {
         self.ctx.unsuspend(node)
     }
 
+    /// What `node` is now (`None` once it is gone).
+    pub fn info(&self, node: NodeId) -> Result<Option<tcm_core::NodeInfo>, Error> {
+        self.ctx.info(node)
+    }
+
     /// Finds a live node by its display number (the number traces and the viewer show).
     pub fn node_by_number(&self, number: u64) -> Result<Option<NodeId>, Error> {
         self.engine(|e, _| e.node_by_display(number))

@@ -16,6 +16,7 @@ mod serve_killed;
 mod serve_python;
 mod serve_tls;
 mod sim;
+mod steer;
 mod verify;
 mod view;
 
