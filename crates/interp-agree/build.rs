@@ -6,8 +6,9 @@
 //! test checks that each was compiled.
 
 /// The files of each program, relative to this package.
-const PROGRAMS: [&[&str]; 20] = [
+const PROGRAMS: [&[&str]; 21] = [
     &["allowed_warnings"],
+    &["approvals"],
     &["attached_handlers"],
     &["attached_to_extern", "drivers/attached_to_extern_driver"],
     &["blocking_commands"],

@@ -16,6 +16,7 @@ pub use tcm_core::{ResourceDenied, ResourceDropped};
 
 impl Exception for ResourceDenied {}
 impl Exception for ResourceDropped {}
+impl Exception for tcm_core::ApprovalRefused {}
 
 /// A resource with its capacity and pending limit, as a declaration: given to
 /// [`Runtime::declare`](crate::Runtime::declare), or to a spawn's `uses`, which declares it on

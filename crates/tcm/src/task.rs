@@ -585,6 +585,7 @@ impl Task {
             // Resolved by name when the spawn is made (`Kept::wanted`).
             uses: None,
             version: self.version,
+            approval: None,
         };
         (spawn, kept)
     }

@@ -368,6 +368,8 @@ pub(crate) enum Lowered {
 #[derive(Clone)]
 pub(crate) enum Step {
     Propagate,
+    /// `approval [within T]`.
+    Approval(Option<DurEx>),
     Under(Ex),
     OnTerminate(TaskCall, Option<NodeEx>),
     Handler(HandlerCall),

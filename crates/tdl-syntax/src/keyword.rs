@@ -20,6 +20,7 @@ const VOCABULARY: &[&str] = &[
     "activations",
     "active",
     "after",
+    "approval",
     "at",
     "busy",
     "change",
@@ -69,6 +70,7 @@ const VOCABULARY: &[&str] = &[
     "wait",
     "when",
     "while",
+    "within",
 ];
 
 /// Maps a synonym to its canonical word.
@@ -216,6 +218,7 @@ pub(crate) fn starts_constraint(word: &str) -> bool {
             | "wait"
             | "outcome"
             | "propagate"
+            | "approval"
             | "disable"
             | "terminate"
             | "activate"

@@ -58,6 +58,8 @@ pub fn constraint(kind: &ConstraintKind, out: &mut impl Sink) {
         ConstraintKind::Wait => out.text("wait"),
         ConstraintKind::Outcome => out.text("outcome"),
         ConstraintKind::Propagate => out.text("propagate"),
+        ConstraintKind::Approval(None) => out.text("approval"),
+        ConstraintKind::Approval(Some(t)) => out.text(&format!("approval within {}", rel_time(t))),
         ConstraintKind::Trigger { when, then } => trigger(when, *then, out),
         ConstraintKind::MaximumActivate(n) => out.text(&format!("maximum activate {}", count(n))),
         ConstraintKind::MaximumTrigger(n) => out.text(&format!("maximum trigger {}", count(n))),

@@ -166,6 +166,9 @@ pub(crate) struct SpawnIr {
     pub(crate) cons: Vec<CIr>,
     pub(crate) wait: Wait,
     pub(crate) propagate: bool,
+    /// `approval [within T]`: held at its turn to start until the environment approves or
+    /// refuses it.
+    pub(crate) approval: Option<Option<TimeIr>>,
     pub(crate) name: Option<VExpr>,
     pub(crate) handlers: Vec<HandlerUse>,
     pub(crate) on_terminate: Vec<(Call, Option<TagId>)>,

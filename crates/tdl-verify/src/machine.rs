@@ -9,6 +9,7 @@
 //!   collection, a `match`, a `return` or `break` a Rust statement may take) picks one way;
 //! - a running command ends: succeeds, fails with each exception it may raise, or is left running
 //!   until it is terminated;
+//! - an operator approves or refuses a node held for approval (`with approval`);
 //! - an external event the program names is raised;
 //! - time advances to the engine's next deadline, as long as no running command would outlast the
 //!   duration bound.
@@ -67,6 +68,8 @@ pub(crate) enum Action {
     Hang(NodeId),
     /// A modelled command's model decides its ending `i`.
     Decide { node: NodeId, i: u16 },
+    /// An operator approves (`yes`) or refuses a node held for approval (`with approval`).
+    Approve { node: NodeId, yes: bool },
     /// An external event is raised.
     Raise(u16),
     /// The environment uses entry `entry` of its declaration: sets its variable to its `value`th

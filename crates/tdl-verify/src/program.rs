@@ -245,8 +245,13 @@ impl Program {
             b.prog.exceptions.keys().map(|e| leak(e)).collect();
         raisable.extend(b.prog.tasks.iter().filter_map(|t| t.handles));
         // The engine raises these itself, from what the checker follows (an invariant that is
-        // false, a resource refused): a command does not.
-        for engine_raised in ["InvariantFailed", "ResourceDenied", "ResourceDropped"] {
+        // false, a resource refused, an approval refused): a command does not.
+        for engine_raised in [
+            "InvariantFailed",
+            "ResourceDenied",
+            "ResourceDropped",
+            "ApprovalRefused",
+        ] {
             raisable.remove(engine_raised);
         }
         b.prog.raisable = raisable.into_iter().collect();

@@ -14,8 +14,9 @@ use std::path::Path;
 
 /// The programs the interpreter runs as the compiler does: each compiled by `build.rs`, with a
 /// module of its own in `runs/`.
-const RUNS: [&str; 20] = [
+const RUNS: [&str; 21] = [
     "allowed_warnings",
+    "approvals",
     "attached_handlers",
     "attached_to_extern",
     "blocking_commands",

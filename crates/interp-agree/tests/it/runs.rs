@@ -3,6 +3,7 @@
 //! the runs of its goals and commands compared.
 
 mod allowed_warnings;
+mod approvals;
 mod attached_handlers;
 mod attached_to_extern;
 mod blocking_commands;

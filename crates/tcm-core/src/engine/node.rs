@@ -264,6 +264,8 @@ pub(crate) struct Cold<A, F> {
     // action and it never ends.
     pub(crate) approved: bool,
     pub(crate) never_ends: bool,
+    // Held at its turn to start until approved (`Spawn::approval`), with its timeout.
+    pub(crate) approval: Option<Option<std::time::Duration>>,
 }
 
 /// Where a node's failure goes when no handler on the node takes it.
@@ -308,6 +310,7 @@ impl<A, F> Default for Cold<A, F> {
             skipped: false,
             approved: false,
             never_ends: false,
+            approval: None,
         }
     }
 }

@@ -47,7 +47,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if n.action.is_none() && !is_monitor {
             return;
         }
-        let gate = if self.steer.is_some() {
+        let gate = if self.steer.is_some() || n.cold.as_ref().is_some_and(|c| c.approval.is_some())
+        {
             match self.start_gate(id, is_monitor) {
                 super::steer::Gate::Stop => return,
                 super::steer::Gate::Go => None,

@@ -502,9 +502,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// `node`'s turn to start came and it passed its checks (`start.rs`): whether it starts
     /// (rules 2 to 5). Only called on a steered run.
     pub(super) fn start_gate(&mut self, node: NodeId, is_monitor: bool) -> Gate {
-        let Some(s) = self.steer.as_mut() else {
-            return Gate::Go;
-        };
+        let s = self.steering();
         if s.passed == Some(node) {
             s.passed = None;
         } else if s.step == Some(Step::ToStart) {
@@ -600,6 +598,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     fn approval_rule(&self, node: NodeId) -> Option<Option<Duration>> {
+        let own = self
+            .nodes
+            .get(node)
+            .and_then(|n| n.cold.as_ref())
+            .and_then(|c| c.approval);
+        if own.is_some() {
+            return own;
+        }
         let s = self.steer.as_ref()?;
         s.approvals
             .iter()

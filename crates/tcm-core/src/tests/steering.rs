@@ -444,3 +444,28 @@ fn release_clears_breakpoints_approves_the_held_and_resumes() {
     let _ = arm;
     assert_checked(sim.trace());
 }
+
+#[test]
+fn a_spawn_asking_for_approval_is_held_without_any_rule() {
+    let mut sim = Sim::new();
+    let root = sim.engine.root();
+    let mut sp = Spawn::new(root, NodeKind::Command, "grasp", takes(s(1.0)));
+    sp.approval = Some(Some(s(2.0)));
+    let grasp = sim.engine.spawn(Time::ZERO, sp).expect("spawn");
+    let mut sp = Spawn::new(root, NodeKind::Command, "grasp", takes(s(1.0)));
+    sp.approval = Some(None);
+    let other = sim.engine.spawn(Time::ZERO, sp).expect("spawn");
+    sim.run();
+    // The first timed out at 2 s; the other still waits.
+    assert_eq!(sim.engine.held(), vec![other]);
+    assert!(sim.trace().iter().any(|e| matches!(&e.kind,
+        TraceKind::Failed { node: 1, exception, .. } if exception == "ApprovalRefused")
+        && e.t == 2_000_000_000));
+    sim.engine
+        .approve(at(2.0), other, "operator")
+        .expect("held");
+    sim.run();
+    assert_eq!(starts(sim.trace(), "grasp"), vec![2.0]);
+    let _ = grasp;
+    assert_checked(sim.trace());
+}

@@ -157,6 +157,16 @@ impl Spawner<'_> {
         self
     }
 
+    /// Holds the node at its turn to start until an operator approves it through the run's
+    /// [`Control`](crate::Control) (TDL's `with approval [within T]`): refused, or not approved
+    /// within `timeout`, it fails with [`crate::ApprovalRefused`] (docs/semantics.md, "Steering a
+    /// run", rule 5).
+    #[inline]
+    pub fn approval(mut self, timeout: Option<Duration>) -> Self {
+        self.spec.approval = Some(timeout);
+        self
+    }
+
     /// Keep the node after it completes (not reclaimed).
     #[inline]
     pub fn persistent(mut self) -> Self {

@@ -361,6 +361,8 @@ impl Frame {
     fn step<'c>(&mut self, sp: Spawner<'c>, step: &Step, pre: Option<NodeId>) -> R<Spawner<'c>> {
         Ok(match step {
             Step::Propagate => sp.propagate(),
+            Step::Approval(None) => sp.approval(None),
+            Step::Approval(Some(d)) => sp.approval(Some(self.duration(d)?)),
             Step::Under(e) => match self.eval(e)? {
                 Value::Node(n) => sp.under(n),
                 other => return Err(Flow::Fail(crate::builtin::bad("`parent`", &other))),

@@ -469,6 +469,9 @@ impl<'a> Lower<'_, 'a> {
                         continue;
                     }
                     ConstraintKind::Propagate => Step::Propagate,
+                    ConstraintKind::Approval(t) => {
+                        Step::Approval(t.as_ref().map(|t| self.duration(t)))
+                    }
                     ConstraintKind::Name(e) => {
                         let mut e = e;
                         while let syn::Expr::Paren(inner) = e {
@@ -604,6 +607,7 @@ impl<'a> Lower<'_, 'a> {
             | ConstraintKind::OnAgent(_)
             | ConstraintKind::Outcome
             | ConstraintKind::Propagate
+            | ConstraintKind::Approval(_)
             | ConstraintKind::Uses(_)
             | ConstraintKind::Priority(_)
             | ConstraintKind::DenyIfBusy => return None,

@@ -161,6 +161,7 @@ const RUNTIME_EXCEPTIONS: &[&str] = &[
     "Fail",
     "ResourceDenied",
     "ResourceDropped",
+    "ApprovalRefused",
     "InvariantFailed",
     "AgentLost",
     "RemoteError",

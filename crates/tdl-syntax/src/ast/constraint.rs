@@ -121,6 +121,10 @@ pub enum ConstraintKind {
     /// `propagate` (spawn only): the child's failure that no handler on it takes fails the
     /// parent (docs/semantics.md, "Failing the parent").
     Propagate,
+    /// `approval [within REL]` (spawn only): the child waits at its turn to start until an
+    /// operator approves it; refused, or not approved in time, it fails with `ApprovalRefused`
+    /// (docs/semantics.md, "Steering a run").
+    Approval(Option<RelTime>),
     /// `disable [facet] until|for …`, `terminate […]`, `activate […]`: when something happens,
     /// do something (TDL paper Fig. 5). The three differ only in what they do then.
     Trigger {

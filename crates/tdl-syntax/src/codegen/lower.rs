@@ -427,6 +427,7 @@ impl Gen<'_, '_> {
             | ConstraintKind::Wait
             | ConstraintKind::Outcome
             | ConstraintKind::Propagate
+            | ConstraintKind::Approval(_)
             | ConstraintKind::Name(_)
             | ConstraintKind::Parent(_)
             | ConstraintKind::OnTerminate(_)

@@ -233,6 +233,13 @@ impl<'a> Gen<'_, 'a> {
                         continue;
                     }
                     ConstraintKind::Propagate => quote!(.propagate()),
+                    ConstraintKind::Approval(None) => {
+                        quote!(.approval(::core::option::Option::None))
+                    }
+                    ConstraintKind::Approval(Some(t)) => {
+                        let d = duration(t);
+                        quote!(.approval(::core::option::Option::Some(#d)))
+                    }
                     ConstraintKind::Name(expr) => {
                         parts.name = Some(expr.clone());
                         continue;
@@ -460,6 +467,7 @@ impl<'a> Gen<'_, 'a> {
             | ConstraintKind::Parent(_)
             | ConstraintKind::Outcome
             | ConstraintKind::Propagate
+            | ConstraintKind::Approval(_)
             | ConstraintKind::Uses(_)
             | ConstraintKind::Priority(_)
             | ConstraintKind::DenyIfBusy => return TokenStream::new(),

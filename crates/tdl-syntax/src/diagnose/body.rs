@@ -453,6 +453,7 @@ impl<'a> Body<'_, 'a> {
                 | ConstraintKind::Parent(_)
                 | ConstraintKind::Outcome
                 | ConstraintKind::Propagate
+                | ConstraintKind::Approval(_)
         );
         if spawn_only && matches!(site, Site::Stmt(..)) {
             diags.push(

@@ -12,8 +12,8 @@ use super::body::BodyScope;
 use crate::ast::{Ast, ExceptionDecl, Item, ResourceDecl, StateDecl, Task, TaskKind};
 
 /// The exceptions the runtime raises itself, which handlers name without declaring them
-/// (docs/semantics.md, "Resources").
-pub const BUILTIN_EXCEPTIONS: &[&str] = &["ResourceDenied", "ResourceDropped"];
+/// (docs/semantics.md, "Resources" and "Steering a run").
+pub const BUILTIN_EXCEPTIONS: &[&str] = &["ResourceDenied", "ResourceDropped", "ApprovalRefused"];
 
 /// The resolved bodies of a program's tasks, by task.
 pub(crate) type Bodies<'a> = BTreeMap<*const Task, BodyScope<'a>>;

@@ -131,6 +131,17 @@ fn parse_constraint_inner(input: ParseStream, cx: &mut Cx) -> syn::Result<Constr
             take_words(input, 1)?;
             ConstraintKind::Propagate
         }
+        Some("approval") => {
+            take_words(input, 1)?;
+            let within =
+                if peek_words(input.cursor(), 1).first().and_then(|w| w.text) == Some("within") {
+                    take_words(input, 1)?;
+                    Some(parse_rel_time(input)?)
+                } else {
+                    None
+                };
+            ConstraintKind::Approval(within)
+        }
         Some("disable") => disable(input, cx)?,
         Some(word @ ("terminate" | "activate")) => timed(input, cx, word == "activate")?,
         Some("maximum") => match at(1) {

@@ -451,6 +451,9 @@ impl State {
                 _ => None,
             };
         }
+        if let Some(within) = &sp.approval {
+            spec.approval = Some(within.as_ref().map(|t| time_or_second(t, &c.env)));
+        }
         let now = self.engine.now();
         let id = self
             .engine

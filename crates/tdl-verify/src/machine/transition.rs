@@ -61,6 +61,10 @@ impl State {
                 }
             }
         }
+        for node in self.engine.held() {
+            out.push(Action::Approve { node, yes: true });
+            out.push(Action::Approve { node, yes: false });
+        }
         match &cx.prog.environment {
             None => {
                 for (i, n) in self.raised.iter().enumerate() {
@@ -346,6 +350,12 @@ impl State {
                     }
                 }
             }
+            Action::Approve { node, yes: true } => {
+                let _ = s.engine.approve(now, *node, "operator");
+            }
+            Action::Approve { node, yes: false } => {
+                let _ = s.engine.refuse(now, *node, "operator", "refused");
+            }
             Action::Raise(i) => {
                 if let Some(n) = s.raised.get_mut(*i as usize) {
                     *n += 1;
@@ -493,6 +503,11 @@ impl State {
                     self.engine.path(*node)
                 )
             }
+            Action::Approve { node, yes } => format!(
+                "an operator {} {}",
+                if *yes { "approves" } else { "refuses" },
+                self.engine.path(*node)
+            ),
             Action::Raise(i) => format!(
                 "external event `{}` is raised",
                 cx.prog

@@ -587,6 +587,7 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
             cons: Vec::new(),
             wait: Wait::No,
             propagate: false,
+            approval: None,
             name: None,
             handlers: Vec::new(),
             on_terminate: Vec::new(),
@@ -607,6 +608,9 @@ impl<'b, 's, 'a> BodyCompiler<'b, 's, 'a> {
                 ast::ConstraintKind::Wait => wait = true,
                 ast::ConstraintKind::Outcome => outcome = true,
                 ast::ConstraintKind::Propagate => ir.propagate = true,
+                ast::ConstraintKind::Approval(t) => {
+                    ir.approval = Some(t.as_ref().map(|t| self.b.time(t)));
+                }
                 ast::ConstraintKind::Parallel => {}
                 ast::ConstraintKind::Name(e) => ir.name = Some(self.b.lower(e)),
                 ast::ConstraintKind::Parent(_) => {

@@ -7,6 +7,7 @@
 //! seconds in a debug build; `docs/verification.md` has the run with the default bounds.
 
 mod agents;
+mod approvals;
 mod mission;
 mod sim;
 mod state;
