@@ -29,13 +29,16 @@
 //!   a condition the checker cannot evaluate, an external event, time passing);
 //! - the search (`search.rs`): breadth-first, each canonical state once, then the cycles of the
 //!   state graph (runs that never end);
-//! - counterexamples rebuilt by replay with tracing on, checked by `tcm_trace::check` (here);
+//! - counterexamples rebuilt by replay with tracing on, checked by `tcm_trace::check` (here),
+//!   each with the record of its trace at which it breaks its property (`failing.rs`,
+//!   [`Counterexample::failing_seq`]);
 //! - the seeded simulation (`sim.rs`, [`simulate`], `tdl sim`): instead of the search, one walk
 //!   through the machine per seed, each choice drawn from the seed's random stream, commands given
 //!   random durations and outcomes, every run's trace checked.
 
 #![warn(missing_docs)]
 
+mod failing;
 mod ir;
 mod machine;
 mod memory;
@@ -53,6 +56,7 @@ use std::io::Write;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
+pub use failing::Breaks;
 pub use memory::{default_max_memory, fmt_bytes, parse_size};
 pub use model::{Arg, CommandModel, Ending};
 pub use names::{UnknownName, check_names};
@@ -323,6 +327,9 @@ pub struct Counterexample {
     pub trace: Vec<TraceEvent>,
     /// The trace checker's complaints about it, if any.
     pub trace_violations: Vec<String>,
+    /// What the path ends on, for the record at which the property is broken
+    /// ([`Counterexample::failing_seq`]).
+    pub breaks: Breaks,
 }
 
 impl Counterexample {
@@ -553,8 +560,8 @@ pub fn verify_observed(
                 (p, Some(from))
             }
         };
-        let mut c = replay(&cx, task, &path, summary);
-        c.repeats_from = repeats_from;
+        let unhandled = matches!(f, Found::Unhandled(_));
+        let (c, complaint) = replay(&cx, task, &path, summary, repeats_from, unhandled);
         traces_checked += 1;
         let bad_trace = traces
             && !c.trace_violations.is_empty()
@@ -571,6 +578,7 @@ pub fn verify_observed(
             if let Verdict::Violated(c) = &result.verdict {
                 let mut c = c.clone();
                 c.summary = format!("the trace checker rejects the trace of {first}");
+                c.breaks = complaint.map_or(Breaks::AtEnd, |seq| Breaks::TraceChecker { seq });
                 let r = PropertyResult {
                     property: TRACES_CHECK.into(),
                     verdict: Verdict::Violated(c),
@@ -589,13 +597,14 @@ pub fn verify_observed(
     if traces {
         for id in &out.samples {
             let path = path_to(&out.seen, *id);
-            let mut c = replay(&cx, task, &path, "a sampled run".into());
+            let (mut c, complaint) = replay(&cx, task, &path, "a sampled run".into(), None, false);
             traces_checked += 1;
             let first = !found
                 .iter()
                 .any(|(k, _)| *k == Key::Builtin(Builtin::TracesCheck));
             if !c.trace_violations.is_empty() && first {
                 c.summary = format!("the trace checker rejects the trace of {}", c.summary);
+                c.breaks = complaint.map_or(Breaks::AtEnd, |seq| Breaks::TraceChecker { seq });
                 let r = PropertyResult {
                     property: TRACES_CHECK.into(),
                     verdict: Verdict::Violated(Box::new(c)),
@@ -664,14 +673,29 @@ pub fn verify_observed(
     }
 }
 
-/// Replays `path` from the first state with tracing on.
-fn replay(cx: &Ctx<'_>, task: &str, path: &[u16], summary: String) -> Counterexample {
+/// Replays `path` from the first state with tracing on: the counterexample, and the `seq` of the
+/// first record the trace checker complains about, if it does. Its last transitions repeat
+/// forever from the one numbered `repeats_from`, if given; with `unhandled`, the path ends on a
+/// failure no handler takes.
+fn replay(
+    cx: &Ctx<'_>,
+    task: &str,
+    path: &[u16],
+    summary: String,
+    repeats_from: Option<usize>,
+    unhandled: bool,
+) -> (Counterexample, Option<u64>) {
     let mut s = State::init(cx, task, true);
     let mut trace: Vec<TraceEvent> = std::mem::take(&mut s.records);
     let mut steps = Vec::new();
     let mut picks = false;
     let mut actions: Vec<Action> = Vec::new();
-    for &i in path {
+    // Where the repeating part's records start.
+    let mut repeats_at = None;
+    for (step, &i) in path.iter().enumerate() {
+        if repeats_from == Some(step) {
+            repeats_at = Some(trace.len());
+        }
         s.actions(cx, &mut actions);
         let Some(a) = actions.get(i as usize).cloned() else {
             steps.push(format!(
@@ -699,18 +723,28 @@ fn replay(cx: &Ctx<'_>, task: &str, path: &[u16], summary: String) -> Counterexa
     } else {
         tcm_trace::check_prefix(&trace)
     };
+    let complaint = failing::first_complaint(&checked);
     let trace_violations = match checked {
         Ok(_) => Vec::new(),
         Err(v) => v.iter().map(ToString::to_string).collect(),
     };
-    Counterexample {
+    let breaks = match repeats_from {
+        Some(_) => Breaks::Repeats {
+            record: repeats_at.unwrap_or(trace.len()),
+        },
+        None if unhandled => failing::unhandled(&s),
+        None => Breaks::AtEnd,
+    };
+    let c = Counterexample {
         summary,
         steps,
-        repeats_from: None,
+        repeats_from,
         depends_on_conditions: picks,
         hung: s.hung(),
         details,
         trace,
         trace_violations,
-    }
+        breaks,
+    };
+    (c, complaint)
 }

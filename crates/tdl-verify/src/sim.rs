@@ -28,8 +28,8 @@ use crate::machine::{Action, Ctx, Fault, State, fmt_secs};
 use crate::model::{CommandModel, Ending};
 use crate::property::Props;
 use crate::{
-    Builtin, Control, Counterexample, NO_STUCK, NO_UNHANDLED, Options, Program, Property, RUNS_END,
-    Status, TRACES_CHECK, check_names,
+    Breaks, Builtin, Control, Counterexample, NO_STUCK, NO_UNHANDLED, Options, Program, Property,
+    RUNS_END, Status, TRACES_CHECK, check_names,
 };
 
 /// What a simulation draws, and its bounds (docs/verification.md, "Seeded simulation").
@@ -530,6 +530,7 @@ fn walk(
     } else {
         tcm_trace::check_prefix(&trace)
     };
+    let complaint = crate::failing::first_complaint(&checked);
     let trace_violations: Vec<String> = match checked {
         Ok(_) => Vec::new(),
         Err(v) => v.iter().map(ToString::to_string).collect(),
@@ -548,12 +549,15 @@ fn walk(
             cut.get_or_insert(why);
         }
     }
+    // The property broken, how, and where the run breaks it (`Breaks::AtEnd` unless said).
+    let mut breaks = Breaks::AtEnd;
     let violation: Option<(&str, String)> = if let Some(Fault::Unhandled { exception, path }) =
         s.fault.as_ref().filter(|_| checks(Builtin::NoUnhandled))
     {
         details.push(format!(
             "{exception} raised at {path} is taken by no handler"
         ));
+        breaks = crate::failing::unhandled(&s);
         Some((NO_UNHANDLED, "a failure no handler takes".into()))
     } else if let Some(k) = s.broken {
         let text = cx.props.list[k].text();
@@ -576,6 +580,7 @@ fn walk(
             format!("`{text}` is broken: the run ended without it"),
         ))
     } else if !trace_violations.is_empty() && checks(Builtin::TracesCheck) {
+        breaks = complaint.map_or(Breaks::AtEnd, |seq| Breaks::TraceChecker { seq });
         Some((
             TRACES_CHECK,
             "the trace checker rejects the trace of the run".into(),
@@ -595,6 +600,7 @@ fn walk(
                 details,
                 trace: trace.clone(),
                 trace_violations: trace_violations.clone(),
+                breaks,
             },
         )
     });

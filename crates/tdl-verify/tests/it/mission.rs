@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use tcm_trace::{Facet, State, TraceEvent, TraceKind};
 use tdl_verify::{
     Arg, CommandModel, Control, Counterexample, Ending, NO_STUCK, NO_UNHANDLED, Options, Program,
     Property, RUNS_END, Report, TRACES_CHECK, Verdict,
@@ -111,8 +112,38 @@ fn a_removed_handler_is_an_unhandled_exception() {
     );
     assert!(c.depends_on_conditions, "the number of rooms is a choice");
     trace_replays(c);
+    // The failing step: the failure no handler takes, `navigate_to_locn`'s (its planner's, which
+    // it takes, comes before), followed by the records of its end.
+    let failed = failing_record(c);
+    let navigate = spawned(c, "navigate_to_locn");
+    assert!(
+        matches!(&failed.kind, TraceKind::Failed { node, exception, .. }
+            if *node == navigate && exception == "DoorNotFound"),
+        "{failed:?}"
+    );
+    assert!(c.trace.last().is_some_and(|r| r.seq > failed.seq));
     holds(&report, NO_STUCK);
     holds(&report, RUNS_END);
+}
+
+/// The record a counterexample opens at ([`Counterexample::failing_seq`]).
+fn failing_record(c: &Counterexample) -> &TraceEvent {
+    let seq = c.failing_seq().expect("a trace");
+    c.trace
+        .iter()
+        .find(|r| r.seq == seq)
+        .unwrap_or_else(|| panic!("no record {seq}"))
+}
+
+/// The number of the first node named `name` in the counterexample's trace.
+fn spawned(c: &Counterexample, name: &str) -> u64 {
+    c.trace
+        .iter()
+        .find_map(|r| match &r.kind {
+            TraceKind::Spawned { node, name: n, .. } if n == name => Some(*node),
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("no {name} spawned"))
 }
 
 #[test]
@@ -137,6 +168,8 @@ fn a_constraint_cycle_in_a_branch_is_a_stuck_run() {
         c.details
     );
     trace_replays(c);
+    // Stuck: the failing step is the last record.
+    assert_eq!(failing_record(c), c.trace.last().expect("a trace"));
     holds(&report, NO_UNHANDLED);
 }
 
@@ -159,6 +192,26 @@ fn a_monitor_without_terminate_at_never_ends() {
         "{looped:?}"
     );
     trace_replays(c);
+    // The failing step is the first record of the part that repeats: the first activation's
+    // handling completing (its body ends at step 9), after its poll's end at step 8.
+    let failed = failing_record(c);
+    let activation = spawned(c, "ACT-watch_motor");
+    assert!(
+        matches!(failed.kind, TraceKind::Transition { node, facet: Facet::Handling, to: State::Completed, .. }
+            if node == activation),
+        "{failed:?}"
+    );
+    let before = &c.trace[c
+        .trace
+        .iter()
+        .position(|r| r.seq == failed.seq)
+        .expect("there")
+        - 1];
+    let poll = spawned(c, "motor_temperature");
+    assert!(
+        matches!(before.kind, TraceKind::Reclaimed { node } if node == poll),
+        "{before:?}"
+    );
     holds(&report, NO_STUCK);
     holds(&report, NO_UNHANDLED);
 }
