@@ -68,6 +68,7 @@ function loadSnapshot(s) {
   S.times = s.times; S.records = s.records;
   S.states = (s.states || []).map((v) => ({ name: v.name, ty: v.ty, ch: v.changes })); S.finished = s.finished; S.problem = s.problem;
   const last = lastT();
+  fromAddress(s);
   if (S.follow) S.cursor = Math.max(0, S.records - 1);
   if (S.view[1] <= 1 || S.follow) S.view = [0, Math.max(last, 1)];
   S.dirty = true;
@@ -514,7 +515,7 @@ async function loadRuns() {
     const had = sel.options.length;
     if (had !== runs.length) {
       sel.replaceChildren(...runs.map((r) => el('option', { value: r.id }, r.id + ': ' + r.name)));
-      const fromHash = Number(new URLSearchParams(location.hash.slice(1)).get('run'));
+      const fromHash = Number(new URLSearchParams(location.hash.slice(1)).get('run') ?? fromAddress());
       const want = S.runId !== null ? S.runId : (runs.some((r) => r.id === fromHash) ? fromHash : (runs.length ? runs[runs.length - 1].id : null));
       if (want !== null) { sel.value = want; if (S.runId === null) open(want); }
     }
@@ -788,6 +789,23 @@ for (const b of document.querySelectorAll('#tabs button')) {
 $('evfilter').onsubmit = (e) => { e.preventDefault(); evOffset = 0; showEvents(); };
 $('evprev').onclick = () => { evOffset = Math.max(0, evOffset - 200); showEvents(); };
 $('evnext').onclick = () => { evOffset += 200; showEvents(); };
+
+// What the page's address asks for, `?run=N&at=SEQ` (what `tdl view --at` prints; docs/viewer.md):
+// without a snapshot, the run to open (null if none; a `#run=` the page wrote since, the run last
+// chosen, comes first); with the first snapshot of that run (of any run without `run`), it puts
+// the cursor on record SEQ (the last if there are fewer), where it stays rather than follow the
+// live tail. Once only: a run opened again later opens as any other.
+let addressUsed = false;
+function fromAddress(s) {
+  const q = new URLSearchParams(location.search);
+  const num = (k) => (/^[0-9]+$/.test(q.get(k) || '') ? Number(q.get(k)) : null);
+  const run = num('run'), at = num('at');
+  if (!s || addressUsed || at === null || (run !== null && run !== S.runId)) return run;
+  addressUsed = true;
+  S.cursor = Math.max(0, Math.min(at, s.records - 1));
+  S.follow = false;
+  return run;
+}
 
 loadRuns();
 setInterval(loadRuns, 2000);

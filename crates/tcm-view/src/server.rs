@@ -139,6 +139,13 @@ impl Viewer {
         format!("http://{}/", self.addr)
     }
 
+    /// The page's address opening run `run` (its number in the selector, as [`Viewer::add`]
+    /// gives it) with the time cursor on its record `seq`: `http://ADDR/?run=RUN&at=SEQ`
+    /// (docs/viewer.md, "Opening it").
+    pub fn url_at(&self, run: usize, seq: u64) -> String {
+        format!("http://{}/?run={run}&at={seq}", self.addr)
+    }
+
     /// Shows a run read whole (a trace file); returns its number in the selector.
     pub fn add(&self, model: RunModel) -> usize {
         self.shared.add(model).0

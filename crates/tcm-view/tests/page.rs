@@ -4,6 +4,7 @@
 //! again after its end; both look the same. On a run with monitors, served as a trace file is:
 //! a monitor's many activations fold into one row with their count, listed by a click; search
 //! matches names, or paths when the query has a `/`; a node's details are those at the cursor;
+//! an address with `?run=RUN&at=SEQ` opens that run with its cursor on that record;
 //! the Exceptions tab tells a failure a waiting parent took as taken by it; a skipped node looks
 //! skipped. On a run with state variables: a lane per variable with its value at the cursor, a
 //! node's wait on a condition with the values that hold it, skipped nodes counted apart, and a
@@ -384,6 +385,52 @@ fn a_nodes_details_are_those_at_the_cursor() -> anyhow::Result<()> {
             );
             b.wait_for(&at_end, Duration::from_secs(15)).await?;
             ensure!(b.eval(&detail("children")).await? == "3");
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+/// The address `tdl view --at` prints, `?run=RUN&at=SEQ`: the page opens that run with its cursor
+/// on that record, and keeps it there (a finished run opens on its last record otherwise).
+#[test]
+fn an_address_with_run_and_at_opens_that_run_on_that_record() -> anyhow::Result<()> {
+    let _one = one_browser_at_a_time();
+    let (viewer, records) = serve_patrol()?;
+    // A second run, the same records under another name: the address chooses it.
+    let mut again = RunModel::new("again.jsonl");
+    for ev in &paused(common::patrol())? {
+        again.apply(ev).map_err(anyhow::Error::msg)?;
+    }
+    again.finished = true;
+    let run = viewer.add(again);
+    ensure!(run == 1, "the second run is {run}");
+    let at = records as u64 / 2;
+    let url = viewer.url_at(run, at);
+    ensure!(url.ends_with(&format!("/?run=1&at={at}")), "{url}");
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = open_page(&url, records).await?;
+            ensure!(b.eval("S.runId").await? == 1, "another run is open");
+            let shown = b
+                .wait_for(
+                    &format!(
+                        "(() => {{ const c = document.getElementById('cursor'); \
+                         return Number(c.value) === {at} && \
+                         [c.value, document.getElementById('cursorlabel').textContent]; }})()"
+                    ),
+                    Duration::from_secs(15),
+                )
+                .await?;
+            let label = shown[1].as_str().unwrap_or_default();
+            ensure!(
+                label.starts_with(&format!("record {at} of {records} ")),
+                "the cursor's label: {label}"
+            );
+            ensure!(b.eval("S.follow").await? == false, "it follows the tail");
+            b.screenshot(&shots().join("patrol-opened-at.png")).await?;
             anyhow::Ok(())
         })?;
     viewer.stop();
