@@ -17,7 +17,8 @@
 //!   line per record with node numbers, filtered by kind, name, path, node and time (`view.rs`).
 //!   `tdl trace export --mcap OUT.mcap TRACE.jsonl` writes it as MCAP (`export.rs`).
 //!
-//! - `tdl view TRACE.jsonl...` serves the task-tree viewer on the files (`serve.rs`).
+//! - `tdl view TRACE.jsonl...` serves the task-tree viewer on the files (`serve.rs`); `--at SEQ`
+//!   prints the address that opens the first with the time cursor on record SEQ.
 //! - `tdl verify FILE.tdl...` / `tdl verify -p CRATE` explores every behaviour of a program within
 //!   bounds and checks its properties (`verify.rs`, over the `tdl-verify` crate).
 //! - `tdl sim FILE.tdl...` / `tdl sim -p CRATE` runs a program once per seed on virtual time with
@@ -96,6 +97,10 @@ enum Command {
         /// Listen on this address instead (a warning is printed when it is not loopback).
         #[arg(long, value_name = "ADDR")]
         listen: Option<std::net::SocketAddr>,
+        /// Print the address that opens the first file with the time cursor on its record SEQ
+        /// (its `seq`, from 0), as `tdl verify` and `tdl sim` print for a failing run.
+        #[arg(long, value_name = "SEQ")]
+        at: Option<u64>,
     },
     /// Print the static structure of a program as a graph: a node per task (shape and colour by
     /// kind), a cluster per body with its spawns, constraints between spawns as labelled edges,
@@ -322,7 +327,7 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
         Command::Ask(ask) => executive::ask(ask),
         #[cfg(feature = "net")]
         Command::Certs(args) => certs::run(args, &mut out),
-        Command::View { files, listen } => serve::view(&files, listen).map(found),
+        Command::View { files, listen, at } => serve::view(&files, listen, at).map(found),
         Command::Expand { file } => {
             let (name, src) = read(&file)?;
             let (code, diagnostics) = tdl_syntax::compile_str(&name, &src);
