@@ -5,7 +5,8 @@
 //! The program is given as to `tdl verify` (files, or `-p CRATE`). `--seeds N` runs the seeds
 //! `--from` to `--from + N - 1`; `--seed S` runs that seed alone. The first run that breaks each
 //! property is printed in words, its trace written under `--out` (`tdl trace story FILE` replays
-//! it), with the command line that runs its seed again; a seed gives the same run, and the same
+//! it, and `tdl view FILE --at SEQ` opens it on the record where the property is broken), with
+//! the command line that runs its seed again; a seed gives the same run, and the same
 //! trace file, every time. Progress goes to standard error: a bar on a terminal (`indicatif`), a
 //! plain line every second otherwise. Ctrl-C stops after the current run and prints what was
 //! found so far (a second one exits at once). Exit status ([`EXIT_STATUS`]), as `tdl verify`'s:
@@ -272,7 +273,7 @@ impl Drop for Display {
 }
 
 /// Quotes a word for a POSIX shell when it needs it.
-fn shell_word(w: &str) -> String {
+pub(crate) fn shell_word(w: &str) -> String {
     let plain = !w.is_empty()
         && w.chars()
             .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));

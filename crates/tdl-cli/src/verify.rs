@@ -8,7 +8,8 @@
 //! Ctrl-C stops the search and prints what was found so far (a second one exits at once).
 //! Each counterexample is written as a trace file (JSON lines) under `--out` as soon as it is
 //! found, and printed (its path in words and the story of its trace, which `tdl trace story FILE`
-//! replays): a search cut short later, or killed, keeps it. The search stops at `--max-states`
+//! replays, and the `tdl view FILE --at SEQ` command that opens it on the record where the
+//! property is broken): a search cut short later, or killed, keeps it. The search stops at `--max-states`
 //! distinct states or when it uses `--max-memory` (default: half of the machine's memory), as
 //! at a bound: what it did not decide is undecided. Exit status ([`EXIT_STATUS`]): 0 every
 //! property decided and holds, 1 one is broken, 3 none is broken but some was not decided (a bound
@@ -482,8 +483,9 @@ pub(crate) fn write_trace(c: &Counterexample, file: &Path) -> anyhow::Result<()>
     Ok(())
 }
 
-/// A counterexample in words: its length, its trace file, the transitions, the details, and the
-/// story of its trace.
+/// A counterexample in words: its length, its trace file, the `tdl view` command that opens it at
+/// the record where the property is broken ([`Counterexample::failing_seq`]), the transitions,
+/// the details, and the story of its trace.
 pub(crate) fn print_counterexample(
     c: &Counterexample,
     file: &Path,
@@ -500,6 +502,13 @@ pub(crate) fn print_counterexample(
         file.display(),
         file.display()
     )?;
+    if let Some(seq) = c.failing_seq() {
+        writeln!(
+            out,
+            "             open it at the failing step: {}",
+            view_command(file, seq)
+        )?;
+    }
     if c.depends_on_conditions {
         writeln!(
             out,
@@ -531,6 +540,14 @@ pub(crate) fn print_counterexample(
         writeln!(out, "               {line}")?;
     }
     Ok(())
+}
+
+/// `tdl view FILE --at SEQ`, the file quoted for a shell if it needs it.
+fn view_command(file: &Path, seq: u64) -> String {
+    format!(
+        "tdl view {} --at {seq}",
+        crate::sim::shell_word(&file.display().to_string())
+    )
 }
 
 /// The `.tdl` files of a crate of the workspace: its `src/**/*.tdl`, in path order.

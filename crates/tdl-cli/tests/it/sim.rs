@@ -1,6 +1,7 @@
 //! `tdl sim` on the Xavier mission (`-p xavier`) and on a copy with a timing bug that only some
 //! seeds hit: the report, the exit codes, the command line printed to run a failing seed again,
-//! and that it gives the same trace file, to the byte.
+//! and that it gives the same trace file, to the byte; the `tdl view` command printed to open a
+//! failing run's trace on the record where it breaks its property.
 
 use super::tdl;
 
@@ -75,6 +76,10 @@ fn a_failing_seed_is_reported_and_runs_again_to_the_same_trace() {
     let trace =
         format!("{dir}/deliver_all-seed-{seed}-completed-look_for_door-before-active-speak.jsonl");
     assert!(out.contains(&format!("trace: {trace}")), "{out}");
+    // The property is broken by the run's last record, where it stopped: the step to open.
+    let failing = super::verify::failing_step(&out);
+    assert_eq!(failing.file, trace);
+    assert_eq!(Some(&failing.record), failing.records.last());
     let first = std::fs::read(&trace).expect("the trace is written");
     std::fs::remove_file(&trace).expect("removed");
     // The seed alone: the same failure and the same file.
@@ -101,6 +106,33 @@ fn a_failing_seed_is_reported_and_runs_again_to_the_same_trace() {
     assert!(story.contains("center_on_door terminated"), "{story}");
     let (code, checked, _) = tdl(&["trace", "check", &trace]);
     assert_eq!(code, 0, "{checked}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A run whose failure nothing handles opens at the `failed` record of that failure.
+#[test]
+fn a_failure_nothing_handles_opens_at_its_failed_record() {
+    let dir = out_dir("unhandled");
+    let (code, out, err) = tdl(&[
+        "sim",
+        "../tdl-verify/test_data/removed_handler.tdl",
+        "--seeds",
+        "100",
+        "--out",
+        &dir,
+    ]);
+    assert_eq!(code, 1, "{out}{err}");
+    let from = out
+        .find("  VIOLATED   no unhandled exception: in ")
+        .unwrap_or_else(|| panic!("no unhandled failure:\n{out}"));
+    let failing = super::verify::failing_step(&out[from..]);
+    assert!(
+        failing.file.contains("-no-unhandled-exception.jsonl"),
+        "{}",
+        failing.file
+    );
+    assert_eq!(failing.record["ev"], "failed", "{}", failing.record);
+    assert_eq!(failing.record["exception"], "DoorNotFound");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

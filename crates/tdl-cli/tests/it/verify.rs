@@ -44,6 +44,83 @@ fn a_seeded_bug_gives_a_counterexample_trace_and_exit_1() {
     }
     let (code, checked, _) = tdl(&["trace", "check", &file]);
     assert_eq!(code, 0, "{checked}");
+    // The step it prints to open the trace at is the failure nothing handles.
+    let failing = failing_step(&out);
+    assert_eq!(failing.file, file);
+    assert_eq!(failing.record["ev"], "failed", "{}", failing.record);
+    assert_eq!(failing.record["exception"], "DoorNotFound");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// What a report says of the failing step: `open it at the failing step: tdl view FILE --at N`,
+/// the first such line.
+pub(crate) struct FailingStep {
+    /// The trace file.
+    pub(crate) file: String,
+    /// Its record `seq` N, as JSON.
+    pub(crate) record: serde_json::Value,
+    /// Its records.
+    pub(crate) records: Vec<serde_json::Value>,
+}
+
+/// The failing step a report prints, read from its trace file.
+pub(crate) fn failing_step(out: &str) -> FailingStep {
+    let command = out
+        .lines()
+        .find_map(|l| {
+            l.trim()
+                .strip_prefix("open it at the failing step: tdl view ")
+        })
+        .unwrap_or_else(|| panic!("no `tdl view` line:\n{out}"));
+    let (file, seq) = command.rsplit_once(" --at ").expect("FILE --at N");
+    let seq: u64 = seq.parse().expect("a record number");
+    let records: Vec<serde_json::Value> = std::fs::read_to_string(file)
+        .expect("the trace is written")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON record"))
+        .collect();
+    let record = records
+        .iter()
+        .find(|r| r["seq"] == seq)
+        .unwrap_or_else(|| panic!("{file} has no record {seq}"))
+        .clone();
+    FailingStep {
+        file: file.to_owned(),
+        record,
+        records,
+    }
+}
+
+#[test]
+fn a_stuck_run_opens_at_its_last_record() {
+    let dir = out_dir("stuck");
+    let mut args = vec![
+        "verify",
+        "../tdl-verify/test_data/constraint_cycle.tdl",
+        "--out",
+        &dir,
+    ];
+    args.extend(SMALL);
+    let (code, out, err) = tdl(&args);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(out.contains("  VIOLATED   no stuck state: stuck"), "{out}");
+    let failing = failing_step(&out);
+    assert_eq!(
+        failing.file,
+        format!("{dir}/deliver_all-no-stuck-state.jsonl")
+    );
+    assert_eq!(Some(&failing.record), failing.records.last());
+    // Printed beside the trace's path.
+    let at = out
+        .lines()
+        .position(|l| l.contains("open it at the failing step: "))
+        .expect("the line");
+    assert!(
+        out.lines()
+            .nth(at - 1)
+            .is_some_and(|l| l.contains(&format!("trace: {}", failing.file))),
+        "{out}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
