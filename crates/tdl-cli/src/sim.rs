@@ -99,6 +99,10 @@ pub(crate) struct Args {
     /// Commands written in Rust may also fail with an exception nobody declares.
     #[arg(long)]
     unknown_exception: bool,
+    /// Inject the faults of this file into every run: the nodes they match end as they say
+    /// (docs/tools.md, "Steering `tdl run` from its terminal", for the format).
+    #[arg(long, value_name = "FILE")]
+    faults: Option<std::path::PathBuf>,
     /// A built-in property not to check (repeat, or separate with commas), as for `tdl verify`:
     /// no-stuck-state, no-unhandled-exception, every-run-ends (a run going on past `--depth` or
     /// `--max-time` then ends at a bound), trace-checker.
@@ -206,6 +210,10 @@ fn options(args: &Args) -> anyhow::Result<SimOptions> {
             allowed: args.allow.clone(),
             unknown_exception: args.unknown_exception,
             unchecked: args.no_builtin.clone(),
+            faults: match &args.faults {
+                Some(path) => tdl::read_faults(path)?,
+                None => Vec::new(),
+            },
             ..d
         },
         min_duration,

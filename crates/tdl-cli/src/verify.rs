@@ -96,6 +96,10 @@ pub(crate) struct Args {
     /// Commands written in Rust may also fail with an exception nobody declares.
     #[arg(long)]
     unknown_exception: bool,
+    /// Inject the faults of this file into every run: the nodes they match end as they say
+    /// (docs/tools.md, "Steering `tdl run` from its terminal", for the format).
+    #[arg(long, value_name = "FILE")]
+    faults: Option<std::path::PathBuf>,
     /// A property to check besides the built-in ones (repeat), e.g.
     /// `never active(turn) and active(guarded_move)`, `completed(plan) before active(move)`.
     #[arg(short = 'P', long = "property", value_name = "PROPERTY")]
@@ -119,7 +123,7 @@ pub(crate) fn run(args: Args, out: &mut impl Write) -> anyhow::Result<u8> {
     let task = program.root_task(args.task.as_deref())?;
     let properties = load_properties(&args.property, args.properties.as_deref())?;
     tdl_verify::check_names(&program, &task, &properties)?;
-    let options = options(&args);
+    let options = options(&args)?;
     writeln!(
         out,
         "verifying `{task}` of {} (loops {}, recursion {}, ticks {}, events {}, hangs {}, depth {}, max states {}, max memory {})",
@@ -305,9 +309,9 @@ pub(crate) fn stop_on_ctrl_c(control: &Arc<Control>) {
     });
 }
 
-fn options(args: &Args) -> Options {
+fn options(args: &Args) -> anyhow::Result<Options> {
     let d = Options::default();
-    Options {
+    Ok(Options {
         loops: args.loops.unwrap_or(d.loops),
         recursion: args.recursion.unwrap_or(d.recursion),
         depth: args.depth.unwrap_or(d.depth),
@@ -320,7 +324,11 @@ fn options(args: &Args) -> Options {
         allowed: args.allow.clone(),
         unknown_exception: args.unknown_exception,
         samples: d.samples,
-    }
+        faults: match &args.faults {
+            Some(path) => tdl::read_faults(path)?,
+            None => Vec::new(),
+        },
+    })
 }
 
 /// Progress on standard error: a spinner on a terminal, a line a second otherwise.

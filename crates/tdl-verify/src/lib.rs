@@ -118,6 +118,9 @@ pub struct Options {
     /// many runs that ended (the first found), as many paths to states spread evenly over the
     /// order of discovery, and the path to the deepest state.
     pub samples: usize,
+    /// Faults injected from the start of every run (docs/semantics.md, "Steering a run", rule 4):
+    /// the nodes they match end as they say, and only that way (`--faults FILE`).
+    pub faults: Vec<tcm_core::Fault>,
 }
 
 impl Options {
@@ -259,6 +262,7 @@ impl Default for Options {
             allowed: Vec::new(),
             unknown_exception: false,
             samples: 16,
+            faults: Vec::new(),
         }
     }
 }

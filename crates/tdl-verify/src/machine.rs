@@ -262,6 +262,9 @@ impl State {
         let mut engine: Eng = Engine::new(1);
         engine.set_tracing(tracing);
         engine.hold_by_default(true);
+        for fault in &cx.opts.faults {
+            engine.inject(Time::ZERO, fault.clone(), "faults file");
+        }
         let prog = cx.prog;
         // The declared resources (the generated code declares each on its first use; declared
         // first here, in order, they behave the same).

@@ -221,3 +221,30 @@ fn a_name_no_node_has_is_an_error() {
         "{err}"
     );
 }
+
+/// `--faults FILE`: the Xavier mission simulated with the next `guarded_move` jammed; with a
+/// fault nobody handles (an exception the mission has no handler for), every run reports it.
+#[test]
+fn faults_from_a_file_are_injected_into_every_run() {
+    let dir = out_dir("faults");
+    std::fs::create_dir_all(&dir).expect("a directory");
+    let faults = format!("{dir}/faults.json");
+    std::fs::write(
+        &faults,
+        r#"[{"task": "guarded_move", "exception": "Jammed", "message": "the wheels are jammed"}]"#,
+    )
+    .expect("write the faults");
+    let (code, out, err) = tdl(&[
+        "sim", "-p", "xavier", "--seeds", "5", "--fail", "0", "--faults", &faults, "--out", &dir,
+    ]);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(out.contains("VIOLATED   no unhandled exception"), "{out}");
+    assert!(
+        out.contains("fault injected: fail Jammed: the wheels are jammed"),
+        "{out}"
+    );
+    let (code, out, err) = tdl(&[
+        "sim", "-p", "xavier", "--seeds", "5", "--fail", "0", "--out", &dir,
+    ]);
+    assert_eq!(code, 0, "without the fault: {out}{err}");
+}
