@@ -59,10 +59,13 @@ impl Control {
 
     /// Raises the external event `name`.
     pub fn raise(&self, name: &str) -> Result<(), Error> {
-        self.engine(|e, now| {
-            let id = e.external(name);
-            e.handle_external(now, id);
-        })
+        crate::runtime::raise(&self.ctx.shared, name, None)
+    }
+
+    /// Raises the external event `name` carrying `data`, which each monitor activation it makes
+    /// reads with [`Ctx::activation_data`].
+    pub fn raise_with<T: Any + Send + Sync>(&self, name: &str, data: T) -> Result<(), Error> {
+        crate::runtime::raise(&self.ctx.shared, name, Some(std::sync::Arc::new(data)))
     }
 
     /// The live top-level tasks, in spawn order.

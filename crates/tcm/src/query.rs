@@ -95,11 +95,16 @@ impl Ctx {
         Ok(act)
     }
 
-    /// In a monitor activation: the data it was activated with ([`Ctx::activate_with`]), if it is a
-    /// `T`. `None` for an activation made otherwise (a period, a constraint, an event).
+    /// In a monitor activation: the data it was activated with ([`Ctx::activate_with`], or an
+    /// external event raised with data, [`EventHandle::raise_with`](crate::EventHandle::raise_with)),
+    /// if it is a `T`. `None` for an activation made otherwise (a period, a constraint, an event
+    /// without data).
     pub fn activation_data<T: Any + Send + Sync>(&self) -> Option<Arc<T>> {
         let inner = lock(&self.shared).ok()?;
-        let data = inner.activation_data.get(&self.node)?.clone();
+        let data = match inner.activation_data.get(&self.node) {
+            Some(d) => d.clone(),
+            None => inner.engine.activation_data(self.node)?,
+        };
         data.downcast::<T>().ok()
     }
 }

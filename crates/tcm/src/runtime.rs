@@ -160,14 +160,17 @@ impl EventHandle {
     /// Raises the event `name` (latched: constraints applied later find it raised). After the
     /// run ended, [`Error::RunEnded`].
     pub fn raise(&self, name: &str) -> Result<(), Error> {
-        let mut s = self.shared.enter()?;
-        if s.ended {
-            return Err(Error::RunEnded);
-        }
-        let now = self.shared.now();
-        let id = s.engine.external(name);
-        s.engine.handle_external(now, id);
-        Ok(())
+        raise(&self.shared, name, None)
+    }
+
+    /// Raises the external event `name` carrying `data`: each monitor activation it makes reads
+    /// it with [`Ctx::activation_data`] (TCM's external event with data).
+    pub fn raise_with<T: std::any::Any + Send + Sync>(
+        &self,
+        name: &str,
+        data: T,
+    ) -> Result<(), Error> {
+        raise(&self.shared, name, Some(Arc::new(data)))
     }
 
     /// Sets the state variable `name` (declared by the program or the runtime; an undeclared one
@@ -604,6 +607,22 @@ impl Runtime {
             Ok(None)
         }
     }
+}
+
+/// Raises the external event `name`, with `data` if any (an input to the engine).
+pub(crate) fn raise(
+    shared: &Arc<Shared>,
+    name: &str,
+    data: Option<Arc<dyn std::any::Any + Send + Sync>>,
+) -> Result<(), Error> {
+    let mut s = shared.enter()?;
+    if s.ended {
+        return Err(Error::RunEnded);
+    }
+    let now = shared.now();
+    let id = s.engine.external(name);
+    s.engine.handle_external_with(now, id, data);
+    Ok(())
 }
 
 /// The report of a run that ended with `outcome`.

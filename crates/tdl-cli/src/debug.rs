@@ -13,7 +13,7 @@ use tdl::{Approval, BreakAt, Breakpoint, Control, Failure, Fault, FaultOutcome, 
 const HELP: &str = "commands: c (continue), s (step), n (to the next start), p (pause), \
 b TASK (break before its start), e TASK (break after its end), x TASK EXCEPTION (inject), \
 d ID (remove a breakpoint or rule), h (held nodes), a N (approve node N), r N [WHY] (refuse), \
-help";
+ev EVENT [JSON] (raise an external event, with data), help";
 
 /// The steering options of `tdl run`.
 #[derive(clap::Args, Default)]
@@ -162,6 +162,17 @@ fn command(control: &Control, line: &str) -> anyhow::Result<Option<String>> {
             };
             control.refuse(node(control, n)?, by, &why)?;
             "refused".into()
+        }
+        ("ev" | "raise", [event, data @ ..]) => {
+            if data.is_empty() {
+                control.raise(event)?;
+            } else {
+                let data: serde_json::Value = serde_json::from_str(&data.join(" "))
+                    .context("`ev EVENT JSON`: the data is not JSON")?;
+                control.note(&format!("raise {event} with {data}"), by)?;
+                control.raise_with(event, data)?;
+            }
+            format!("raised {event}")
         }
         ("help" | "?", _) => HELP.into(),
         _ => anyhow::bail!("`{line}`: not a command; {HELP}"),

@@ -444,7 +444,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 node: target,
                 explicit: false,
             }),
-            Then::Activate => self.activation_due(target),
+            Then::Activate => {
+                self.activation_due(target);
+            }
             // Never armed as a waiter or a timer: `state.rs` acts on these itself.
             Then::Skip | Then::Invariant | Then::Pause => {}
         }

@@ -241,18 +241,16 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// An activation source fired (timer, event, external event).
-    pub(crate) fn activation_due(&mut self, monitor: NodeId) {
-        let Some(n) = self.nodes.get(monitor) else {
-            return;
-        };
+    pub(crate) fn activation_due(&mut self, monitor: NodeId) -> Option<NodeId> {
+        let n = self.nodes.get(monitor)?;
         if !n.alive() || n.state(Facet::Handling) == State::Completed {
-            return;
+            return None;
         }
         if n.state(Facet::Handling) != State::Active {
             self.inactive_monitor_warning(monitor);
-            return;
+            return None;
         }
-        self.make_activation(monitor);
+        self.make_activation(monitor)
     }
 
     /// The monitor's handling became active (step 1 of the protocol).
@@ -304,7 +302,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 return;
             }
             (Overrun::Skip, true) => {}
-            _ => self.activation_due(monitor),
+            _ => {
+                self.activation_due(monitor);
+            }
         }
         let Some(n) = self.nodes.get(monitor) else {
             return;

@@ -266,6 +266,8 @@ pub(crate) struct Cold<A, F> {
     pub(crate) never_ends: bool,
     // Held at its turn to start until approved (`Spawn::approval`), with its timeout.
     pub(crate) approval: Option<Option<std::time::Duration>>,
+    // For an activation made by an external event raised with data: that data.
+    pub(crate) data: Option<std::sync::Arc<dyn std::any::Any + Send + Sync>>,
 }
 
 /// Where a node's failure goes when no handler on the node takes it.
@@ -311,6 +313,7 @@ impl<A, F> Default for Cold<A, F> {
             approved: false,
             never_ends: false,
             approval: None,
+            data: None,
         }
     }
 }

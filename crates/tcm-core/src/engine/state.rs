@@ -575,13 +575,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 }
                 Act::Activate => {
                     if holds && !w.held {
-                        self.activation_due(w.target);
+                        let _ = self.activation_due(w.target);
                     }
                     self.set_held(slot, holds);
                     false
                 }
                 Act::Changed => {
-                    self.activation_due(w.target);
+                    let _ = self.activation_due(w.target);
                     false
                 }
                 Act::Invariant => {

@@ -1,5 +1,6 @@
 //! Activation data (issue 11, point 12): a monitor activated with data (TCM's
-//! `TCM_Activate(monitor, data)`) hands it to that activation's body, and to no other.
+//! `TCM_Activate(monitor, data)`), or by an external event raised with data, hands it to that
+//! activation's body, and to no other.
 
 use crate::util::{only, run_checked, story};
 use std::sync::{Arc, Mutex};
@@ -69,4 +70,47 @@ async fn data_outside_an_activation_reads_as_none() {
     });
     let (report, _) = run_checked(Runtime::new(), task).await;
     assert_eq!(report.outcome, RunOutcome::Completed);
+}
+
+/// An external event raised with data (`EventHandle::raise_with`) hands it to the activation it
+/// makes; one raised without data makes an activation without.
+#[tokio::test(start_paused = true)]
+async fn an_external_event_raised_with_data_hands_it_to_its_activation() {
+    let seen: Seen = Arc::default();
+    let s = seen.clone();
+    let rt = Runtime::new();
+    let events = rt.events();
+    let task = Task::goal("g", move |ctx| async move {
+        let bump = ctx.external("bump")?;
+        let params = Monitor {
+            max_activations: Some(2),
+            ..Monitor::default()
+        };
+        ctx.spawn(Task::monitor("bumper", params, move |ctx| {
+            let s = s.clone();
+            async move {
+                let (n, _) = ctx.activation().unwrap_or_default();
+                let bump = ctx.activation_data::<Bump>().map(|b| b.side);
+                s.lock().expect("seen").push((n, bump, false));
+                Ok(())
+            }
+        }))
+        .activate(tcm::When::External(bump))
+        .start()?;
+        Ok(())
+    });
+    tokio::spawn(async move {
+        tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+        events
+            .raise_with("bump", Bump { side: "rear" })
+            .expect("raise");
+        tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+        events.raise("bump").expect("raise");
+    });
+    let (report, _) = run_checked(rt, task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(
+        *seen.lock().expect("seen"),
+        [(1, Some("rear"), false), (2, None, false)]
+    );
 }

@@ -41,6 +41,18 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Input: a named external event was raised. It is latched: constraints applied later find it
     /// raised. Monitors activated by it are activated on every raise.
     pub fn handle_external(&mut self, now: Time, event: ExternalId) {
+        self.handle_external_with(now, event, None);
+    }
+
+    /// Input: the external event `event` happened, carrying `data`: as
+    /// [`Engine::handle_external`], and each monitor activation it makes carries the data
+    /// ([`Engine::activation_data`]; TCM's external event with data).
+    pub fn handle_external_with(
+        &mut self,
+        now: Time,
+        event: ExternalId,
+        data: Option<std::sync::Arc<dyn std::any::Any + Send + Sync>>,
+    ) {
         self.advance(now);
         let Some(ext) = self.externals.get_mut(event.0 as usize) else {
             return;
@@ -57,9 +69,21 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
         }
         for monitor in activators {
-            self.activation_due(monitor);
+            let act = self.activation_due(monitor);
+            if let (Some(act), Some(data)) = (act, &data) {
+                self.node_mut(act).cold_mut().data = Some(data.clone());
+            }
         }
         self.settle();
+    }
+
+    /// The data an activation was made with, by an external event raised with data
+    /// ([`Engine::handle_external_with`]); `None` for another node, or once it is gone.
+    pub fn activation_data(
+        &self,
+        node: NodeId,
+    ) -> Option<std::sync::Arc<dyn std::any::Any + Send + Sync>> {
+        self.query(node)?.cold.as_ref()?.data.clone()
     }
 
     /// Input: `node`'s action runs on another process of a distributed system, the agent
