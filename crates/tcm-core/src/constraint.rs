@@ -165,6 +165,11 @@ pub enum Constraint {
     Parallel,
     /// When something happens, do something: `disable … until`, `terminate …`, `activate …`.
     Trigger(When, Then),
+    /// `with approval [within T]`: held at its turn to start until an operator approves it;
+    /// refused, or not approved within the time, it fails with [`crate::ApprovalRefused`]
+    /// (docs/semantics.md, "Steering a run", rule 5). No `constrained` record: its `held` record
+    /// says it when its turn comes.
+    Approval(Option<std::time::Duration>),
 }
 
 impl Constraint {

@@ -585,7 +585,6 @@ impl Task {
             // Resolved by name when the spawn is made (`Kept::wanted`).
             uses: None,
             version: self.version,
-            approval: None,
         };
         (spawn, kept)
     }

@@ -110,10 +110,6 @@ pub struct Spawn<A, F = ()> {
     /// The version of the program that defines its task, when the program was loaded under one
     /// (a serving executive's content hash): its `spawned` record names it.
     pub version: Option<std::sync::Arc<str>>,
-    /// Held at its turn to start until an operator approves it (TDL's `with approval [within
-    /// T]`; docs/semantics.md, "Steering a run", rule 5): `Some(None)` waits as long as it takes,
-    /// `Some(Some(t))` fails with [`crate::ApprovalRefused`] after `t`.
-    pub approval: Option<Option<std::time::Duration>>,
 }
 
 impl<A, F: Clone> Spawn<A, F> {
@@ -134,7 +130,6 @@ impl<A, F: Clone> Spawn<A, F> {
             retry: None,
             uses: None,
             version: None,
-            approval: None,
         }
     }
 
@@ -155,7 +150,6 @@ impl<A, F: Clone> Spawn<A, F> {
             retry: None,
             uses: None,
             version: None,
-            approval: None,
         }
     }
 

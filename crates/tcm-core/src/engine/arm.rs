@@ -97,6 +97,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 Facet::Execution => &[Facet::Execution],
             },
             Constraint::Serial(_) => &[Facet::Expansion, Facet::Execution],
+            Constraint::Approval(_) => &[Facet::Handling],
             Constraint::Parallel
             | Constraint::Trigger(
                 _,
@@ -201,6 +202,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     ) {
         match c {
             Constraint::Parallel => {}
+            Constraint::Approval(within) => self.node_mut(node).cold_mut().approval = Some(within),
             Constraint::ExpandFirst => {
                 self.node_mut(node).expand_first = true;
                 self.constrained(node, || TraceConstraint::ExpandFirst);

@@ -349,6 +349,10 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
                 self.reference(*r, h);
             }
             Constraint::Parallel => 4u8.hash(h),
+            Constraint::Approval(within) => {
+                6u8.hash(h);
+                within.hash(h);
+            }
             Constraint::Trigger(when, then) => {
                 5u8.hash(h);
                 match when {

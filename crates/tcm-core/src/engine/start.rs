@@ -31,43 +31,26 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             return;
         }
-        // Most nodes have no cold part (no resources, not a monitor, no wiretap checks made) and
-        // most runs no wiretap: then none of `start_checks` applies.
-        let (n, is_monitor) = if n.cold.is_none() && self.taps.is_empty() {
-            (n, false)
+        // Most nodes have no cold part (no resources, not a monitor, no wiretap checks made),
+        // most runs no wiretap and nobody steers them: then none of `start_checks` applies.
+        let (n, how) = if n.cold.is_none() && self.taps.is_empty() && self.steer.is_none() {
+            (n, How::Action)
         } else {
-            let Some(is_monitor) = self.start_checks(id) else {
+            let Some(how) = self.start_checks(id) else {
                 return;
             };
             let Some(n) = self.nodes.get_mut(id) else {
                 return;
             };
-            (n, is_monitor)
+            (n, how)
         };
-        if n.action.is_none() && !is_monitor {
+        let payload = n.action.take();
+        if payload.is_none() && how == How::Action {
             return;
-        }
-        let gate = if self.steer.is_some() || n.cold.as_ref().is_some_and(|c| c.approval.is_some())
-        {
-            match self.start_gate(id, is_monitor) {
-                super::steer::Gate::Stop => return,
-                super::steer::Gate::Go => None,
-                super::steer::Gate::Inject(outcome) => Some(outcome),
-            }
-        } else {
-            None
-        };
-        let Some(n) = self.nodes.get_mut(id) else {
-            return;
-        };
-        let mut payload = n.action.take();
-        if gate.is_some() {
-            // A fault stands for the action (`steer.rs`, rule 4): it never runs.
-            payload = None;
         }
         let invariants = !n.invariant_conditions().is_empty();
         let expands = n.kind.expands();
-        if !is_monitor && gate.is_none() {
+        if how == How::Action {
             self.running += 1;
             n.holding = self.hold_default;
         }
@@ -100,11 +83,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     purpose,
                 });
             }
-            None if is_monitor => self.monitor_started(id),
+            None if how == How::Monitor => self.monitor_started(id),
             None => {}
         }
-        if let Some(outcome) = gate {
-            self.injected(id, outcome);
+        if how == How::Injected {
+            self.injected(id);
         }
         if invariants {
             self.check_invariants(id);
@@ -136,12 +119,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.queue_progress(id);
     }
 
-    /// What must happen before a node with a cold part starts: its `skip if` conditions are
-    /// read (it is skipped if one holds), its resources are granted
-    /// (docs/semantics.md, "Resources": it waits, enabled, until then, or fails if it is refused),
-    /// and its "before" wiretaps approve it (it stays enabled until they report,
-    /// `tap_finished`). Returns whether it is a monitor, or `None` if it does not start now.
-    fn start_checks(&mut self, id: NodeId) -> Option<bool> {
+    /// What must happen before a node with a cold part, or of a run with wiretaps or steered,
+    /// starts: its `skip if` conditions are read (it is skipped if one holds), its resources are
+    /// granted (docs/semantics.md, "Resources": it waits, enabled, until then, or fails if it is
+    /// refused), its "before" wiretaps approve it (it stays enabled until they report,
+    /// `tap_finished`), and the run's steering lets it go (`steer.rs`: a breakpoint, an approval
+    /// hold, a fault that stands for its action). Returns how it starts, or `None` if it does not
+    /// start now.
+    fn start_checks(&mut self, id: NodeId) -> Option<How> {
         let n = self.nodes.get(id)?;
         if !n.skip_conditions().is_empty() && self.skips(id) {
             self.skip(id);
@@ -163,6 +148,36 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 return None;
             }
         }
-        Some(is_monitor)
+        let n = self.nodes.get(id)?;
+        if n.action.is_none() && !is_monitor {
+            return None;
+        }
+        let steered = self.steer.is_some() || n.cold.as_ref().is_some_and(|c| c.approval.is_some());
+        let gate = if steered {
+            self.start_gate(id, is_monitor)
+        } else {
+            super::steer::Gate::Go
+        };
+        match gate {
+            super::steer::Gate::Stop => None,
+            super::steer::Gate::Inject => {
+                // A fault stands for the action (`steer.rs`, rule 4): it never runs.
+                drop(self.nodes.get_mut(id)?.action.take());
+                Some(How::Injected)
+            }
+            super::steer::Gate::Go if is_monitor => Some(How::Monitor),
+            super::steer::Gate::Go => Some(How::Action),
+        }
     }
+}
+
+/// How a node starts (`start_checks`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum How {
+    /// Its action is handed to the shell.
+    Action,
+    /// A monitor: it has no action; its activations begin.
+    Monitor,
+    /// A fault stands for its action, which never runs (`steer.rs`, rule 4).
+    Injected,
 }

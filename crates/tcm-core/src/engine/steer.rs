@@ -131,8 +131,9 @@ enum Step {
 pub(super) enum Gate {
     /// It starts.
     Go,
-    /// It starts, and a fault stands for its action.
-    Inject(FaultOutcome),
+    /// It starts, and a fault stands for its action (kept in `Steering::injecting` until its
+    /// handling is active).
+    Inject,
     /// It does not start now (paused before it, or held for approval).
     Stop,
 }
@@ -152,6 +153,8 @@ pub(super) struct Steering {
     approvals: Vec<(SteerId, Approval)>,
     // Nodes held for approval, in the order held.
     held: Vec<NodeId>,
+    // The fault standing for the action of the node starting now (`Gate::Inject`).
+    injecting: Option<(NodeId, FaultOutcome)>,
     last: u32,
 }
 
@@ -539,7 +542,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             return Gate::Go;
         }
         match self.fault_for(node) {
-            Some(outcome) => Gate::Inject(outcome),
+            Some(outcome) => {
+                self.steering().injecting = Some((node, outcome));
+                Gate::Inject
+            }
             None => Gate::Go,
         }
     }
@@ -568,6 +574,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// Rule 3 for the points other than a start: pauses the run if a breakpoint `at` matches.
+    #[cold]
+    #[inline(never)]
     pub(super) fn break_at(&mut self, at: BreakAt, node: NodeId, failure: Option<&Failure>) {
         if self.steer.is_none() {
             return;
@@ -645,7 +653,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     /// What happens at the start of a node a fault stands for (rule 4); its handling is active.
-    pub(super) fn injected(&mut self, node: NodeId, outcome: FaultOutcome) {
+    pub(super) fn injected(&mut self, node: NodeId) {
+        let Some((_, outcome)) = self
+            .steer
+            .as_mut()
+            .and_then(|s| s.injecting.take())
+            .filter(|(n, _)| *n == node)
+        else {
+            return;
+        };
         let display = self.node(node).display;
         emit!(
             self,

@@ -65,7 +65,6 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             retry,
             mut uses,
             version,
-            approval,
         } = spec;
         self.live(parent)?;
         if let Some(u) = uses.as_mut() {
@@ -113,9 +112,6 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             node.persistent = persistent;
             if task.is_some() {
                 node.cold_mut().task = task;
-            }
-            if approval.is_some() {
-                node.cold_mut().approval = approval;
             }
             if on_terminate.is_empty() {
                 discard(on_terminate);

@@ -449,11 +449,11 @@ fn release_clears_breakpoints_approves_the_held_and_resumes() {
 fn a_spawn_asking_for_approval_is_held_without_any_rule() {
     let mut sim = Sim::new();
     let root = sim.engine.root();
-    let mut sp = Spawn::new(root, NodeKind::Command, "grasp", takes(s(1.0)));
-    sp.approval = Some(Some(s(2.0)));
+    let sp = Spawn::new(root, NodeKind::Command, "grasp", takes(s(1.0)))
+        .with(Constraint::Approval(Some(s(2.0))));
     let grasp = sim.engine.spawn(Time::ZERO, sp).expect("spawn");
-    let mut sp = Spawn::new(root, NodeKind::Command, "grasp", takes(s(1.0)));
-    sp.approval = Some(None);
+    let sp = Spawn::new(root, NodeKind::Command, "grasp", takes(s(1.0)))
+        .with(Constraint::Approval(None));
     let other = sim.engine.spawn(Time::ZERO, sp).expect("spawn");
     sim.run();
     // The first timed out at 2 s; the other still waits.

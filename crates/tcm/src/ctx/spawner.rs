@@ -163,7 +163,9 @@ impl Spawner<'_> {
     /// run", rule 5).
     #[inline]
     pub fn approval(mut self, timeout: Option<Duration>) -> Self {
-        self.spec.approval = Some(timeout);
+        self.spec
+            .constraints
+            .push(tcm_core::Constraint::Approval(timeout));
         self
     }
 

@@ -452,7 +452,9 @@ impl State {
             };
         }
         if let Some(within) = &sp.approval {
-            spec.approval = Some(within.as_ref().map(|t| time_or_second(t, &c.env)));
+            let within = within.as_ref().map(|t| time_or_second(t, &c.env));
+            spec.constraints
+                .push(tcm_core::Constraint::Approval(within));
         }
         let now = self.engine.now();
         let id = self

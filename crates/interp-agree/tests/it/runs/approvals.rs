@@ -2,6 +2,9 @@
 //! seconds and taken by a handler, both ways alike. (`wait_for_operator` waits for an approval
 //! as long as it takes: a run of it alone would wait for its operator, and is not run here.)
 
+// The program as written (a handler's exception it does not read) and as generated.
+#![allow(unused_variables)]
+
 use tdl_interp::Registry;
 
 use crate::util::Case;
