@@ -103,6 +103,8 @@ pub struct RunModel {
     pub problem: Option<Problem>,
     /// Whether the run ended (a file read to its end; a live run whose sinks were flushed).
     pub finished: bool,
+    /// Whether a page may steer the run (`Viewer::steer`; docs/viewer.md, "Steering a run").
+    pub control: bool,
 }
 
 impl RunModel {
@@ -120,6 +122,7 @@ impl RunModel {
             states: States::default(),
             problem: None,
             finished: false,
+            control: false,
         }
     }
 

@@ -368,8 +368,25 @@ pub fn snapshot_json(id: usize, m: &RunModel) -> String {
     }
     out.push_str(r#"],"nodes":["#);
     write_rows(&mut out, m.rows());
-    out.push_str("]}");
+    out.push(']');
+    write_steering(&mut out, m);
+    out.push('}');
     out
+}
+
+/// The run's steering state as the fold has it, for the snapshot and each live record: whether
+/// a page may steer it, why it is paused (`null` if it is not), the nodes held for approval.
+fn write_steering(out: &mut String, m: &RunModel) {
+    use std::fmt::Write as _;
+    let replay = m.replay();
+    let paused = serde_json::Value::from(replay.paused());
+    let held: Vec<String> = replay.held().map(|n| n.to_string()).collect();
+    let _ = write!(
+        out,
+        r#","control":{},"paused":{paused},"held":[{}]"#,
+        m.control,
+        held.join(",")
+    );
 }
 
 /// The live message of the last record applied to `m` (`docs/viewer.md`, "Live messages"): the
@@ -394,6 +411,7 @@ pub fn record_json(m: &RunModel) -> String {
         out.push_str(r#","state":"#);
         out.push_str(&state.to_string());
     }
+    write_steering(&mut out, m);
     out.push('}');
     out
 }
