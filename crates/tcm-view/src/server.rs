@@ -2,10 +2,14 @@
 //! over the runs it holds, trace files read whole or runs fed live by a [`LiveSink`]. It runs on
 //! its own thread and tokio runtime, so a program on virtual time, or one that blocks, never
 //! slows it, and it never slows the program: a live run's records go to each page through a
-//! bounded channel, and a page that falls behind is sent a fresh snapshot. Read-only.
+//! bounded channel, and a page that falls behind is sent a fresh snapshot. Read-only, but for
+//! a run given a control handle ([`Viewer::steer`]), which a page holding the run's token can
+//! steer (`server/control.rs`).
 //! The API and the page's messages are in `docs/viewer.md`: a live page gets a snapshot of the
 //! fold's rows, then each record with the rows it changed as the fold has them after it
 //! ([`record_json`]), so the page folds nothing itself.
+
+mod control;
 
 use std::net::{SocketAddr, TcpListener};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock};
@@ -13,9 +17,9 @@ use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 use axum::Router;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Path, Query, State};
-use axum::http::{StatusCode, header};
+use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{get, post};
 use serde::Deserialize;
 use tcm_trace::TraceEvent;
 use tokio::sync::{broadcast, oneshot};
@@ -40,11 +44,19 @@ pub enum ViewError {
     /// The server's thread or runtime could not start.
     #[error("cannot start the viewer's server: {0}")]
     Start(#[source] std::io::Error),
+    /// [`Viewer::steer`] was given a number that is no run of this viewer.
+    #[error("the viewer has no run {0}")]
+    NoRun(usize),
+    /// The operating system gave no random bytes for a run's token.
+    #[error("cannot make a token: the operating system gave no random bytes: {0}")]
+    Random(String),
 }
 
 pub(crate) struct Run {
     model: Mutex<RunModel>,
     tx: broadcast::Sender<Arc<str>>,
+    /// Its control, once a page may steer it (`control.rs`).
+    steer: Mutex<Option<control::Steer>>,
 }
 
 impl Run {
@@ -53,6 +65,7 @@ impl Run {
         Arc::new(Run {
             model: Mutex::new(model),
             tx,
+            steer: Mutex::new(None),
         })
     }
 
@@ -62,9 +75,19 @@ impl Run {
     }
 }
 
-#[derive(Default)]
 pub(crate) struct Shared {
     runs: RwLock<Vec<Arc<Run>>>,
+    /// How long a steered run may go without a control request before it is released, in ms.
+    release_after_ms: std::sync::atomic::AtomicU64,
+}
+
+impl Default for Shared {
+    fn default() -> Shared {
+        Shared {
+            runs: RwLock::default(),
+            release_after_ms: control::RELEASE_AFTER_MS.into(),
+        }
+    }
 }
 
 impl Shared {
@@ -106,6 +129,7 @@ impl Viewer {
             .map_err(ViewError::Start)?;
         let (stop, stopped) = oneshot::channel::<()>();
         let app = router(shared.clone());
+        let watched = shared.clone();
         let thread = std::thread::Builder::new()
             .name("tcm-view".to_string())
             .spawn(move || {
@@ -113,6 +137,9 @@ impl Viewer {
                     let Ok(listener) = tokio::net::TcpListener::from_std(listener) else {
                         return;
                     };
+                    tokio::spawn(control::watchdog(watched));
+                    // The peer's address names who asked for each control request.
+                    let app = app.into_make_service_with_connect_info::<SocketAddr>();
                     let _ = axum::serve(listener, app)
                         .with_graceful_shutdown(async move {
                             let _ = stopped.await;
@@ -206,8 +233,8 @@ impl Viewer {
 pub fn exposure_warning(addr: &SocketAddr) -> Option<String> {
     (!addr.ip().is_loopback()).then(|| {
         format!(
-            "warning: the viewer listens on {addr}, which other machines may reach; it is \
-             read-only and has no authentication"
+            "warning: the viewer listens on {addr}, which other machines may reach; it has \
+             no authentication to watch a run, and a steered run's token goes over plain HTTP"
         )
     })
 }
@@ -289,6 +316,7 @@ fn router(shared: Arc<Shared>) -> Router {
         .route("/api/runs/{id}/stats", get(stats))
         .route("/api/runs/{id}/events", get(events))
         .route("/api/runs/{id}/trace.jsonl", get(trace))
+        .route("/api/runs/{id}/control", post(control::control))
         .with_state(shared)
 }
 
@@ -472,7 +500,12 @@ async fn live(
     ws: WebSocketUpgrade,
     State(shared): State<Arc<Shared>>,
     Path(id): Path<usize>,
+    headers: HeaderMap,
 ) -> Response {
+    // A page of another site may not read a run (a browser lets any page open a WebSocket).
+    if control::foreign_origin(&headers) {
+        return control::forbidden("a page of another origin may not watch a run");
+    }
     match shared.run(id) {
         Some(run) => ws.on_upgrade(move |socket| live_socket(socket, id, run)),
         None => no_run(id),
