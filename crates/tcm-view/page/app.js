@@ -72,6 +72,7 @@ function loadSnapshot(s) {
   if (S.follow) S.cursor = Math.max(0, S.records - 1);
   if (S.view[1] <= 1 || S.follow) S.view = [0, Math.max(last, 1)];
   S.dirty = true;
+  steerState(s); // steer.js: whether the run can be steered, paused, held nodes
 }
 
 // The rows a record changed, as the fold has them after it: each replaces the page's node; a node
@@ -103,6 +104,7 @@ function apply(m) {
   S.records = r.seq + 1;
   if (S.follow) { S.cursor = S.records - 1; if (r.t > S.view[1]) S.view[1] = r.t; }
   S.dirty = true;
+  steerState(m); // steer.js
 }
 
 function lastT() { return S.times.length ? S.times[S.times.length - 1] : 0; }
@@ -646,6 +648,7 @@ async function showNode() {
   if (v.failures.length) parts.push(el('h3', {}, 'Failures'), el('ul', {}, ...v.failures.map(([f, t]) => el('li', {}, secs(t) + ' ' + f))));
   parts.push(el('h3', {}, 'History'), el('table', {}, ...v.history.map(([what, t]) => el('tr', {}, el('td', {}, secs(t)), el('td', {}, what)))));
   tab.replaceChildren(...parts);
+  steerNode(tab); // steer.js: the node's steering buttons, when the page steers the run
 }
 
 async function showExceptions() {

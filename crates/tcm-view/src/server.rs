@@ -293,6 +293,7 @@ impl tcm::TraceSink for LiveSink {
 static INDEX_HTML: &str = include_str!("../page/index.html");
 static APP_JS: &str = include_str!("../page/app.js");
 static STYLE_CSS: &str = include_str!("../page/style.css");
+static STEER_JS: &str = include_str!("../page/steer.js");
 
 fn router(shared: Arc<Shared>) -> Router {
     Router::new()
@@ -307,6 +308,10 @@ fn router(shared: Arc<Shared>) -> Router {
         .route(
             "/style.css",
             get(|| async { page("text/css; charset=utf-8", STYLE_CSS) }),
+        )
+        .route(
+            "/steer.js",
+            get(|| async { page("text/javascript; charset=utf-8", STEER_JS) }),
         )
         .route("/api/runs", get(runs))
         .route("/api/runs/{id}/snapshot", get(snapshot))
