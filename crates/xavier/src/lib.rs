@@ -6,7 +6,8 @@
 //!   exception handlers) and the state its tasks share.
 //! - [`robot`]: the robot the mission commands: the world in this process, or a robot agent's in
 //!   another (`xavier --distributed`, docs/distributed.md), with the robot agent's side.
-//! - [`run`]: one mission on a fresh world, with any trace sinks; [`Setup`] says which.
+//! - [`run`]: one mission on a fresh world, with any trace sinks; [`Setup`] says which;
+//!   [`run_steered`], one a viewer can steer.
 //! - [`display`]: the live tree (redrawn in place on a terminal) and the plain event log.
 //! - [`summary`]: rooms delivered, rooms given up and why, exceptions and how each was handled.
 //!
@@ -98,6 +99,27 @@ pub async fn run_scaled(
     let report = rt
         .run(mission::deliver_all(mission.clone(), setup.rooms.clone()))
         .await?;
+    Ok(Done { report, mission })
+}
+
+/// Like [`run_scaled`], through a [`tdl::Session`], for a run steered from outside: `steer` is
+/// given the run's control handle before the mission is spawned (to hand it to a viewer, add
+/// approval rules, pause the run before its first start), then the mission runs to its end.
+pub async fn run_steered<E: From<tdl::Error>>(
+    setup: &Setup,
+    mission: Mission,
+    sinks: Vec<Box<dyn TraceSink>>,
+    scale: f64,
+    steer: impl FnOnce(&tdl::Control) -> Result<(), E>,
+) -> Result<Done, E> {
+    let mut rt = Runtime::new().time_scale(scale);
+    for sink in sinks {
+        rt = rt.with_sink(BoxedSink(sink));
+    }
+    let session = rt.start()?;
+    steer(&session.control())?;
+    session.spawn(mission::deliver_all(mission.clone(), setup.rooms.clone()))?;
+    let report = session.finish().await?;
     Ok(Done { report, mission })
 }
 

@@ -2,6 +2,8 @@
 //! `src/mission.tdl` and shows the live task tree, on a multi-threaded runtime with the real clock
 //! scaled by `--speed` (or unscaled with `--real-time`); when stdout is not a terminal and no
 //! viewer watches, on virtual time as fast as it goes, with a plain event log. Then a summary.
+//! With `--view --control`, the run goes through a session whose control handle the viewer gets,
+//! so the page can steer it (`--approve TASK`, `--pause-at-start`; docs/viewer.md).
 //! With `--distributed`, the robot's commands run in agent processes over zenoh (`distributed.rs`);
 //! `xavier robot-agent ...` is the robot agent those runs start (`robot_agent.rs`).
 
@@ -58,7 +60,7 @@ use tdl::{JsonLines, Recorder, TextLogSink, TraceSink};
 use xavier::display::{EventLog, LiveTree};
 use xavier::mission::Mission;
 use xavier::summary::Summary;
-use xavier::{Setup, run_scaled};
+use xavier::{Done, Setup, run_scaled, run_steered};
 use xavier_world::{Scenario, SharedWorld, World};
 
 /// Xavier, the mail-delivery robot of the TDL paper (Simmons & Apfelbaum 1998), on a simulated
@@ -115,6 +117,21 @@ struct Cli {
     /// With --view: listen on this address instead (a warning is printed when it is not loopback).
     #[arg(long, value_name = "ADDR", requires = "view")]
     listen: Option<std::net::SocketAddr>,
+
+    /// With --view: let the page steer the run (pause, step, breakpoints, injected exceptions,
+    /// approvals; docs/viewer.md, "Steering a run"). Prints the page's address with the run's
+    /// token in it (`control: http://…`); only a page opened from it can steer.
+    #[arg(long, requires = "view")]
+    control: bool,
+
+    /// With --control: hold each node of task TASK (as the trace names it, e.g. notify_sender)
+    /// until it is approved from the page. May be given several times.
+    #[arg(long, value_name = "TASK", requires = "control")]
+    approve: Vec<String>,
+
+    /// With --control: pause the run before its first start, until the page continues it.
+    #[arg(long, requires = "control")]
+    pause_at_start: bool,
 
     /// Write TCM's text log of the run to FILE.
     #[arg(long, value_name = "FILE")]
@@ -266,8 +283,10 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         }
         let viewer = tcm_view::Viewer::start(cli.listen)?;
         println!("viewer: {}", viewer.url());
-        sinks.push(Box::new(viewer.live(title.clone())));
-        Some(viewer)
+        let live = viewer.live(title.clone());
+        let id = live.id();
+        sinks.push(Box::new(live));
+        Some((viewer, id))
     } else {
         None
     };
@@ -287,7 +306,16 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     }
 
     let wall = Instant::now();
-    let future = run_scaled(&setup, mission, sinks, scale);
+    let future: std::pin::Pin<Box<dyn Future<Output = anyhow::Result<Done>> + '_>> =
+        match (&viewer, cli.control) {
+            (Some((viewer, id)), true) => {
+                let (approve, pause) = (&cli.approve, cli.pause_at_start);
+                let before =
+                    move |control: &tdl::Control| steer(approve, pause, viewer, *id, control);
+                Box::pin(run_steered(&setup, mission, sinks, scale, before))
+            }
+            _ => Box::pin(async { Ok(run_scaled(&setup, mission, sinks, scale).await?) }),
+        };
     let done = match &rt {
         Some(rt) => rt.block_on(async {
             let done = future.await?;
@@ -298,7 +326,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 }
                 d.exec.close().await;
             }
-            Ok::<_, tdl::Error>(done)
+            Ok::<_, anyhow::Error>(done)
         }),
         None => tdl::block_on_virtual(future),
     }
@@ -316,7 +344,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
     if !summary.ok() {
         eprintln!("xavier: the run did not complete: {:?}", summary.outcome);
     }
-    if let Some(viewer) = viewer {
+    if let Some((viewer, _)) = viewer {
         println!(
             "viewer: the run is over; its page stays at {} until Ctrl-C",
             viewer.url()
@@ -325,4 +353,32 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         viewer.wait();
     }
     Ok(summary.ok())
+}
+
+/// Before the mission starts (`--control`): the approval rules and the pause asked for, and the
+/// run handed to the viewer, whose steering address is printed.
+fn steer(
+    approve: &[String],
+    pause_at_start: bool,
+    viewer: &tcm_view::Viewer,
+    run: usize,
+    control: &tdl::Control,
+) -> anyhow::Result<()> {
+    for task in approve {
+        let rule = tdl::Approval {
+            on: tdl::Matcher::Task(task.clone().into()),
+            timeout: None,
+        };
+        control.require_approval(rule, "xavier --approve")?;
+    }
+    if pause_at_start {
+        control.pause("xavier --pause-at-start")?;
+    }
+    viewer.steer(run, control.clone())?;
+    let url = viewer
+        .control_url(run)
+        .context("the viewer lost the run's control")?;
+    println!("control: {url}");
+    std::io::stdout().flush()?;
+    Ok(())
 }
