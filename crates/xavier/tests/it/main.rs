@@ -6,6 +6,7 @@ mod distributed;
 mod interpreted;
 mod scenarios;
 mod served;
+mod steer;
 mod util;
 mod viewer;
 mod watched;
