@@ -296,6 +296,9 @@ async fn only_the_token_and_the_viewers_own_origin_steer_a_run() {
     let a = post(addr, id, &with_origin, r#"{"op":"resume"}"#).await;
     assert_eq!(a.json()["paused"], false, "{a:?}");
     not_paused(&control);
+    let raise = r#"{"op":"raise","event":"bump","data":{"side":"left"}}"#;
+    let a = post(addr, id, &with_origin, raise).await;
+    assert_eq!(a.status, 200, "{a:?}");
 
     gate.notify_one();
     session.finish().await.expect("finish");
@@ -308,7 +311,8 @@ async fn only_the_token_and_the_viewers_own_origin_steer_a_run() {
         [
             "pause",
             "breakpoint before the start of task later (#1)",
-            "continue"
+            "continue",
+            r#"raise bump with {"side":"left"}"#
         ]
     );
     assert!(

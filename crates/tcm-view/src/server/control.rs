@@ -214,7 +214,7 @@ enum Op {
     Approval(Target, Option<Duration>),
     Approve(u64),
     Refuse(u64, String),
-    Raise(String),
+    Raise(String, Option<serde_json::Value>),
     Terminate(u64),
     Suspend(u64),
     Unsuspend(u64),
@@ -246,6 +246,7 @@ struct Request {
     timeout_ms: Option<u64>,
     reason: Option<String>,
     event: Option<String>,
+    data: Option<serde_json::Value>,
 }
 
 /// Each op and the fields it takes besides `op`.
@@ -272,7 +273,7 @@ const OPS: &[(&str, &[&str])] = &[
     ("approval", &["task", "path", "node", "timeout_ms"]),
     ("approve", &["node"]),
     ("refuse", &["node", "reason"]),
-    ("raise", &["event"]),
+    ("raise", &["event", "data"]),
     ("terminate", &["node"]),
     ("suspend", &["node"]),
     ("unsuspend", &["node"]),
@@ -368,7 +369,7 @@ fn parse(body: &[u8]) -> Result<Op, String> {
                 .unwrap_or_else(|| "refused from the viewer".into()),
         ),
         "raise" => match r.event {
-            Some(e) if !e.is_empty() => Op::Raise(e),
+            Some(e) if !e.is_empty() => Op::Raise(e, r.data),
             _ => return Err("`raise` needs `event`, the external event's name".into()),
         },
         "terminate" => Op::Terminate(node(&r)?),
@@ -505,9 +506,14 @@ fn act(control: &Control, run: &Run, op: Op, by: &str) -> Result<Done, Refusal> 
             control.refuse(id, by, &reason).map_err(|e| held(e, n))?;
             Done::default()
         }
-        Op::Raise(event) => {
+        Op::Raise(event, None) => {
             control.note(&format!("raise {event}"), by)?;
             control.raise(&event)?;
+            Done::default()
+        }
+        Op::Raise(event, Some(data)) => {
+            control.note(&format!("raise {event} with {data}"), by)?;
+            control.raise_with(&event, data)?;
             Done::default()
         }
         Op::Terminate(n) => {
