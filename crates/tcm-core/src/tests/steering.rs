@@ -152,8 +152,8 @@ fn step_to_the_next_start_pauses_before_it() {
     assert_checked(sim.trace());
 }
 
-#[test]
-fn a_step_with_nothing_ready_fires_the_next_timer() {
+/// A simulator with one command `late`, which may start at 5 s, taking a second.
+fn late_at_five() -> Sim {
     let mut sim = Sim::new();
     let root = sim.engine.root();
     cmd(
@@ -163,6 +163,12 @@ fn a_step_with_nothing_ready_fires_the_next_timer() {
         takes(s(1.0)),
         &[not_before(5.0)],
     );
+    sim
+}
+
+#[test]
+fn a_step_with_nothing_ready_fires_the_next_timer() {
+    let mut sim = late_at_five();
     sim.engine.pause(Time::ZERO, "tester");
     sim.run();
     // The step fires the timer (the clock moves to it), which makes `late` ready; it waits.
@@ -180,20 +186,12 @@ fn a_step_with_nothing_ready_fires_the_next_timer() {
 
 #[test]
 fn a_pause_holds_the_timers_and_a_monitors_schedule() {
-    let mut sim = Sim::new();
-    let root = sim.engine.root();
-    cmd(
-        &mut sim.engine,
-        root,
-        "late",
-        takes(s(1.0)),
-        &[not_before(5.0)],
-    );
+    let mut sim = late_at_five();
     let mut spec = MonitorSpec::new(factory(|_, _, _, _| Outcome::done()));
     spec.period = Some(s(1.0));
     spec.max_activations = Some(5);
     sim.engine
-        .spawn(Time::ZERO, Spawn::monitor(root, "tick", spec))
+        .spawn(Time::ZERO, Spawn::monitor(sim.engine.root(), "tick", spec))
         .expect("spawn");
     sim.run_until(at(2.5));
     // Paused from 2.5 s to 5.5 s of the run's clock, as on real time: the pending timers move

@@ -4,9 +4,7 @@
 
 use std::time::Duration;
 use tcm::testing::assert_checked;
-use tcm::{
-    Attached, Failure, Handler, Recorder, Runtime, Session, TapWhen, Task, TraceKind, WatchOutcome,
-};
+use tcm::{Attached, Failure, Handler, TapWhen, Task, TraceKind, WatchOutcome};
 
 /// Longer than any run here: a run that does not end fails instead of hanging `cargo test`.
 const NEVER: Duration = Duration::from_secs(24 * 3600);
@@ -26,14 +24,7 @@ fn back_off() -> Attached {
     )
 }
 
-fn start() -> (Session, Recorder) {
-    let rec = Recorder::new();
-    let session = Runtime::new()
-        .with_sink(rec.clone())
-        .start()
-        .expect("inside a tokio runtime");
-    (session, rec)
-}
+use crate::util::recorded_session as start;
 
 async fn wait(control: &tcm::Control, node: tcm::NodeId) -> WatchOutcome {
     tokio::time::timeout(NEVER, control.wait(node))

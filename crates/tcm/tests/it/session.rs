@@ -24,14 +24,7 @@ fn sleeper(name: &'static str, d: u64) -> Task {
     })
 }
 
-fn start() -> (Session, Recorder) {
-    let rec = Recorder::new();
-    let session = Runtime::new()
-        .with_sink(rec.clone())
-        .start()
-        .expect("inside a tokio runtime");
-    (session, rec)
-}
+use crate::util::recorded_session as start;
 
 async fn quiescent(session: &Session) -> Result<(), Error> {
     tokio::time::timeout(NEVER, session.quiescent())

@@ -6,21 +6,14 @@
 use std::time::Duration;
 use tcm::testing::assert_checked;
 use tcm::{
-    Approval, BreakAt, Breakpoint, Failure, Fault, FaultOutcome, Matcher, Monitor, Recorder,
-    Runtime, Session, Task, TraceEvent, TraceKind, WatchOutcome,
+    Approval, BreakAt, Breakpoint, Failure, Fault, FaultOutcome, Matcher, Monitor, Task,
+    TraceEvent, TraceKind, WatchOutcome,
 };
 
 /// Longer than any run here: a run that does not end fails instead of hanging `cargo test`.
 const NEVER: Duration = Duration::from_secs(24 * 3600);
 
-fn start() -> (Session, Recorder) {
-    let rec = Recorder::new();
-    let session = Runtime::new()
-        .with_sink(rec.clone())
-        .start()
-        .expect("inside a tokio runtime");
-    (session, rec)
-}
+use crate::util::recorded_session as start;
 
 fn quick(name: &'static str) -> Task {
     Task::command(name, |_| async {

@@ -27,9 +27,9 @@ impl Drop for Served {
     }
 }
 
-/// Starts `tdl view ARGS --listen 127.0.0.1:0` and reads the address it prints.
-fn serve(args: &[&str]) -> Served {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tdl"))
+/// `tdl view ARGS --listen 127.0.0.1:0`, started, its output piped.
+fn view(args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_tdl"))
         .arg("view")
         .args(args)
         .args(["--listen", "127.0.0.1:0"])
@@ -37,7 +37,12 @@ fn serve(args: &[&str]) -> Served {
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("run tdl view");
+        .expect("run tdl view")
+}
+
+/// Starts `tdl view ARGS --listen 127.0.0.1:0` and reads the address it prints.
+fn serve(args: &[&str]) -> Served {
+    let mut child = view(args);
     let stdout = child.stdout.take().expect("stdout");
     let stderr = child.stderr.take().expect("stderr");
     let (tx, rx) = std::sync::mpsc::channel();
@@ -177,14 +182,7 @@ fn at_prints_the_address_that_opens_the_first_file_on_that_record() {
 fn at_past_the_last_record_is_refused_with_the_files_count() {
     let records = run_records();
     let at = records.to_string();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tdl"))
-        .args(["view", "tests/data/run.jsonl", "--at", &at])
-        .args(["--listen", "127.0.0.1:0"])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run tdl view");
+    let mut child = view(&["tests/data/run.jsonl", "--at", &at]);
     // It stops by itself; a server is killed after 30 s.
     let start = std::time::Instant::now();
     let status = loop {

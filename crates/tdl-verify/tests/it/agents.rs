@@ -3,7 +3,7 @@
 //! "Commands"). A program without a handler for it is caught with the shortest run; one with a
 //! handler passes; the seeded simulation draws the loss too.
 
-use tdl_verify::{Control, NO_UNHANDLED, Options, Program, SimOptions, Verdict};
+use tdl_verify::{NO_UNHANDLED, Program, SimOptions, Verdict};
 
 const BARE: &str = r#"
 goal fetch() {
@@ -28,21 +28,7 @@ goal fetch() with exception handler shrug() {
 "#;
 
 fn unhandled(src: &str) -> Verdict {
-    let program = Program::load(&[("fetch.tdl".into(), src.into())]).expect("loads");
-    let report = tdl_verify::verify(
-        &program,
-        "fetch",
-        &Options::default(),
-        &[],
-        None,
-        &Control::default(),
-    );
-    report
-        .results
-        .into_iter()
-        .find(|r| r.property == NO_UNHANDLED)
-        .expect("the built-in property")
-        .verdict
+    crate::builtin_verdict("fetch.tdl", src, "fetch", NO_UNHANDLED)
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! approve or refuse each held node, so a refusal nobody handles is caught with the shortest run,
 //! a handled one passes, and a node approved runs on.
 
-use tdl_verify::{Control, NO_STUCK, NO_UNHANDLED, Options, Program, Verdict};
+use tdl_verify::{NO_STUCK, NO_UNHANDLED, Verdict};
 
 const BARE: &str = r#"
 command grasp() {}
@@ -23,21 +23,7 @@ goal pick() {
 "#;
 
 fn verdict(src: &str, property: &str) -> Verdict {
-    let program = Program::load(&[("pick.tdl".into(), src.into())]).expect("loads");
-    let report = tdl_verify::verify(
-        &program,
-        "pick",
-        &Options::default(),
-        &[],
-        None,
-        &Control::default(),
-    );
-    report
-        .results
-        .into_iter()
-        .find(|r| r.property == property)
-        .expect("the built-in property")
-        .verdict
+    crate::builtin_verdict("pick.tdl", src, "pick", property)
 }
 
 #[test]

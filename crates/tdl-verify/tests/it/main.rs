@@ -12,3 +12,29 @@ mod mission;
 mod sim;
 mod state;
 mod status;
+
+/// The verdict of the built-in `property` on task `task` of a one-file program `src` (named
+/// `file`), verified with the default bounds.
+pub(crate) fn builtin_verdict(
+    file: &str,
+    src: &str,
+    task: &str,
+    property: &str,
+) -> tdl_verify::Verdict {
+    let program =
+        tdl_verify::Program::load(&[(file.into(), src.into())]).expect("the program loads");
+    let report = tdl_verify::verify(
+        &program,
+        task,
+        &tdl_verify::Options::default(),
+        &[],
+        None,
+        &tdl_verify::Control::default(),
+    );
+    report
+        .results
+        .into_iter()
+        .find(|r| r.property == property)
+        .expect("the built-in property")
+        .verdict
+}
