@@ -242,19 +242,20 @@ fn moves_with_detour(sim: &mut Sim, ran: Rc<Cell<u32>>) {
     sim.engine.spawn(Time::ZERO, sp).expect("spawn");
 }
 
+/// The next `move` fails with `Blocked`.
+fn next_move_blocked() -> Fault {
+    Fault {
+        on: Matcher::Task("move".into()),
+        times: 1,
+        outcome: FaultOutcome::Fail(Failure::new("Blocked", "injected")),
+    }
+}
+
 #[test]
 fn a_fault_fails_the_next_node_of_a_task_without_running_it() {
     let mut sim = Sim::new();
     let ran = Rc::new(Cell::new(0));
-    sim.engine.inject(
-        Time::ZERO,
-        Fault {
-            on: Matcher::Task("move".into()),
-            times: 1,
-            outcome: FaultOutcome::Fail(Failure::new("Blocked", "injected")),
-        },
-        "tester",
-    );
+    sim.engine.inject(Time::ZERO, next_move_blocked(), "tester");
     moves_with_detour(&mut sim, ran.clone());
     sim.run();
     assert_eq!(
