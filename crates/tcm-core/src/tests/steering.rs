@@ -335,15 +335,7 @@ fn breakpoints_after_an_end_on_an_exception_and_on_a_handler() {
         let mut sim = Sim::new();
         sim.engine
             .add_breakpoint(Time::ZERO, Breakpoint { at: at_, on }, "tester");
-        sim.engine.inject(
-            Time::ZERO,
-            Fault {
-                on: Matcher::Task("move".into()),
-                times: 1,
-                outcome: FaultOutcome::Fail(Failure::new("Blocked", "injected")),
-            },
-            "tester",
-        );
+        sim.engine.inject(Time::ZERO, next_move_blocked(), "tester");
         moves_with_detour(&mut sim, Rc::new(Cell::new(0)));
         sim.run();
         assert!(sim.engine.is_paused(), "{expect}");
