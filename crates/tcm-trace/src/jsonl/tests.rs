@@ -251,7 +251,7 @@ fn documented_examples_are_exact() {
             thens.insert(key(&value["constraint"]["then"]));
         }
     }
-    assert_eq!(kinds.len(), 44, "{kinds:?}");
+    assert_eq!(kinds.len(), 49, "{kinds:?}");
     assert_eq!(forms.len(), 3, "{forms:?}");
     // Every kind of "when" with every kind of "then" is shown (the empty string is not a trigger).
     assert_eq!(whens.len(), 8, "{whens:?}");
