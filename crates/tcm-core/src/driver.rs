@@ -39,6 +39,11 @@ pub trait Shell<A, F> {
     fn cancel(&mut self, node: NodeId);
     /// A watched point was reached.
     fn notify(&mut self, engine: &mut Engine<A, F>, token: WatchToken, outcome: WatchOutcome);
+    /// A fault stands for `node`'s action and succeeds with `value`: keep it as the node's value
+    /// (the default drops it).
+    fn value(&mut self, node: NodeId, value: crate::FaultValue) {
+        let _ = (node, value);
+    }
     /// Keeps one trace record (the default drops it).
     fn trace(&mut self, record: TraceEvent) {
         let _ = record;
@@ -90,6 +95,7 @@ impl Driver {
             Effect::Invoke { job, body, purpose } => shell.invoke(engine, job, body, purpose),
             Effect::Cancel { node } => shell.cancel(node),
             Effect::Notify { token, outcome } => shell.notify(engine, token, *outcome),
+            Effect::Value { node, value } => shell.value(node, value),
         }
     }
 

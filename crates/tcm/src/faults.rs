@@ -14,7 +14,9 @@
 //! Each rule names its nodes by `task` (a task name) or `path` (a path pattern), and says how many
 //! of their starts it takes (`times`, 1 by default) and what stands for their ends: `exception`
 //! (with an optional `message` and the exception's `ancestry`, nearest first, for handlers of its
-//! ancestors) or `"never": true`.
+//! ancestors), `value` (any JSON: the node succeeds with it, a `serde_json::Value`, which an
+//! interpreted program and a task from an agent read as their own values; see [`json_value`]) or
+//! `"never": true`.
 
 use serde::Deserialize;
 use std::path::Path;
@@ -67,6 +69,14 @@ struct Rule {
     ancestry: Vec<String>,
     #[serde(default)]
     never: bool,
+    // Present (even `null`): the node succeeds with this value.
+    #[serde(default, deserialize_with = "present")]
+    value: Option<serde_json::Value>,
+}
+
+/// A field given, whatever its value (`null` too), as `Some`.
+fn present<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<serde_json::Value>, D::Error> {
+    serde_json::Value::deserialize(d).map(Some)
 }
 
 /// Reads the faults of the file at `path`.
@@ -119,6 +129,19 @@ fn rule(r: Rule) -> Result<Fault, String> {
         return Err("`times` is 0: the rule would do nothing; leave it out for 1".into());
     }
     let outcome = match (r.exception, r.never) {
+        (None, false) if r.value.is_some() => {
+            if r.message.is_some() || !r.ancestry.is_empty() {
+                return Err(
+                    "a node that succeeds raises nothing: leave out `message` and `ancestry`"
+                        .into(),
+                );
+            }
+            let value = r.value.unwrap_or_default();
+            FaultOutcome::Succeed(Some(json_value(value)))
+        }
+        (_, _) if r.value.is_some() => {
+            return Err("give one of `exception`, `value` and `\"never\": true`".into());
+        }
         (Some(e), false) => {
             let mut f = Failure::new(e, r.message.unwrap_or_else(|| "injected".into()));
             f.ancestry = r.ancestry.into_iter().map(Into::into).collect();
@@ -133,11 +156,19 @@ fn rule(r: Rule) -> Result<Fault, String> {
         (Some(_), true) => return Err("give `exception` or `\"never\": true`, not both".into()),
         (None, false) => {
             return Err(
-                "say what stands for the end: `\"exception\": NAME` or `\"never\": true`".into(),
+                "say what stands for the end: `\"exception\": NAME`, `\"value\": JSON` or `\"never\": true`"
+                    .into(),
             );
         }
     };
     Ok(Fault { on, times, outcome })
+}
+
+/// A JSON value standing for an action's: the node's value is a `serde_json::Value`, which an
+/// interpreted program, and a task from an agent, read as their own values.
+pub fn json_value(value: serde_json::Value) -> tcm_core::FaultValue {
+    let text = value.to_string();
+    tcm_core::FaultValue::new(text, move || Box::new(value.clone()))
 }
 
 #[cfg(test)]
@@ -161,10 +192,23 @@ mod tests {
                 assert_eq!(f.message, "injected");
                 assert!(f.is_a("NavFailure"));
             }
-            FaultOutcome::Never => panic!("a failure"),
+            other => panic!("a failure: {other:?}"),
         }
         assert_eq!(faults[1].outcome, FaultOutcome::Never);
         assert_eq!(faults[1].times, 1);
+        let faults = parse_faults(
+            "f.json",
+            r#"[{"task":"measure","value":{"range":2.5}},{"task":"ping","value":null}]"#,
+        )
+        .expect("valid");
+        for (fault, json) in faults.iter().zip([r#"{"range":2.5}"#, "null"]) {
+            let FaultOutcome::Succeed(Some(v)) = &fault.outcome else {
+                panic!("a value: {fault:?}");
+            };
+            assert_eq!(v.text(), json);
+            let made = v.make().downcast::<serde_json::Value>().expect("JSON");
+            assert_eq!(made.to_string(), json);
+        }
     }
 
     #[test]
@@ -173,7 +217,7 @@ mod tests {
         assert_eq!(
             err("[{\"task\":\"a\",\n \"exeption\":\"X\"}]").as_deref(),
             Some(
-                "f.json:2:11: unknown field `exeption`, expected one of `task`, `path`, `times`, `exception`, `message`, `ancestry`, `never`"
+                "f.json:2:11: unknown field `exeption`, expected one of `task`, `path`, `times`, `exception`, `message`, `ancestry`, `never`, `value`"
             )
         );
         assert_eq!(
@@ -185,7 +229,7 @@ mod tests {
         assert_eq!(
             err(r#"[{"task":"a"}]"#).as_deref(),
             Some(
-                "f.json: rule 1 (counting from 1): say what stands for the end: `\"exception\": NAME` or `\"never\": true`"
+                "f.json: rule 1 (counting from 1): say what stands for the end: `\"exception\": NAME`, `\"value\": JSON` or `\"never\": true`"
             )
         );
         assert!(

@@ -282,6 +282,7 @@ impl Inner {
             activation_data: &mut self.activation_data,
             args: &self.args,
             trace: &mut self.trace,
+            values: &mut self.values,
         };
         (&mut self.engine, host)
     }

@@ -51,7 +51,7 @@ mod timer;
 pub use cancel::DEFAULT_GRACE;
 pub use control::Control;
 pub use ctx::{Ctx, Ended, Spawner};
-pub use faults::{FaultsError, parse_faults, read_faults};
+pub use faults::{FaultsError, json_value, parse_faults, read_faults};
 pub use host::Panicked;
 pub use place::{Json, Placer, remote_args, remote_value};
 pub use resource::{Resource, ResourceDenied, ResourceDropped, ResourceRef};
@@ -66,7 +66,8 @@ pub use task::{
 };
 pub use tcm_core::{
     Approval, ApprovalRefused, AttachId, BreakAt, Breakpoint, EachActivation, Fault, FaultOutcome,
-    Matcher, Outcome, Overrun, PassedOn, ResourceInfo, SteerId, TapWhen, Then, When, WiretapId,
+    FaultValue, Matcher, Outcome, Overrun, PassedOn, ResourceInfo, SteerId, TapWhen, Then, When,
+    WiretapId,
 };
 pub use tcm_core::{
     Blocked, Constraint, EngineError, Event, ExternalId, Facet, Failure, FailurePolicy,

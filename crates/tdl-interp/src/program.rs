@@ -227,9 +227,15 @@ pub(crate) fn intern(name: &str) -> &'static str {
 }
 
 /// The value an interpreted task's action returned (`()` for a task without a result type).
+/// A fault's JSON value stands for it as for a task from an agent (docs/semantics.md, "Steering a
+/// run", rule 4).
 pub(crate) fn value_of_value(v: Box<dyn std::any::Any + Send>) -> Option<Value> {
-    match v.downcast::<Value>() {
-        Ok(v) => Some(*v),
+    let v = match v.downcast::<Value>() {
+        Ok(v) => return Some(*v),
+        Err(v) => v,
+    };
+    match v.downcast::<serde_json::Value>() {
+        Ok(j) => Some(Value::from_json(&j)),
         Err(v) => v.downcast::<()>().ok().map(|_| Value::Unit),
     }
 }

@@ -434,6 +434,8 @@ impl State {
                     self.cmds.retain(|c| c.node != node);
                     self.stops.push_back(node);
                 }
+                // The checker keeps no values of commands: a fault's is as good as any.
+                Effect::Value { .. } => {}
                 Effect::Notify { token, outcome } => {
                     if let Some(c) = self
                         .conts

@@ -41,6 +41,15 @@ pub enum Effect<A, F = ()> {
         /// The node.
         node: NodeId,
     },
+    /// A fault stands for this node's action and succeeds with `value` (docs/semantics.md,
+    /// "Steering a run", rule 4): keep it as the node's value, for whoever waits for it. Comes
+    /// before the node's completion is notified.
+    Value {
+        /// The node.
+        node: NodeId,
+        /// What stands for its action's value.
+        value: super::FaultValue,
+    },
     /// A watched point was reached (see [`Engine::watch`]).
     Notify {
         /// The token given to `watch`.

@@ -118,7 +118,8 @@ pub use resource::{ResourceDenied, ResourceDropped, ResourceInfo, Uses};
 pub use state::InvariantFailed;
 use std::collections::{BTreeMap, VecDeque};
 pub use steer::{
-    Approval, ApprovalRefused, BreakAt, Breakpoint, Fault, FaultOutcome, Matcher, SteerId,
+    Approval, ApprovalRefused, BreakAt, Breakpoint, Fault, FaultOutcome, FaultValue, Matcher,
+    SteerId,
 };
 use tcm_trace::{State, TRACE_FORMAT_VERSION, TraceEvent, TraceKind};
 use timers::Timers;

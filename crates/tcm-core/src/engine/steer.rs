@@ -16,8 +16,9 @@
 //!    ended (its end applied, nothing it released started yet), when a matching node *raises* an
 //!    exception, or when a matching *handler is chosen*.
 //! 4. **A fault** stands for the next `times` ends of matching nodes: at the node's start its
-//!    action does not run; the node fails at once with the fault's exception, or never ends (until
-//!    it is terminated). An `injected` record says which.
+//!    action does not run; the node fails at once with the fault's exception, succeeds at once
+//!    (with a value the shell is handed for whoever waits for it, `Effect::Value`), or never ends
+//!    (until it is terminated). An `injected` record says which.
 //! 5. **An approval rule** holds a matching node whose turn to start came (`held`) until an
 //!    operator approves it (`approved`, then it starts at its turn) or refuses it, or its time runs
 //!    out: then it fails with [`ApprovalRefused`]. A held node gives back what it was granted and
@@ -79,9 +80,65 @@ pub struct Breakpoint {
 pub enum FaultOutcome {
     /// The node fails with this exception.
     Fail(Failure),
+    /// The node succeeds, with this value for whoever waits for it (none: as if its action
+    /// returned nothing anybody reads).
+    Succeed(Option<FaultValue>),
     /// The node never ends, until it is terminated.
     Never,
 }
+
+/// A value that stands for an action's: made afresh for each node the fault takes (the shell
+/// keeps values as `Box<dyn Any + Send>`, as an action returns them), with how the trace tells
+/// it.
+#[derive(Clone)]
+pub struct FaultValue {
+    make: std::sync::Arc<dyn Fn() -> Box<dyn std::any::Any + Send> + Send + Sync>,
+    text: String,
+}
+
+impl FaultValue {
+    /// A value made by `make`, told as `text` in the trace.
+    pub fn new(
+        text: impl Into<String>,
+        make: impl Fn() -> Box<dyn std::any::Any + Send> + Send + Sync + 'static,
+    ) -> FaultValue {
+        FaultValue {
+            make: std::sync::Arc::new(make),
+            text: text.into(),
+        }
+    }
+
+    /// A clone of `value` each time.
+    pub fn of<T: Clone + std::fmt::Debug + Send + Sync + 'static>(value: T) -> FaultValue {
+        let text = format!("{value:?}");
+        FaultValue::new(text, move || Box::new(value.clone()))
+    }
+
+    /// One value, made afresh.
+    pub fn make(&self) -> Box<dyn std::any::Any + Send> {
+        (self.make)()
+    }
+
+    /// How the trace tells it.
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+}
+
+impl std::fmt::Debug for FaultValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "FaultValue({})", self.text)
+    }
+}
+
+/// Two fault values are equal when they are the same maker.
+impl PartialEq for FaultValue {
+    fn eq(&self, other: &FaultValue) -> bool {
+        std::sync::Arc::ptr_eq(&self.make, &other.make) && self.text == other.text
+    }
+}
+
+impl Eq for FaultValue {}
 
 /// A fault for the next `times` matching nodes.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -676,6 +733,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 self.complete_handling(node);
                 self.break_at(BreakAt::End, node, None);
             }
+            FaultOutcome::Succeed(value) => {
+                if let Some(value) = value {
+                    self.effects.push_back(super::Effect::Value { node, value });
+                }
+                self.complete_handling(node);
+                self.break_at(BreakAt::End, node, None);
+            }
             FaultOutcome::Never => self.node_mut(node).cold_mut().never_ends = true,
         }
     }
@@ -710,6 +774,8 @@ fn at_text(at: BreakAt) -> &'static str {
 fn outcome_text(o: &FaultOutcome) -> String {
     match o {
         FaultOutcome::Fail(f) => format!("fail {}: {}", f.exception, f.message),
+        FaultOutcome::Succeed(None) => "succeed".into(),
+        FaultOutcome::Succeed(Some(v)) => format!("succeed with {}", v.text()),
         FaultOutcome::Never => "never ends".into(),
     }
 }

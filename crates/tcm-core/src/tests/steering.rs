@@ -460,3 +460,30 @@ fn a_spawn_asking_for_approval_is_held_without_any_rule() {
     let _ = grasp;
     assert_checked(sim.trace());
 }
+
+#[test]
+fn a_fault_with_a_value_succeeds_at_once_without_running_the_action() {
+    let mut sim = Sim::new();
+    let ran = Rc::new(Cell::new(0));
+    sim.engine.inject(
+        Time::ZERO,
+        Fault {
+            on: Matcher::Task("move".into()),
+            times: 2,
+            outcome: FaultOutcome::Succeed(Some(FaultValue::of(7u32))),
+        },
+        "tester",
+    );
+    moves_with_detour(&mut sim, ran.clone());
+    sim.run();
+    assert_eq!(ran.get(), 0, "neither move ran");
+    let t = sim.trace();
+    let injected = t
+        .iter()
+        .filter(|e| matches!(&e.kind, TraceKind::Injected { outcome, .. } if outcome == "succeed with 7"))
+        .count();
+    assert_eq!(injected, 2);
+    assert_eq!(starts(t, "move"), vec![0.0, 0.0]);
+    assert!(!t.iter().any(|e| matches!(e.kind, TraceKind::Failed { .. })));
+    assert_checked(t);
+}

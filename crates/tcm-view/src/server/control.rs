@@ -210,7 +210,7 @@ enum Op {
     Heartbeat,
     Break(BreakAt, Target),
     Remove(u32),
-    Inject(Target, u32, Option<Failure>),
+    Inject(Target, u32, FaultOutcome),
     Approval(Target, Option<Duration>),
     Approve(u64),
     Refuse(u64, String),
@@ -247,6 +247,7 @@ struct Request {
     reason: Option<String>,
     event: Option<String>,
     data: Option<serde_json::Value>,
+    value: Option<serde_json::Value>,
 }
 
 /// Each op and the fields it takes besides `op`.
@@ -268,6 +269,7 @@ const OPS: &[(&str, &[&str])] = &[
             "exception",
             "message",
             "never",
+            "value",
         ],
     ),
     ("approval", &["task", "path", "node", "timeout_ms"]),
@@ -340,18 +342,26 @@ fn parse(body: &[u8]) -> Result<Op, String> {
                 return Err("`times` is 0: a fault for no node".into());
             }
             let outcome = match (&r.exception, r.never) {
+                _ if r.value.is_some() && (r.exception.is_some() || r.never == Some(true)) => {
+                    return Err("give one of `exception`, `value` and `never: true`".into());
+                }
+                (None, None | Some(false)) if r.value.is_some() => {
+                    let value = r.value.clone().unwrap_or_default();
+                    FaultOutcome::Succeed(Some(tcm::json_value(value)))
+                }
                 (Some(e), None | Some(false)) if !e.is_empty() => {
                     let message = r.message.clone().unwrap_or_else(|| "injected".into());
-                    Some(Failure::new(e.clone(), message))
+                    FaultOutcome::Fail(Failure::new(e.clone(), message))
                 }
-                (None, Some(true)) => None,
+                (None, Some(true)) => FaultOutcome::Never,
                 (Some(_), Some(true)) => {
                     return Err("give `exception` or `never: true`, not both".into());
                 }
                 (Some(_), _) => return Err("`exception` is empty".into()),
                 (None, _) => {
                     return Err(
-                        "`inject` needs `exception` (and `message`) or `never: true`".into(),
+                        "`inject` needs `exception` (and `message`), `value` or `never: true`"
+                            .into(),
                     );
                 }
             };
@@ -487,9 +497,8 @@ fn act(control: &Control, run: &Run, op: Op, by: &str) -> Result<Done, Refusal> 
             made(control.add_breakpoint(Breakpoint { at, on }, by)?)
         }
         Op::Remove(id) => changed(control.remove(SteerId(id), by)?),
-        Op::Inject(target, times, failure) => {
+        Op::Inject(target, times, outcome) => {
             let on = matcher(control, target)?;
-            let outcome = failure.map_or(FaultOutcome::Never, FaultOutcome::Fail);
             made(control.inject(Fault { on, times, outcome }, by)?)
         }
         Op::Approval(target, timeout) => {
@@ -640,7 +649,7 @@ mod tests {
         assert!(err(r#"{"op":"raise"}"#).contains("needs `event`"));
         assert!(matches!(
             parse(br#"{"op":"inject","path":"**/guarded*","exception":"Blocked"}"#),
-            Ok(Op::Inject(Target::Path(_), 1, Some(_)))
+            Ok(Op::Inject(Target::Path(_), 1, FaultOutcome::Fail(_)))
         ));
         assert!(matches!(
             parse(br#"{"op":"break","at":"raised","exception":"Blocked"}"#),

@@ -37,6 +37,8 @@ pub(crate) struct Host<'a> {
     pub(super) activation_data: &'a mut BTreeMap<NodeId, Arc<dyn Any + Send + Sync>>,
     pub(super) args: &'a BTreeMap<NodeId, AnyArgs>,
     pub(super) trace: &'a mut Vec<TraceEvent>,
+    // The values awaited, by node (`Inner::values`).
+    pub(super) values: &'a mut BTreeMap<NodeId, Option<crate::task::Value>>,
 }
 
 impl Host<'_> {
@@ -129,6 +131,14 @@ impl Shell<Action, Factory> for Host<'_> {
         }
         self.parking.forget_job(Job::from(node));
         self.activation_data.remove(&node);
+    }
+
+    /// A fault stands for the node's action and succeeds with `value`: kept as the node's value
+    /// for whoever waits for it, as an action's returned value is (`host/ended.rs`).
+    fn value(&mut self, node: NodeId, value: tcm_core::FaultValue) {
+        if let Some(slot) = self.values.get_mut(&node) {
+            *slot = Some(value.make());
+        }
     }
 
     fn notify(

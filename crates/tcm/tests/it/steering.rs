@@ -204,3 +204,40 @@ async fn a_breakpoint_and_a_fault_from_the_control_handle() {
     assert!(trace.iter().any(|e| matches!(&e.kind,
         TraceKind::Failed { node: 1, exception, .. } if exception == "Blocked")));
 }
+
+/// A typed value stands for a command's: the goal waiting for it reads the fault's.
+#[tokio::test(start_paused = true)]
+async fn a_fault_value_is_what_a_waiting_body_reads() {
+    let (session, rec) = start();
+    let control = session.control();
+    control
+        .inject(
+            Fault {
+                on: Matcher::Task("measure".into()),
+                times: 1,
+                outcome: FaultOutcome::Succeed(Some(tcm::FaultValue::of(0.5f64))),
+            },
+            "operator",
+        )
+        .expect("fault");
+    let read = std::sync::Arc::new(std::sync::Mutex::new(None));
+    let seen = read.clone();
+    let goal = Task::goal("survey", move |ctx| {
+        let seen = seen.clone();
+        async move {
+            let measure = Task::command("measure", |_| async { Ok(10.0f64) });
+            let range: f64 = ctx.spawn(measure).wait_value().await?;
+            *seen.lock().expect("seen") = Some(range);
+            Ok(())
+        }
+    });
+    let node = control.spawn(goal).expect("spawn");
+    let done = tokio::time::timeout(NEVER, control.wait(node)).await;
+    assert!(matches!(done, Ok(Ok(WatchOutcome::Reached))), "{done:?}");
+    session.finish().await.expect("finish");
+    assert_eq!(*read.lock().expect("read"), Some(0.5));
+    let trace = rec.events();
+    assert_checked(&trace);
+    assert!(trace.iter().any(|e| matches!(&e.kind,
+        TraceKind::Injected { outcome, .. } if outcome == "succeed with 0.5")));
+}

@@ -218,3 +218,34 @@ fn faults_from_a_file_and_approvals_from_the_terminal() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("bad.json:1:"), "{err}");
 }
+
+/// A fault whose value stands for a command's: the survey reads the injected range, not the one
+/// `measure` would have returned, and backs off.
+#[test]
+fn a_value_from_a_faults_file_stands_for_a_commands() {
+    let dir = scratch("value");
+    let faults = dir.join("faults.json");
+    std::fs::write(&faults, r#"[{"task": "measure", "value": 0.5}]"#).expect("write");
+    let spawned = |extra: &[&str]| {
+        let trace = dir.join("trace.jsonl");
+        let trace_arg = trace.display().to_string();
+        let mut args = vec!["run", "tests/data/run/measure.tdl", "--trace", &trace_arg];
+        args.extend_from_slice(extra);
+        let (code, out, err) = tdl(&args);
+        assert_eq!(code, 0, "{out}{err}");
+        let names: Vec<String> = checked(&trace)
+            .iter()
+            .filter_map(|e| match &e.kind {
+                tcm_trace::TraceKind::Spawned { name, .. } => Some(name.clone()),
+                _ => None,
+            })
+            .collect();
+        names
+    };
+    assert_eq!(spawned(&[]), ["survey", "measure"]);
+    let faults = faults.display().to_string();
+    assert_eq!(
+        spawned(&["--faults", &faults]),
+        ["survey", "measure", "back_off"]
+    );
+}
