@@ -13,8 +13,9 @@
 //!
 //! Each rule names its nodes by `task` (a task name) or `path` (a path pattern), and says how many
 //! of their starts it takes (`times`, 1 by default) and what stands for their ends: `exception`
-//! (with an optional `message` and the exception's `ancestry`, nearest first, for handlers of its
-//! ancestors), `value` (any JSON: the node succeeds with it, a `serde_json::Value`, which an
+//! (with an optional `message`, the exception's `ancestry`, nearest first, for handlers of its
+//! ancestors, and `data`, the JSON it carries, which an interpreted handler reads as the
+//! exception's fields), `value` (any JSON: the node succeeds with it, a `serde_json::Value`, which an
 //! interpreted program and a task from an agent read as their own values; see [`json_value`]) or
 //! `"never": true`.
 
@@ -69,6 +70,8 @@ struct Rule {
     ancestry: Vec<String>,
     #[serde(default)]
     never: bool,
+    // With `exception`: what the exception carries, for handlers that read it.
+    data: Option<serde_json::Value>,
     // Present (even `null`): the node succeeds with this value.
     #[serde(default, deserialize_with = "present")]
     value: Option<serde_json::Value>,
@@ -145,7 +148,13 @@ fn rule(r: Rule) -> Result<Fault, String> {
         (Some(e), false) => {
             let mut f = Failure::new(e, r.message.unwrap_or_else(|| "injected".into()));
             f.ancestry = r.ancestry.into_iter().map(Into::into).collect();
+            if let Some(data) = r.data {
+                f.data = Some(std::sync::Arc::new(data));
+            }
             FaultOutcome::Fail(f)
+        }
+        (None, _) if r.data.is_some() => {
+            return Err("`data` goes with an `exception`, which carries it".into());
         }
         (None, true) if r.message.is_none() && r.ancestry.is_empty() => FaultOutcome::Never,
         (None, true) => {
@@ -217,7 +226,7 @@ mod tests {
         assert_eq!(
             err("[{\"task\":\"a\",\n \"exeption\":\"X\"}]").as_deref(),
             Some(
-                "f.json:2:11: unknown field `exeption`, expected one of `task`, `path`, `times`, `exception`, `message`, `ancestry`, `never`, `value`"
+                "f.json:2:11: unknown field `exeption`, expected one of `task`, `path`, `times`, `exception`, `message`, `ancestry`, `never`, `data`, `value`"
             )
         );
         assert_eq!(

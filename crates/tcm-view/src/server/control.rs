@@ -270,6 +270,7 @@ const OPS: &[(&str, &[&str])] = &[
             "message",
             "never",
             "value",
+            "data",
         ],
     ),
     ("approval", &["task", "path", "node", "timeout_ms"]),
@@ -351,7 +352,9 @@ fn parse(body: &[u8]) -> Result<Op, String> {
                 }
                 (Some(e), None | Some(false)) if !e.is_empty() => {
                     let message = r.message.clone().unwrap_or_else(|| "injected".into());
-                    FaultOutcome::Fail(Failure::new(e.clone(), message))
+                    let mut failure = Failure::new(e.clone(), message);
+                    failure.data = r.data.clone().map(|d| Arc::new(d) as _);
+                    FaultOutcome::Fail(failure)
                 }
                 (None, Some(true)) => FaultOutcome::Never,
                 (Some(_), Some(true)) => {

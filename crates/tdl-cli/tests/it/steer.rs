@@ -249,3 +249,35 @@ fn a_value_from_a_faults_file_stands_for_a_commands() {
         ["survey", "measure", "back_off"]
     );
 }
+
+/// A fault's exception carries data from the file, which an interpreted handler reads as the
+/// exception's fields.
+#[test]
+fn an_exception_from_a_faults_file_carries_its_data_to_the_handler() {
+    let dir = scratch("data");
+    let spawned = |data: &str| {
+        let faults = dir.join("faults.json");
+        let rule =
+            format!(r#"[{{"task": "step", "exception": "Blocked", "data": {{"at": {data}}}}}]"#);
+        std::fs::write(&faults, rule).expect("write");
+        let trace = dir.join("trace.jsonl");
+        let (code, out, err) = tdl(&[
+            "run",
+            "tests/data/run/blocked.tdl",
+            "--trace",
+            &trace.display().to_string(),
+            "--faults",
+            &faults.display().to_string(),
+        ]);
+        assert_eq!(code, 0, "{out}{err}");
+        checked(&trace)
+            .iter()
+            .filter_map(|e| match &e.kind {
+                tcm_trace::TraceKind::Spawned { name, .. } => Some(name.clone()),
+                _ => None,
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(spawned("9"), ["walk", "step", "go_around", "far_around"]);
+    assert_eq!(spawned("2"), ["walk", "step", "go_around", "around"]);
+}

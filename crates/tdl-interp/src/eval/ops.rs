@@ -241,15 +241,13 @@ pub(super) fn field(base: &Value, name: &str) -> Result<Value, Failure> {
             .get(name)
             .cloned()
             .ok_or_else(|| Failure::new("UnknownField", format!("no field `{name}` in the map"))),
-        Value::Failure(_) | Value::Error(_) => {
-            match base.as_failure().and_then(|f| f.data::<Value>()) {
-                Some(data) => field(&data, name),
-                None => Err(Failure::new(
-                    "UnknownField",
-                    format!("the exception `{}` carries no field `{name}`", base.kind()),
-                )),
-            }
-        }
+        Value::Failure(_) | Value::Error(_) => match base.as_failure().and_then(failure_data) {
+            Some(data) => field(&data, name),
+            None => Err(Failure::new(
+                "UnknownField",
+                format!("the exception `{}` carries no field `{name}`", base.kind()),
+            )),
+        },
         other => Err(bad(&format!("`.{name}`"), other)),
     }
 }
@@ -592,7 +590,7 @@ fn failure_method(
     match name {
         "name" | "exception" => Ok(V::str(&*f.exception)),
         "message" => Ok(V::str(&f.message)),
-        "data" => Ok(V::option(f.data::<Value>().map(|d| (*d).clone()))),
+        "data" => Ok(V::option(failure_data(f))),
         "is_a" => Ok(V::Bool(arg.as_str().is_some_and(|n| f.is_a(n)))),
         _ => {
             let Some(ty) = turbofish else {
@@ -605,9 +603,7 @@ fn failure_method(
             if name == "is" {
                 return Ok(V::Bool(matches));
             }
-            Ok(V::option(
-                f.data::<Value>().filter(|_| matches).map(|d| (*d).clone()),
-            ))
+            Ok(V::option(failure_data(f).filter(|_| matches)))
         }
     }
 }
@@ -709,4 +705,13 @@ pub(super) fn with_closure(
         "for_each" => V::Unit,
         _ => V::list(out),
     })
+}
+
+/// The data an exception carries, as a value: the record `fail E { … }` gave it, or the JSON a
+/// fault gave it (a faults file's or the viewer's `data`; docs/semantics.md, "Steering a run").
+fn failure_data(f: &Failure) -> Option<Value> {
+    match f.data::<Value>() {
+        Some(d) => Some((*d).clone()),
+        None => f.data::<serde_json::Value>().map(|j| Value::from_json(&j)),
+    }
 }
