@@ -95,7 +95,7 @@ impl Driver {
             Effect::Invoke { job, body, purpose } => shell.invoke(engine, job, body, purpose),
             Effect::Cancel { node } => shell.cancel(node),
             Effect::Notify { token, outcome } => shell.notify(engine, token, *outcome),
-            Effect::Value { node, value } => shell.value(node, value),
+            Effect::Value { node, value } => shell.value(node, *value),
         }
     }
 

@@ -16,6 +16,7 @@
 //! - `references`: reservations, forward and dead references, `previous`, held children;
 //! - `resources`: capacity, priority, all or nothing, reserve, lock, pending limit, denial, release, wait cycles;
 //! - `monitors`, `monitor_limits` (limits changed after the spawn) and `exceptions` (handlers, retry, wiretaps, unhandled failures);
+//! - `inputs`: the inputs recorded for a journal;
 //! - `steering`: pausing, stepping, breakpoints, faults and approvals;
 //! - `api`: the engine's inputs, outputs and errors without the simulator, and memory.
 
@@ -24,6 +25,7 @@ mod canon;
 mod conditions;
 mod constraints;
 mod exceptions;
+mod inputs;
 mod monitor_limits;
 mod monitors;
 mod references;

@@ -60,6 +60,9 @@ pub enum Input {
     Ended {
         /// The node.
         node: u64,
+        /// For a wiretap check on the node: the wiretap's number.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        tap: Option<u32>,
         /// Its value, if any was kept.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         value: Option<serde_json::Value>,
@@ -68,6 +71,9 @@ pub enum Input {
     Failed {
         /// The node.
         node: u64,
+        /// For a wiretap check on the node: the wiretap's number.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        tap: Option<u32>,
         /// The exception's type name.
         exception: String,
         /// Its message.
@@ -83,6 +89,13 @@ pub enum Input {
     Stopped {
         /// The node.
         node: u64,
+    },
+    /// A cancelled action did not stop within its grace period.
+    Overdue {
+        /// The node.
+        node: u64,
+        /// The grace period, in nanoseconds.
+        grace_ns: u64,
     },
     /// An external event was raised.
     External {

@@ -28,6 +28,7 @@ fn inputs() -> Vec<(u64, Input)> {
             1_500_000_000,
             Input::Ended {
                 node: 2,
+                tap: None,
                 value: Some(serde_json::json!(2.5)),
             },
         ),
@@ -35,6 +36,7 @@ fn inputs() -> Vec<(u64, Input)> {
             2_000_000_000,
             Input::Failed {
                 node: 3,
+                tap: Some(1),
                 exception: "Blocked".into(),
                 message: "a person in the way".into(),
                 ancestry: vec!["NavFailure".into()],

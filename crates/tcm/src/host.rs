@@ -192,6 +192,8 @@ pub(crate) struct Inner {
     pub(crate) armed: Option<Time>,
     // Trace records taken from the engine, for the driver to hand to the sinks outside the lock.
     pub(crate) trace: Vec<TraceEvent>,
+    // The run's journal, if it keeps one (`journal.rs`): written before effects are carried out.
+    pub(crate) journal: Option<Box<crate::journal::Journaled>>,
     // Jobs whose task was dropped unfinished (see `Reporter`), for the driver to report.
     stopped: mpsc::Receiver<Job>,
 }
@@ -225,6 +227,7 @@ impl Inner {
             panics: Vec::new(),
             armed: None,
             trace: Vec::new(),
+            journal: None,
         }
     }
 
@@ -318,6 +321,10 @@ impl Inner {
     /// the host looks, on its first start).
     #[inline]
     pub(crate) fn start_effects_pumping(&mut self, shared: &Arc<Shared>, pumps: Option<bool>) {
+        // The inputs that caused these effects are journaled first (`journal.rs`).
+        if let Some(j) = self.journal.as_mut() {
+            j.drain(&mut self.engine);
+        }
         // Most accesses leave no effect (a spawn whose parent holds its children): the host is
         // borrowed only for one.
         if let Some(first) = self.engine.poll_effect() {

@@ -34,6 +34,7 @@ mod ctx;
 mod faults;
 mod host;
 mod invoke;
+mod journal;
 mod niced;
 pub mod patterns;
 mod place;

@@ -483,6 +483,18 @@ impl Runtime {
         self
     }
 
+    /// Keeps a journal of the run (docs/semantics.md, "Durable runs"): every input its engine
+    /// takes is appended to `writer` before what it causes is carried out; a failed write ends
+    /// the run with the unhandled exception `JournalFailed` at the root. The journal is synced
+    /// and closed when the run ends.
+    pub fn journal(self, writer: tcm_journal::Writer) -> Runtime {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner.engine.record_inputs(true);
+            inner.journal = Some(Box::new(crate::journal::Journaled::new(writer)));
+        }
+        self
+    }
+
     /// Adds a wiretap built for one task (TDL's `wiretap w() before T { … }`): the same as
     /// [`Runtime::wiretap`] with the task and the point it names.
     pub fn tap(self, tap: crate::task::Tap) -> Runtime {
@@ -668,14 +680,36 @@ impl RunLoop {
         let mut inner = lock(&self.shared)?;
         let now = self.shared.now();
         inner.report_stopped(&self.shared, now);
-        let (engine, mut host) = inner.split(&self.shared);
-        let next = tcm_core::Driver::turn(engine, &mut host, now);
+        let next = if inner.journal.is_some() {
+            // The timers that fire are journaled before what they cause is carried out.
+            let fields = &mut *inner;
+            tcm_core::Driver::time(&mut fields.engine, now);
+            if let Some(j) = fields.journal.as_mut() {
+                j.drain(&mut fields.engine);
+            }
+            let (engine, mut host) = inner.split(&self.shared);
+            tcm_core::Driver::effects(engine, &mut host);
+            tcm_core::Driver::trace(engine, &mut host);
+            tcm_core::Driver::next(engine)
+        } else {
+            let (engine, mut host) = inner.split(&self.shared);
+            tcm_core::Driver::turn(engine, &mut host, now)
+        };
         trace.append(&mut inner.trace);
         inner.armed = next.deadline;
         inner.clear_roots_changed();
         let mut due = std::mem::take(&mut inner.due);
         let quiet = due.is_empty() && inner.quiet();
-        let end = if let Some(f) = inner.engine.fatal() {
+        let journal_failed = inner
+            .journal
+            .as_ref()
+            .and_then(|j| j.failed.clone())
+            .map(|why| crate::journal::failed_outcome(&why));
+        let end = if let Some(f) = journal_failed {
+            // A run never goes on unjournaled.
+            due.clear();
+            Some(RunOutcome::Fatal(f))
+        } else if let Some(f) = inner.engine.fatal() {
             // The run ends at once: due callbacks do not run.
             due.clear();
             Some(RunOutcome::Fatal(f.clone()))
@@ -821,6 +855,13 @@ pub(crate) fn end_run(shared: &Arc<Shared>) {
         inner.callbacks.clear();
         inner.due.clear();
         inner.watchers.clear();
+        // The journal's last inputs are written and synced.
+        if let Some(mut j) = inner.journal.take() {
+            j.drain(&mut inner.engine);
+            if let Err(why) = j.close() {
+                tracing::error!(target: "tcm", "the run's journal is incomplete: {why}");
+            }
+        }
         shared.status.send_modify(|s| s.ended = true);
     }
     // Started but never polled, or parked: dropped outside the lock (a drop may take it).

@@ -47,8 +47,9 @@ pub enum Effect<A, F = ()> {
     Value {
         /// The node.
         node: NodeId,
-        /// What stands for its action's value.
-        value: super::FaultValue,
+        /// What stands for its action's value (boxed: effects are queued by the thousand, and
+        /// this one is rare).
+        value: Box<super::FaultValue>,
     },
     /// A watched point was reached (see [`Engine::watch`]).
     Notify {

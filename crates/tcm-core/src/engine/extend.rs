@@ -141,6 +141,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// Records an operation from outside the run (rule 4).
     pub fn note_control(&mut self, now: Time, what: &str, by: &str) {
         self.advance(now);
+        self.record(|_| super::InputRecord::Control {
+            what: what.to_string(),
+            by: by.to_string(),
+        });
         if self.tracing {
             self.push_trace(TraceKind::Control {
                 what: what.to_string(),

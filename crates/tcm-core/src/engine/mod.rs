@@ -87,6 +87,7 @@ mod callback;
 mod canon;
 mod exception;
 mod extend;
+mod inputs;
 mod monitor;
 pub(crate) mod node;
 mod progress;
@@ -109,6 +110,7 @@ pub use api::{Effect, EngineError, Job, Spawn, Stats, WatchOutcome};
 use arm::{External, Join};
 pub use canon::Canonical;
 pub use exception::HandlerSpec;
+pub use inputs::InputRecord;
 pub use monitor::{EachActivation, MonitorSpec, Overrun};
 use node::Node;
 pub use node::{OnTerminate, Purpose};
@@ -217,6 +219,8 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     states: state::States,
     // Pausing, breakpoints, faults and approvals, from the first request (`steer.rs`).
     steer: Option<Box<steer::Steering>>,
+    // The inputs taken, while recording them for a journal (`inputs.rs`).
+    inputs: Option<VecDeque<(Time, inputs::InputRecord)>>,
 }
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
@@ -261,6 +265,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             res: resource::Resources::default(),
             states: state::States::default(),
             steer: None,
+            inputs: None,
         };
         engine.push_trace(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,

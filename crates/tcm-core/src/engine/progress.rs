@@ -16,6 +16,7 @@
 //! 4. a terminating node is terminated once its execution completed and its children are;
 //! 5. a completed node with no children left is reclaimed, unless persistent.
 
+use super::InputRecord;
 use super::node::{Link, Node, WaitKind, Waiters};
 use super::timers::TimerKind;
 use super::{ChildRun, Effect, Engine, EngineError, Job, MAX_RUNS, WatchOutcome, Work};
@@ -47,6 +48,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.advance(now);
         let node = job.node();
         self.check_run(node)?;
+        if self.inputs.is_some() {
+            self.record_finished(job, &result);
+        }
         if let Some(tap) = job.tap() {
             let res = self.tap_finished(node, tap, result);
             self.settle();
@@ -104,6 +108,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     pub fn handle_action_stopped(&mut self, now: Time, job: impl Into<Job>) {
         let node = job.into().node();
         self.advance(now);
+        self.record(|e| InputRecord::Stopped {
+            node: e.display_of(node),
+        });
         let stopping =
             self.check_run(node).is_ok() && self.nodes.get(node).is_some_and(|n| n.stopping);
         if stopping {
@@ -125,6 +132,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     pub fn handle_action_overdue(&mut self, now: Time, job: impl Into<Job>, grace: Duration) {
         let node = job.into().node();
         self.advance(now);
+        self.record(|e| InputRecord::Overdue {
+            node: e.display_of(node),
+            grace,
+        });
         if self.check_run(node).is_err() {
             return;
         }
@@ -150,6 +161,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
 
     /// Input: the time is `now`; fires every timer due at or before it.
     pub fn handle_timeout(&mut self, now: Time) {
+        if self.inputs.is_some() {
+            // Recorded only when timers are due: a turn that finds none changes nothing.
+            let due = self.poll_timeout().is_some_and(|d| d <= now);
+            if due {
+                self.advance(now);
+                self.record(|_| InputRecord::Time);
+            }
+        }
         self.advance(now);
         self.fire_timers(now, true);
     }

@@ -320,6 +320,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             .coerce(var.ty)
             .map_err(|e| EngineError::StateType(var.name.clone(), e))?;
         let changed = var.value != value;
+        let name = var.name.clone();
+        self.record(|_| super::InputRecord::State {
+            name,
+            value: value.clone(),
+        });
+        let Some(var) = self.states.vars.get(id.0 as usize) else {
+            return Err(EngineError::UnknownState(format!("#{}", id.0)));
+        };
         emit!(
             self,
             TraceKind::StateSet {

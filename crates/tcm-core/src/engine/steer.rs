@@ -279,6 +279,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     }
 
     fn note(&mut self, what: String, by: &str) {
+        self.record(|_| super::InputRecord::Control {
+            what: what.clone(),
+            by: by.to_string(),
+        });
         if self.tracing {
             self.push_trace(TraceKind::Control {
                 what,
@@ -735,7 +739,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             FaultOutcome::Succeed(value) => {
                 if let Some(value) = value {
-                    self.effects.push_back(super::Effect::Value { node, value });
+                    self.effects.push_back(super::Effect::Value {
+                        node,
+                        value: Box::new(value),
+                    });
                 }
                 self.complete_handling(node);
                 self.break_at(BreakAt::End, node, None);

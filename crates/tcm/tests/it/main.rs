@@ -13,6 +13,7 @@ mod determinism;
 mod exceptions;
 mod held_children;
 mod introspection;
+mod journal;
 mod loud;
 mod monitors;
 mod panics;

@@ -62,6 +62,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         let name = ext.name.clone();
         let waiters = std::mem::take(&mut ext.waiters);
         let activators = ext.activators.clone();
+        self.record(|_| super::super::InputRecord::External { name: name.clone() });
         emit!(self, TraceKind::External { name });
         if first {
             for w in waiters {

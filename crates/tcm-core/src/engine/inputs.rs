@@ -1,0 +1,110 @@
+//! The engine's inputs, recorded for a journal (a durable run: `tcm-journal`; docs/semantics.md,
+//! "Durable runs"): each input at the time the engine took it, in the order it took them, nodes
+//! named by their display numbers. The engine does no I/O: the shell drains them
+//! ([`Engine::poll_input`]) and writes them. Recording is off until [`Engine::record_inputs`].
+//!
+//! What is an input: an action's end (with its failure, if any: its value the shell keeps), its
+//! stop after a cancellation, its grace period running out, an external event, a state variable
+//! set, time passing with timers due, and an operation from outside (a `control` record's).
+//! What bodies ask of the engine (spawns, constraints, waits) is not: a replay runs the bodies
+//! again, and they ask it again.
+
+use super::Engine;
+use super::node::Node;
+use crate::arena::Keep;
+use crate::failure::Failure;
+use crate::time::Time;
+use std::collections::VecDeque;
+
+/// One input, as recorded.
+#[derive(Clone, Debug, PartialEq)]
+pub enum InputRecord {
+    /// A job the shell ran ended: `node`'s action or invocation (or, with `tap`, a wiretap check
+    /// on it), well or with `failure`.
+    Finished {
+        /// The node's display number.
+        node: u64,
+        /// For a wiretap check: the wiretap's number.
+        tap: Option<u32>,
+        /// How it failed, if it did.
+        failure: Option<Failure>,
+    },
+    /// A cancelled job stopped.
+    Stopped {
+        /// The node's display number.
+        node: u64,
+    },
+    /// A cancelled job did not stop within its grace period.
+    Overdue {
+        /// The node's display number.
+        node: u64,
+        /// The grace period.
+        grace: std::time::Duration,
+    },
+    /// An external event was raised (its data, if any, the shell keeps).
+    External {
+        /// Its name.
+        name: String,
+    },
+    /// A state variable was set.
+    State {
+        /// Its name.
+        name: String,
+        /// Its value.
+        value: tcm_expr::Value,
+    },
+    /// Time passed to the record's time, and timers were due.
+    Time,
+    /// An operation from outside the run, as its `control` record says it.
+    Control {
+        /// What was done.
+        what: String,
+        /// Who asked.
+        by: String,
+    },
+}
+
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
+    /// Records every input from now on, for [`Engine::poll_input`] (off by default).
+    pub fn record_inputs(&mut self, on: bool) {
+        self.inputs = on.then(VecDeque::new);
+    }
+
+    /// Output: the next recorded input, with the engine's time when it took it.
+    #[must_use]
+    pub fn poll_input(&mut self) -> Option<(Time, InputRecord)> {
+        self.inputs.as_mut()?.pop_front()
+    }
+
+    /// Records an input at the engine's time, if recording.
+    #[inline]
+    pub(super) fn record(&mut self, input: impl FnOnce(&Self) -> InputRecord) {
+        if self.inputs.is_some() {
+            // An input given the clock's time reads it now (`Engine::at_clock`).
+            let now = self.time();
+            let input = input(self);
+            if let Some(q) = self.inputs.as_mut() {
+                q.push_back((now, input));
+            }
+        }
+    }
+
+    /// Records a job's end (`handle_action_finished`), off the hot path.
+    #[cold]
+    #[inline(never)]
+    pub(super) fn record_finished(&mut self, job: super::Job, result: &Result<(), Failure>) {
+        let failure = result.as_ref().err().cloned();
+        let node = job.node();
+        self.record(|e| InputRecord::Finished {
+            node: e.display_of(node),
+            tap: job.tap().map(|t| t.0),
+            failure,
+        });
+    }
+
+    /// The display number of `node`, 0 once it is gone (an input for a node already gone changes
+    /// nothing on replay either).
+    pub(super) fn display_of(&self, node: crate::ids::NodeId) -> u64 {
+        self.nodes.get(node).map_or(0, |n| n.display)
+    }
+}

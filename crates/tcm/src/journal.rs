@@ -1,0 +1,95 @@
+//! A run's journal (docs/semantics.md, "Durable runs"): the inputs its engine takes, written by a
+//! `tcm_journal::Writer` before the effects they cause are carried out, so that nothing the robot
+//! did follows an input the journal lost. A failed write ends the run at its next turn with the
+//! unhandled exception `JournalFailed` at the root: it never goes on unjournaled.
+
+use tcm_core::{Engine, InputRecord};
+use tcm_journal::{Input, Writer};
+
+use crate::task::{Action, Factory};
+
+/// The journal of a run, kept beside its engine (`Inner::journal`).
+pub(crate) struct Journaled {
+    writer: Writer,
+    // The first failed write: the run ends with it.
+    pub(crate) failed: Option<String>,
+}
+
+impl Journaled {
+    pub(crate) fn new(writer: Writer) -> Journaled {
+        Journaled {
+            writer,
+            failed: None,
+        }
+    }
+
+    /// Writes the inputs the engine took since the last call.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn drain(&mut self, engine: &mut Engine<Action, Factory>) {
+        while let Some((t, input)) = engine.poll_input() {
+            if self.failed.is_some() {
+                continue;
+            }
+            if let Err(e) = self.writer.append(t.as_nanos(), entry(input)) {
+                self.failed = Some(e.to_string());
+            }
+        }
+    }
+
+    /// Syncs and closes the journal; the error of a write that failed, if one did.
+    pub(crate) fn close(self) -> Result<(), String> {
+        if let Some(why) = self.failed {
+            return Err(why);
+        }
+        self.writer.close().map_err(|e| e.to_string())
+    }
+}
+
+/// The journal's form of an input.
+fn entry(input: InputRecord) -> Input {
+    match input {
+        InputRecord::Finished {
+            node,
+            tap,
+            failure: None,
+        } => Input::Ended {
+            node,
+            tap,
+            value: None,
+        },
+        InputRecord::Finished {
+            node,
+            tap,
+            failure: Some(f),
+        } => Input::Failed {
+            node,
+            tap,
+            data: f.data::<serde_json::Value>().map(|d| (*d).clone()),
+            exception: f.exception.to_string(),
+            ancestry: f.ancestry.iter().map(ToString::to_string).collect(),
+            message: f.message,
+        },
+        InputRecord::Stopped { node } => Input::Stopped { node },
+        InputRecord::Overdue { node, grace } => Input::Overdue {
+            node,
+            grace_ns: u64::try_from(grace.as_nanos()).unwrap_or(u64::MAX),
+        },
+        InputRecord::External { name } => Input::External { name, data: None },
+        InputRecord::State { name, value } => Input::State {
+            name,
+            value: serde_json::to_value(&value).unwrap_or_default(),
+        },
+        InputRecord::Time => Input::Time,
+        InputRecord::Control { what, by } => Input::Control { what, by },
+    }
+}
+
+/// The outcome of a run whose journal failed: an unhandled failure at the root.
+pub(crate) fn failed_outcome(why: &str) -> tcm_core::FatalFailure {
+    tcm_core::FatalFailure {
+        failure: tcm_core::Failure::new("JournalFailed", why.to_string()),
+        node: 0,
+        path: String::new(),
+    }
+}

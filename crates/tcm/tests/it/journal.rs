@@ -1,0 +1,142 @@
+//! A run that keeps a journal (`Runtime::journal`; docs/semantics.md, "Durable runs"): each input
+//! its engine takes is in it, in order, at the engine's times; a journal that cannot be written
+//! ends the run with `JournalFailed` at the root. On tokio's paused clock.
+
+use std::time::Duration;
+use tcm::testing::assert_checked;
+use tcm::{Failure, Recorder, RunOutcome, Runtime, Task};
+use tcm_journal::{Durability, Input, Writer};
+
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("tcm-journaled-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("a scratch directory");
+    dir.join("run.journal")
+}
+
+/// A goal: `a` (1 s), then `b`, which fails after 1 s; its failure taken by nobody.
+fn mission() -> Task {
+    Task::goal("mission", |ctx| async move {
+        ctx.spawn(Task::command("a", |_| async {
+            tokio::time::sleep(Duration::from_secs(1)).await;
+            Ok(())
+        }))
+        .start()?;
+        ctx.spawn(Task::command("b", |_| async {
+            tokio::time::sleep(Duration::from_secs(1)).await;
+            Err::<(), _>(Failure::new("Blocked", "in the way"))
+        }))
+        .serial(tcm::NodeRef::Previous)
+        .start()?;
+        Ok(())
+    })
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_runs_inputs_are_in_its_journal_in_order() {
+    let path = scratch("inputs");
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let rec = Recorder::new();
+    let rt = Runtime::new().with_sink(rec.clone()).journal(writer);
+    let events = rt.events();
+    tokio::spawn(async move {
+        tokio::time::sleep(Duration::from_millis(1500)).await;
+        events.raise("go").expect("raise");
+        drop(events);
+    });
+    let report = rt.run(mission()).await.expect("run");
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_checked(&rec.events());
+    let journal = tcm_journal::read(&path, Some("mission@1")).expect("read");
+    assert_eq!(journal.warning, None);
+    let got: Vec<(u64, String)> = journal
+        .entries
+        .iter()
+        .map(|e| {
+            let what = match &e.input {
+                Input::Ended { node, .. } => format!("ended {node}"),
+                Input::Failed {
+                    node, exception, ..
+                } => format!("failed {node} {exception}"),
+                Input::External { name, .. } => format!("external {name}"),
+                other => format!("{other:?}"),
+            };
+            (e.t / 100_000_000, what)
+        })
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (0, "ended 1".to_string()),
+            (10, "ended 2".to_string()),
+            (15, "external go".to_string()),
+            (20, "failed 3 Blocked".to_string()),
+        ]
+    );
+}
+
+/// A store that takes the header and fails every write after it, as a full disk does.
+struct FullAfterHeader {
+    header: bool,
+}
+
+impl std::io::Write for FullAfterHeader {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.header {
+            return Err(std::io::Error::from_raw_os_error(28));
+        }
+        self.header = true;
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl tcm_journal::Store for FullAfterHeader {
+    fn sync(&self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_journal_that_cannot_be_written_ends_the_run_loudly() {
+    let writer = Writer::on(
+        "full.journal".into(),
+        Box::new(FullAfterHeader { header: false }),
+        "mission@1",
+        Durability::EveryRecord,
+    )
+    .expect("the header is written");
+    let rec = Recorder::new();
+    let rt = Runtime::new().with_sink(rec.clone()).journal(writer);
+    let report = rt.run(mission()).await.expect("run");
+    match &report.outcome {
+        RunOutcome::Fatal(f) => {
+            assert_eq!(f.failure.exception, "JournalFailed");
+            assert!(
+                f.failure.message.contains("No space left on device"),
+                "{}",
+                f.failure.message
+            );
+        }
+        other => panic!("the run must end loudly: {other:?}"),
+    }
+    // It ended at its first input: `a` never ended normally.
+    let a_ended = rec
+        .events()
+        .iter()
+        .filter(|e| {
+            matches!(
+                e.kind,
+                tcm::TraceKind::Transition {
+                    node: 2,
+                    facet: tcm::Facet::Handling,
+                    to: tcm::State::Completed,
+                    ..
+                }
+            )
+        })
+        .count();
+    assert_eq!(a_ended, 0);
+}
