@@ -56,6 +56,35 @@ pub(crate) struct Args {
     max_steps: Option<u64>,
     #[command(flatten)]
     steer: crate::debug::Steer,
+    /// Keep a journal of the run's inputs in this file (a new file; docs/semantics.md, "Durable
+    /// runs").
+    #[arg(long, value_name = "FILE")]
+    journal: Option<PathBuf>,
+    /// How the journal reaches the disk: `every` record synced, or `group:MS`, synced together at
+    /// most MS milliseconds after they were written.
+    #[arg(
+        long,
+        value_name = "every|group:MS",
+        default_value = "group:10",
+        requires = "journal"
+    )]
+    journal_sync: String,
+}
+
+/// `--journal-sync` read.
+fn durability(text: &str) -> anyhow::Result<tcm_journal::Durability> {
+    match text.split_once(':') {
+        None if text == "every" => Ok(tcm_journal::Durability::EveryRecord),
+        Some(("group", ms)) => {
+            let ms: u64 = ms.parse().with_context(|| {
+                format!("--journal-sync {text}: MS is a number of milliseconds")
+            })?;
+            Ok(tcm_journal::Durability::Group(
+                std::time::Duration::from_millis(ms),
+            ))
+        }
+        _ => anyhow::bail!("--journal-sync {text}: give `every` or `group:MS`"),
+    }
 }
 
 /// The files, read.
@@ -143,6 +172,11 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         };
         let task = program.task_json(&name, &args)?;
         let mut runtime = a.steer.prepare(tdl::Runtime::new())?;
+        if let Some(path) = &a.journal {
+            let writer =
+                tcm_journal::Writer::create(path, program.hash(), durability(&a.journal_sync)?)?;
+            runtime = runtime.journal(writer);
+        }
         for h in program.attached() {
             runtime = runtime.attach(h);
         }

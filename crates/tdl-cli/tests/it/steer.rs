@@ -281,3 +281,51 @@ fn an_exception_from_a_faults_file_carries_its_data_to_the_handler() {
     assert_eq!(spawned("9"), ["walk", "step", "go_around", "far_around"]);
     assert_eq!(spawned("2"), ["walk", "step", "go_around", "around"]);
 }
+
+/// `tdl run --journal FILE`: the run's inputs are in the journal, which names the program by its
+/// hash; a second run does not overwrite it.
+#[test]
+fn tdl_run_keeps_a_journal_of_its_inputs() {
+    let dir = scratch("journal");
+    let journal = dir.join("run.journal");
+    let journal_arg = journal.display().to_string();
+    let args = [
+        "run",
+        "tests/data/run/steps.tdl",
+        "--args",
+        "[3, 9]",
+        "--journal",
+        &journal_arg,
+        "--journal-sync",
+        "every",
+    ];
+    let (code, out, err) = tdl(&args);
+    assert_eq!(code, 0, "{out}{err}");
+    let read = tcm_journal::read(&journal, None).expect("a journal");
+    assert_eq!(read.header.program.len(), 12, "the program's content hash");
+    let ended: Vec<u64> = read
+        .entries
+        .iter()
+        .filter_map(|e| match e.input {
+            tcm_journal::Input::Ended { node, .. } => Some(node),
+            _ => None,
+        })
+        .collect();
+    // The goal's body, then its three steps, in order.
+    assert_eq!(ended, [1, 2, 3, 4]);
+    let (code, _, err) = tdl(&args);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("exists already: resume from it, or remove it first"), "{err}");
+    let (code, _, err) = tdl(&[
+        "run",
+        "tests/data/run/steps.tdl",
+        "--args",
+        "[3, 9]",
+        "--journal",
+        &dir.join("other.journal").display().to_string(),
+        "--journal-sync",
+        "sometimes",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("give `every` or `group:MS`"), "{err}");
+}
