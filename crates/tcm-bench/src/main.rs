@@ -167,33 +167,64 @@ fn core_recursive(depth: usize) -> (f64, usize) {
 }
 
 fn shell<F: FnOnce() -> Task>(nodes: usize, make: F) -> (f64, usize) {
+    shell_journaled(nodes, make, None)
+}
+
+/// The shell, keeping a journal of its inputs with `journal` durability if given, in a new file
+/// of the temporary directory (on this machine's disk), removed after: its writes and syncs, and
+/// its close at the run's end, are in the time.
+fn shell_journaled<F: FnOnce() -> Task>(
+    nodes: usize,
+    make: F,
+    journal: Option<tcm_journal::Durability>,
+) -> (f64, usize) {
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_time()
         .build()
         .expect("tokio runtime");
+    let mut run = Runtime::new();
+    let path = std::env::temp_dir().join(format!("tcm-bench-{}.journal", std::process::id()));
+    let _ = std::fs::remove_file(&path);
+    if let Some(d) = journal {
+        let writer = tcm_journal::Writer::create(&path, "bench", d).expect("a journal");
+        run = run.journal(writer);
+    }
     let start = Instant::now();
-    let report = rt.block_on(Runtime::new().run(make())).expect("run");
+    let report = rt.block_on(run.run(make())).expect("run");
     let ns = start.elapsed().as_nanos() as f64 / nodes as f64;
+    let _ = std::fs::remove_file(&path);
     (ns, report.stats.high_water)
 }
 
 fn shell_flat(n: usize, chained: bool) -> (f64, usize) {
+    shell_flat_journaled(n, chained, None)
+}
+
+fn shell_flat_journaled(
+    n: usize,
+    chained: bool,
+    journal: Option<tcm_journal::Durability>,
+) -> (f64, usize) {
     let mut hw = 0;
     let ns = best(|| {
-        let (ns, h) = shell(n, || {
-            Task::goal("top", move |ctx| async move {
-                for _ in 0..n {
-                    let s = ctx.spawn(Task::command("noop", |_| async { Ok(()) }));
-                    let s = if chained {
-                        s.serial(NodeRef::Previous)
-                    } else {
-                        s
-                    };
-                    s.start()?;
-                }
-                Ok(())
-            })
-        });
+        let (ns, h) = shell_journaled(
+            n,
+            || {
+                Task::goal("top", move |ctx| async move {
+                    for _ in 0..n {
+                        let s = ctx.spawn(Task::command("noop", |_| async { Ok(()) }));
+                        let s = if chained {
+                            s.serial(NodeRef::Previous)
+                        } else {
+                            s
+                        };
+                        s.start()?;
+                    }
+                    Ok(())
+                })
+            },
+            journal,
+        );
         hw = h;
         ns
     });
@@ -504,7 +535,7 @@ struct Options {
 }
 
 const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W5|W6|W7|W8|load|W1-scale] \
-[--layer core|shell|interp] [--n N] [--depth D] [--hold] [--cold-heap]";
+[--layer core|shell|interp|journal] [--n N] [--depth D] [--hold] [--cold-heap]";
 
 fn parse_args() -> Result<Options, String> {
     let mut o = Options {
@@ -544,7 +575,7 @@ fn parse_args() -> Result<Options, String> {
             }
             "--layer" => {
                 let l = value("--layer")?;
-                if !matches!(l.as_str(), "core" | "shell" | "interp") {
+                if !matches!(l.as_str(), "core" | "shell" | "interp" | "journal") {
                     return Err(format!("unknown layer {l:?}"));
                 }
                 o.layer = Some(l);
@@ -581,6 +612,8 @@ fn main() {
     let core = o.layer.as_deref().is_none_or(|l| l == "core");
     let shell = o.layer.as_deref().is_none_or(|l| l == "shell");
     let interp = o.layer.as_deref().is_none_or(|l| l == "interp");
+    // Only when asked for: a sync per record makes it slow.
+    let journal = o.layer.as_deref() == Some("journal");
     let n = o.n.unwrap_or(if quick { 10_000 } else { 100_000 });
     let depth = o.depth.unwrap_or(if quick { 1_000 } else { 10_000 });
     if on("W1") || on("W2") {
@@ -607,6 +640,41 @@ fn main() {
             if interp {
                 report(json, "W2", "tdl", n, interp::tdl_flat(n, false), f);
                 report(json, "W2", "interp", n, interp::interp_flat(n, false), f);
+            }
+        }
+    }
+    if journal {
+        // The shell beside itself keeping a journal: group commit every 10 ms at the workloads'
+        // size, and a sync per record at a size where a sync each (about 0.1 ms on a disk) keeps
+        // the run short; each line's ratio is to the floor, the last the costs against the shell
+        // of the same size.
+        let nj = o.n.unwrap_or(if quick { 10_000 } else { 100_000 });
+        let ne = nj.min(2_000);
+        for (w, chained) in [("W1", true), ("W2", false)] {
+            if !on(w) {
+                continue;
+            }
+            let plain = shell_flat(nj, chained);
+            let group = shell_flat_journaled(
+                nj,
+                chained,
+                Some(tcm_journal::Durability::Group(
+                    std::time::Duration::from_millis(10),
+                )),
+            );
+            let plain_e = shell_flat(ne, chained);
+            let every =
+                shell_flat_journaled(ne, chained, Some(tcm_journal::Durability::EveryRecord));
+            report(json, w, "shell", nj, plain, floor(nj));
+            report(json, w, "shell+journal-group", nj, group, floor(nj));
+            report(json, w, "shell", ne, plain_e, floor(ne));
+            report(json, w, "shell+journal-every", ne, every, floor(ne));
+            if !json {
+                println!(
+                    "{w}: a journal costs {:+.1}% with group commit (n={nj}), x{:.0} with a sync per record (n={ne})",
+                    100.0 * (group.0 / plain.0 - 1.0),
+                    every.0 / plain_e.0
+                );
             }
         }
     }

@@ -2,7 +2,7 @@
 //! says.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::Path;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
@@ -34,27 +34,32 @@ impl Store for File {
     }
 }
 
-/// What the writer and its flusher share.
-struct State {
-    out: BufWriter<Box<dyn Store>>,
-    // Records appended and not synced yet.
-    dirty: bool,
+/// What the writer and its flusher share (group commit).
+struct Shared {
+    // Records appended and not yet handed to the store.
+    pending: Vec<u8>,
     // The first failure; nothing is written after it.
     failed: Option<String>,
-    // The writer is closing: the flusher stops.
+    // The writer is closing: the flusher writes what is left and stops.
     closing: bool,
 }
 
 /// Appends a run's inputs to its journal (see the crate's documentation).
 pub struct Writer {
     file: String,
-    state: Arc<(Mutex<State>, Condvar)>,
-    durability: Durability,
+    // With a sync per record: the store, written by `append` itself.
+    store: Option<Box<dyn Store>>,
+    // With group commit: what `append` and the flusher share, and the flusher.
+    shared: Arc<(Mutex<Shared>, Condvar)>,
     flusher: Option<JoinHandle<()>>,
+    // The first failure of a sync per record.
+    failed: Option<String>,
+    // The record being made, reused.
+    scratch: Vec<u8>,
     next: u64,
 }
 
-fn lock(m: &Mutex<State>) -> MutexGuard<'_, State> {
+fn lock(m: &Mutex<Shared>) -> MutexGuard<'_, Shared> {
     // A panic under the lock leaves plain fields, each whole.
     m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
@@ -89,7 +94,7 @@ impl Writer {
     /// A journal written to `store` (named `name` in errors), its header written and synced.
     pub fn on(
         name: String,
-        store: Box<dyn Store>,
+        mut store: Box<dyn Store>,
         program: &str,
         durability: Durability,
     ) -> Result<Writer, JournalError> {
@@ -97,43 +102,44 @@ impl Writer {
             journal: JOURNAL_FORMAT_VERSION,
             program: program.to_string(),
         };
-        let mut out = BufWriter::new(store);
         let json = serde_json::to_string(&header).unwrap_or_default();
-        let written = out
+        let written = store
             .write_all(line(&json).as_bytes())
-            .and_then(|()| out.flush())
-            .and_then(|()| out.get_ref().sync());
+            .and_then(|()| store.flush())
+            .and_then(|()| store.sync());
         written.map_err(|source| JournalError::Write {
             file: name.clone(),
             source,
         })?;
-        let state = Arc::new((
-            Mutex::new(State {
-                out,
-                dirty: false,
+        let shared = Arc::new((
+            Mutex::new(Shared {
+                pending: Vec::new(),
                 failed: None,
                 closing: false,
             }),
             Condvar::new(),
         ));
-        let flusher = match durability {
-            Durability::EveryRecord => None,
+        let (store, flusher) = match durability {
+            Durability::EveryRecord => (Some(store), None),
             Durability::Group(every) => {
-                let state = state.clone();
+                let shared = shared.clone();
                 let spawned = std::thread::Builder::new()
                     .name("tcm-journal".into())
-                    .spawn(move || flush_every(&state, every));
-                Some(spawned.map_err(|source| JournalError::Io {
+                    .spawn(move || flush_every(&shared, store, every));
+                let flusher = spawned.map_err(|source| JournalError::Io {
                     file: name.clone(),
                     source,
-                })?)
+                })?;
+                (None, Some(flusher))
             }
         };
         Ok(Writer {
             file: name,
-            state,
-            durability,
+            store,
+            shared,
             flusher,
+            failed: None,
+            scratch: Vec::with_capacity(256),
             next: 0,
         })
     }
@@ -147,34 +153,56 @@ impl Writer {
             t,
             input,
         };
-        let json = serde_json::to_string(&entry).map_err(|e| JournalError::Write {
+        self.scratch.clear();
+        encode(&entry, &mut self.scratch).map_err(|e| JournalError::Write {
             file: self.file.clone(),
             source: std::io::Error::other(e),
         })?;
-        let mut s = lock(&self.state.0);
-        if let Some(why) = &s.failed {
-            return Err(JournalError::Failed {
-                file: self.file.clone(),
-                why: why.clone(),
-            });
-        }
-        let mut written = s.out.write_all(line(&json).as_bytes());
-        if written.is_ok() && self.durability == Durability::EveryRecord {
-            written = s.out.flush().and_then(|()| s.out.get_ref().sync());
-        }
+        let crc = crc32fast::hash(&self.scratch);
+        let written = match self.store.as_mut() {
+            Some(store) => {
+                if let Some(why) = &self.failed {
+                    return Err(JournalError::Failed {
+                        file: self.file.clone(),
+                        why: why.clone(),
+                    });
+                }
+                let mut record = Vec::with_capacity(self.scratch.len() + 10);
+                hex(crc, &mut record);
+                record.extend_from_slice(&self.scratch);
+                record.push(b'\n');
+                let written = store
+                    .write_all(&record)
+                    .and_then(|()| store.flush())
+                    .and_then(|()| store.sync());
+                if let Err(e) = &written {
+                    self.failed = Some(e.to_string());
+                }
+                written
+            }
+            None => {
+                let mut s = lock(&self.shared.0);
+                if let Some(why) = &s.failed {
+                    return Err(JournalError::Failed {
+                        file: self.file.clone(),
+                        why: why.clone(),
+                    });
+                }
+                hex(crc, &mut s.pending);
+                s.pending.extend_from_slice(&self.scratch);
+                s.pending.push(b'\n');
+                Ok(())
+            }
+        };
         match written {
             Ok(()) => {
-                s.dirty = true;
                 self.next += 1;
                 Ok(())
             }
-            Err(source) => {
-                s.failed = Some(source.to_string());
-                Err(JournalError::Write {
-                    file: self.file.clone(),
-                    source,
-                })
-            }
+            Err(source) => Err(JournalError::Write {
+                file: self.file.clone(),
+                source,
+            }),
         }
     }
 
@@ -194,30 +222,22 @@ impl Writer {
     }
 
     fn finish(&mut self) -> Result<(), JournalError> {
-        {
-            let mut s = lock(&self.state.0);
-            s.closing = true;
-            self.state.1.notify_all();
-        }
         if let Some(f) = self.flusher.take() {
+            lock(&self.shared.0).closing = true;
+            self.shared.1.notify_all();
             let _ = f.join();
         }
-        let mut s = lock(&self.state.0);
-        if let Some(why) = &s.failed {
-            return Err(JournalError::Failed {
+        let failed = self
+            .failed
+            .clone()
+            .or_else(|| lock(&self.shared.0).failed.clone());
+        match failed {
+            Some(why) => Err(JournalError::Failed {
                 file: self.file.clone(),
-                why: why.clone(),
-            });
+                why,
+            }),
+            None => Ok(()),
         }
-        let synced = s.out.flush().and_then(|()| s.out.get_ref().sync());
-        s.dirty = false;
-        synced.map_err(|source| {
-            s.failed = Some(source.to_string());
-            JournalError::Write {
-                file: self.file.clone(),
-                source,
-            }
-        })
     }
 }
 
@@ -227,22 +247,85 @@ impl Drop for Writer {
     }
 }
 
-/// The group-commit flusher: every `every`, what was appended since is written and synced; a
-/// failure is kept for the next append to report.
-fn flush_every(state: &(Mutex<State>, Condvar), every: Duration) {
-    let (m, cv) = state;
-    let mut s = lock(m);
-    while !s.closing {
-        s = cv
-            .wait_timeout(s, every)
-            .map(|(g, _)| g)
-            .unwrap_or_else(|e| e.into_inner().0);
-        if s.dirty && s.failed.is_none() {
-            let synced = s.out.flush().and_then(|()| s.out.get_ref().sync());
-            s.dirty = false;
-            if let Err(e) = synced {
-                s.failed = Some(e.to_string());
+/// Writes `entry` as JSON: the usual input of a run, an action that ended well with no value,
+/// by hand (it is most of a journal: serde's flattening costs more than the rest of a record);
+/// every other through serde. Both read back alike.
+fn encode(entry: &Entry, out: &mut Vec<u8>) -> Result<(), serde_json::Error> {
+    if let Input::Ended {
+        node,
+        tap: None,
+        value: None,
+    } = entry.input
+    {
+        out.extend_from_slice(b"{\"n\":");
+        decimal(entry.n, out);
+        out.extend_from_slice(b",\"t\":");
+        decimal(entry.t, out);
+        out.extend_from_slice(b",\"in\":\"ended\",\"node\":");
+        decimal(node, out);
+        out.push(b'}');
+        return Ok(());
+    }
+    serde_json::to_writer(out, entry)
+}
+
+/// `n` in decimal.
+fn decimal(mut n: u64, out: &mut Vec<u8>) {
+    let mut digits = [0u8; 20];
+    let mut i = digits.len();
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (n % 10) as u8;
+        n /= 10;
+        if n == 0 {
+            break;
+        }
+    }
+    out.extend_from_slice(&digits[i..]);
+}
+
+/// A checksum in eight lowercase hex digits, then a space.
+fn hex(crc: u32, out: &mut Vec<u8>) {
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    for shift in (0..8).rev() {
+        out.push(DIGITS[((crc >> (shift * 4)) & 0xf) as usize]);
+    }
+    out.push(b' ');
+}
+
+/// The group-commit flusher: every `every` (and once more when the writer closes), what was
+/// appended since is taken under the lock and written and synced outside it, so that an append
+/// never waits for the disk; a failure is kept for the next append to report.
+fn flush_every(shared: &(Mutex<Shared>, Condvar), mut store: Box<dyn Store>, every: Duration) {
+    let (m, cv) = shared;
+    let mut spare = Vec::new();
+    loop {
+        let closing;
+        {
+            let mut s = lock(m);
+            if !s.closing {
+                s = cv
+                    .wait_timeout(s, every)
+                    .map(|(g, _)| g)
+                    .unwrap_or_else(|e| e.into_inner().0);
             }
+            closing = s.closing;
+            if s.failed.is_none() {
+                std::mem::swap(&mut s.pending, &mut spare);
+            }
+        }
+        if !spare.is_empty() {
+            let written = store
+                .write_all(&spare)
+                .and_then(|()| store.flush())
+                .and_then(|()| store.sync());
+            spare.clear();
+            if let Err(e) = written {
+                lock(m).failed = Some(e.to_string());
+            }
+        }
+        if closing {
+            return;
         }
     }
 }

@@ -46,6 +46,14 @@ fn inputs() -> Vec<(u64, Input)> {
         (3_000_000_000, Input::Time),
         (
             3_000_000_000,
+            Input::Ended {
+                node: 18_446_744_073_709_551_615,
+                tap: None,
+                value: None,
+            },
+        ),
+        (
+            3_000_000_000,
             Input::State {
                 name: "battery".into(),
                 value: serde_json::json!(0.4),
@@ -66,7 +74,7 @@ fn write(path: &std::path::Path, durability: Durability) {
     for (t, input) in inputs() {
         w.append(t, input).expect("append");
     }
-    assert_eq!(w.len(), 6);
+    assert_eq!(w.len(), 7);
     w.close().expect("close");
 }
 
@@ -119,9 +127,9 @@ fn a_cut_last_record_is_dropped_with_a_warning() {
     bytes.truncate(bytes.len() - 7);
     std::fs::write(&path, &bytes).expect("cut");
     let j = read(&path, Some("mission@3f2a")).expect("read");
-    assert_eq!(j.entries.len(), 5);
+    assert_eq!(j.entries.len(), 6);
     let w = j.warning.expect("a warning");
-    assert!(w.contains("line 7") && w.contains("cut short"), "{w}");
+    assert!(w.contains("line 8") && w.contains("cut short"), "{w}");
 }
 
 #[test]
@@ -200,7 +208,7 @@ fn an_existing_file_is_not_overwritten() {
         e.contains("exists already: resume from it, or remove it first"),
         "{e}"
     );
-    assert_eq!(read(&path, None).expect("intact").entries.len(), 6);
+    assert_eq!(read(&path, None).expect("intact").entries.len(), 7);
 }
 
 /// A store that takes `room` bytes, then fails as a full disk does.

@@ -315,7 +315,10 @@ fn tdl_run_keeps_a_journal_of_its_inputs() {
     assert_eq!(ended, [1, 2, 3, 4]);
     let (code, _, err) = tdl(&args);
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("exists already: resume from it, or remove it first"), "{err}");
+    assert!(
+        err.contains("exists already: resume from it, or remove it first"),
+        "{err}"
+    );
     let (code, _, err) = tdl(&[
         "run",
         "tests/data/run/steps.tdl",
