@@ -13,8 +13,9 @@ use crate::{Entry, Header, Input, JOURNAL_FORMAT_VERSION, JournalError, line};
 /// When what was appended reaches the disk.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Durability {
-    /// Every record is synced before [`Writer::append`] returns: nothing the engine received is
-    /// lost in a crash, at the cost of a sync per input.
+    /// Every record is synced before [`Writer::append`] (or the [`Writer::commit`] of its batch)
+    /// returns: nothing the engine received is lost in a crash, at the cost of a sync per input
+    /// (per batch of inputs taken together).
     EveryRecord,
     /// Group commit: records are synced together at most this long after they were appended (and
     /// when the writer is closed). A crash loses at most that much of the run's end.
@@ -56,6 +57,8 @@ pub struct Writer {
     failed: Option<String>,
     // The record being made, reused.
     scratch: Vec<u8>,
+    // The records added and not committed yet (`Writer::add`, `Writer::commit`).
+    batch: Vec<u8>,
     next: u64,
 }
 
@@ -140,6 +143,7 @@ impl Writer {
             flusher,
             failed: None,
             scratch: Vec::with_capacity(256),
+            batch: Vec::with_capacity(4096),
             next: 0,
         })
     }
@@ -148,6 +152,12 @@ impl Writer {
     /// [`Durability::EveryRecord`], synced before it returns. An error, a write or a sync that
     /// failed now or earlier, means the input is not journaled: the run must stop.
     pub fn append(&mut self, t: u64, input: Input) -> Result<(), JournalError> {
+        self.add(t, input)?;
+        self.commit()
+    }
+
+    /// Adds one input to the batch [`Writer::commit`] writes.
+    pub fn add(&mut self, t: u64, input: Input) -> Result<(), JournalError> {
         let entry = Entry {
             n: self.next,
             t,
@@ -158,7 +168,34 @@ impl Writer {
             file: self.file.clone(),
             source: std::io::Error::other(e),
         })?;
-        let crc = crc32fast::hash(&self.scratch);
+        self.seal();
+        Ok(())
+    }
+
+    /// Adds the plainest input, an action's end with no value, to the batch: the same record as
+    /// [`Writer::add`] with [`Input::Ended`] makes, without building it.
+    pub fn add_ended(&mut self, t: u64, node: u64) {
+        self.scratch.clear();
+        ended(self.next, t, node, &mut self.scratch);
+        self.seal();
+    }
+
+    /// Moves the record in `scratch` into the batch, its checksum before it.
+    fn seal(&mut self) {
+        hex(crc32fast::hash(&self.scratch), &mut self.batch);
+        self.batch.extend_from_slice(&self.scratch);
+        self.batch.push(b'\n');
+        self.next += 1;
+    }
+
+    /// Writes the batch: with [`Durability::EveryRecord`], written and synced before it returns
+    /// (one sync for the batch: its inputs came together, before the effects they cause); with
+    /// group commit, handed to the flusher. An error, a write or a sync that failed now or
+    /// earlier, means the batch is not journaled: the run must stop.
+    pub fn commit(&mut self) -> Result<(), JournalError> {
+        if self.batch.is_empty() {
+            return Ok(());
+        }
         let written = match self.store.as_mut() {
             Some(store) => {
                 if let Some(why) = &self.failed {
@@ -167,12 +204,8 @@ impl Writer {
                         why: why.clone(),
                     });
                 }
-                let mut record = Vec::with_capacity(self.scratch.len() + 10);
-                hex(crc, &mut record);
-                record.extend_from_slice(&self.scratch);
-                record.push(b'\n');
                 let written = store
-                    .write_all(&record)
+                    .write_all(&self.batch)
                     .and_then(|()| store.flush())
                     .and_then(|()| store.sync());
                 if let Err(e) = &written {
@@ -188,22 +221,15 @@ impl Writer {
                         why: why.clone(),
                     });
                 }
-                hex(crc, &mut s.pending);
-                s.pending.extend_from_slice(&self.scratch);
-                s.pending.push(b'\n');
+                s.pending.extend_from_slice(&self.batch);
                 Ok(())
             }
         };
-        match written {
-            Ok(()) => {
-                self.next += 1;
-                Ok(())
-            }
-            Err(source) => Err(JournalError::Write {
-                file: self.file.clone(),
-                source,
-            }),
-        }
+        self.batch.clear();
+        written.map_err(|source| JournalError::Write {
+            file: self.file.clone(),
+            source,
+        })
     }
 
     /// How many entries were appended.
@@ -257,16 +283,21 @@ fn encode(entry: &Entry, out: &mut Vec<u8>) -> Result<(), serde_json::Error> {
         value: None,
     } = entry.input
     {
-        out.extend_from_slice(b"{\"n\":");
-        decimal(entry.n, out);
-        out.extend_from_slice(b",\"t\":");
-        decimal(entry.t, out);
-        out.extend_from_slice(b",\"in\":\"ended\",\"node\":");
-        decimal(node, out);
-        out.push(b'}');
+        ended(entry.n, entry.t, node, out);
         return Ok(());
     }
     serde_json::to_writer(out, entry)
+}
+
+/// The record of entry `n`, at `t`: node `node`'s action ended, with no value.
+fn ended(n: u64, t: u64, node: u64, out: &mut Vec<u8>) {
+    out.extend_from_slice(b"{\"n\":");
+    decimal(n, out);
+    out.extend_from_slice(b",\"t\":");
+    decimal(t, out);
+    out.extend_from_slice(b",\"in\":\"ended\",\"node\":");
+    decimal(node, out);
+    out.push(b'}');
 }
 
 /// `n` in decimal.

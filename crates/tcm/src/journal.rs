@@ -27,11 +27,29 @@ impl Journaled {
     #[cold]
     #[inline(never)]
     pub(crate) fn drain(&mut self, engine: &mut Engine<Action, Factory>) {
+        // One batch for the inputs of one access: they are written (and, with a sync per record,
+        // synced) together, before the effects they cause.
         while let Some((t, input)) = engine.poll_input() {
             if self.failed.is_some() {
                 continue;
             }
-            if let Err(e) = self.writer.append(t.as_nanos(), entry(input)) {
+            let added = match input {
+                InputRecord::Finished {
+                    node,
+                    tap: None,
+                    failure: None,
+                } => {
+                    self.writer.add_ended(t.as_nanos(), node);
+                    Ok(())
+                }
+                other => self.writer.add(t.as_nanos(), entry(other)),
+            };
+            if let Err(e) = added {
+                self.failed = Some(e.to_string());
+            }
+        }
+        if self.failed.is_none() {
+            if let Err(e) = self.writer.commit() {
                 self.failed = Some(e.to_string());
             }
         }
