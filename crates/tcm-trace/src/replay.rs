@@ -20,6 +20,7 @@ use std::collections::BTreeMap;
 mod error;
 mod history;
 mod resources;
+mod steer;
 #[cfg(test)]
 mod tests;
 
@@ -315,8 +316,7 @@ pub struct Replay {
     last_t: u64,
     // Why the run is paused, while it is (`paused` to `resumed`).
     paused: Option<String>,
-    // Nodes held for an operator's approval (`held`, until `approved` or their handling
-    // completes).
+    // Nodes held for approval (`held`, until `approved` or the end of their handling).
     held: std::collections::BTreeSet<u64>,
 }
 
@@ -354,22 +354,6 @@ impl Replay {
             paused: None,
             held: std::collections::BTreeSet::new(),
         }
-    }
-
-    /// Why the run is paused after the records applied so far, if it is (docs/semantics.md,
-    /// "Steering a run").
-    pub fn paused(&self) -> Option<&str> {
-        self.paused.as_deref()
-    }
-
-    /// The nodes held for an operator's approval now (`held` records not yet followed by their
-    /// `approved`, nor by the end of their handling), in number order.
-    pub fn held(&self) -> impl Iterator<Item = u64> + '_ {
-        self.held.iter().copied().filter(|n| {
-            self.nodes
-                .get(n)
-                .is_some_and(|n| n.facets[0] != State::Completed)
-        })
     }
 
     /// The node with display number `number`, in any condition (reserved, dead, reclaimed).

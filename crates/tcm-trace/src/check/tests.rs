@@ -6,7 +6,7 @@ use crate::state::{NodeKind, Point};
 use crate::test_util::*;
 
 #[track_caller]
-fn passes(trace: &[TraceEvent]) -> super::CheckReport {
+pub(super) fn passes(trace: &[TraceEvent]) -> super::CheckReport {
     match check(trace) {
         Ok(r) => r,
         Err(vs) => {
@@ -284,37 +284,6 @@ fn activation_rules() {
         .tr(1, X, D, E)
         .tr(1, X, E, A);
     caught(&b.build(), Rule::ExecutionActive);
-}
-
-#[test]
-fn nothing_starts_while_paused_or_held() {
-    let paused = || TraceKind::Paused {
-        node: None,
-        why: "asked by operator".into(),
-    };
-    let mut b = Tb::new();
-    b.goal(1, 0, "a").tr(1, P, D, E).tr(1, H, D, E);
-    b.push(paused()).tr(1, H, E, A);
-    caught(&b.build(), Rule::ActiveWhilePaused);
-    let mut b = Tb::new();
-    b.goal(1, 0, "a").tr(1, P, D, E).tr(1, H, D, E);
-    b.push(paused())
-        .push(TraceKind::Resumed { held_ns: 5 })
-        .tr(1, H, E, A);
-    passes(&b.build());
-    let mut b = Tb::new();
-    b.goal(1, 0, "a").tr(1, P, D, E).tr(1, H, D, E);
-    b.push(TraceKind::Held { node: 1 }).tr(1, H, E, A);
-    caught(&b.build(), Rule::ActiveWhileHeld);
-    let mut b = Tb::new();
-    b.goal(1, 0, "a").tr(1, P, D, E).tr(1, H, D, E);
-    b.push(TraceKind::Held { node: 1 })
-        .push(TraceKind::Approved {
-            node: 1,
-            by: "operator".into(),
-        })
-        .tr(1, H, E, A);
-    passes(&b.build());
 }
 
 #[test]
@@ -800,3 +769,5 @@ fn a_prefix_owes_nothing_at_its_cut_but_breaks_no_rule_before_it() {
     };
     assert!(rules.contains(&Rule::Terminate), "{rules:?}");
 }
+
+mod steering;

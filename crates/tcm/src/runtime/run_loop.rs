@@ -1,0 +1,230 @@
+//! The driver loop (`RunLoop`): each turn, the core's driver steps under the engine's lock (due
+//! timers fire, the journal takes the inputs, effects are carried out by the `Host`, trace records
+//! are taken), the records handed to the sinks outside the lock, the due timer callbacks run; then
+//! it sleeps until something touches the engine or the next deadline. And the end of a run
+//! (`end_run`): its tasks aborted, its journal closed.
+
+use super::*;
+
+/// The driver loop's view of the run after one turn.
+struct Turn {
+    next: Next,
+    // How the run ended, if it did.
+    end: Option<RunOutcome>,
+    // Timer callbacks that came due, to run outside the lock.
+    due: Vec<DueCallback>,
+}
+
+pub(crate) struct RunLoop {
+    shared: Arc<Shared>,
+    timer: Option<crate::timer::PreciseTimer>,
+}
+
+impl RunLoop {
+    pub(crate) fn new(shared: Arc<Shared>, timer: Option<crate::timer::PreciseTimer>) -> RunLoop {
+        RunLoop { shared, timer }
+    }
+
+    /// One turn of the core's driver under the lock: due timers fire, effects are carried out,
+    /// trace records and due callbacks are taken; then whether the run ended, and, for
+    /// [`Session::quiescent`], whether it is quiet.
+    fn turn(&self, trace: &mut Vec<tcm_trace::TraceEvent>) -> Result<Turn, Error> {
+        // A plain lock, not an `Access`: the driver decides itself what to do next, and waking
+        // itself would spin while the run waits for an event handle.
+        let mut inner = lock(&self.shared)?;
+        let now = self.shared.now();
+        inner.report_stopped(&self.shared, now);
+        let next = if inner.journal.is_some() {
+            // The timers that fire are journaled before what they cause is carried out.
+            let fields = &mut *inner;
+            tcm_core::Driver::time(&mut fields.engine, now);
+            if let Some(j) = fields.journal.as_mut() {
+                j.drain(&mut fields.engine);
+            }
+            let (engine, mut host) = inner.split(&self.shared);
+            tcm_core::Driver::effects(engine, &mut host);
+            tcm_core::Driver::trace(engine, &mut host);
+            tcm_core::Driver::next(engine)
+        } else {
+            let (engine, mut host) = inner.split(&self.shared);
+            tcm_core::Driver::turn(engine, &mut host, now)
+        };
+        trace.append(&mut inner.trace);
+        inner.armed = next.deadline;
+        inner.clear_roots_changed();
+        let mut due = std::mem::take(&mut inner.due);
+        let quiet = due.is_empty() && inner.quiet();
+        let journal_failed = inner
+            .journal
+            .as_ref()
+            .and_then(|j| j.failed.clone())
+            .map(|why| crate::journal::failed_outcome(&why));
+        let end = if let Some(f) = journal_failed {
+            // A run never goes on unjournaled.
+            due.clear();
+            Some(RunOutcome::Fatal(f))
+        } else if let Some(f) = inner.engine.fatal() {
+            // The run ends at once: due callbacks do not run.
+            due.clear();
+            Some(RunOutcome::Fatal(f.clone()))
+        } else if !due.is_empty() {
+            // They run first, even if the run is about to end: they came due before it did.
+            for d in &due {
+                inner.engine.callback_ran(d.token, &d.name);
+            }
+            let (engine, mut host) = inner.split(&self.shared);
+            tcm_core::Driver::trace(engine, &mut host);
+            trace.append(&mut inner.trace);
+            None
+        } else if !inner.finishing {
+            None
+        } else if let Some(outcome) = RunOutcome::of_roots(&inner.roots) {
+            Some(outcome)
+        } else if quiet
+            && self.shared.handles.load(Ordering::SeqCst) == 0
+            && !inner.engine.waits_for_operator()
+        {
+            // The stuck report scans every node: only when the run is over.
+            let awaits = inner.parking.awaits();
+            Some(RunOutcome::Stuck(inner.engine.blocked_awaiting(&awaits)))
+        } else {
+            None
+        };
+        // Published under the lock, so a program that reads the turn number under it sees a turn
+        // that began after its own changes (`Session::quiescent`).
+        let ended = end.is_some();
+        if ended {
+            inner.final_stats = Some(inner.engine.stats());
+        }
+        self.shared.status.send_modify(|s| {
+            s.turn += 1;
+            s.quiet = quiet;
+            s.ended = ended;
+        });
+        Ok(Turn { next, end, due })
+    }
+
+    /// The driver loop. It is the one intentionally endless loop of the runtime: each turn ends in
+    /// an await on the next thing that can change the engine.
+    pub(crate) async fn drive(self, sinks: &mut [Box<dyn TraceSink>]) -> Result<RunOutcome, Error> {
+        let mut trace = Vec::new();
+        // Warnings go through `tracing` once: here, unless a sink logs them already.
+        let logged = sinks.iter().any(|s| s.logs_warnings());
+        let result = loop {
+            let turn = match self.turn(&mut trace) {
+                Ok(turn) => turn,
+                Err(e) => {
+                    self.end();
+                    return Err(e);
+                }
+            };
+            for ev in trace.drain(..) {
+                if !logged {
+                    crate::sink::log_warning(&ev);
+                }
+                for s in sinks.iter_mut() {
+                    s.record(&ev);
+                }
+            }
+            if let Some(end) = turn.end {
+                break end;
+            }
+            if !turn.due.is_empty() {
+                for due in turn.due {
+                    self.run_callback(due);
+                }
+                // The callbacks may have changed the engine: look again at once.
+                continue;
+            }
+            let mut sleep = turn.next.deadline.map(|t| self.shared.clock.instant(t));
+            if let Some(timer) = &self.timer {
+                timer.set(sleep.map(tokio::time::Instant::into_std));
+                sleep = None;
+            }
+            tokio::select! {
+                biased;
+                () = self.shared.wake.notified() => {}
+                () = sleep_until(sleep), if sleep.is_some() => {
+                    // The next turn fires the timer; nobody need wake it for a deadline it set.
+                    lock(&self.shared)?.armed = None;
+                }
+            }
+        };
+        self.end();
+        Ok(result)
+    }
+
+    /// Runs a timer callback on the driver's task, outside the lock (it may call the engine). A
+    /// panic is recorded, like an action's, and the run goes on.
+    fn run_callback(&self, due: DueCallback) {
+        let DueCallback {
+            name,
+            node,
+            f,
+            outcome,
+            ..
+        } = due;
+        let ctx = Ctx {
+            shared: self.shared.clone(),
+            node,
+            purpose: None,
+            job: None,
+            args: lock(&self.shared)
+                .ok()
+                .and_then(|i| i.args.get(&node).cloned()),
+            signal: Default::default(),
+        };
+        let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(ctx, outcome)));
+        if let Err(panic) = res {
+            if let Ok(mut inner) = lock(&self.shared) {
+                let by = (node != inner.engine.root()).then_some(node);
+                let message = panic_message(panic.as_ref());
+                let record =
+                    crate::host::panicked(&inner.engine, by, name.to_string(), true, message);
+                inner.panics.push(record);
+            }
+        }
+    }
+
+    fn end(&self) {
+        end_run(&self.shared);
+    }
+}
+
+/// The run is over: whatever still runs belongs to a run that is over, no callback will run, and
+/// whoever waits is told.
+pub(crate) fn end_run(shared: &Arc<Shared>) {
+    let mut launches = Vec::new();
+    let mut parked = Vec::new();
+    if let Ok(mut inner) = lock(shared) {
+        inner.ended = true;
+        for t in inner.aborts.drain() {
+            match t {
+                crate::host::TaskRef::Task(h) => h.abort(),
+                crate::host::TaskRef::Parked(p) => parked.extend(p.take()),
+            }
+        }
+        launches = std::mem::take(&mut inner.launches);
+        inner.cancels.end();
+        inner.callbacks.clear();
+        inner.due.clear();
+        inner.watchers.clear();
+        // The journal's last inputs are written and synced.
+        if let Some(mut j) = inner.journal.take() {
+            j.drain(&mut inner.engine);
+            if let Err(why) = j.close() {
+                tracing::error!(target: "tcm", "the run's journal is incomplete: {why}");
+            }
+        }
+        shared.status.send_modify(|s| s.ended = true);
+    }
+    // Started but never polled, or parked: dropped outside the lock (a drop may take it).
+    drop(launches);
+    drop(parked);
+}
+
+async fn sleep_until(at: Option<tokio::time::Instant>) {
+    if let Some(at) = at {
+        tokio::time::sleep_until(at).await;
+    }
+}
