@@ -8,18 +8,40 @@ use tcm_journal::{Input, Writer};
 
 use crate::task::{Action, Factory};
 
+/// How a journal writes an action's value: JSON, or `None` for a value it cannot write (then the
+/// entry has none).
+pub type ValueEncoder = fn(&(dyn std::any::Any + Send)) -> Option<serde_json::Value>;
+
+/// The default [`ValueEncoder`]: a value that is JSON already (what a task from an agent, or a
+/// fault from a file, gives).
+pub fn json_values(value: &(dyn std::any::Any + Send)) -> Option<serde_json::Value> {
+    value.downcast_ref::<serde_json::Value>().cloned()
+}
+
 /// The journal of a run, kept beside its engine (`Inner::journal`).
 pub(crate) struct Journaled {
     writer: Writer,
     // The first failed write: the run ends with it.
     pub(crate) failed: Option<String>,
+    encode: ValueEncoder,
+    // The values of ends reported and not yet journaled, by node display number.
+    values: Vec<(u64, serde_json::Value)>,
 }
 
 impl Journaled {
-    pub(crate) fn new(writer: Writer) -> Journaled {
+    pub(crate) fn new(writer: Writer, encode: ValueEncoder) -> Journaled {
         Journaled {
             writer,
             failed: None,
+            encode,
+            values: Vec::new(),
+        }
+    }
+
+    /// An action of node `display` returned `value`: kept, written, to go with its end.
+    pub(crate) fn value(&mut self, display: u64, value: &(dyn std::any::Any + Send)) {
+        if let Some(json) = (self.encode)(value) {
+            self.values.push((display, json));
         }
     }
 
@@ -33,16 +55,39 @@ impl Journaled {
             if self.failed.is_some() {
                 continue;
             }
-            let added = match input {
+            let value = match &input {
                 InputRecord::Finished {
                     node,
                     tap: None,
                     failure: None,
-                } => {
+                } if !self.values.is_empty() => self
+                    .values
+                    .iter()
+                    .position(|(n, _)| n == node)
+                    .map(|i| self.values.remove(i).1),
+                _ => None,
+            };
+            let added = match (input, value) {
+                (
+                    InputRecord::Finished {
+                        node,
+                        tap: None,
+                        failure: None,
+                    },
+                    None,
+                ) => {
                     self.writer.add_ended(t.as_nanos(), node);
                     Ok(())
                 }
-                other => self.writer.add(t.as_nanos(), entry(other)),
+                (InputRecord::Finished { node, tap, .. }, Some(value)) => self.writer.add(
+                    t.as_nanos(),
+                    Input::Ended {
+                        node,
+                        tap,
+                        value: Some(value),
+                    },
+                ),
+                (other, _) => self.writer.add(t.as_nanos(), entry(other)),
             };
             if let Err(e) = added {
                 self.failed = Some(e.to_string());

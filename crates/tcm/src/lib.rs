@@ -54,6 +54,7 @@ pub use control::Control;
 pub use ctx::{Ctx, Ended, Spawner};
 pub use faults::{FaultsError, json_value, parse_faults, read_faults};
 pub use host::Panicked;
+pub use journal::{ValueEncoder, json_values};
 pub use place::{Json, Placer, remote_args, remote_value};
 pub use resource::{Resource, ResourceDenied, ResourceDropped, ResourceRef};
 pub use runtime::{EventHandle, Report, RunOutcome, Runtime};

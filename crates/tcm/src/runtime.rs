@@ -492,9 +492,19 @@ impl Runtime {
     /// the run with the unhandled exception `JournalFailed` at the root. The journal is synced
     /// and closed when the run ends.
     pub fn journal(self, writer: tcm_journal::Writer) -> Runtime {
+        self.journal_with(writer, crate::journal::json_values)
+    }
+
+    /// As [`Runtime::journal`], each action's value written as `encode` makes it JSON (an
+    /// interpreted program's values, say); a value it cannot write is left out of its entry.
+    pub fn journal_with(
+        self,
+        writer: tcm_journal::Writer,
+        encode: crate::journal::ValueEncoder,
+    ) -> Runtime {
         if let Ok(mut inner) = self.shared.inner.lock() {
             inner.engine.record_inputs(true);
-            inner.journal = Some(Box::new(crate::journal::Journaled::new(writer)));
+            inner.journal = Some(Box::new(crate::journal::Journaled::new(writer, encode)));
         }
         self
     }

@@ -71,6 +71,15 @@ pub(crate) struct Args {
     journal_sync: String,
 }
 
+/// An interpreted program's value as the journal writes it (JSON), or a value that is JSON
+/// already (a task from an agent).
+fn interpreted_value(value: &(dyn std::any::Any + Send)) -> Option<serde_json::Value> {
+    match value.downcast_ref::<tdl_interp::Value>() {
+        Some(v) => v.to_json().ok(),
+        None => tdl::json_values(value),
+    }
+}
+
 /// `--journal-sync` read.
 fn durability(text: &str) -> anyhow::Result<tcm_journal::Durability> {
     match text.split_once(':') {
@@ -175,7 +184,7 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         if let Some(path) = &a.journal {
             let writer =
                 tcm_journal::Writer::create(path, program.hash(), durability(&a.journal_sync)?)?;
-            runtime = runtime.journal(writer);
+            runtime = runtime.journal_with(writer, interpreted_value);
         }
         for h in program.attached() {
             runtime = runtime.attach(h);

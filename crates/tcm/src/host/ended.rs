@@ -121,6 +121,11 @@ impl Inner {
         self.parking.forget_job(job);
         let result = match res {
             Ok(Ok(value)) => {
+                if let Some(j) = self.journal.as_mut() {
+                    if let Some(info) = self.engine.info(node) {
+                        j.value(info.display, value.as_ref());
+                    }
+                }
                 if !self.values.is_empty() {
                     if let Some(slot) = self.values.get_mut(&node) {
                         *slot = Some(value);

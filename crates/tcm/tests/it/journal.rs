@@ -140,3 +140,24 @@ async fn a_journal_that_cannot_be_written_ends_the_run_loudly() {
         .count();
     assert_eq!(a_ended, 0);
 }
+
+/// An action's JSON value is in its entry.
+#[tokio::test(start_paused = true)]
+async fn a_json_value_is_journaled_with_its_end() {
+    let path = scratch("values");
+    let writer = Writer::create(&path, "p", Durability::EveryRecord).expect("create");
+    let task = Task::command("measure", |_| async {
+        Ok(serde_json::json!({"range": 2.5}))
+    });
+    let report = Runtime::new().journal(writer).run(task).await.expect("run");
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    let journal = tcm_journal::read(&path, None).expect("read");
+    assert!(
+        matches!(
+            &journal.entries[0].input,
+            Input::Ended { node: 1, value: Some(v), .. } if *v == serde_json::json!({"range": 2.5})
+        ),
+        "{:?}",
+        journal.entries
+    );
+}

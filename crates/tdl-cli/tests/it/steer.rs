@@ -332,3 +332,31 @@ fn tdl_run_keeps_a_journal_of_its_inputs() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("give `every` or `group:MS`"), "{err}");
 }
+
+/// The journal of an interpreted run holds each command's value, as JSON.
+#[test]
+fn a_journal_holds_the_values_of_interpreted_commands() {
+    let dir = scratch("journal-values");
+    let journal = dir.join("run.journal");
+    let (code, out, err) = tdl(&[
+        "run",
+        "tests/data/run/measure.tdl",
+        "--journal",
+        &journal.display().to_string(),
+    ]);
+    assert_eq!(code, 0, "{out}{err}");
+    let read = tcm_journal::read(&journal, None).expect("a journal");
+    let values: Vec<(u64, Option<serde_json::Value>)> = read
+        .entries
+        .iter()
+        .filter_map(|e| match &e.input {
+            tcm_journal::Input::Ended { node, value, .. } => Some((*node, value.clone())),
+            _ => None,
+        })
+        .collect();
+    // `measure` {2} returned 10.0; the goal's body returned nothing (unit, written as null).
+    assert!(
+        values.contains(&(2, Some(serde_json::json!(10.0)))),
+        "{values:?}"
+    );
+}
