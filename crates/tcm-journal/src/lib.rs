@@ -114,6 +114,9 @@ pub enum Input {
     },
     /// Time passed with nothing else coming in: the timers due by `t` fired.
     Time,
+    /// The engine read the run's clock, and `t` is what it read (for a command of a body, or an
+    /// input given the clock's time): a replay gives the engine the same readings in order.
+    Clock,
     /// An operation from outside the run (a steering request, a handler attached): what and who.
     Control {
         /// What was done.

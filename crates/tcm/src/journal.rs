@@ -144,6 +144,7 @@ fn entry(input: InputRecord) -> Input {
             value: serde_json::to_value(&value).unwrap_or_default(),
         },
         InputRecord::Time => Input::Time,
+        InputRecord::Clock => Input::Clock,
         InputRecord::Control { what, by } => Input::Control { what, by },
     }
 }

@@ -5,7 +5,8 @@
 //!
 //! What is an input: an action's end (with its failure, if any: its value the shell keeps), its
 //! stop after a cancellation, its grace period running out, an external event, a state variable
-//! set, time passing with timers due, and an operation from outside (a `control` record's).
+//! set, time passing with timers due, each reading of the shell's clock the engine took, and an
+//! operation from outside (a `control` record's).
 //! What bodies ask of the engine (spawns, constraints, waits) is not: a replay runs the bodies
 //! again, and they ask it again.
 
@@ -55,6 +56,10 @@ pub enum InputRecord {
     },
     /// Time passed to the record's time, and timers were due.
     Time,
+    /// The engine read the shell's clock (`Engine::set_clock`), for an input or a command given
+    /// the clock's time (`Engine::at_clock`): the record's time is the reading. A replay gives
+    /// the engine these readings, in order, for the same commands to carry the same times.
+    Clock,
     /// An operation from outside the run, as its `control` record says it.
     Control {
         /// What was done.
@@ -86,6 +91,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             if let Some(q) = self.inputs.as_mut() {
                 q.push_back((now, input));
             }
+        }
+    }
+
+    /// The engine read its clock, `t`: recorded first, as the input it is.
+    #[inline]
+    pub(super) fn clock_read(&mut self, t: Time) {
+        if let Some(q) = self.inputs.as_mut() {
+            q.push_back((t, InputRecord::Clock));
         }
     }
 

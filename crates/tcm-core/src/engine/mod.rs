@@ -372,6 +372,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.behind = false;
         if let Some(clock) = &self.clock {
             let t = clock();
+            self.clock_read(t);
             if t > self.now {
                 self.now = t;
             }
@@ -492,6 +493,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
         self.behind = false;
         if let Some(now) = self.clock.as_ref().map(|clock| clock()) {
+            self.clock_read(now);
             self.fire_timers(now, false);
             if now > self.now {
                 self.now = now;

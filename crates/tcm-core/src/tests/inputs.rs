@@ -79,3 +79,36 @@ fn the_engine_records_its_inputs_in_order_with_their_times() {
     sim.engine.handle_external(Time::ZERO + s(6.0), go);
     assert_eq!(sim.engine.poll_input(), None);
 }
+
+/// A reading of the shell's clock, taken for a command given the clock's time, is an input: a
+/// replay gives the engine the same readings.
+#[test]
+fn each_reading_of_the_clock_is_recorded() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let mut sim = Sim::new();
+    let reading = Arc::new(AtomicU64::new(7_000_000_000));
+    let clock = reading.clone();
+    sim.engine.set_clock(Arc::new(move || {
+        Time::from_nanos(clock.load(Ordering::Relaxed))
+    }));
+    sim.engine.record_inputs(true);
+    let root = sim.engine.root();
+    let now = sim.engine.at_clock();
+    sim.engine
+        .spawn(now, Spawn::new(root, NodeKind::Command, "a", takes(s(1.0))))
+        .expect("spawn");
+    assert_eq!(
+        sim.engine.poll_input(),
+        Some((Time::from_nanos(7_000_000_000), InputRecord::Clock))
+    );
+    // Given a time, the engine reads no clock.
+    reading.store(9_000_000_000, Ordering::Relaxed);
+    sim.engine
+        .spawn(
+            Time::ZERO + s(8.0),
+            Spawn::new(root, NodeKind::Command, "b", takes(s(1.0))),
+        )
+        .expect("spawn");
+    assert_eq!(sim.engine.poll_input(), None);
+}
