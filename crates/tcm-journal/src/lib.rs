@@ -46,6 +46,10 @@ pub struct Entry {
     pub n: u64,
     /// The engine's time for it.
     pub t: u64,
+    /// How many nodes the run had created when it came in: a replay gives it at the same point of
+    /// what the bodies ask (0 for a clock reading, which needs no such point).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub nodes: u64,
     /// What came in.
     #[serde(flatten)]
     pub input: Input,
@@ -209,6 +213,10 @@ pub enum JournalError {
         /// The newest this reader reads.
         supported: u32,
     },
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// A record as a line: its checksum, a space, its JSON, a newline.

@@ -15,6 +15,9 @@ pub struct Journal {
     /// Something a person should know that did not stop the reading: a last record cut short
     /// (a crash mid-write), dropped.
     pub warning: Option<String>,
+    /// The bytes of the file up to the end of its last whole record (where a resumed run goes
+    /// on writing it: `Writer::reopen`).
+    pub length: u64,
 }
 
 /// Reads the journal at `path`. With `program`, a journal of another program is refused.
@@ -26,12 +29,14 @@ pub fn read(path: &Path, program: Option<&str>) -> Result<Journal, JournalError>
     })?;
     let mut lines = Vec::new();
     let mut warning = None;
+    let mut length = 0u64;
     let mut start = 0usize;
     while start < bytes.len() {
         match bytes[start..].iter().position(|b| *b == b'\n') {
             Some(len) => {
                 lines.push((start, &bytes[start..start + len]));
                 start += len + 1;
+                length = start as u64;
             }
             None => {
                 // No newline: the last write did not finish.
@@ -100,6 +105,7 @@ pub fn read(path: &Path, program: Option<&str>) -> Result<Journal, JournalError>
         header,
         entries,
         warning,
+        length,
     })
 }
 

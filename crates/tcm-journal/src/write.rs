@@ -94,6 +94,29 @@ impl Writer {
         Writer::on(name, Box::new(file), program, durability)
     }
 
+    /// Goes on writing the journal at `path`, as read (`journal`, by [`crate::read`]): a last
+    /// record cut short is cut off the file, and the next entry is numbered after the last read.
+    /// For a run resumed from it, so that a second crash finds every input of both runs.
+    pub fn reopen(
+        path: &Path,
+        journal: &crate::Journal,
+        durability: Durability,
+    ) -> Result<Writer, JournalError> {
+        let name = path.display().to_string();
+        let io = |source| JournalError::Io {
+            file: name.clone(),
+            source,
+        };
+        let file = File::options().write(true).open(path).map_err(io)?;
+        file.set_len(journal.length).map_err(io)?;
+        let mut file = file;
+        std::io::Seek::seek(&mut file, std::io::SeekFrom::End(0)).map_err(io)?;
+        file.sync_all().map_err(io)?;
+        let mut writer = Writer::start(name, Box::new(file), durability)?;
+        writer.next = journal.entries.len() as u64;
+        Ok(writer)
+    }
+
     /// A journal written to `store` (named `name` in errors), its header written and synced.
     pub fn on(
         name: String,
@@ -114,6 +137,15 @@ impl Writer {
             file: name.clone(),
             source,
         })?;
+        Writer::start(name, store, durability)
+    }
+
+    /// A writer of entries to `store`, whose header is written.
+    fn start(
+        name: String,
+        store: Box<dyn Store>,
+        durability: Durability,
+    ) -> Result<Writer, JournalError> {
         let shared = Arc::new((
             Mutex::new(Shared {
                 pending: Vec::new(),
@@ -151,16 +183,17 @@ impl Writer {
     /// Appends one input, received at the engine's time `t` (nanoseconds); with
     /// [`Durability::EveryRecord`], synced before it returns. An error, a write or a sync that
     /// failed now or earlier, means the input is not journaled: the run must stop.
-    pub fn append(&mut self, t: u64, input: Input) -> Result<(), JournalError> {
-        self.add(t, input)?;
+    pub fn append(&mut self, t: u64, nodes: u64, input: Input) -> Result<(), JournalError> {
+        self.add(t, nodes, input)?;
         self.commit()
     }
 
-    /// Adds one input to the batch [`Writer::commit`] writes.
-    pub fn add(&mut self, t: u64, input: Input) -> Result<(), JournalError> {
+    /// Adds one input to the batch [`Writer::commit`] writes (`nodes`: see [`Entry::nodes`]).
+    pub fn add(&mut self, t: u64, nodes: u64, input: Input) -> Result<(), JournalError> {
         let entry = Entry {
             n: self.next,
             t,
+            nodes,
             input,
         };
         self.scratch.clear();
@@ -174,9 +207,9 @@ impl Writer {
 
     /// Adds the plainest input, an action's end with no value, to the batch: the same record as
     /// [`Writer::add`] with [`Input::Ended`] makes, without building it.
-    pub fn add_ended(&mut self, t: u64, node: u64) {
+    pub fn add_ended(&mut self, t: u64, nodes: u64, node: u64) {
         self.scratch.clear();
-        ended(self.next, t, node, &mut self.scratch);
+        ended(self.next, t, nodes, node, &mut self.scratch);
         self.seal();
     }
 
@@ -283,18 +316,22 @@ fn encode(entry: &Entry, out: &mut Vec<u8>) -> Result<(), serde_json::Error> {
         value: None,
     } = entry.input
     {
-        ended(entry.n, entry.t, node, out);
+        ended(entry.n, entry.t, entry.nodes, node, out);
         return Ok(());
     }
     serde_json::to_writer(out, entry)
 }
 
-/// The record of entry `n`, at `t`: node `node`'s action ended, with no value.
-fn ended(n: u64, t: u64, node: u64, out: &mut Vec<u8>) {
+/// The record of entry `n`, at `t`, after `nodes` nodes: node `node`'s action ended, with no value.
+fn ended(n: u64, t: u64, nodes: u64, node: u64, out: &mut Vec<u8>) {
     out.extend_from_slice(b"{\"n\":");
     decimal(n, out);
     out.extend_from_slice(b",\"t\":");
     decimal(t, out);
+    if nodes != 0 {
+        out.extend_from_slice(b",\"nodes\":");
+        decimal(nodes, out);
+    }
     out.extend_from_slice(b",\"in\":\"ended\",\"node\":");
     decimal(node, out);
     out.push(b'}');

@@ -71,8 +71,8 @@ fn inputs() -> Vec<(u64, Input)> {
 
 fn write(path: &std::path::Path, durability: Durability) {
     let mut w = Writer::create(path, "mission@3f2a", durability).expect("create");
-    for (t, input) in inputs() {
-        w.append(t, input).expect("append");
+    for (i, (t, input)) in inputs().into_iter().enumerate() {
+        w.append(t, 2 * i as u64, input).expect("append");
     }
     assert_eq!(w.len(), 7);
     w.close().expect("close");
@@ -89,12 +89,15 @@ fn a_journal_reads_back_as_written_with_either_durability() {
         let j = read(&path, Some("mission@3f2a")).expect("read");
         assert_eq!(j.header.program, "mission@3f2a");
         assert_eq!(j.warning, None);
-        let got: Vec<(u64, u64, Input)> =
-            j.entries.into_iter().map(|e| (e.n, e.t, e.input)).collect();
-        let want: Vec<(u64, u64, Input)> = inputs()
+        let got: Vec<(u64, u64, u64, Input)> = j
+            .entries
+            .into_iter()
+            .map(|e| (e.n, e.t, e.nodes, e.input))
+            .collect();
+        let want: Vec<(u64, u64, u64, Input)> = inputs()
             .into_iter()
             .enumerate()
-            .map(|(n, (t, i))| (n as u64, t, i))
+            .map(|(n, (t, i))| (n as u64, t, 2 * n as u64, i))
             .collect();
         assert_eq!(got, want);
     }
@@ -105,7 +108,7 @@ fn group_commit_reaches_the_disk_without_a_close() {
     let path = scratch("group");
     let mut w =
         Writer::create(&path, "p", Durability::Group(Duration::from_millis(20))).expect("create");
-    w.append(0, Input::Time).expect("append");
+    w.append(0, 0, Input::Time).expect("append");
     // The writer stays open: its flusher syncs within the interval.
     let deadline = std::time::Instant::now() + Duration::from_secs(10);
     loop {
@@ -128,8 +131,24 @@ fn a_cut_last_record_is_dropped_with_a_warning() {
     std::fs::write(&path, &bytes).expect("cut");
     let j = read(&path, Some("mission@3f2a")).expect("read");
     assert_eq!(j.entries.len(), 6);
-    let w = j.warning.expect("a warning");
+    let w = j.warning.clone().expect("a warning");
     assert!(w.contains("line 8") && w.contains("cut short"), "{w}");
+    // A resumed run goes on writing it: the cut record is cut off the file, the numbers go on.
+    let mut w = Writer::reopen(&path, &j, Durability::EveryRecord).expect("reopen");
+    w.append(5_000_000_000, 12, Input::Time).expect("append");
+    w.close().expect("close");
+    let again = read(&path, Some("mission@3f2a")).expect("read");
+    assert_eq!(again.warning, None);
+    assert_eq!(again.entries.len(), 7);
+    assert_eq!(again.entries[..6], j.entries[..]);
+    assert_eq!(
+        (
+            again.entries[6].n,
+            again.entries[6].t,
+            &again.entries[6].input
+        ),
+        (6, 5_000_000_000, &Input::Time)
+    );
 }
 
 #[test]
@@ -247,10 +266,11 @@ fn a_full_disk_fails_the_append_and_every_one_after() {
         Durability::EveryRecord,
     )
     .expect("the header fits");
-    w.append(0, Input::Time).expect("fits");
+    w.append(0, 0, Input::Time).expect("fits");
     let e = w
         .append(
             1,
+            0,
             Input::Control {
                 what: "x".repeat(200),
                 by: "operator".into(),
@@ -265,7 +285,7 @@ fn a_full_disk_fails_the_append_and_every_one_after() {
         "{e}"
     );
     assert!(matches!(
-        w.append(2, Input::Time),
+        w.append(2, 0, Input::Time),
         Err(JournalError::Failed { .. })
     ));
     assert!(w.close().is_err());

@@ -225,12 +225,16 @@ fn expire(shared: &Arc<Shared>, node: NodeId, grace: Duration) {
     let Ok(mut inner) = shared.enter() else {
         return;
     };
+    if inner.replay.as_ref().is_some_and(|r| r.active()) {
+        // The journal says whether the grace period ran out (`replay.rs`, rule 2).
+        return;
+    }
     let Some(c) = inner.cancels.cancelling.remove(&node) else {
         // It returned meanwhile.
         return;
     };
     inner.cancels.signals.remove(&node);
-    let now = shared.now();
+    let now = inner.engine.at_clock();
     inner
         .engine
         .handle_action_overdue(now, tcm_core::Job::from(node), grace);

@@ -1,9 +1,13 @@
 //! The runtime's one source of time: tokio's clock (paused in tests, for virtual time) read as the
 //! engine's [`Time`] since the run's start, and back; optionally scaled, so that a simulation runs
-//! faster than real time on the real clock (`Runtime::time_scale`).
+//! faster than real time on the real clock (`Runtime::time_scale`). While a run replays its
+//! journal (`replay.rs`), the journal is its clock: the engine's readings are the journal's, in
+//! order, and the shell reads the latest; after it, a resumed run's time goes on from the
+//! journal's last.
 
-use std::sync::OnceLock;
+use crate::replay::Feed;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, SystemTime};
 use tcm_core::Time;
 use tokio::time::Instant;
@@ -20,6 +24,11 @@ pub(crate) struct Clock {
     // The run's time per unit of tokio's time (an `f64`'s bits; 1 unless `Runtime::time_scale`
     // set it before the run started).
     scale: AtomicU64,
+    // The journal a replay reads its time from, while it replays (`replay.rs`).
+    feed: OnceLock<Arc<Feed>>,
+    // Nanoseconds added to tokio's time since time zero: a resumed run goes on from its journal's
+    // last time.
+    offset: AtomicU64,
 }
 
 impl Clock {
@@ -28,6 +37,8 @@ impl Clock {
         Clock {
             origin: OnceLock::new(),
             scale: AtomicU64::new(1f64.to_bits()),
+            feed: OnceLock::new(),
+            offset: AtomicU64::new(0),
         }
     }
 
@@ -53,18 +64,57 @@ impl Clock {
         self.origin();
     }
 
-    /// The engine's time now.
+    /// Reads the time from `feed` while it replays.
+    pub(crate) fn replay_from(&self, feed: Arc<Feed>) {
+        let _ = self.feed.set(feed);
+    }
+
+    /// The replay ended at the journal's time `last`: the time goes on from it.
+    pub(crate) fn go_on_from(&self, last: Time) {
+        let raw = self.raw().as_nanos();
+        self.offset
+            .store(last.as_nanos().saturating_sub(raw), Ordering::Relaxed);
+    }
+
+    /// The engine's time now (while a replay runs, the journal's latest).
     pub(crate) fn now(&self) -> Time {
+        if let Some(t) = self.feed.get().and_then(|f| f.latest()) {
+            return t;
+        }
+        Time::from_nanos(
+            self.raw()
+                .as_nanos()
+                .saturating_add(self.offset.load(Ordering::Relaxed)),
+        )
+    }
+
+    /// A reading for the engine (`Engine::set_clock`): while a replay runs, the journal's next.
+    pub(crate) fn engine_reading(&self) -> Time {
+        if let Some(t) = self.feed.get().and_then(|f| f.reading()) {
+            return t;
+        }
+        self.now()
+    }
+
+    /// Tokio's time since time zero, scaled.
+    fn raw(&self) -> Time {
         let d = Instant::now().saturating_duration_since(self.origin().0);
         let scale = self.scale();
         let d = if scale == 1.0 { d } else { d.mul_f64(scale) };
         Time::from_nanos(u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
     }
 
-    /// The instant of the engine's time `t`, for tokio's timers.
+    /// The instant of the engine's time `t`, for tokio's timers (while a replay runs, now: what
+    /// waits for a time of the run waits for no time of tokio's).
     pub(crate) fn instant(&self, t: Time) -> Instant {
+        if self.feed.get().is_some_and(|f| f.latest().is_some()) {
+            return Instant::now();
+        }
         let scale = self.scale();
-        let d = t.since_start();
+        let t = t
+            .as_nanos()
+            .saturating_sub(self.offset.load(Ordering::Relaxed));
+        let d = Duration::from_nanos(t);
         let d = if scale == 1.0 { d } else { d.div_f64(scale) };
         self.origin().0 + d
     }

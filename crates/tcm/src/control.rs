@@ -33,7 +33,7 @@ impl Control {
         if inner.ended {
             return Err(Error::RunEnded);
         }
-        let now = self.ctx.shared.now();
+        let now = inner.engine.at_clock();
         Ok(f(&mut inner.engine, now))
     }
 

@@ -263,7 +263,7 @@ impl Ctx {
             let token = inner.next_token();
             let (tx, rx) = oneshot::channel();
             inner.watchers.insert(token, tx);
-            let now = self.shared.now();
+            let now = inner.engine.at_clock();
             if let Err(e) = inner.engine.watch(now, event, WatchToken(token)) {
                 inner.watchers.remove(&token);
                 return Err(e.into());
@@ -444,7 +444,7 @@ impl Ctx {
     pub fn bypass(&self) -> Result<(), Failure> {
         match (self.failure(), self.shared.enter()) {
             (Some(_), Ok(mut inner)) => {
-                let now = self.shared.now();
+                let now = inner.engine.at_clock();
                 inner
                     .engine
                     .request_bypass(now, self.node)
@@ -486,7 +486,7 @@ impl Ctx {
 
     fn retry_args(&self, args: Option<AnyArgs>) -> Result<NodeId, Error> {
         let mut inner = self.shared.enter()?;
-        let now = self.shared.now();
+        let now = inner.engine.at_clock();
         let id = inner.engine.retry(now, self.node)?;
         // A fresh run of the same task: an instance of the same task, renamed or not, with the
         // failed run's arguments unless new ones are given. Kept before this access ends, which
@@ -562,7 +562,7 @@ impl Ctx {
         ) -> Result<T, tcm_core::EngineError>,
     ) -> Result<T, Error> {
         let mut inner = self.shared.enter()?;
-        let now = self.shared.now();
+        let now = inner.engine.at_clock();
         Ok(f(&mut inner.engine, now)?)
     }
 }

@@ -194,6 +194,8 @@ pub(crate) struct Inner {
     pub(crate) trace: Vec<TraceEvent>,
     // The run's journal, if it keeps one (`journal.rs`): written before effects are carried out.
     pub(crate) journal: Option<Box<crate::journal::Journaled>>,
+    // The journal the run replays, if it does (`replay.rs`).
+    pub(crate) replay: Option<Box<crate::replay::Replay>>,
     // Jobs whose task was dropped unfinished (see `Reporter`), for the driver to report.
     stopped: mpsc::Receiver<Job>,
 }
@@ -228,6 +230,7 @@ impl Inner {
             armed: None,
             trace: Vec::new(),
             journal: None,
+            replay: None,
         }
     }
 
@@ -237,6 +240,11 @@ impl Inner {
             shared.stops.fetch_sub(1, Ordering::SeqCst);
             // Its abort is over: it no longer counts as queued (`Cancels::aborted`).
             self.cancels.aborted = self.cancels.aborted.saturating_sub(1);
+            if let Some(r) = self.replay.as_mut().filter(|r| r.active()) {
+                // Given when the journal gives it (`replay.rs`, rule 3).
+                r.hold(Ended::Dropped(job));
+                continue;
+            }
             self.engine.handle_action_stopped(now, job);
         }
     }
@@ -286,6 +294,7 @@ impl Inner {
             args: &self.args,
             trace: &mut self.trace,
             values: &mut self.values,
+            replay: self.replay.as_deref_mut().filter(|r| r.active()),
         };
         (&mut self.engine, host)
     }
@@ -295,6 +304,9 @@ impl Inner {
     /// run is quiet), or only to hand trace records to the sinks.
     pub(crate) fn effects(&mut self, shared: &Arc<Shared>) -> Wake {
         self.start_effects(shared);
+        if self.replay.is_some() {
+            crate::replay::feed(self, shared);
+        }
         let wake = self.roots_changed
             || !self.due.is_empty()
             || self.engine.fatal().is_some()
@@ -333,6 +345,13 @@ impl Inner {
             Driver::effect(engine, &mut host, first);
             Driver::effects(engine, &mut host);
         }
+    }
+
+    /// Whether ends reported together share one reading of the clock (the pump's batches), given
+    /// to the engine rather than read by it: when they need the time, and the run neither keeps a
+    /// journal nor replays one (whose every reading is the engine's own, `Engine::at_clock`).
+    pub(crate) fn shares_readings(&self) -> bool {
+        self.engine.wants_time() && self.journal.is_none() && self.replay.is_none()
     }
 
     /// Whether nothing can happen on its own any more (docs/semantics.md, "Run outcome"): nothing
@@ -547,7 +566,8 @@ impl Shared {
 #[cold]
 #[inline(never)]
 pub(crate) fn stops_first(inner: &mut Inner, shared: &Arc<Shared>) {
-    inner.report_stopped(shared, shared.now());
+    let now = inner.engine.at_clock();
+    inner.report_stopped(shared, now);
     inner.start_effects(shared);
 }
 

@@ -35,7 +35,10 @@ impl Ctx {
     where
         F: FnOnce(Ctx) + Send + 'static,
     {
-        let at = self.shared.now() + delay;
+        let at = {
+            let mut inner = self.shared.enter()?;
+            inner.engine.clock_time() + delay
+        };
         self.invoke_at(name, at, f)
     }
 
@@ -69,7 +72,7 @@ impl Ctx {
             return Err(Error::RunEnded);
         }
         let token = inner.next_token();
-        let now = self.shared.now();
+        let now = inner.engine.at_clock();
         arm(
             &mut inner.engine,
             now,

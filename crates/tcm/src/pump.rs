@@ -259,7 +259,7 @@ pub(crate) fn flush(inner: &mut Inner, shared: &Arc<Shared>) {
             // does not look at the pump's state, borrowed here.
             // One clock reading for the batch if the reports need the time; else each report
             // reads it only if it turns out to need it.
-            let now = inner.engine.wants_time().then(|| st.now());
+            let now = inner.shares_readings().then(|| st.now());
             for ended in st.done.drain(..) {
                 inner.ended_job(now, ended);
                 inner.start_effects_pumping(shared, Some(true));
@@ -277,7 +277,7 @@ fn report_with_wakes(
     mut wakes: Vec<(usize, Waker)>,
 ) -> (Vec<Ended>, Vec<(usize, Waker)>) {
     let was = polling(false);
-    let now = inner.engine.wants_time().then(|| shared.now());
+    let now = inner.shares_readings().then(|| shared.now());
     let mut next = wakes.drain(..).peekable();
     for (i, ended) in done.drain(..).enumerate() {
         if next.peek().is_some_and(|(at, _)| *at <= i) {
@@ -535,7 +535,7 @@ fn report_now(shared: &Arc<Shared>, job: Job, res: ActionResult) -> Result<bool,
             let mut inner = shared.inner.lock().map_err(|_| crate::Error::Poisoned)?;
             // The batch's clock reading if the report needs the time; else the report reads the
             // clock only if it turns out to need it.
-            let now = inner.engine.wants_time().then(|| {
+            let now = inner.shares_readings().then(|| {
                 PUMP.with(|p| {
                     let mut p = p.try_borrow_mut().ok()?;
                     Some(p.as_mut()?.now())

@@ -86,7 +86,7 @@ impl Ctx {
         data: T,
     ) -> Result<Option<NodeId>, Error> {
         let mut inner = self.shared.enter()?;
-        let now = self.shared.now();
+        let now = inner.engine.at_clock();
         let act = inner.engine.activate(now, monitor)?;
         // Kept before this access ends, so before the activation's body can start.
         if let Some(act) = act {

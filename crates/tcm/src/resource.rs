@@ -150,7 +150,7 @@ impl Ctx {
         holder: NodeId,
     ) -> Result<(), Error> {
         let mut inner = self.shared.enter()?;
-        let now = self.shared.now();
+        let now = inner.engine.at_clock();
         let r = inner.resource_for(&resource.into())?;
         Ok(inner.engine.reserve_resource(now, r, holder)?)
     }
@@ -158,7 +158,7 @@ impl Ctx {
     /// Ends the reservation of `resource`, if it has one. TDL's `unreserve r;`.
     pub fn unreserve_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
         let mut inner = self.shared.enter()?;
-        let now = self.shared.now();
+        let now = inner.engine.at_clock();
         let r = inner.resource_for(&resource.into())?;
         Ok(inner.engine.unreserve_resource(now, r)?)
     }
@@ -167,7 +167,7 @@ impl Ctx {
     /// (TCA's lock). TDL's `lock r;`.
     pub fn lock_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
         let mut inner = self.shared.enter()?;
-        let now = self.shared.now();
+        let now = inner.engine.at_clock();
         let r = inner.resource_for(&resource.into())?;
         Ok(inner.engine.lock_resource(now, r)?)
     }
@@ -175,7 +175,7 @@ impl Ctx {
     /// Unlocks `resource`. TDL's `unlock r;`.
     pub fn unlock_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
         let mut inner = self.shared.enter()?;
-        let now = self.shared.now();
+        let now = inner.engine.at_clock();
         let r = inner.resource_for(&resource.into())?;
         Ok(inner.engine.unlock_resource(now, r)?)
     }

@@ -57,13 +57,22 @@ pub enum RunOutcome {
     /// ready, no timer is pending) and no event handle is open: these nodes wait on events that
     /// will never come (docs/semantics.md, "Run outcome").
     Stuck(Vec<Blocked>),
+    /// A replay ([`Runtime::replay`]) reached the end of its journal with the run still going
+    /// after `inputs` inputs (a journal cut by a crash).
+    JournalEnded {
+        /// The inputs given.
+        inputs: u64,
+    },
+    /// A replay ([`Runtime::replay`], [`Runtime::resume`]) found the program doing otherwise than
+    /// the run its journal recorded: where, and both versions (docs/semantics.md, "Durable runs").
+    Diverged(String),
 }
 
 impl RunOutcome {
     /// How a run of these top-level tasks ended, once each did: the first, in spawn order, that
     /// did not complete normally decides (its action failed, or it was terminated); otherwise the
     /// run completed. `None` while one runs.
-    fn of_roots(roots: &[Root]) -> Option<RunOutcome> {
+    pub(crate) fn of_roots(roots: &[Root]) -> Option<RunOutcome> {
         let mut outcome = RunOutcome::Completed;
         for r in roots {
             match r.outcome.as_ref()? {
@@ -130,6 +139,13 @@ impl std::fmt::Display for Report {
             RunOutcome::Terminated => write!(f, "terminated")?,
             RunOutcome::Fatal(fl) => write!(f, "fatal: {fl}")?,
             RunOutcome::Stuck(b) => write!(f, "stuck ({} waiting nodes)", b.len())?,
+            RunOutcome::JournalEnded { inputs } => {
+                write!(
+                    f,
+                    "the journal ended, after {inputs} inputs, with the run going on"
+                )?;
+            }
+            RunOutcome::Diverged(why) => write!(f, "diverged from the journal: {why}")?,
         }
         write!(f, " after {:?}", self.elapsed)?;
         for u in &self.unhandled {
@@ -186,7 +202,7 @@ impl EventHandle {
         if s.ended {
             return Err(Error::RunEnded);
         }
-        let now = self.shared.now();
+        let now = s.engine.at_clock();
         Ok(crate::state::set_by_name(
             &mut s.engine,
             now,
@@ -264,7 +280,7 @@ impl Runtime {
         let mut engine = engine(run);
         // The engine reads the clock itself for the inputs that may not need it (`Engine::at_clock`).
         let read = clock.clone();
-        engine.set_clock(Arc::new(move || read.now()));
+        engine.set_clock(Arc::new(move || read.engine_reading()));
         Runtime {
             shared: Arc::new(Shared {
                 inner: Mutex::new(Inner::new(engine, stopped_rx)),
@@ -509,6 +525,44 @@ impl Runtime {
         self
     }
 
+    /// Replays `journal` (read by `tcm_journal::read` for this program): the run is rebuilt from
+    /// the inputs its engine took, its bodies run again and its commands' ends come from the
+    /// journal, on the journal's time; at the journal's end the run ends with
+    /// [`RunOutcome::JournalEnded`] (unless it ended first), and at the first difference between
+    /// the program and the run with [`RunOutcome::Diverged`] (docs/semantics.md, "Durable runs").
+    /// The trace is the run's, record for record.
+    pub fn replay(self, journal: tcm_journal::Journal) -> Runtime {
+        self.replaying(journal, crate::replay::AtEnd::Stop)
+    }
+
+    /// As [`Runtime::replay`], then the run goes on live: its time from the journal's last, a
+    /// `control` record by `journal` saying where it resumed, each command that was running at
+    /// the crash failed with the exception `Interrupted`. Give it the journal to go on writing
+    /// (`tcm_journal::Writer::reopen`, [`Runtime::journal`]) to survive a second crash.
+    pub fn resume(self, journal: tcm_journal::Journal) -> Runtime {
+        self.replaying(journal, crate::replay::AtEnd::GoLive)
+    }
+
+    /// How a replay makes the commands' values from the journal (the inverse of the encoder given
+    /// to [`Runtime::journal_with`]); JSON values by default ([`crate::json_decoded`]).
+    pub fn replay_values(self, decode: crate::ValueDecoder) -> Runtime {
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            if let Some(r) = inner.replay.as_mut() {
+                r.decode = decode;
+            }
+        }
+        self
+    }
+
+    fn replaying(self, journal: tcm_journal::Journal, at_end: crate::replay::AtEnd) -> Runtime {
+        let replay = crate::replay::Replay::new(journal, crate::json_decoded, at_end);
+        self.shared.clock.replay_from(replay.feed.clone());
+        if let Ok(mut inner) = self.shared.inner.lock() {
+            inner.replay = Some(Box::new(replay));
+        }
+        self
+    }
+
     /// Adds a wiretap built for one task (TDL's `wiretap w() before T { … }`): the same as
     /// [`Runtime::wiretap`] with the task and the point it names.
     pub fn tap(self, tap: crate::task::Tap) -> Runtime {
@@ -541,7 +595,7 @@ impl Runtime {
         {
             let mut inner = shared.enter()?;
             inner.finishing = true;
-            let now = shared.now();
+            let now = inner.engine.at_clock();
             let root = inner.engine.root();
             let (spec, kept) = task.into_parts(root);
             inner.spawn_root(now, spec, kept)?;
@@ -622,6 +676,10 @@ impl Runtime {
         // Nobody reads the trace: do not build it, but for its warnings, which are logged.
         inner.engine.set_tracing(!self.sinks.is_empty());
         inner.engine.trace_warnings(true);
+        if inner.replay.is_some() {
+            // A replay's inputs are in its journal already; a resumed run records its new ones.
+            inner.engine.record_inputs(false);
+        }
         Ok(self.shared.clone())
     }
 
@@ -645,7 +703,7 @@ pub(crate) fn raise(
     if s.ended {
         return Err(Error::RunEnded);
     }
-    let now = shared.now();
+    let now = s.engine.at_clock();
     let id = s.engine.external(name);
     s.engine.handle_external_with(now, id, data);
     Ok(())

@@ -287,7 +287,7 @@ pub(crate) fn spawn_top(shared: &Arc<Shared>, task: Task) -> Result<NodeId, Erro
     if inner.ended {
         return Err(Error::RunEnded);
     }
-    let now = shared.now();
+    let now = inner.engine.at_clock();
     let root = inner.engine.root();
     let (spec, kept) = task.into_parts(root);
     Ok(inner.spawn_root(now, spec, kept)?)

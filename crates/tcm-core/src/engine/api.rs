@@ -345,7 +345,7 @@ impl Job {
     }
 
     /// The wiretap, for a wiretap check.
-    pub(crate) fn tap(&self) -> Option<WiretapId> {
+    pub fn tap(&self) -> Option<WiretapId> {
         self.tap
     }
 

@@ -75,9 +75,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.inputs = on.then(VecDeque::new);
     }
 
-    /// Output: the next recorded input, with the engine's time when it took it.
+    /// Output: the next recorded input, with the engine's time when it took it and how many nodes
+    /// the run had created before it (a replay gives it the input at the same point of the bodies'
+    /// requests: `Engine::created`).
     #[must_use]
-    pub fn poll_input(&mut self) -> Option<(Time, InputRecord)> {
+    pub fn poll_input(&mut self) -> Option<(Time, u64, InputRecord)> {
         self.inputs.as_mut()?.pop_front()
     }
 
@@ -88,8 +90,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             // An input given the clock's time reads it now (`Engine::at_clock`).
             let now = self.time();
             let input = input(self);
+            let created = self.created();
             if let Some(q) = self.inputs.as_mut() {
-                q.push_back((now, input));
+                q.push_back((now, created, input));
             }
         }
     }
@@ -97,8 +100,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// The engine read its clock, `t`: recorded first, as the input it is.
     #[inline]
     pub(super) fn clock_read(&mut self, t: Time) {
+        let created = self.created();
         if let Some(q) = self.inputs.as_mut() {
-            q.push_back((t, InputRecord::Clock));
+            q.push_back((t, created, InputRecord::Clock));
         }
     }
 
@@ -113,6 +117,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             tap: job.tap().map(|t| t.0),
             failure,
         });
+    }
+
+    /// How many nodes the run created so far (the next node's display number, less one): a
+    /// replay gives each input when the bodies have created as many as when it was recorded.
+    #[must_use]
+    pub fn created(&self) -> u64 {
+        self.next_display - 1
     }
 
     /// The display number of `node`, 0 once it is gone (an input for a node already gone changes

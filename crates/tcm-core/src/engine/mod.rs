@@ -220,7 +220,7 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     // Pausing, breakpoints, faults and approvals, from the first request (`steer.rs`).
     steer: Option<Box<steer::Steering>>,
     // The inputs taken, while recording them for a journal (`inputs.rs`).
-    inputs: Option<VecDeque<(Time, inputs::InputRecord)>>,
+    inputs: Option<VecDeque<(Time, u64, inputs::InputRecord)>>,
 }
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
@@ -344,6 +344,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.now
     }
 
+    /// The clock's time now, read (and recorded, for a journal) if the engine has a clock; else
+    /// the latest time known. For a time a command computes from now, such as a delay's end.
+    pub fn clock_time(&mut self) -> Time {
+        self.behind = self.clock.is_some();
+        self.time()
+    }
+
     /// Calls `input` at the clock's time ([`Engine::at_clock`]).
     pub fn with_clock<R>(&mut self, input: impl FnOnce(&mut Self, Time) -> R) -> R {
         let now = self.at_clock();
@@ -459,9 +466,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// outcome").
     /// A paused run is settled: what is ready waits for it to resume (see [`Engine::is_paused`]).
     pub fn is_settled(&mut self) -> bool {
-        (self.ready.is_empty() || self.halted())
-            && self.work.is_empty()
-            && self.poll_timeout().is_none()
+        self.is_settled_but_timers() && self.poll_timeout().is_none()
+    }
+
+    /// Whether nothing is ready and no work is queued: [`Engine::is_settled`], timers aside (a
+    /// replay fires them where its journal says).
+    pub fn is_settled_but_timers(&self) -> bool {
+        (self.ready.is_empty() || self.halted()) && self.work.is_empty()
     }
 
     /// Moves the engine's clock to `now`. It never skips a deadline: timers due before `now` fire

@@ -35,7 +35,9 @@ fn the_engine_records_its_inputs_in_order_with_their_times() {
         .note_control(Time::ZERO + s(4.0), "pause", "operator");
     sim.run();
     let mut got = Vec::new();
-    while let Some((t, mut input)) = sim.engine.poll_input() {
+    let mut created = Vec::new();
+    while let Some((t, nodes, mut input)) = sim.engine.poll_input() {
+        created.push(nodes);
         // The scripted failure's message is the simulator's; its type is what matters here.
         if let InputRecord::Finished {
             failure: Some(f), ..
@@ -74,6 +76,8 @@ fn the_engine_records_its_inputs_in_order_with_their_times() {
             (55, finished(3, None)),
         ]
     );
+    // Each input with the nodes created before it: the three commands, spawned first.
+    assert_eq!(created, [3; 7]);
     // Off again: nothing more is recorded.
     sim.engine.record_inputs(false);
     sim.engine.handle_external(Time::ZERO + s(6.0), go);
@@ -100,7 +104,7 @@ fn each_reading_of_the_clock_is_recorded() {
         .expect("spawn");
     assert_eq!(
         sim.engine.poll_input(),
-        Some((Time::from_nanos(7_000_000_000), InputRecord::Clock))
+        Some((Time::from_nanos(7_000_000_000), 1, InputRecord::Clock))
     );
     // Given a time, the engine reads no clock.
     reading.store(9_000_000_000, Ordering::Relaxed);

@@ -95,8 +95,18 @@ fn finish(
 
 impl Inner {
     /// Reports a job's end to the engine, at `now`, or at the clock's time if `None` (read only
-    /// if the report needs it, `Engine::at_clock`).
+    /// if the report needs it, `Engine::at_clock`); while the run replays its journal, held until
+    /// the journal gives it (`replay.rs`, rule 3).
     pub(crate) fn ended_job(&mut self, now: Option<Time>, ended: Ended) {
+        if let Some(r) = self.replay.as_mut().filter(|r| r.active()) {
+            r.hold(ended);
+            return;
+        }
+        self.report_end(now, ended);
+    }
+
+    /// Reports a job's end to the engine, at `now`, or at the clock's time if `None`.
+    pub(crate) fn report_end(&mut self, now: Option<Time>, ended: Ended) {
         let (job, res) = match ended {
             Ended::Returned(job, res) => (job, res),
             Ended::Dropped(job) => {

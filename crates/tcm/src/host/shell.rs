@@ -39,6 +39,8 @@ pub(crate) struct Host<'a> {
     pub(super) trace: &'a mut Vec<TraceEvent>,
     // The values awaited, by node (`Inner::values`).
     pub(super) values: &'a mut BTreeMap<NodeId, Option<crate::task::Value>>,
+    // The journal the run replays, while it does (`replay.rs`).
+    pub(super) replay: Option<&'a mut crate::replay::Replay>,
 }
 
 impl Host<'_> {
@@ -64,7 +66,17 @@ impl Host<'_> {
 }
 
 impl Shell<Action, Factory> for Host<'_> {
-    fn start(&mut self, _: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
+    fn start(&mut self, engine: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
+        if let Some(r) = self.replay.as_mut() {
+            // A command's end comes from the journal (`replay.rs`, rule 1).
+            if engine
+                .info(node)
+                .is_some_and(|i| i.kind == tcm_core::NodeKind::Command)
+            {
+                r.stub(node);
+                return;
+            }
+        }
         // The engine already holds the action's children (`Engine::hold_by_default`, set by
         // `Runtime::new`): a hand-written action holds them until it returns or waits, as
         // generated TDL does (docs/semantics.md, "Bodies and children").
@@ -111,6 +123,10 @@ impl Shell<Action, Factory> for Host<'_> {
     }
 
     fn cancel(&mut self, node: NodeId) {
+        if self.replay.as_mut().is_some_and(|r| r.cancel(node)) {
+            // A stub: its stop comes from the journal.
+            return;
+        }
         // Removed from the running actions either way: an action in its grace period is never
         // parked again, so it keeps the run busy, not stuck, until it stops.
         match self.aborts.remove(&node) {

@@ -34,7 +34,10 @@ impl RunLoop {
         let mut inner = lock(&self.shared)?;
         let now = self.shared.now();
         inner.report_stopped(&self.shared, now);
-        let next = if inner.journal.is_some() {
+        let next = if inner.replay.as_ref().is_some_and(|r| r.active()) {
+            // The journal gives the inputs, time passing among them (`replay.rs`).
+            crate::replay::turn(&mut inner, &self.shared)
+        } else if inner.journal.is_some() {
             // The timers that fire are journaled before what they cause is carried out.
             let fields = &mut *inner;
             tcm_core::Driver::time(&mut fields.engine, now);
@@ -67,6 +70,8 @@ impl RunLoop {
             // The run ends at once: due callbacks do not run.
             due.clear();
             Some(RunOutcome::Fatal(f.clone()))
+        } else if let Some(o) = crate::replay::outcome(&inner) {
+            Some(o)
         } else if !due.is_empty() {
             // They run first, even if the run is about to end: they came due before it did.
             for d in &due {

@@ -19,6 +19,7 @@ mod monitors;
 mod panics;
 mod paper;
 mod patterns;
+mod replay;
 mod resources;
 mod runtime;
 mod session;

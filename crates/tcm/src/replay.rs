@@ -1,0 +1,557 @@
+//! Replaying a run's journal (docs/semantics.md, "Durable runs"): a run rebuilt from the inputs
+//! its engine took, then stopped ([`Runtime::replay`](crate::Runtime::replay)) or gone on live
+//! ([`Runtime::resume`](crate::Runtime::resume)).
+//!
+//! Rules of the replay:
+//! 1. Bodies run again (goals, monitor activations, handlers, wiretap checks): they ask the engine
+//!    what they asked it in the run. Commands do not: the host keeps a command's start as a *stub*
+//!    whose end comes from the journal, with its value (decoded by a [`ValueDecoder`]) or its typed
+//!    failure.
+//! 2. The journal is the run's clock: each reading the engine takes is the journal's next
+//!    (`clock.rs`, [`Feed`]); the shell reads the latest; nothing waits for tokio's time; timers fire
+//!    where the journal says time passed.
+//! 3. The inputs are given in the journal's order, each once the bodies created as many nodes as
+//!    when the run took it (`Entry::nodes`), and, for an end, once its job waits for it: a stub, or
+//!    a body that ended again. A body's end (or its stop) is held until the journal gives it.
+//! 4. At the first difference (the bodies created more nodes than the run had, a body ended
+//!    otherwise than the journal says, a node the journal names does not exist, or nothing left
+//!    to run gives the next input) the replay stops: the run ends [`RunOutcome::Diverged`] with a
+//!    report naming the entry, the node and both versions.
+//! 5. At the journal's end a replay ends ([`RunOutcome::JournalEnded`], unless the run ended
+//!    first); a resumed run goes on live: its time from the journal's last, its new inputs
+//!    journaled, a `control` record by `journal` saying where it resumed, the bodies' held ends
+//!    given, and each command still running at the crash failed with the typed exception
+//!    `Interrupted` (a stop, if it was being cancelled).
+
+use crate::RunOutcome;
+use crate::host::{Ended, Inner, Shared};
+use crate::task::Value;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use tcm_core::{Failure, Job, NodeId, Time};
+use tcm_journal::{Entry, Input, Journal};
+
+/// Who asks for the `control` record that says where a run resumed.
+pub const RESUMED_BY: &str = "journal";
+
+/// The exception a command fails with when the run that started it crashed and was resumed: its
+/// end is unknown, and it is not run twice.
+pub const INTERRUPTED: &str = "Interrupted";
+
+/// How a replay makes an action's value from its journal entry (the inverse of a
+/// [`ValueEncoder`](crate::ValueEncoder)); `None`: no value.
+pub type ValueDecoder = fn(serde_json::Value) -> Option<Value>;
+
+/// The default [`ValueDecoder`]: the JSON value itself (what [`json_values`](crate::json_values)
+/// wrote).
+pub fn json_decoded(value: serde_json::Value) -> Option<Value> {
+    Some(Box::new(value))
+}
+
+/// The journal as the run's clock while it replays (rule 2).
+pub(crate) struct Feed {
+    replaying: AtomicBool,
+    state: Mutex<FeedState>,
+}
+
+struct FeedState {
+    // Each entry's time if it is a clock reading, by entry number.
+    readings: Vec<Option<u64>>,
+    // The next entry.
+    pos: usize,
+    // The latest time given.
+    latest: u64,
+    // Readings the replay took that the journal does not have there, and the reverse.
+    extra: u64,
+    missed: u64,
+}
+
+impl Feed {
+    fn new(entries: &[Entry]) -> Feed {
+        Feed {
+            replaying: AtomicBool::new(true),
+            state: Mutex::new(FeedState {
+                readings: entries
+                    .iter()
+                    .map(|e| matches!(e.input, Input::Clock).then_some(e.t))
+                    .collect(),
+                pos: 0,
+                latest: 0,
+                extra: 0,
+                missed: 0,
+            }),
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, FeedState> {
+        self.state
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// The latest time given, while replaying.
+    pub(crate) fn latest(&self) -> Option<Time> {
+        if !self.replaying.load(Ordering::Relaxed) {
+            return None;
+        }
+        Some(Time::from_nanos(self.lock().latest))
+    }
+
+    /// The engine's next reading, while replaying: the journal's, if its next entry is one.
+    pub(crate) fn reading(&self) -> Option<Time> {
+        if !self.replaying.load(Ordering::Relaxed) {
+            return None;
+        }
+        let mut s = self.lock();
+        let pos = s.pos;
+        match s.readings.get(pos).copied().flatten() {
+            Some(t) => {
+                s.pos += 1;
+                s.latest = s.latest.max(t);
+            }
+            None => s.extra += 1,
+        }
+        Some(Time::from_nanos(s.latest))
+    }
+
+    /// The next entry that is no reading, from the next entry on; its number.
+    fn next_input(&self) -> usize {
+        let s = self.lock();
+        let mut pos = s.pos;
+        while let Some(Some(_)) = s.readings.get(pos) {
+            pos += 1;
+        }
+        pos
+    }
+
+    /// Entry `pos`, at `t`, was given: the readings before it that the replay did not take are
+    /// passed (their times count).
+    fn given(&self, pos: usize, t: u64) {
+        let mut s = self.lock();
+        while s.pos < pos {
+            if let Some(Some(r)) = s.readings.get(s.pos).copied() {
+                s.missed += 1;
+                s.latest = s.latest.max(r);
+            }
+            s.pos += 1;
+        }
+        s.pos = pos + 1;
+        s.latest = s.latest.max(t);
+    }
+
+    /// The replay is over.
+    fn stop(&self) -> Time {
+        self.replaying.store(false, Ordering::Relaxed);
+        Time::from_nanos(self.lock().latest)
+    }
+}
+
+/// What happens at the journal's end (rule 5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum AtEnd {
+    Stop,
+    GoLive,
+}
+
+/// A run's replay, kept beside its engine (`Inner::replay`).
+pub(crate) struct Replay {
+    entries: Vec<Entry>,
+    pub(crate) feed: Arc<Feed>,
+    pub(crate) decode: ValueDecoder,
+    at_end: AtEnd,
+    // Commands started in the replay, their ends to come from the journal; whether each is being
+    // cancelled.
+    stubs: Vec<(NodeId, bool)>,
+    // Ends of bodies run again, held until the journal gives them.
+    held: Vec<Ended>,
+    // Inputs given.
+    given: u64,
+    // How the run ends, once the replay decided it.
+    pub(crate) outcome: Option<RunOutcome>,
+}
+
+impl Replay {
+    pub(crate) fn new(journal: Journal, decode: ValueDecoder, at_end: AtEnd) -> Replay {
+        let feed = Arc::new(Feed::new(&journal.entries));
+        Replay {
+            entries: journal.entries,
+            feed,
+            decode,
+            at_end,
+            stubs: Vec::new(),
+            held: Vec::new(),
+            given: 0,
+            outcome: None,
+        }
+    }
+
+    /// Whether the journal is still being replayed.
+    pub(crate) fn active(&self) -> bool {
+        self.feed.replaying.load(Ordering::Relaxed)
+    }
+
+    /// A command started: a stub (rule 1).
+    pub(crate) fn stub(&mut self, node: NodeId) {
+        self.stubs.push((node, false));
+    }
+
+    /// Whether `node` is a stub; marked as being cancelled.
+    pub(crate) fn cancel(&mut self, node: NodeId) -> bool {
+        match self.stubs.iter_mut().find(|(n, _)| *n == node) {
+            Some(s) => {
+                s.1 = true;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// A body's end (or stop), held until the journal gives it (rule 3).
+    pub(crate) fn hold(&mut self, ended: Ended) {
+        self.held.push(ended);
+    }
+
+    /// Jobs the engine counts as running that wait for the journal.
+    pub(crate) fn waiting(&self) -> usize {
+        self.stubs.len() + self.held.len()
+    }
+
+    /// Stops the replay at entry `pos` with a report (rule 4).
+    fn diverge(&mut self, pos: usize, why: String) {
+        let n = self.entries.get(pos).map_or(pos as u64, |e| e.n);
+        self.feed.stop();
+        self.outcome = Some(RunOutcome::Diverged(format!(
+            "journal entry {n} (line {}): {why}",
+            n + 2
+        )));
+    }
+
+    /// Nothing left to run gives the next input: the replay stops (rule 4).
+    pub(crate) fn stalled(
+        &mut self,
+        engine: &tcm_core::Engine<crate::task::Action, crate::task::Factory>,
+    ) {
+        let pos = self.feed.next_input();
+        let Some(e) = self.entries.get(pos) else {
+            return;
+        };
+        let what = describe(&e.input);
+        let created = engine.created();
+        let why = if created < e.nodes {
+            format!(
+                "the run had created {} nodes when it took {what}; the replay created {created} and \
+                 nothing left to run creates more: the program differs from the run's",
+                e.nodes
+            )
+        } else {
+            format!(
+                "the replay waits for {what}, and nothing left to run gives it: the program differs \
+                 from the run's"
+            )
+        };
+        self.diverge(pos, why);
+    }
+}
+
+/// A person's words for an input.
+fn describe(input: &Input) -> String {
+    match input {
+        Input::Ended {
+            node, tap: None, ..
+        } => format!("the end of node {node}"),
+        Input::Ended {
+            node, tap: Some(t), ..
+        } => format!("the end of wiretap {t}'s check on node {node}"),
+        Input::Failed {
+            node, exception, ..
+        } => format!("the failure of node {node} with {exception}"),
+        Input::Stopped { node } => format!("the stop of node {node}"),
+        Input::Overdue { node, .. } => format!("node {node} overrunning its grace period"),
+        Input::External { name, .. } => format!("the event {name}"),
+        Input::State { name, .. } => format!("the state variable {name} set"),
+        Input::Time => "time passing".into(),
+        Input::Clock => "a clock reading".into(),
+        Input::Control { what, by } => format!("the operation `{what}` by {by}"),
+    }
+}
+
+/// Gives the engine the journal's inputs, in order, as far as the run has come (rule 3); at the
+/// journal's end, stops or goes live (rule 5).
+pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
+    loop {
+        let Some(r) = inner.replay.as_mut().filter(|r| r.active()) else {
+            return;
+        };
+        let pos = r.feed.next_input();
+        let Some(e) = r.entries.get(pos) else {
+            finish(inner, shared);
+            return;
+        };
+        let created = inner.engine.created();
+        if created < e.nodes {
+            return;
+        }
+        if created > e.nodes {
+            let why = format!(
+                "the run had created {} nodes when it took {}; the replay created {created} by \
+                 then: the program differs from the run's, or its bodies raced with the run's inputs",
+                e.nodes,
+                describe(&e.input)
+            );
+            r.diverge(pos, why);
+            return;
+        }
+        let (t, input) = (e.t, e.input.clone());
+        match give(inner, t, &input) {
+            Ok(true) => {
+                if let Some(r) = inner.replay.as_mut() {
+                    r.feed.given(pos, t);
+                    r.given += 1;
+                }
+                inner.start_effects(shared);
+            }
+            Ok(false) => return,
+            Err(why) => {
+                if let Some(r) = inner.replay.as_mut() {
+                    r.diverge(pos, why);
+                }
+                return;
+            }
+        }
+    }
+}
+
+/// Gives one input at `t`: `Ok(false)` if the run has not come to it yet.
+fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
+    let now = Time::from_nanos(t);
+    let node_of = |inner: &Inner, node: u64| {
+        inner.engine.node_by_display(node).ok_or_else(|| {
+            format!(
+                "the journal names node {node}, and the replay has no such node: the program \
+                 differs from the run's"
+            )
+        })
+    };
+    match input {
+        Input::Ended { node, tap, value } => {
+            let id = node_of(inner, *node)?;
+            end(inner, now, id, *tap, Ok(value.clone()))
+        }
+        Input::Failed {
+            node,
+            tap,
+            exception,
+            message,
+            ancestry,
+            data,
+        } => {
+            let id = node_of(inner, *node)?;
+            let mut f = Failure::new(exception.clone(), message.clone());
+            f.ancestry = ancestry.iter().map(|a| a.clone().into()).collect();
+            if let Some(d) = data {
+                f.data = Some(Arc::new(d.clone()));
+            }
+            end(inner, now, id, *tap, Err(f))
+        }
+        Input::Stopped { node } => {
+            let id = node_of(inner, *node)?;
+            let Some(r) = inner.replay.as_mut() else {
+                return Ok(false);
+            };
+            if let Some(i) = r.stubs.iter().position(|(n, _)| *n == id) {
+                r.stubs.remove(i);
+            } else if let Some(i) = r
+                .held
+                .iter()
+                .position(|h| matches!(h, Ended::Dropped(j) if j.node() == id))
+            {
+                r.held.remove(i);
+            } else if let Some(i) = r.held.iter().position(|h| held_by(h, id, None)) {
+                // A body that ended in the replay, where the run's was stopped first: the run's
+                // cancellation came before the body's end.
+                let _ = r.held.remove(i);
+            } else {
+                return Ok(false);
+            }
+            inner.engine.handle_action_stopped(now, Job::from(id));
+            Ok(true)
+        }
+        Input::Overdue { node, grace_ns } => {
+            let id = node_of(inner, *node)?;
+            let grace = std::time::Duration::from_nanos(*grace_ns);
+            inner
+                .engine
+                .handle_action_overdue(now, Job::from(id), grace);
+            Ok(true)
+        }
+        Input::External { name, data } => {
+            let id = inner.engine.external(name);
+            let data = data
+                .clone()
+                .map(|d| Arc::new(d) as Arc<dyn std::any::Any + Send + Sync>);
+            inner.engine.handle_external_with(now, id, data);
+            Ok(true)
+        }
+        Input::State { name, value } => {
+            let value: crate::StateValue = serde_json::from_value(value.clone())
+                .map_err(|e| format!("the state variable {name}'s value cannot be read: {e}"))?;
+            crate::state::set_by_name(&mut inner.engine, now, name, value)
+                .map_err(|e| format!("the state variable {name} cannot be set: {e}"))?;
+            Ok(true)
+        }
+        Input::Time => {
+            inner.engine.handle_timeout(now);
+            Ok(true)
+        }
+        Input::Clock => Ok(true),
+        Input::Control { what, by } if by == RESUMED_BY => {
+            inner.engine.note_control(now, what, by);
+            Ok(true)
+        }
+        Input::Control { what, by } => Err(format!(
+            "the run took the operation `{what}` by {by}, and replaying an operation from outside \
+             the run is not supported yet"
+        )),
+    }
+}
+
+/// Whether `h` is the held end of `node`'s job (`tap`: a wiretap check's).
+fn held_by(h: &Ended, node: NodeId, tap: Option<u32>) -> bool {
+    match h {
+        Ended::Returned(j, _) => j.node() == node && j.tap().map(|t| t.number()) == tap,
+        Ended::Dropped(_) => false,
+    }
+}
+
+/// Gives the end of `node`'s job from the journal: a stub's result, or a body's held end checked
+/// against the journal's.
+fn end(
+    inner: &mut Inner,
+    now: Time,
+    node: NodeId,
+    tap: Option<u32>,
+    journaled: Result<Option<serde_json::Value>, Failure>,
+) -> Result<bool, String> {
+    let Some(r) = inner.replay.as_mut() else {
+        return Ok(false);
+    };
+    if tap.is_none() {
+        if let Some(i) = r.stubs.iter().position(|(n, _)| *n == node) {
+            r.stubs.remove(i);
+            let decode = r.decode;
+            let result =
+                journaled.map(|v| v.and_then(decode).unwrap_or_else(|| Box::new(()) as Value));
+            inner.report_end(Some(now), Ended::Returned(Job::from(node), Ok(result)));
+            return Ok(true);
+        }
+    }
+    let Some(i) = r.held.iter().position(|h| held_by(h, node, tap)) else {
+        return Ok(false);
+    };
+    let held = r.held.remove(i);
+    if let Ended::Returned(_, res) = &held {
+        let display = inner.engine.info(node).map(|i| (i.display, i.name));
+        let (display, name) = display.unwrap_or_default();
+        let replayed = match res {
+            Ok(Ok(_)) => None,
+            Ok(Err(f)) => Some(f.exception.to_string()),
+            Err(_) => Some("ActionPanicked".to_string()),
+        };
+        let recorded = journaled.as_ref().err().map(|f| f.exception.to_string());
+        if replayed != recorded {
+            let say = |e: &Option<String>| match e {
+                None => "ended well".to_string(),
+                Some(x) => format!("failed with {x}"),
+            };
+            return Err(format!(
+                "node {display} ({name}) {} in the run, and {} in the replay: the program differs \
+                 from the run's, or its body read something outside the journal",
+                say(&recorded),
+                say(&replayed)
+            ));
+        }
+    }
+    inner.report_end(Some(now), held);
+    Ok(true)
+}
+
+/// The journal's end (rule 5).
+fn finish(inner: &mut Inner, shared: &Arc<Shared>) {
+    let Some(r) = inner.replay.as_mut() else {
+        return;
+    };
+    let last = r.feed.stop();
+    shared.clock.go_on_from(last);
+    match r.at_end {
+        AtEnd::Stop => {
+            r.outcome = Some(RunOutcome::JournalEnded { inputs: r.given });
+            shared.wake.notify_one();
+        }
+        AtEnd::GoLive => {
+            let held = std::mem::take(&mut r.held);
+            let stubs = std::mem::take(&mut r.stubs);
+            let what = format!("resumed after {} inputs of its journal", r.given);
+            if inner.journal.is_some() {
+                inner.engine.record_inputs(true);
+            }
+            let now = inner.engine.at_clock();
+            inner.engine.note_control(now, &what, RESUMED_BY);
+            for ended in held {
+                inner.report_end(None, ended);
+                inner.start_effects(shared);
+            }
+            for (node, cancelled) in stubs {
+                let now = inner.engine.at_clock();
+                if cancelled {
+                    inner.engine.handle_action_stopped(now, Job::from(node));
+                } else {
+                    let f = Failure::new(
+                        INTERRUPTED,
+                        "the run stopped while this command ran, and resumed from its journal: \
+                         whether it ended is not known, and it is not run twice",
+                    );
+                    let _ = inner
+                        .engine
+                        .handle_action_finished(now, Job::from(node), Err(f));
+                }
+                inner.start_effects(shared);
+            }
+            shared.wake.notify_one();
+        }
+    }
+}
+
+/// A turn of the driver while the run replays: the inputs the run has come to are given, effects
+/// carried out, trace records taken; no timer fires, and the driver sleeps until woken. When
+/// nothing left to run can give the next input, the replay stops (rule 4).
+pub(crate) fn turn(inner: &mut Inner, shared: &Arc<Shared>) -> tcm_core::Next {
+    feed(inner, shared);
+    let fields = &mut *inner;
+    if let Some(r) = fields.replay.as_mut().filter(|r| r.active()) {
+        let waiting = fields.parking.jobs() + r.waiting();
+        if fields.engine.stats().running as usize <= waiting
+            && fields.due.is_empty()
+            && fields.launches.is_empty()
+            && fields.engine.is_settled_but_timers()
+        {
+            r.stalled(&fields.engine);
+        }
+    }
+    let (engine, mut host) = inner.split(shared);
+    tcm_core::Driver::effects(engine, &mut host);
+    tcm_core::Driver::trace(engine, &mut host);
+    let mut next = tcm_core::Driver::next(engine);
+    if inner.replay.as_ref().is_some_and(|r| r.active()) {
+        next.deadline = None;
+    }
+    next
+}
+
+/// How the run ends, if the replay decided it: at a difference; at the journal's end, unless the
+/// run's tasks ended first.
+pub(crate) fn outcome(inner: &Inner) -> Option<RunOutcome> {
+    match inner.replay.as_ref()?.outcome.as_ref()? {
+        RunOutcome::JournalEnded { .. } if RunOutcome::of_roots(&inner.roots).is_some() => None,
+        o => Some(o.clone()),
+    }
+}

@@ -1,0 +1,190 @@
+//! Replaying and resuming a run from its journal (`Runtime::replay`, `Runtime::resume`;
+//! docs/semantics.md, "Durable runs"): the replay's trace is the run's, record for record; a
+//! journal cut by a crash resumes, commands in flight failing with `Interrupted`; a program that
+//! differs is reported at its first difference. On tokio's paused clock.
+
+use serde_json::json;
+use std::time::Duration;
+use tcm::testing::assert_checked;
+use tcm::{Failure, Handler, NodeRef, Recorder, RunOutcome, Runtime, Task, TraceEvent};
+use tcm_journal::{Durability, Journal, Writer};
+
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("tcm-replay-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("a scratch directory");
+    dir.join("run.journal")
+}
+
+/// A command that takes `secs` of the run's time and returns `value`.
+fn takes(name: &'static str, secs: f64, value: serde_json::Value) -> Task {
+    Task::command(name, move |ctx| async move {
+        ctx.sleep(Duration::from_secs_f64(secs)).await;
+        Ok(value)
+    })
+}
+
+/// A mission that reads a command's value, waits for an event, takes a failure in a handler,
+/// and runs a timed step: `measure` (1 s, 2.5), then, as the value is above 2, `go` after the
+/// event `start`; `blocked` fails with `Blocked`, which `detour` takes; `last` waits 2 s.
+/// `extra` adds a step the run did not have (a changed program).
+fn mission(extra: bool) -> Task {
+    Task::goal("mission", move |ctx| async move {
+        let v: serde_json::Value = ctx
+            .spawn(takes("measure", 1.0, json!(2.5)))
+            .wait_value()
+            .await?;
+        if v.as_f64().unwrap_or(0.0) > 2.0 {
+            let start = ctx.external("start")?;
+            ctx.spawn(takes("go", 0.5, json!(null)))
+                .with(tcm::Constraint::disable(
+                    tcm::Facet::Handling,
+                    tcm::When::External(start),
+                ))
+                .start()?;
+        }
+        if extra {
+            ctx.spawn(takes("look", 0.1, json!(null))).start()?;
+        }
+        ctx.spawn(Task::command("blocked", |ctx| async move {
+            ctx.sleep(Duration::from_millis(300)).await;
+            Err::<(), _>(Failure::new("Blocked", "in the way"))
+        }))
+        .handler(Handler::new("detour", "Blocked", |ctx| async move {
+            ctx.spawn(takes("around", 0.7, json!("left"))).start()?;
+            Ok(())
+        }))
+        .start()?;
+        ctx.spawn(takes("last", 2.0, json!(1)))
+            .serial(NodeRef::Previous)
+            .start()?;
+        Ok(())
+    })
+}
+
+/// A recorded run of the mission, with its journal and trace.
+async fn record(name: &str) -> (std::path::PathBuf, Vec<TraceEvent>, tcm::Report) {
+    let path = scratch(name);
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let rec = Recorder::new();
+    let rt = Runtime::new().with_sink(rec.clone()).journal(writer);
+    let events = rt.events();
+    tokio::spawn(async move {
+        tokio::time::sleep(Duration::from_millis(1700)).await;
+        events.raise("start").expect("raise");
+    });
+    let report = rt.run(mission(false)).await.expect("run");
+    (path, rec.events(), report)
+}
+
+/// The trace as JSON lines, the run's number left out (each `Runtime` of a process has its own).
+fn lines(events: &[TraceEvent]) -> Vec<String> {
+    events
+        .iter()
+        .map(|e| {
+            let mut v = serde_json::to_value(e).expect("json");
+            if let Some(o) = v.as_object_mut() {
+                o.remove("run");
+            }
+            v.to_string()
+        })
+        .collect()
+}
+
+fn read(path: &std::path::Path) -> Journal {
+    tcm_journal::read(path, Some("mission@1")).expect("read the journal")
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_replay_gives_the_runs_trace_record_for_record() {
+    let (path, recorded, report) = record("same").await;
+    assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
+    assert_checked(&recorded);
+    let rec = Recorder::new();
+    let replayed = Runtime::new()
+        .with_sink(rec.clone())
+        .replay(read(&path))
+        .run(mission(false))
+        .await
+        .expect("replay");
+    assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
+    assert_eq!(replayed.elapsed, report.elapsed);
+    let (want, got) = (lines(&recorded), lines(&rec.events()));
+    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+        assert_eq!(w, g, "record {i} differs");
+    }
+    assert_eq!(want.len(), got.len());
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_changed_program_is_reported_at_its_first_difference() {
+    let (path, _, _) = record("changed").await;
+    let replayed = Runtime::new()
+        .replay(read(&path))
+        .run(mission(true))
+        .await
+        .expect("replay");
+    match &replayed.outcome {
+        RunOutcome::Diverged(why) => {
+            assert!(why.starts_with("journal entry "), "{why}");
+            assert!(why.contains("the program differs"), "{why}");
+        }
+        other => panic!("a changed program must be reported: {other:?}"),
+    }
+}
+
+/// The journal cut after its first `cut` entries, as a crash leaves it.
+fn cut(path: &std::path::Path, keep: impl Fn(&tcm_journal::Entry) -> bool) -> Journal {
+    let mut j = read(path);
+    let at = j
+        .entries
+        .iter()
+        .position(|e| !keep(e))
+        .unwrap_or(j.entries.len());
+    j.entries.truncate(at);
+    j
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_resumed_run_goes_on_and_a_command_in_flight_is_interrupted() {
+    let (path, recorded, _) = record("resume").await;
+    // Cut where `last` runs (started after `blocked` failed; its end not yet journaled): the
+    // entries before its end.
+    let last_node = recorded
+        .iter()
+        .find_map(|e| match &e.kind {
+            tcm::TraceKind::Spawned { node, name, .. } if name == "last" => Some(*node),
+            _ => None,
+        })
+        .expect("`last` was spawned");
+    let journal = cut(
+        &path,
+        |e| !matches!(e.input, tcm_journal::Input::Ended { node, .. } if node == last_node),
+    );
+    let given = journal.entries.len();
+    let rec = Recorder::new();
+    let report = Runtime::new()
+        .with_sink(rec.clone())
+        .resume(journal)
+        .run(mission(false))
+        .await
+        .expect("resume");
+    let events = rec.events();
+    assert_checked(&events);
+    // It says where it resumed, and `last`, whose end is unknown, failed with `Interrupted`.
+    assert!(
+        events.iter().any(|e| matches!(&e.kind,
+            tcm::TraceKind::Control { what, by }
+                if by == tcm::RESUMED_BY && what.contains("resumed after")
+        )),
+        "no record of the resumption"
+    );
+    let interrupted: Vec<u64> = report
+        .unhandled
+        .iter()
+        .filter(|u| u.failure.exception == tcm::INTERRUPTED)
+        .map(|u| u.node)
+        .collect();
+    assert_eq!(interrupted, [last_node], "{report}");
+    assert!(given > 5);
+}
