@@ -507,6 +507,7 @@ impl Ctx {
                 grace,
                 fail_parent: false,
                 wanted: None,
+                idempotent: false,
             },
         );
         Ok(id)

@@ -412,6 +412,11 @@ impl Inner {
             self.args.insert(node, args);
             any = true;
         }
+        if kept.idempotent {
+            if let Some(r) = self.replay.as_mut() {
+                r.idempotent(node);
+            }
+        }
         if let Some(grace) = kept.grace {
             let engine = &self.engine;
             // Nodes in the map are never the root, whose parent is `None` too.

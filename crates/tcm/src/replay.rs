@@ -146,6 +146,15 @@ impl Feed {
     }
 }
 
+/// A command started in the replay.
+struct Stub {
+    node: NodeId,
+    // It is being cancelled: at the journal's end, it stopped.
+    cancelled: bool,
+    // Its action, if it may run twice: at the journal's end, started again.
+    again: Option<crate::task::Action>,
+}
+
 /// What happens at the journal's end (rule 5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum AtEnd {
@@ -159,9 +168,10 @@ pub(crate) struct Replay {
     pub(crate) feed: Arc<Feed>,
     pub(crate) decode: ValueDecoder,
     at_end: AtEnd,
-    // Commands started in the replay, their ends to come from the journal; whether each is being
-    // cancelled.
-    stubs: Vec<(NodeId, bool)>,
+    // Commands started in the replay, their ends to come from the journal.
+    stubs: Vec<Stub>,
+    // Nodes whose action may run twice (`Task::idempotent`).
+    idempotent: Vec<NodeId>,
     // Ends of bodies run again, held until the journal gives them.
     held: Vec<Ended>,
     // Inputs given.
@@ -179,6 +189,7 @@ impl Replay {
             decode,
             at_end,
             stubs: Vec::new(),
+            idempotent: Vec::new(),
             held: Vec::new(),
             given: 0,
             outcome: None,
@@ -190,16 +201,26 @@ impl Replay {
         self.feed.replaying.load(Ordering::Relaxed)
     }
 
-    /// A command started: a stub (rule 1).
-    pub(crate) fn stub(&mut self, node: NodeId) {
-        self.stubs.push((node, false));
+    /// A command started: a stub (rule 1), which keeps its action if it may run twice (rule 5).
+    pub(crate) fn stub(&mut self, node: NodeId, action: crate::task::Action) {
+        let again = self.idempotent.contains(&node).then_some(action);
+        self.stubs.push(Stub {
+            node,
+            cancelled: false,
+            again,
+        });
+    }
+
+    /// `node`'s task is idempotent (`Task::idempotent`).
+    pub(crate) fn idempotent(&mut self, node: NodeId) {
+        self.idempotent.push(node);
     }
 
     /// Whether `node` is a stub; marked as being cancelled.
     pub(crate) fn cancel(&mut self, node: NodeId) -> bool {
-        match self.stubs.iter_mut().find(|(n, _)| *n == node) {
+        match self.stubs.iter_mut().find(|s| s.node == node) {
             Some(s) => {
-                s.1 = true;
+                s.cancelled = true;
                 true
             }
             None => false,
@@ -358,7 +379,7 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
             let Some(r) = inner.replay.as_mut() else {
                 return Ok(false);
             };
-            if let Some(i) = r.stubs.iter().position(|(n, _)| *n == id) {
+            if let Some(i) = r.stubs.iter().position(|s| s.node == id) {
                 r.stubs.remove(i);
             } else if let Some(i) = r
                 .held
@@ -436,7 +457,7 @@ fn end(
         return Ok(false);
     };
     if tap.is_none() {
-        if let Some(i) = r.stubs.iter().position(|(n, _)| *n == node) {
+        if let Some(i) = r.stubs.iter().position(|s| s.node == node) {
             r.stubs.remove(i);
             let decode = r.decode;
             let result =
@@ -500,10 +521,19 @@ fn finish(inner: &mut Inner, shared: &Arc<Shared>) {
                 inner.report_end(None, ended);
                 inner.start_effects(shared);
             }
-            for (node, cancelled) in stubs {
+            for Stub {
+                node,
+                cancelled,
+                again,
+            } in stubs
+            {
                 let now = inner.engine.at_clock();
                 if cancelled {
                     inner.engine.handle_action_stopped(now, Job::from(node));
+                } else if let Some(action) = again {
+                    // Idempotent: started again, as the host starts any action.
+                    let (engine, mut host) = inner.split(shared);
+                    tcm_core::Shell::start(&mut host, engine, node, action);
                 } else {
                     let f = Failure::new(
                         INTERRUPTED,

@@ -26,6 +26,8 @@ pub(crate) struct Kept {
     pub(crate) fail_parent: bool,
     // The resources it uses, by name until the spawn resolves them (`resource.rs`).
     pub(crate) wanted: Option<Box<crate::resource::Wanted>>,
+    // Its action may run twice (`Task::idempotent`).
+    pub(crate) idempotent: bool,
 }
 
 /// A value an action returns, handed to whoever waits for the node ([`crate::Spawner::wait_value`]).
@@ -269,6 +271,7 @@ pub struct Task {
     pub(crate) wanted: Option<Box<crate::resource::Wanted>>,
     // The version of the program that defines it (`Task::version`).
     pub(crate) version: Option<Arc<str>>,
+    pub(crate) idempotent: bool,
 }
 
 impl Task {
@@ -288,6 +291,7 @@ impl Task {
             grace: None,
             wanted: None,
             version: None,
+            idempotent: false,
         }
     }
 
@@ -499,6 +503,15 @@ impl Task {
         self
     }
 
+    /// Declares this task's action safe to run twice (a command that moves to a pose, not one that
+    /// dispenses a part): when a run resumes from its journal ([`crate::Runtime::resume`]) and
+    /// the action was running at the crash, it is started again; an action not so declared fails
+    /// with the exception `Interrupted` instead (docs/semantics.md, "Durable runs").
+    pub fn idempotent(mut self) -> Task {
+        self.idempotent = true;
+        self
+    }
+
     /// Keeps every node of this task after it completes, instead of reclaiming it (TDL's
     /// `persistent` qualifier): its state stays visible, at the cost of memory.
     pub fn persistent(mut self) -> Task {
@@ -568,6 +581,7 @@ impl Task {
             grace: self.grace,
             fail_parent: false,
             wanted: self.wanted,
+            idempotent: self.idempotent,
         };
         let spawn = Spawn {
             parent,

@@ -73,7 +73,7 @@ impl Shell<Action, Factory> for Host<'_> {
                 .info(node)
                 .is_some_and(|i| i.kind == tcm_core::NodeKind::Command)
             {
-                r.stub(node);
+                r.stub(node, action);
                 return;
             }
         }

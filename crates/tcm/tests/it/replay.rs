@@ -27,8 +27,9 @@ fn takes(name: &'static str, secs: f64, value: serde_json::Value) -> Task {
 /// A mission that reads a command's value, waits for an event, takes a failure in a handler,
 /// and runs a timed step: `measure` (1 s, 2.5), then, as the value is above 2, `go` after the
 /// event `start`; `blocked` fails with `Blocked`, which `detour` takes; `last` waits 2 s.
-/// `extra` adds a step the run did not have (a changed program).
-fn mission(extra: bool) -> Task {
+/// `extra` adds a step the run did not have (a changed program); `idempotent` declares `last`
+/// safe to run twice.
+fn mission(extra: bool, idempotent: bool) -> Task {
     Task::goal("mission", move |ctx| async move {
         let v: serde_json::Value = ctx
             .spawn(takes("measure", 1.0, json!(2.5)))
@@ -55,9 +56,9 @@ fn mission(extra: bool) -> Task {
             Ok(())
         }))
         .start()?;
-        ctx.spawn(takes("last", 2.0, json!(1)))
-            .serial(NodeRef::Previous)
-            .start()?;
+        let last = takes("last", 2.0, json!(1));
+        let last = if idempotent { last.idempotent() } else { last };
+        ctx.spawn(last).serial(NodeRef::Previous).start()?;
         Ok(())
     })
 }
@@ -73,7 +74,7 @@ async fn record(name: &str) -> (std::path::PathBuf, Vec<TraceEvent>, tcm::Report
         tokio::time::sleep(Duration::from_millis(1700)).await;
         events.raise("start").expect("raise");
     });
-    let report = rt.run(mission(false)).await.expect("run");
+    let report = rt.run(mission(false, false)).await.expect("run");
     (path, rec.events(), report)
 }
 
@@ -104,7 +105,7 @@ async fn a_replay_gives_the_runs_trace_record_for_record() {
     let replayed = Runtime::new()
         .with_sink(rec.clone())
         .replay(read(&path))
-        .run(mission(false))
+        .run(mission(false, false))
         .await
         .expect("replay");
     assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
@@ -121,7 +122,7 @@ async fn a_changed_program_is_reported_at_its_first_difference() {
     let (path, _, _) = record("changed").await;
     let replayed = Runtime::new()
         .replay(read(&path))
-        .run(mission(true))
+        .run(mission(true, false))
         .await
         .expect("replay");
     match &replayed.outcome {
@@ -166,7 +167,7 @@ async fn a_resumed_run_goes_on_and_a_command_in_flight_is_interrupted() {
     let report = Runtime::new()
         .with_sink(rec.clone())
         .resume(journal)
-        .run(mission(false))
+        .run(mission(false, false))
         .await
         .expect("resume");
     let events = rec.events();
@@ -187,4 +188,73 @@ async fn a_resumed_run_goes_on_and_a_command_in_flight_is_interrupted() {
         .collect();
     assert_eq!(interrupted, [last_node], "{report}");
     assert!(given > 5);
+    // Declared idempotent, `last` runs again instead, and the run ends as the uncrashed one did.
+    let rec = Recorder::new();
+    let again = Runtime::new()
+        .with_sink(rec.clone())
+        .resume(cut(
+            &path,
+            |e| !matches!(e.input, tcm_journal::Input::Ended { node, .. } if node == last_node),
+        ))
+        .run(mission(false, true))
+        .await
+        .expect("resume");
+    assert_checked(&rec.events());
+    assert!(again.is_clean(), "{again}");
+    let ended_last = rec
+        .events()
+        .iter()
+        .filter(|e| {
+            matches!(e.kind, tcm::TraceKind::Transition { node, facet: tcm::Facet::Handling,
+                to: tcm::State::Completed, .. } if node == last_node)
+        })
+        .count();
+    assert_eq!(ended_last, 1);
+}
+
+/// A resumed run goes on writing its journal (`Writer::reopen`): the whole journal, both runs'
+/// inputs, replays to the resumed run's trace, record for record.
+#[tokio::test(start_paused = true)]
+async fn a_resumed_run_journals_on_and_its_journal_replays() {
+    let (path, recorded, _) = record("twice").await;
+    let last_node = recorded
+        .iter()
+        .find_map(|e| match &e.kind {
+            tcm::TraceKind::Spawned { node, name, .. } if name == "last" => Some(*node),
+            _ => None,
+        })
+        .expect("`last` was spawned");
+    // The crash: the file cut in the middle of `last`'s end record.
+    let text = std::fs::read_to_string(&path).expect("read");
+    let at = text
+        .find(&format!("\"in\":\"ended\",\"node\":{last_node}"))
+        .expect("the end of `last`");
+    std::fs::write(&path, &text[..at]).expect("cut");
+    let journal = read(&path);
+    assert!(journal.warning.is_some(), "the cut record is reported");
+    let writer = Writer::reopen(&path, &journal, Durability::EveryRecord).expect("reopen");
+    let rec = Recorder::new();
+    let resumed = Runtime::new()
+        .with_sink(rec.clone())
+        .journal(writer)
+        .resume(journal)
+        .run(mission(false, true))
+        .await
+        .expect("resume");
+    assert!(resumed.is_clean(), "{resumed}");
+    let whole = read(&path);
+    assert_eq!(whole.warning, None);
+    let again = Recorder::new();
+    let replayed = Runtime::new()
+        .with_sink(again.clone())
+        .replay(whole)
+        .run(mission(false, true))
+        .await
+        .expect("replay");
+    assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
+    let (want, got) = (lines(&rec.events()), lines(&again.events()));
+    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+        assert_eq!(w, g, "record {i} differs");
+    }
+    assert_eq!(want.len(), got.len());
 }
