@@ -35,6 +35,27 @@ pub struct Header {
     pub journal: u32,
     /// The identity of the program whose run it journals.
     pub program: String,
+    /// What the run started, as its writer describes it (`tdl run`: the task and its arguments),
+    /// for a replay or a resumption to start the same.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<serde_json::Value>,
+}
+
+impl Header {
+    /// The header of a journal of `program`, in this crate's format.
+    pub fn new(program: &str) -> Header {
+        Header {
+            journal: JOURNAL_FORMAT_VERSION,
+            program: program.to_string(),
+            start: None,
+        }
+    }
+
+    /// With what the run started.
+    pub fn starting(mut self, start: serde_json::Value) -> Header {
+        self.start = Some(start);
+        self
+    }
 }
 
 /// One input of the run, at the engine's time `t` (nanoseconds since the run started). (Its
@@ -46,10 +67,11 @@ pub struct Entry {
     pub n: u64,
     /// The engine's time for it.
     pub t: u64,
-    /// How many nodes the run had created when it came in: a replay gives it at the same point of
-    /// what the bodies ask (0 for a clock reading, which needs no such point).
+    /// The steps the run had taken when it came in (the records of its trace, traced or not): a
+    /// replay gives it at the same point of what the bodies ask. For a clock reading, the steps
+    /// when it was read (a replay gives readings in order, wherever they are taken).
     #[serde(default, skip_serializing_if = "is_zero")]
-    pub nodes: u64,
+    pub at: u64,
     /// What came in.
     #[serde(flatten)]
     pub input: Input,

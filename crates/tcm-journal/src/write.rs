@@ -8,7 +8,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crate::{Entry, Header, Input, JOURNAL_FORMAT_VERSION, JournalError, line};
+use crate::{Entry, Header, Input, JournalError, line};
 
 /// When what was appended reaches the disk.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,6 +75,15 @@ impl Writer {
         program: &str,
         durability: Durability,
     ) -> Result<Writer, JournalError> {
+        Writer::create_with(path, Header::new(program), durability)
+    }
+
+    /// [`Writer::create`] with a header of the caller's (what the run started, say).
+    pub fn create_with(
+        path: &Path,
+        header: Header,
+        durability: Durability,
+    ) -> Result<Writer, JournalError> {
         let name = path.display().to_string();
         let file = File::options()
             .write(true)
@@ -91,7 +100,7 @@ impl Writer {
                     source
                 },
             })?;
-        Writer::on(name, Box::new(file), program, durability)
+        Writer::start_on(name, Box::new(file), &header, durability)
     }
 
     /// Goes on writing the journal at `path`, as read (`journal`, by [`crate::read`]): a last
@@ -120,15 +129,21 @@ impl Writer {
     /// A journal written to `store` (named `name` in errors), its header written and synced.
     pub fn on(
         name: String,
-        mut store: Box<dyn Store>,
+        store: Box<dyn Store>,
         program: &str,
         durability: Durability,
     ) -> Result<Writer, JournalError> {
-        let header = Header {
-            journal: JOURNAL_FORMAT_VERSION,
-            program: program.to_string(),
-        };
-        let json = serde_json::to_string(&header).unwrap_or_default();
+        Writer::start_on(name, store, &Header::new(program), durability)
+    }
+
+    /// A journal written to `store`, its header `header`.
+    fn start_on(
+        name: String,
+        mut store: Box<dyn Store>,
+        header: &Header,
+        durability: Durability,
+    ) -> Result<Writer, JournalError> {
+        let json = serde_json::to_string(header).unwrap_or_default();
         let written = store
             .write_all(line(&json).as_bytes())
             .and_then(|()| store.flush())
@@ -183,17 +198,17 @@ impl Writer {
     /// Appends one input, received at the engine's time `t` (nanoseconds); with
     /// [`Durability::EveryRecord`], synced before it returns. An error, a write or a sync that
     /// failed now or earlier, means the input is not journaled: the run must stop.
-    pub fn append(&mut self, t: u64, nodes: u64, input: Input) -> Result<(), JournalError> {
-        self.add(t, nodes, input)?;
+    pub fn append(&mut self, t: u64, at: u64, input: Input) -> Result<(), JournalError> {
+        self.add(t, at, input)?;
         self.commit()
     }
 
-    /// Adds one input to the batch [`Writer::commit`] writes (`nodes`: see [`Entry::nodes`]).
-    pub fn add(&mut self, t: u64, nodes: u64, input: Input) -> Result<(), JournalError> {
+    /// Adds one input to the batch [`Writer::commit`] writes (`at`: see [`Entry::at`]).
+    pub fn add(&mut self, t: u64, at: u64, input: Input) -> Result<(), JournalError> {
         let entry = Entry {
             n: self.next,
             t,
-            nodes,
+            at,
             input,
         };
         self.scratch.clear();
@@ -207,9 +222,9 @@ impl Writer {
 
     /// Adds the plainest input, an action's end with no value, to the batch: the same record as
     /// [`Writer::add`] with [`Input::Ended`] makes, without building it.
-    pub fn add_ended(&mut self, t: u64, nodes: u64, node: u64) {
+    pub fn add_ended(&mut self, t: u64, at: u64, node: u64) {
         self.scratch.clear();
-        ended(self.next, t, nodes, node, &mut self.scratch);
+        ended(self.next, t, at, node, &mut self.scratch);
         self.seal();
     }
 
@@ -316,21 +331,21 @@ fn encode(entry: &Entry, out: &mut Vec<u8>) -> Result<(), serde_json::Error> {
         value: None,
     } = entry.input
     {
-        ended(entry.n, entry.t, entry.nodes, node, out);
+        ended(entry.n, entry.t, entry.at, node, out);
         return Ok(());
     }
     serde_json::to_writer(out, entry)
 }
 
-/// The record of entry `n`, at `t`, after `nodes` nodes: node `node`'s action ended, with no value.
-fn ended(n: u64, t: u64, nodes: u64, node: u64, out: &mut Vec<u8>) {
+/// The record of entry `n`, at `t`, after `at` at: node `node`'s action ended, with no value.
+fn ended(n: u64, t: u64, at: u64, node: u64, out: &mut Vec<u8>) {
     out.extend_from_slice(b"{\"n\":");
     decimal(n, out);
     out.extend_from_slice(b",\"t\":");
     decimal(t, out);
-    if nodes != 0 {
-        out.extend_from_slice(b",\"nodes\":");
-        decimal(nodes, out);
+    if at != 0 {
+        out.extend_from_slice(b",\"at\":");
+        decimal(at, out);
     }
     out.extend_from_slice(b",\"in\":\"ended\",\"node\":");
     decimal(node, out);

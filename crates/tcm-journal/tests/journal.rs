@@ -92,7 +92,7 @@ fn a_journal_reads_back_as_written_with_either_durability() {
         let got: Vec<(u64, u64, u64, Input)> = j
             .entries
             .into_iter()
-            .map(|e| (e.n, e.t, e.nodes, e.input))
+            .map(|e| (e.n, e.t, e.at, e.input))
             .collect();
         let want: Vec<(u64, u64, u64, Input)> = inputs()
             .into_iter()

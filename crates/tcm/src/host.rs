@@ -358,6 +358,15 @@ impl Inner {
     /// is ready, no timer is pending, no callback is due, and every running job (action,
     /// invocation, wiretap check) is parked in an await on an engine watch.
     pub(crate) fn quiet(&mut self) -> bool {
+        if let Some(r) = self.replay.as_ref().filter(|r| r.active()) {
+            // A replay's commands and held ends wait for the journal, and its timers fire where
+            // the journal says (`replay.rs`).
+            let waiting = self.parking.jobs() + r.waiting();
+            return self.engine.stats().running as usize <= waiting
+                && self.due.is_empty()
+                && self.launches.is_empty()
+                && self.engine.is_settled_but_timers();
+        }
         // Cheapest first: while an action runs unparked, the answer is no.
         self.engine.stats().running as usize <= self.parking.jobs()
             && self.due.is_empty()

@@ -51,7 +51,7 @@ impl Journaled {
     pub(crate) fn drain(&mut self, engine: &mut Engine<Action, Factory>) {
         // One batch for the inputs of one access: they are written (and, with a sync per record,
         // synced) together, before the effects they cause.
-        while let Some((t, nodes, input)) = engine.poll_input() {
+        while let Some((t, at, input)) = engine.poll_input() {
             if self.failed.is_some() {
                 continue;
             }
@@ -76,19 +76,19 @@ impl Journaled {
                     },
                     None,
                 ) => {
-                    self.writer.add_ended(t.as_nanos(), nodes, node);
+                    self.writer.add_ended(t.as_nanos(), at, node);
                     Ok(())
                 }
                 (InputRecord::Finished { node, tap, .. }, Some(value)) => self.writer.add(
                     t.as_nanos(),
-                    nodes,
+                    at,
                     Input::Ended {
                         node,
                         tap,
                         value: Some(value),
                     },
                 ),
-                (other, _) => self.writer.add(t.as_nanos(), nodes, entry(other)),
+                (other, _) => self.writer.add(t.as_nanos(), at, entry(other)),
             };
             if let Err(e) = added {
                 self.failed = Some(e.to_string());

@@ -10,10 +10,11 @@
 //! 2. The journal is the run's clock: each reading the engine takes is the journal's next
 //!    (`clock.rs`, [`Feed`]); the shell reads the latest; nothing waits for tokio's time; timers fire
 //!    where the journal says time passed.
-//! 3. The inputs are given in the journal's order, each once the bodies created as many nodes as
-//!    when the run took it (`Entry::nodes`), and, for an end, once its job waits for it: a stub, or
-//!    a body that ended again. A body's end (or its stop) is held until the journal gives it.
-//! 4. At the first difference (the bodies created more nodes than the run had, a body ended
+//! 3. The inputs are given in the journal's order, each once the run has taken as many steps as
+//!    when it took it (`Entry::at`: the records it had made, traced or not), and, for an end, once
+//!    its job waits for it: a stub, or a body that ended again. A body's end (or its stop) is held
+//!    until the journal gives it.
+//! 4. At the first difference (the run took more steps than the journal's run had, a body ended
 //!    otherwise than the journal says, a node the journal names does not exist, or nothing left
 //!    to run gives the next input) the replay stops: the run ends [`RunOutcome::Diverged`] with a
 //!    report naming the entry, the node and both versions.
@@ -237,10 +238,10 @@ impl Replay {
         self.stubs.len() + self.held.len()
     }
 
-    /// Stops the replay at entry `pos` with a report (rule 4).
+    /// Stops the replay at entry `pos` with a report (rule 4): nothing more is given, and the run
+    /// ends at the driver's next turn (commands still do not run).
     fn diverge(&mut self, pos: usize, why: String) {
         let n = self.entries.get(pos).map_or(pos as u64, |e| e.n);
-        self.feed.stop();
         self.outcome = Some(RunOutcome::Diverged(format!(
             "journal entry {n} (line {}): {why}",
             n + 2
@@ -257,12 +258,12 @@ impl Replay {
             return;
         };
         let what = describe(&e.input);
-        let created = engine.created();
-        let why = if created < e.nodes {
+        let steps = engine.steps();
+        let why = if steps < e.at {
             format!(
-                "the run had created {} nodes when it took {what}; the replay created {created} and \
-                 nothing left to run creates more: the program differs from the run's",
-                e.nodes
+                "the run had taken {} steps when it took {what}; the replay took {steps} and \
+                 nothing left to run takes more: the program differs from the run's",
+                e.at
             )
         } else {
             format!(
@@ -300,7 +301,11 @@ fn describe(input: &Input) -> String {
 /// journal's end, stops or goes live (rule 5).
 pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
     loop {
-        let Some(r) = inner.replay.as_mut().filter(|r| r.active()) else {
+        let Some(r) = inner
+            .replay
+            .as_mut()
+            .filter(|r| r.active() && r.outcome.is_none())
+        else {
             return;
         };
         let pos = r.feed.next_input();
@@ -308,18 +313,19 @@ pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
             finish(inner, shared);
             return;
         };
-        let created = inner.engine.created();
-        if created < e.nodes {
+        let steps = inner.engine.steps();
+        if steps < e.at {
             return;
         }
-        if created > e.nodes {
+        if steps > e.at {
             let why = format!(
-                "the run had created {} nodes when it took {}; the replay created {created} by \
-                 then: the program differs from the run's, or its bodies raced with the run's inputs",
-                e.nodes,
+                "the run had taken {} steps when it took {}; the replay took {steps} by then: the \
+                 program differs from the run's, or its bodies raced with the run's inputs",
+                e.at,
                 describe(&e.input)
             );
             r.diverge(pos, why);
+            shared.wake.notify_one();
             return;
         }
         let (t, input) = (e.t, e.input.clone());
@@ -336,6 +342,7 @@ pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
                 if let Some(r) = inner.replay.as_mut() {
                     r.diverge(pos, why);
                 }
+                shared.wake.notify_one();
                 return;
             }
         }
@@ -501,14 +508,15 @@ fn finish(inner: &mut Inner, shared: &Arc<Shared>) {
     let Some(r) = inner.replay.as_mut() else {
         return;
     };
-    let last = r.feed.stop();
-    shared.clock.go_on_from(last);
     match r.at_end {
         AtEnd::Stop => {
+            // The run ends at the driver's next turn; nothing runs live meanwhile.
             r.outcome = Some(RunOutcome::JournalEnded { inputs: r.given });
             shared.wake.notify_one();
         }
         AtEnd::GoLive => {
+            let last = r.feed.stop();
+            shared.clock.go_on_from(last);
             let held = std::mem::take(&mut r.held);
             let stubs = std::mem::take(&mut r.stubs);
             let what = format!("resumed after {} inputs of its journal", r.given);
@@ -556,13 +564,12 @@ fn finish(inner: &mut Inner, shared: &Arc<Shared>) {
 /// nothing left to run can give the next input, the replay stops (rule 4).
 pub(crate) fn turn(inner: &mut Inner, shared: &Arc<Shared>) -> tcm_core::Next {
     feed(inner, shared);
-    let fields = &mut *inner;
-    if let Some(r) = fields.replay.as_mut().filter(|r| r.active()) {
-        let waiting = fields.parking.jobs() + r.waiting();
-        if fields.engine.stats().running as usize <= waiting
-            && fields.due.is_empty()
-            && fields.launches.is_empty()
-            && fields.engine.is_settled_but_timers()
+    if inner.quiet() {
+        let fields = &mut *inner;
+        if let Some(r) = fields
+            .replay
+            .as_mut()
+            .filter(|r| r.active() && r.outcome.is_none())
         {
             r.stalled(&fields.engine);
         }

@@ -49,6 +49,7 @@ mod executive;
 mod export;
 mod graph;
 mod model;
+mod replay;
 mod run;
 mod serve;
 mod sim;
@@ -147,6 +148,11 @@ enum Command {
     /// 127.0.0.1 (docs/language.md, "Running programs without compiling them"). Prints the run's
     /// report.
     Run(run::Args),
+    /// Re-execute a recorded run from its journal (`tdl run --journal`) on the journal's time:
+    /// the bodies run again, the commands' ends come from the journal, and the trace is the
+    /// run's, record for record; with a changed program, the first difference is reported
+    /// (docs/semantics.md, "Durable runs").
+    Replay(replay::Args),
     /// Serve programs while the robot runs (docs/distributed.md, "A serving executive"): a
     /// long-lived executive on 127.0.0.1 that clients give programs to (`tdl load`), start tasks
     /// of (`tdl start`), stop, raise events in and ask about (`tdl status`), and that agents join
@@ -321,6 +327,7 @@ fn run(cli: Cli) -> anyhow::Result<u8> {
         Command::Verify(args) => verify::run(args, &mut out),
         Command::Sim(args) => sim::run(args, &mut out),
         Command::Run(args) => run::run(args),
+        Command::Replay(args) => replay::run(args),
         #[cfg(feature = "net")]
         Command::Serve(args) => executive::serve(args),
         #[cfg(feature = "net")]

@@ -58,16 +58,17 @@ pub(crate) struct Args {
     steer: crate::debug::Steer,
     /// Keep a journal of the run's inputs in this file (a new file; docs/semantics.md, "Durable
     /// runs").
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", conflicts_with = "resume")]
     journal: Option<PathBuf>,
+    /// Resume the run this journal recorded, after a crash: the run is rebuilt from the journal
+    /// (bodies run again, commands' ends come from it), then goes on live, journaling on into
+    /// the same file; a command that was running at the crash fails with `Interrupted` unless
+    /// its task is `idempotent`. The task and its arguments are the journal's.
+    #[arg(long, value_name = "JOURNAL")]
+    resume: Option<PathBuf>,
     /// How the journal reaches the disk: `every` record synced, or `group:MS`, synced together at
     /// most MS milliseconds after they were written.
-    #[arg(
-        long,
-        value_name = "every|group:MS",
-        default_value = "group:10",
-        requires = "journal"
-    )]
+    #[arg(long, value_name = "every|group:MS", default_value = "group:10")]
     journal_sync: String,
 }
 
@@ -97,7 +98,7 @@ fn durability(text: &str) -> anyhow::Result<tcm_journal::Durability> {
 }
 
 /// The files, read.
-fn read(files: &[PathBuf]) -> anyhow::Result<Vec<(String, String)>> {
+pub(crate) fn read(files: &[PathBuf]) -> anyhow::Result<Vec<(String, String)>> {
     files
         .iter()
         .map(|p| {
@@ -109,7 +110,7 @@ fn read(files: &[PathBuf]) -> anyhow::Result<Vec<(String, String)>> {
 }
 
 /// The diagnostics of the files checked as one program, rendered, when any is an error.
-fn errors(files: &[(String, String)]) -> Option<String> {
+pub(crate) fn errors(files: &[(String, String)]) -> Option<String> {
     let named: Vec<(&str, &str)> = files
         .iter()
         .map(|(n, s)| (n.as_str(), s.as_str()))
@@ -148,11 +149,19 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         return Ok(1);
     }
     let outside = tdl_interp::outside(&files);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .context("cannot start the async runtime")?;
+    // A journaled run drives its tree on one thread: its bodies then ask the engine in an order
+    // that the inputs decide, which a replay reproduces (docs/semantics.md, "Durable runs").
+    let rt = if a.journal.is_some() || a.resume.is_some() {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+    } else {
+        tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+    }
+    .context("cannot start the async runtime")?;
     rt.block_on(async move {
         let mut registry = Registry::new();
         let exec = if outside.is_empty() && a.agents.is_empty() {
@@ -174,21 +183,41 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
                 ..tdl_interp::Budget::default()
             });
         }
-        let name = root(&program, &files, a.task.as_deref())?;
-        let args: serde_json::Value = match &a.args {
-            Some(text) => serde_json::from_str(text).context("--args is not JSON")?,
-            None => serde_json::Value::Null,
+        let resumed = match &a.resume {
+            Some(path) => Some(resumed(path, &program)?),
+            None => None,
+        };
+        let (name, args) = match resumed.as_ref().and_then(|j| started(&j.header)) {
+            Some(start) => start,
+            None => {
+                let name = root(&program, &files, a.task.as_deref())?;
+                let args: serde_json::Value = match &a.args {
+                    Some(text) => serde_json::from_str(text).context("--args is not JSON")?,
+                    None => serde_json::Value::Null,
+                };
+                (name, args)
+            }
         };
         let task = program.task_json(&name, &args)?;
         let mut runtime = a.steer.prepare(tdl::Runtime::new())?;
-        if let Some(path) = &a.journal {
-            let writer =
-                tcm_journal::Writer::create(path, program.hash(), durability(&a.journal_sync)?)?;
+        let sync = durability(&a.journal_sync)?;
+        if let (Some(path), Some(journal)) = (&a.resume, resumed) {
+            let writer = tcm_journal::Writer::reopen(path, &journal, sync)?;
+            eprintln!(
+                "resuming from {} ({} inputs)",
+                path.display(),
+                journal.entries.len()
+            );
+            runtime = runtime
+                .journal_with(writer, interpreted_value)
+                .resume(journal);
+        } else if let Some(path) = &a.journal {
+            let header = tcm_journal::Header::new(program.hash())
+                .starting(serde_json::json!({ "task": name, "args": args }));
+            let writer = tcm_journal::Writer::create_with(path, header, sync)?;
             runtime = runtime.journal_with(writer, interpreted_value);
         }
-        for h in program.attached() {
-            runtime = runtime.attach(h);
-        }
+        runtime = equip(runtime, &program);
         #[cfg(feature = "net")]
         if let Some(exec) = &exec {
             runtime = runtime.placer(exec.clone());
@@ -234,6 +263,32 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
             },
         )
     })
+}
+
+/// The journal at `path`, read for `program` (refused if another program wrote it); its warning,
+/// if any, printed.
+fn resumed(path: &std::path::Path, program: &Program) -> anyhow::Result<tcm_journal::Journal> {
+    let journal = tcm_journal::read(path, Some(program.hash()))?;
+    if let Some(w) = &journal.warning {
+        eprintln!("tdl: {w}");
+    }
+    Ok(journal)
+}
+
+/// The task and arguments a journal says its run started, if it says.
+pub(crate) fn started(header: &tcm_journal::Header) -> Option<(String, serde_json::Value)> {
+    let start = header.start.as_ref()?;
+    let task = start.get("task")?.as_str()?.to_string();
+    let args = start.get("args").cloned().unwrap_or_default();
+    Some((task, args))
+}
+
+/// A runtime given what the program declares beside its tasks: its attached handlers.
+pub(crate) fn equip(mut runtime: tdl::Runtime, program: &Program) -> tdl::Runtime {
+    for h in program.attached() {
+        runtime = runtime.attach(h);
+    }
+    runtime
 }
 
 /// Without the feature `net`, no agent can be reached.

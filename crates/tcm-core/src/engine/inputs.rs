@@ -75,9 +75,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.inputs = on.then(VecDeque::new);
     }
 
-    /// Output: the next recorded input, with the engine's time when it took it and how many nodes
-    /// the run had created before it (a replay gives it the input at the same point of the bodies'
-    /// requests: `Engine::created`).
+    /// Output: the next recorded input, with the engine's time when it took it and the steps the
+    /// run had taken when it came in ([`Engine::steps`]: a replay gives it the input at the same
+    /// point of what the bodies ask).
     #[must_use]
     pub fn poll_input(&mut self) -> Option<(Time, u64, InputRecord)> {
         self.inputs.as_mut()?.pop_front()
@@ -90,9 +90,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             // An input given the clock's time reads it now (`Engine::at_clock`).
             let now = self.time();
             let input = input(self);
-            let created = self.created();
+            let at = self.mark;
             if let Some(q) = self.inputs.as_mut() {
-                q.push_back((now, created, input));
+                q.push_back((now, at, input));
             }
         }
     }
@@ -100,9 +100,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// The engine read its clock, `t`: recorded first, as the input it is.
     #[inline]
     pub(super) fn clock_read(&mut self, t: Time) {
-        let created = self.created();
+        let at = self.steps;
         if let Some(q) = self.inputs.as_mut() {
-            q.push_back((t, created, InputRecord::Clock));
+            q.push_back((t, at, InputRecord::Clock));
         }
     }
 
@@ -119,11 +119,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         });
     }
 
-    /// How many nodes the run created so far (the next node's display number, less one): a
-    /// replay gives each input when the bodies have created as many as when it was recorded.
+    /// The steps the run took so far: the inputs and requests it was given a time for (each
+    /// spawn, wait, constraint, end, event …; not what it is asked about). A replay gives each
+    /// input when the run has taken as many as when it came in.
     #[must_use]
-    pub fn created(&self) -> u64 {
-        self.next_display - 1
+    pub fn steps(&self) -> u64 {
+        self.steps
     }
 
     /// The display number of `node`, 0 once it is gone (an input for a node already gone changes

@@ -178,6 +178,11 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     root: NodeId,
     next_display: u64,
     seq: u64,
+    // The steps the run took: the inputs and requests it was given a time for (`advance`). A
+    // journal places each input by it (`inputs.rs`).
+    steps: u64,
+    // The steps before the latest input or request came in.
+    mark: u64,
     tracing: bool,
     // Warning records are traced even with tracing off (`trace_warnings`).
     keep_warnings: bool,
@@ -239,6 +244,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             root: root_id,
             next_display: 1,
             seq: 0,
+            steps: 0,
+            mark: 0,
             tracing: true,
             keep_warnings: false,
             failures: 0,
@@ -480,6 +487,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// little after a deadline) never overtakes a timer that was due before it.
     #[inline(always)]
     fn advance(&mut self, now: Time) {
+        // Where the run was when this came in (`inputs.rs`).
+        self.mark = self.steps;
+        self.steps += 1;
         if self.behind {
             if now <= self.now {
                 return self.advance_to_clock();

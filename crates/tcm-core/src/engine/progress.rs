@@ -161,15 +161,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
 
     /// Input: the time is `now`; fires every timer due at or before it.
     pub fn handle_timeout(&mut self, now: Time) {
-        if self.inputs.is_some() {
-            // Recorded only when timers are due: a turn that finds none changes nothing.
-            let due = self.poll_timeout().is_some_and(|d| d <= now);
-            if due {
-                self.advance(now);
-                self.record(|_| InputRecord::Time);
-            }
-        }
+        // Recorded only when timers are due: a turn that finds none changes nothing.
+        let due = self.inputs.is_some() && self.poll_timeout().is_some_and(|d| d <= now);
         self.advance(now);
+        if due {
+            self.record(|_| InputRecord::Time);
+        }
         self.fire_timers(now, true);
     }
 

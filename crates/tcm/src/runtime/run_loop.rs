@@ -38,9 +38,12 @@ impl RunLoop {
             // The journal gives the inputs, time passing among them (`replay.rs`).
             crate::replay::turn(&mut inner, &self.shared)
         } else if inner.journal.is_some() {
-            // The timers that fire are journaled before what they cause is carried out.
+            // The timers that fire are journaled before what they cause is carried out; a turn
+            // with none due gives the engine nothing (a replay gives it no such turn).
             let fields = &mut *inner;
-            tcm_core::Driver::time(&mut fields.engine, now);
+            if fields.engine.poll_timeout().is_some_and(|d| d <= now) {
+                tcm_core::Driver::time(&mut fields.engine, now);
+            }
             if let Some(j) = fields.journal.as_mut() {
                 j.drain(&mut fields.engine);
             }
