@@ -519,7 +519,11 @@ fn finish(inner: &mut Inner, shared: &Arc<Shared>) {
             shared.clock.go_on_from(last);
             let held = std::mem::take(&mut r.held);
             let stubs = std::mem::take(&mut r.stubs);
-            let what = format!("resumed after {} inputs of its journal", r.given);
+            let what = format!(
+                "resumed after entry {} of its journal ({} inputs given again)",
+                r.entries.len().saturating_sub(1),
+                r.given
+            );
             if inner.journal.is_some() {
                 inner.engine.record_inputs(true);
             }

@@ -450,6 +450,8 @@ pub(crate) struct TaskDef {
     pub(crate) result: Option<Ty>,
     pub(crate) persistent: bool,
     pub(crate) blocking: bool,
+    // Started again when its run resumes from a journal (`tcm::Task::idempotent`).
+    pub(crate) idempotent: bool,
     /// Task-level modifiers, in the order the generator applies them.
     pub(crate) modifiers: Vec<Modifier>,
     pub(crate) monitor: tdl::Monitor,

@@ -352,6 +352,9 @@ pub(crate) fn task(shared: &Arc<Shared>, idx: TaskIdx, args: Vec<Value>) -> Resu
     if def.persistent {
         task = task.persistent();
     }
+    if def.idempotent {
+        task = task.idempotent();
+    }
     if let Some(v) = shared.version.get() {
         task = task.version(v.clone());
     }

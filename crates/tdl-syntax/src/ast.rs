@@ -118,7 +118,7 @@ impl TaskKind {
     }
 }
 
-/// A task definition: `[pub] [persistent] [blocking] goal name(args) [-> T] [with constraints] { body }`.
+/// A task definition: `[pub] [persistent] [blocking] [idempotent] goal name(args) [-> T] [with constraints] { body }`.
 #[derive(Clone, Debug)]
 pub struct Task {
     /// Outer attributes, including doc comments.
@@ -130,6 +130,9 @@ pub struct Task {
     /// The `blocking` qualifier (its span), on a command: its body is plain Rust that runs on a
     /// blocking thread (`tcm::Ctx::blocking`; docs/semantics.md, "Blocking actions").
     pub blocking: Option<Span>,
+    /// The `idempotent` qualifier, on a command: safe to run twice, so started again when its
+    /// run resumes from a journal (`tcm::Task::idempotent`; docs/semantics.md, "Durable runs").
+    pub idempotent: bool,
     /// Goal, command, monitor or handler.
     pub kind: TaskKind,
     /// Task name.

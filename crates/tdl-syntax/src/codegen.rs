@@ -346,6 +346,10 @@ fn task_items(
             modifiers.extend(quote!(.persistent()));
         }
     }
+    if task.idempotent {
+        // Started again when its run resumes from a journal.
+        modifiers.extend(quote!(.idempotent()));
+    }
     let mut prelude = TokenStream::new();
     let mut params = TokenStream::new();
     let mut each = TokenStream::new();

@@ -119,6 +119,7 @@ fn dump_task(out: &mut String, task: &Task) {
     } else {
         ""
     };
+    let idempotent = if task.idempotent { "idempotent " } else { "" };
     let vis = match task.vis {
         syn::Visibility::Inherited => String::new(),
         ref vis => format!("{} ", tokens(vis)),
@@ -148,7 +149,7 @@ fn dump_task(out: &mut String, task: &Task) {
         .unwrap_or_default();
     let _ = writeln!(
         out,
-        "{vis}{persistent}{blocking}{} {}({}){result}{handles}{for_task}{tap}",
+        "{vis}{persistent}{blocking}{idempotent}{} {}({}){result}{handles}{for_task}{tap}",
         if task.tap.is_some() {
             "wiretap"
         } else {

@@ -250,8 +250,8 @@ fn tdl_item_keyword(input: ParseStream) -> Option<String> {
     let _ = fork.parse::<syn::Visibility>();
     let mut word = fork.call(Ident::parse_any).ok()?.to_string();
     // The qualifiers, in any order.
-    for _ in 0..2 {
-        if word == "persistent" || word == "blocking" {
+    for _ in 0..3 {
+        if word == "persistent" || word == "blocking" || word == "idempotent" {
             word = fork.call(Ident::parse_any).ok()?.to_string();
         }
     }
@@ -310,14 +310,18 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
     }
     let mut persistent = false;
     let mut blocking = None;
+    let mut idempotent = None;
     let mut keyword = input.call(Ident::parse_any)?;
     // The qualifiers, in any order.
-    for _ in 0..2 {
+    for _ in 0..3 {
         if keyword == "persistent" && !persistent {
             persistent = true;
             keyword = input.call(Ident::parse_any)?;
         } else if keyword == "blocking" && blocking.is_none() {
             blocking = Some(keyword.span());
+            keyword = input.call(Ident::parse_any)?;
+        } else if keyword == "idempotent" && idempotent.is_none() {
+            idempotent = Some(keyword.span());
             keyword = input.call(Ident::parse_any)?;
         }
     }
@@ -329,6 +333,9 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
         // A wiretap's body is a command's, run as a check, never spawned.
         "wiretap" => return wiretap(input, cx, attrs, vis),
         other => {
+            if let Some(span) = idempotent {
+                cx.diags.push(not_idempotent(span, "this"));
+            }
             if let Some(span) = blocking {
                 let what = match other {
                     "resource" => "a resource",
@@ -357,7 +364,31 @@ fn item(input: ParseStream, cx: &mut Cx) -> syn::Result<Item> {
         cx.diags
             .push(not_blocking(span, &format!("a {}", kind.as_str())));
     }
-    task(input, cx, attrs, vis, persistent, blocking, kind)
+    if let (Some(span), false) = (idempotent, kind == TaskKind::Command) {
+        cx.diags
+            .push(not_idempotent(span, &format!("a {}", kind.as_str())));
+    }
+    let qualifiers = Qualifiers {
+        persistent,
+        blocking,
+        idempotent,
+    };
+    task(input, cx, attrs, vis, qualifiers, kind)
+}
+
+/// A task's qualifiers, as parsed.
+struct Qualifiers {
+    persistent: bool,
+    blocking: Option<Span>,
+    idempotent: Option<Span>,
+}
+
+/// `idempotent` on what is not a command.
+fn not_idempotent(span: Span, what: &str) -> Diagnostic {
+    Diagnostic::error(span, format!("{what} cannot be `idempotent`")).with_hint(
+        "only a command can be `idempotent` (safe to run twice: started again when a run resumes \
+         from its journal); a goal's body runs again on a resumption anyway",
+    )
 }
 
 /// The outer attributes of a Rust item.
@@ -652,10 +683,14 @@ fn task(
     cx: &mut Cx,
     attrs: Vec<syn::Attribute>,
     vis: syn::Visibility,
-    persistent: bool,
-    blocking: Option<Span>,
+    qualifiers: Qualifiers,
     kind: TaskKind,
 ) -> syn::Result<Item> {
+    let Qualifiers {
+        persistent,
+        blocking,
+        idempotent,
+    } = qualifiers;
     let name: Ident = input.parse()?;
     let (args, result) = signature(input, cx)?;
     let handles = if kind == TaskKind::Handler {
@@ -703,6 +738,7 @@ fn task(
         vis,
         persistent,
         blocking: blocking.filter(|_| kind == TaskKind::Command),
+        idempotent: idempotent.is_some() && kind == TaskKind::Command,
         kind,
         name,
         args,
@@ -771,6 +807,7 @@ fn wiretap(
         vis,
         persistent: false,
         blocking: None,
+        idempotent: false,
         kind: TaskKind::Command,
         name,
         args,

@@ -8,6 +8,7 @@ use std::process::Command;
 
 mod certs;
 mod doc;
+mod durable;
 mod export;
 mod graph;
 mod run;

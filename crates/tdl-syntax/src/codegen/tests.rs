@@ -585,6 +585,18 @@ fn resource_misuse_is_an_error() {
 }
 
 #[test]
+fn an_idempotent_command_is_declared_so_to_the_runtime() {
+    let out = expand("idempotent command home() {} goal g() { spawn home(); }");
+    assert_eq!(out.matches(".idempotent()").count(), 1, "{out}");
+    let errs = errors("idempotent goal g() {}");
+    assert!(
+        errs.iter()
+            .any(|e| e.contains("a goal cannot be `idempotent`")),
+        "{errs:?}"
+    );
+}
+
+#[test]
 fn a_blocking_command_runs_its_body_on_a_blocking_thread() {
     let out = expand("blocking command plan(n: u32) -> u32 { n + 1 } goal g() { spawn plan(1); }");
     assert!(has(&out, "ctx.blocking(move |ctx| {"), "{out}");

@@ -13,7 +13,12 @@ use crate::ast::{Ast, ExceptionDecl, Item, ResourceDecl, StateDecl, Task, TaskKi
 
 /// The exceptions the runtime raises itself, which handlers name without declaring them
 /// (docs/semantics.md, "Resources" and "Steering a run").
-pub const BUILTIN_EXCEPTIONS: &[&str] = &["ResourceDenied", "ResourceDropped", "ApprovalRefused"];
+pub const BUILTIN_EXCEPTIONS: &[&str] = &[
+    "ResourceDenied",
+    "ResourceDropped",
+    "ApprovalRefused",
+    "Interrupted",
+];
 
 /// The resolved bodies of a program's tasks, by task.
 pub(crate) type Bodies<'a> = BTreeMap<*const Task, BodyScope<'a>>;
