@@ -53,8 +53,15 @@ pub fn read(path: &Path, program: Option<&str>) -> Result<Journal, JournalError>
         .into_iter()
         .enumerate()
         .map(|(i, (offset, text))| record(&file, i + 1, offset as u64, text));
-    let header_json = match records.next() {
-        Some(r) => r?,
+    let header_json: serde_json::Value = match records.next() {
+        Some(r) => {
+            let (line, json) = r?;
+            serde_json::from_str(json).map_err(|e| JournalError::BadRecord {
+                file: file.clone(),
+                line,
+                why: e.to_string(),
+            })?
+        }
         None => {
             return Err(JournalError::NotAJournal {
                 file,
@@ -86,8 +93,8 @@ pub fn read(path: &Path, program: Option<&str>) -> Result<Journal, JournalError>
     }
     let mut entries = Vec::new();
     for (i, r) in records.enumerate() {
-        let line = i + 2;
-        let entry: Entry = serde_json::from_value(r?).map_err(|e| JournalError::BadRecord {
+        let (line, json) = r?;
+        let entry: Entry = serde_json::from_str(json).map_err(|e| JournalError::BadRecord {
             file: file.clone(),
             line,
             why: e.to_string(),
@@ -109,13 +116,13 @@ pub fn read(path: &Path, program: Option<&str>) -> Result<Journal, JournalError>
     })
 }
 
-/// One line's record: its checksum checked, its JSON parsed.
-fn record(
+/// One line's record: its checksum checked; its line and JSON.
+fn record<'t>(
     file: &str,
     line: usize,
     offset: u64,
-    text: &[u8],
-) -> Result<serde_json::Value, JournalError> {
+    text: &'t [u8],
+) -> Result<(usize, &'t str), JournalError> {
     let damaged = || JournalError::Checksum {
         file: file.to_string(),
         line,
@@ -127,9 +134,5 @@ fn record(
     if crc32fast::hash(json.as_bytes()) != crc {
         return Err(damaged());
     }
-    serde_json::from_str(json).map_err(|e| JournalError::BadRecord {
-        file: file.to_string(),
-        line,
-        why: e.to_string(),
-    })
+    Ok((line, json))
 }

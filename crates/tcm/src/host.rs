@@ -242,7 +242,8 @@ impl Inner {
             self.cancels.aborted = self.cancels.aborted.saturating_sub(1);
             if let Some(r) = self.replay.as_mut().filter(|r| r.active()) {
                 // Given when the journal gives it (`replay.rs`, rule 3).
-                r.hold(Ended::Dropped(job));
+                let display = self.engine.kind_and_display(job.node()).map(|k| k.1);
+                r.hold(Ended::Dropped(job), display);
                 continue;
             }
             self.engine.handle_action_stopped(now, job);

@@ -27,6 +27,7 @@
 use crate::RunOutcome;
 use crate::host::{Ended, Inner, Shared};
 use crate::task::Value;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tcm_core::{Failure, Job, NodeId, Time};
@@ -149,7 +150,6 @@ impl Feed {
 
 /// A command started in the replay.
 struct Stub {
-    node: NodeId,
     // It is being cancelled: at the journal's end, it stopped.
     cancelled: bool,
     // Its action, if it may run twice: at the journal's end, started again.
@@ -170,9 +170,11 @@ pub(crate) struct Replay {
     pub(crate) decode: ValueDecoder,
     at_end: AtEnd,
     // Commands started in the replay, their ends to come from the journal.
-    stubs: Vec<Stub>,
+    stubs: BTreeMap<NodeId, Stub>,
+    // The nodes of the stubs and held ends by display number, as the journal names them.
+    displays: HashMap<u64, NodeId>,
     // Nodes whose action may run twice (`Task::idempotent`).
-    idempotent: Vec<NodeId>,
+    idempotent: BTreeSet<NodeId>,
     // Ends of bodies run again, held until the journal gives them.
     held: Vec<Ended>,
     // Inputs given.
@@ -189,8 +191,9 @@ impl Replay {
             feed,
             decode,
             at_end,
-            stubs: Vec::new(),
-            idempotent: Vec::new(),
+            stubs: BTreeMap::new(),
+            displays: HashMap::new(),
+            idempotent: BTreeSet::new(),
             held: Vec::new(),
             given: 0,
             outcome: None,
@@ -203,23 +206,26 @@ impl Replay {
     }
 
     /// A command started: a stub (rule 1), which keeps its action if it may run twice (rule 5).
-    pub(crate) fn stub(&mut self, node: NodeId, action: crate::task::Action) {
-        let again = self.idempotent.contains(&node).then_some(action);
-        self.stubs.push(Stub {
+    pub(crate) fn stub(&mut self, node: NodeId, display: u64, action: crate::task::Action) {
+        let again = self.idempotent.remove(&node).then_some(action);
+        self.displays.insert(display, node);
+        self.stubs.insert(
             node,
-            cancelled: false,
-            again,
-        });
+            Stub {
+                cancelled: false,
+                again,
+            },
+        );
     }
 
     /// `node`'s task is idempotent (`Task::idempotent`).
     pub(crate) fn idempotent(&mut self, node: NodeId) {
-        self.idempotent.push(node);
+        self.idempotent.insert(node);
     }
 
     /// Whether `node` is a stub; marked as being cancelled.
     pub(crate) fn cancel(&mut self, node: NodeId) -> bool {
-        match self.stubs.iter_mut().find(|s| s.node == node) {
+        match self.stubs.get_mut(&node) {
             Some(s) => {
                 s.cancelled = true;
                 true
@@ -228,8 +234,26 @@ impl Replay {
         }
     }
 
-    /// A body's end (or stop), held until the journal gives it (rule 3).
-    pub(crate) fn hold(&mut self, ended: Ended) {
+    /// The node the journal names `display`: a stub's or a held end's, else looked for.
+    fn node(
+        &self,
+        engine: &tcm_core::Engine<crate::task::Action, crate::task::Factory>,
+        display: u64,
+    ) -> Option<NodeId> {
+        self.displays
+            .get(&display)
+            .copied()
+            .or_else(|| engine.node_by_display(display))
+    }
+
+    /// A body's end (or stop), of the node numbered `display`, held until the journal gives it
+    /// (rule 3).
+    pub(crate) fn hold(&mut self, ended: Ended, display: Option<u64>) {
+        if let (Some(d), Ended::Dropped(j) | Ended::Returned(j, _)) = (display, &ended) {
+            if j.tap().is_none() {
+                self.displays.insert(d, j.node());
+            }
+        }
         self.held.push(ended);
     }
 
@@ -353,7 +377,11 @@ pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
 fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
     let now = Time::from_nanos(t);
     let node_of = |inner: &Inner, node: u64| {
-        inner.engine.node_by_display(node).ok_or_else(|| {
+        let found = inner
+            .replay
+            .as_ref()
+            .and_then(|r| r.node(&inner.engine, node));
+        found.ok_or_else(|| {
             format!(
                 "the journal names node {node}, and the replay has no such node: the program \
                  differs from the run's"
@@ -363,7 +391,7 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
     match input {
         Input::Ended { node, tap, value } => {
             let id = node_of(inner, *node)?;
-            end(inner, now, id, *tap, Ok(value.clone()))
+            end(inner, now, (id, *node), *tap, Ok(value.clone()))
         }
         Input::Failed {
             node,
@@ -379,28 +407,25 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
             if let Some(d) = data {
                 f.data = Some(Arc::new(d.clone()));
             }
-            end(inner, now, id, *tap, Err(f))
+            end(inner, now, (id, *node), *tap, Err(f))
         }
         Input::Stopped { node } => {
             let id = node_of(inner, *node)?;
             let Some(r) = inner.replay.as_mut() else {
                 return Ok(false);
             };
-            if let Some(i) = r.stubs.iter().position(|s| s.node == id) {
-                r.stubs.remove(i);
-            } else if let Some(i) = r
-                .held
-                .iter()
-                .position(|h| matches!(h, Ended::Dropped(j) if j.node() == id))
-            {
+            // A stub's stop, or a body's held stop; or a body that ended in the replay where the
+            // run's was stopped first (its cancellation came before its end).
+            let held = r.held.iter().position(|h| {
+                matches!(h, Ended::Dropped(j) if j.node() == id) || held_by(h, id, None)
+            });
+            if r.stubs.remove(&id).is_none() {
+                let Some(i) = held else {
+                    return Ok(false);
+                };
                 r.held.remove(i);
-            } else if let Some(i) = r.held.iter().position(|h| held_by(h, id, None)) {
-                // A body that ended in the replay, where the run's was stopped first: the run's
-                // cancellation came before the body's end.
-                let _ = r.held.remove(i);
-            } else {
-                return Ok(false);
             }
+            r.displays.remove(node);
             inner.engine.handle_action_stopped(now, Job::from(id));
             Ok(true)
         }
@@ -456,30 +481,29 @@ fn held_by(h: &Ended, node: NodeId, tap: Option<u32>) -> bool {
 fn end(
     inner: &mut Inner,
     now: Time,
-    node: NodeId,
+    (node, display): (NodeId, u64),
     tap: Option<u32>,
     journaled: Result<Option<serde_json::Value>, Failure>,
 ) -> Result<bool, String> {
     let Some(r) = inner.replay.as_mut() else {
         return Ok(false);
     };
-    if tap.is_none() {
-        if let Some(i) = r.stubs.iter().position(|s| s.node == node) {
-            r.stubs.remove(i);
-            let decode = r.decode;
-            let result =
-                journaled.map(|v| v.and_then(decode).unwrap_or_else(|| Box::new(()) as Value));
-            inner.report_end(Some(now), Ended::Returned(Job::from(node), Ok(result)));
-            return Ok(true);
-        }
+    if tap.is_none() && r.stubs.remove(&node).is_some() {
+        r.displays.remove(&display);
+        let decode = r.decode;
+        let result = journaled.map(|v| v.and_then(decode).unwrap_or_else(|| Box::new(()) as Value));
+        inner.report_end(Some(now), Ended::Returned(Job::from(node), Ok(result)));
+        return Ok(true);
     }
     let Some(i) = r.held.iter().position(|h| held_by(h, node, tap)) else {
         return Ok(false);
     };
     let held = r.held.remove(i);
+    if tap.is_none() {
+        r.displays.remove(&display);
+    }
     if let Ended::Returned(_, res) = &held {
-        let display = inner.engine.info(node).map(|i| (i.display, i.name));
-        let (display, name) = display.unwrap_or_default();
+        let name = inner.engine.info(node).map(|i| i.name).unwrap_or_default();
         let replayed = match res {
             Ok(Ok(_)) => None,
             Ok(Err(f)) => Some(f.exception.to_string()),
@@ -533,12 +557,7 @@ fn finish(inner: &mut Inner, shared: &Arc<Shared>) {
                 inner.report_end(None, ended);
                 inner.start_effects(shared);
             }
-            for Stub {
-                node,
-                cancelled,
-                again,
-            } in stubs
-            {
+            for (node, Stub { cancelled, again }) in stubs {
                 let now = inner.engine.at_clock();
                 if cancelled {
                     inner.engine.handle_action_stopped(now, Job::from(node));

@@ -87,8 +87,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     #[inline]
     pub(super) fn record(&mut self, input: impl FnOnce(&Self) -> InputRecord) {
         if self.inputs.is_some() {
-            // An input given the clock's time reads it now (`Engine::at_clock`).
-            let now = self.time();
+            // An input given the clock's time reads it now (`Engine::at_clock`): the reading is
+            // the input's time, which its entry holds, so it is no entry of its own.
+            if self.behind {
+                self.catch_up_quietly();
+            }
+            let now = self.now;
             let input = input(self);
             let at = self.mark;
             if let Some(q) = self.inputs.as_mut() {

@@ -393,6 +393,20 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
     }
 
+    /// [`Engine::catch_up`] for an input's own time, which its journal entry holds: the reading
+    /// is not recorded on its own (`inputs.rs`).
+    #[cold]
+    #[inline(never)]
+    fn catch_up_quietly(&mut self) {
+        self.behind = false;
+        if let Some(clock) = &self.clock {
+            let t = clock();
+            if t > self.now {
+                self.now = t;
+            }
+        }
+    }
+
     /// The first unhandled failure, under [`FailurePolicy::Fatal`].
     pub fn fatal(&self) -> Option<&FatalFailure> {
         self.fatal.as_ref()

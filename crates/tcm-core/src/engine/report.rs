@@ -115,6 +115,13 @@ impl fmt::Display for Blocked {
 }
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
+    /// A live node's kind and display number, without the rest of [`Engine::info`] (which copies
+    /// its name); `None` once it was reclaimed.
+    pub fn kind_and_display(&self, id: NodeId) -> Option<(NodeKind, u64)> {
+        let n = self.query(id)?;
+        Some((n.kind, n.display))
+    }
+
     /// A snapshot of a live node; `None` once it was reclaimed.
     pub fn info(&self, id: NodeId) -> Option<NodeInfo> {
         let n = self.query(id)?;

@@ -99,7 +99,11 @@ impl Inner {
     /// the journal gives it (`replay.rs`, rule 3).
     pub(crate) fn ended_job(&mut self, now: Option<Time>, ended: Ended) {
         if let Some(r) = self.replay.as_mut().filter(|r| r.active()) {
-            r.hold(ended);
+            let node = match &ended {
+                Ended::Returned(j, _) | Ended::Dropped(j) => j.node(),
+            };
+            let display = self.engine.kind_and_display(node).map(|k| k.1);
+            r.hold(ended, display);
             return;
         }
         self.report_end(now, ended);

@@ -69,11 +69,8 @@ impl Shell<Action, Factory> for Host<'_> {
     fn start(&mut self, engine: &mut Engine<Action, Factory>, node: NodeId, action: Action) {
         if let Some(r) = self.replay.as_mut() {
             // A command's end comes from the journal (`replay.rs`, rule 1).
-            if engine
-                .info(node)
-                .is_some_and(|i| i.kind == tcm_core::NodeKind::Command)
-            {
-                r.stub(node, action);
+            if let Some((tcm_core::NodeKind::Command, display)) = engine.kind_and_display(node) {
+                r.stub(node, display, action);
                 return;
             }
         }
