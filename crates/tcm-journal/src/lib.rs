@@ -143,6 +143,14 @@ pub enum Input {
     /// The engine read the run's clock, and `t` is what it read (for a command of a body, or an
     /// input given the clock's time): a replay gives the engine the same readings in order.
     Clock,
+    /// A value a body read from outside the run through a journaled call (`tcm::Ctx::record`): a
+    /// replay hands it to the body instead of reading again. No input of the engine's.
+    Recorded {
+        /// The body's node.
+        node: u64,
+        /// What it read.
+        value: serde_json::Value,
+    },
     /// An operation from outside the run (a steering request, a handler attached): what and who.
     Control {
         /// What was done.

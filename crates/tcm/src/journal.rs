@@ -158,3 +158,78 @@ pub(crate) fn failed_outcome(why: &str) -> tcm_core::FatalFailure {
         path: String::new(),
     }
 }
+
+impl Journaled {
+    /// A body of node `display` read `value` from outside the run (`Ctx::record`): written after
+    /// the inputs the engine took before it, and committed at once.
+    pub(crate) fn recorded(
+        &mut self,
+        engine: &mut Engine<Action, Factory>,
+        display: u64,
+        value: serde_json::Value,
+    ) {
+        self.drain(engine);
+        if self.failed.is_some() {
+            return;
+        }
+        let input = Input::Recorded {
+            node: display,
+            value,
+        };
+        let written = self
+            .writer
+            .add(engine.now().as_nanos(), engine.steps(), input)
+            .and_then(|()| self.writer.commit());
+        if let Err(e) = written {
+            self.failed = Some(e.to_string());
+        }
+    }
+}
+
+impl crate::Ctx {
+    /// Reads a value from outside the run (a sensor, a file, the wall clock, a random number)
+    /// through the run's journal (docs/semantics.md, "Durable runs"): `read` is called and its
+    /// value journaled, if the run keeps a journal; a replay of the run hands back the value the
+    /// run read instead of calling `read`, so that a body that decides on it decides the same.
+    /// A value that cannot be written as JSON fails the body (`RecordFailed`), as does one the
+    /// replay cannot read back as `T`.
+    pub fn record<T, F>(&self, read: F) -> Result<T, tcm_core::Failure>
+    where
+        T: serde::Serialize + serde::de::DeserializeOwned,
+        F: FnOnce() -> T,
+    {
+        let failed = |why: String| tcm_core::Failure::new("RecordFailed", why);
+        let display = {
+            let mut inner = self.shared.enter().map_err(tcm_core::Failure::from)?;
+            let display = inner
+                .engine
+                .kind_and_display(self.node)
+                .map_or(0, |(_, d)| d);
+            if let Some(r) = inner.replay.as_mut().filter(|r| r.active()) {
+                match r.recorded(display) {
+                    Some(v) => {
+                        return serde_json::from_value(v).map_err(|e| {
+                            failed(format!("the journal's value does not read back: {e}"))
+                        });
+                    }
+                    // The replay stops there (`replay.rs`, rule 4); the driver ends the run.
+                    None => self.shared.wake.notify_one(),
+                }
+            }
+            if inner.journal.is_none() {
+                drop(inner);
+                return Ok(read());
+            }
+            display
+        };
+        let value = read();
+        let json = serde_json::to_value(&value)
+            .map_err(|e| failed(format!("the value cannot be journaled: {e}")))?;
+        let mut inner = self.shared.enter().map_err(tcm_core::Failure::from)?;
+        let fields = &mut *inner;
+        if let Some(j) = fields.journal.as_mut() {
+            j.recorded(&mut fields.engine, display, json);
+        }
+        Ok(value)
+    }
+}

@@ -50,6 +50,14 @@ pub fn json_decoded(value: serde_json::Value) -> Option<Value> {
     Some(Box::new(value))
 }
 
+/// What an entry is to the feed.
+#[derive(Clone, Copy)]
+enum Entered {
+    Reading(u64),
+    Aside,
+    Input,
+}
+
 /// The journal as the run's clock while it replays (rule 2).
 pub(crate) struct Feed {
     replaying: AtomicBool,
@@ -57,8 +65,9 @@ pub(crate) struct Feed {
 }
 
 struct FeedState {
-    // Each entry's time if it is a clock reading, by entry number.
-    readings: Vec<Option<u64>>,
+    // Each entry: a clock reading (its time), an entry no input (a body's recorded value), or an
+    // input; by entry number.
+    readings: Vec<Entered>,
     // The next entry.
     pos: usize,
     // The latest time given.
@@ -75,7 +84,11 @@ impl Feed {
             state: Mutex::new(FeedState {
                 readings: entries
                     .iter()
-                    .map(|e| matches!(e.input, Input::Clock).then_some(e.t))
+                    .map(|e| match e.input {
+                        Input::Clock => Entered::Reading(e.t),
+                        Input::Recorded { .. } => Entered::Aside,
+                        _ => Entered::Input,
+                    })
                     .collect(),
                 pos: 0,
                 latest: 0,
@@ -105,13 +118,16 @@ impl Feed {
             return None;
         }
         let mut s = self.lock();
-        let pos = s.pos;
-        match s.readings.get(pos).copied().flatten() {
-            Some(t) => {
-                s.pos += 1;
+        let mut pos = s.pos;
+        while let Some(Entered::Aside) = s.readings.get(pos) {
+            pos += 1;
+        }
+        match s.readings.get(pos).copied() {
+            Some(Entered::Reading(t)) => {
+                s.pos = pos + 1;
                 s.latest = s.latest.max(t);
             }
-            None => s.extra += 1,
+            _ => s.extra += 1,
         }
         Some(Time::from_nanos(s.latest))
     }
@@ -120,7 +136,7 @@ impl Feed {
     fn next_input(&self) -> usize {
         let s = self.lock();
         let mut pos = s.pos;
-        while let Some(Some(_)) = s.readings.get(pos) {
+        while let Some(Entered::Reading(_) | Entered::Aside) = s.readings.get(pos) {
             pos += 1;
         }
         pos
@@ -131,7 +147,7 @@ impl Feed {
     fn given(&self, pos: usize, t: u64) {
         let mut s = self.lock();
         while s.pos < pos {
-            if let Some(Some(r)) = s.readings.get(s.pos).copied() {
+            if let Some(Entered::Reading(r)) = s.readings.get(s.pos).copied() {
                 s.missed += 1;
                 s.latest = s.latest.max(r);
             }
@@ -179,6 +195,8 @@ pub(crate) struct Replay {
     held: Vec<Ended>,
     // Inputs given.
     given: u64,
+    // What each body read from outside through `Ctx::record`, by node number, in order.
+    recorded: HashMap<u64, std::collections::VecDeque<serde_json::Value>>,
     // How the run ends, once the replay decided it.
     pub(crate) outcome: Option<RunOutcome>,
 }
@@ -186,6 +204,13 @@ pub(crate) struct Replay {
 impl Replay {
     pub(crate) fn new(journal: Journal, decode: ValueDecoder, at_end: AtEnd) -> Replay {
         let feed = Arc::new(Feed::new(&journal.entries));
+        let mut recorded: HashMap<u64, std::collections::VecDeque<serde_json::Value>> =
+            HashMap::new();
+        for e in &journal.entries {
+            if let Input::Recorded { node, value } = &e.input {
+                recorded.entry(*node).or_default().push_back(value.clone());
+            }
+        }
         Replay {
             entries: journal.entries,
             feed,
@@ -196,8 +221,26 @@ impl Replay {
             idempotent: BTreeSet::new(),
             held: Vec::new(),
             given: 0,
+            recorded,
             outcome: None,
         }
+    }
+
+    /// What node `display`'s body read next through `Ctx::record` in the run; a report if it read
+    /// nothing more there (the replay then stops, rule 4).
+    pub(crate) fn recorded(&mut self, display: u64) -> Option<serde_json::Value> {
+        let value = self.recorded.get_mut(&display).and_then(|q| q.pop_front());
+        if value.is_none() && self.outcome.is_none() {
+            let pos = self.feed.next_input();
+            self.diverge(
+                pos,
+                format!(
+                    "node {display}'s body reads a value through `Ctx::record` that it did not read \
+                     in the run: the program differs from the run's"
+                ),
+            );
+        }
+        value
     }
 
     /// Whether the journal is still being replayed.
@@ -317,6 +360,7 @@ fn describe(input: &Input) -> String {
         Input::State { name, .. } => format!("the state variable {name} set"),
         Input::Time => "time passing".into(),
         Input::Clock => "a clock reading".into(),
+        Input::Recorded { node, .. } => format!("a value node {node} read"),
         Input::Control { what, by } => format!("the operation `{what}` by {by}"),
     }
 }
@@ -456,7 +500,7 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
             inner.engine.handle_timeout(now);
             Ok(true)
         }
-        Input::Clock => Ok(true),
+        Input::Clock | Input::Recorded { .. } => Ok(true),
         Input::Control { what, by } if by == RESUMED_BY => {
             inner.engine.note_control(now, what, by);
             Ok(true)

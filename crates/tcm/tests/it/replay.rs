@@ -258,3 +258,52 @@ async fn a_resumed_run_journals_on_and_its_journal_replays() {
     }
     assert_eq!(want.len(), got.len());
 }
+
+/// A body that reads the world (here a counter) through `Ctx::record` reads, in a replay, what
+/// the run read: it decides the same; one that reads it directly would not.
+#[tokio::test(start_paused = true)]
+async fn a_recorded_read_is_read_back_from_the_journal() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicU32, Ordering};
+    let world = Arc::new(AtomicU32::new(0));
+    let mission = |world: Arc<AtomicU32>| {
+        Task::goal("mission", move |ctx| async move {
+            let seen: u32 = ctx.record(|| world.fetch_add(1, Ordering::SeqCst))?;
+            let step = if seen == 0 { "first" } else { "again" };
+            ctx.spawn(takes(step, 1.0, json!(seen))).start()?;
+            Ok(())
+        })
+    };
+    let path = scratch("recorded");
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let rec = Recorder::new();
+    let report = Runtime::new()
+        .with_sink(rec.clone())
+        .journal(writer)
+        .run(mission(world.clone()))
+        .await
+        .expect("run");
+    assert!(report.is_clean(), "{report}");
+    let journal = read(&path);
+    assert!(
+        journal.entries.iter().any(
+            |e| matches!(&e.input, tcm_journal::Input::Recorded { value, .. } if *value == json!(0))
+        ),
+        "the read value is journaled"
+    );
+    // The world moved on (the counter is 1): the replay still reads 0, and spawns `first`.
+    let again = Recorder::new();
+    let replayed = Runtime::new()
+        .with_sink(again.clone())
+        .replay(journal)
+        .run(mission(world.clone()))
+        .await
+        .expect("replay");
+    assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
+    assert_eq!(lines(&rec.events()), lines(&again.events()));
+    assert_eq!(
+        world.load(Ordering::SeqCst),
+        1,
+        "the replay did not read the world"
+    );
+}
