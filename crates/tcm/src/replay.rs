@@ -324,7 +324,7 @@ impl Replay {
         let Some(e) = self.entries.get(pos) else {
             return;
         };
-        let what = describe(&e.input);
+        let what = self.describe(engine, &e.input);
         let steps = engine.steps();
         let why = if steps < e.at {
             format!(
@@ -339,6 +339,32 @@ impl Replay {
             )
         };
         self.diverge(pos, why);
+    }
+}
+
+impl Replay {
+    /// A person's words for an input, naming its node as the replay has it, if it has it.
+    fn describe(
+        &self,
+        engine: &tcm_core::Engine<crate::task::Action, crate::task::Factory>,
+        input: &Input,
+    ) -> String {
+        let node = match input {
+            Input::Ended { node, .. }
+            | Input::Failed { node, .. }
+            | Input::Stopped { node }
+            | Input::Overdue { node, .. }
+            | Input::Recorded { node, .. } => Some(*node),
+            _ => None,
+        };
+        let name = node
+            .and_then(|d| self.node(engine, d))
+            .and_then(|id| engine.info(id))
+            .map(|i| i.name);
+        match name {
+            Some(name) => format!("{} ({name} in the replay)", describe(input)),
+            None => describe(input),
+        }
     }
 }
 
@@ -390,7 +416,7 @@ pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
                 "the run had taken {} steps when it took {}; the replay took {steps} by then: the \
                  program differs from the run's, or its bodies raced with the run's inputs",
                 e.at,
-                describe(&e.input)
+                r.describe(&inner.engine, &e.input)
             );
             r.diverge(pos, why);
             shared.wake.notify_one();
