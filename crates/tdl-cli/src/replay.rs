@@ -86,20 +86,8 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         .context("cannot start the async runtime")?;
     let inputs = journal.entries.len();
     rt.block_on(async move {
-        let mut runtime = crate::run::equip(tdl::Runtime::new().replay(journal), &program);
-        if let Some(path) = &a.trace {
-            let file = std::fs::File::create(path)
-                .with_context(|| format!("cannot write the trace {}", path.display()))?;
-            runtime = runtime.with_sink(tdl::JsonLines(std::io::BufWriter::new(file)));
-        }
-        let viewer = if a.view {
-            let viewer = tcm_view::Viewer::start(None)?;
-            eprintln!("viewer: {}", viewer.url());
-            runtime = runtime.with_sink(viewer.live(name.clone()));
-            Some(viewer)
-        } else {
-            None
-        };
+        let runtime = crate::run::equip(tdl::Runtime::new().replay(journal), &program);
+        let (runtime, viewer) = crate::run::sinks(runtime, a.trace.as_deref(), a.view, &name)?;
         eprintln!(
             "replaying {name} from {} ({inputs} entries)",
             a.journal.display()

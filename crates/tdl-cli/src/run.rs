@@ -222,19 +222,7 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         if let Some(exec) = &exec {
             runtime = runtime.placer(exec.clone());
         }
-        if let Some(path) = &a.trace {
-            let file = std::fs::File::create(path)
-                .with_context(|| format!("cannot write the trace {}", path.display()))?;
-            runtime = runtime.with_sink(tdl::JsonLines(std::io::BufWriter::new(file)));
-        }
-        let viewer = if a.view {
-            let viewer = tcm_view::Viewer::start(None)?;
-            eprintln!("viewer: {}", viewer.url());
-            runtime = runtime.with_sink(viewer.live(name.clone()));
-            Some(viewer)
-        } else {
-            None
-        };
+        let (runtime, viewer) = sinks(runtime, a.trace.as_deref(), a.view, &name)?;
         eprintln!("running {name}");
         let report = if a.steer.interactive() {
             let session = runtime.start()?;
@@ -281,6 +269,29 @@ pub(crate) fn started(header: &tcm_journal::Header) -> Option<(String, serde_jso
     let task = start.get("task")?.as_str()?.to_string();
     let args = start.get("args").cloned().unwrap_or_default();
     Some((task, args))
+}
+
+/// A runtime given its sinks: the trace to a file (JSON lines), and the viewer, live, if asked.
+pub(crate) fn sinks(
+    mut runtime: tdl::Runtime,
+    trace: Option<&std::path::Path>,
+    view: bool,
+    name: &str,
+) -> anyhow::Result<(tdl::Runtime, Option<tcm_view::Viewer>)> {
+    if let Some(path) = trace {
+        let file = std::fs::File::create(path)
+            .with_context(|| format!("cannot write the trace {}", path.display()))?;
+        runtime = runtime.with_sink(tdl::JsonLines(std::io::BufWriter::new(file)));
+    }
+    let viewer = if view {
+        let viewer = tcm_view::Viewer::start(None)?;
+        eprintln!("viewer: {}", viewer.url());
+        runtime = runtime.with_sink(viewer.live(name.to_string()));
+        Some(viewer)
+    } else {
+        None
+    };
+    Ok((runtime, viewer))
 }
 
 /// A runtime given what the program declares beside its tasks: its attached handlers.

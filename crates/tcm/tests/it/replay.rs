@@ -92,6 +92,17 @@ fn lines(events: &[TraceEvent]) -> Vec<String> {
         .collect()
 }
 
+/// The number of the node `name` was spawned as.
+fn spawned(events: &[TraceEvent], name: &str) -> u64 {
+    events
+        .iter()
+        .find_map(|e| match &e.kind {
+            tcm::TraceKind::Spawned { node, name: n, .. } if n == name => Some(*node),
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("`{name}` was spawned"))
+}
+
 fn read(path: &std::path::Path) -> Journal {
     tcm_journal::read(path, Some("mission@1")).expect("read the journal")
 }
@@ -151,13 +162,7 @@ async fn a_resumed_run_goes_on_and_a_command_in_flight_is_interrupted() {
     let (path, recorded, _) = record("resume").await;
     // Cut where `last` runs (started after `blocked` failed; its end not yet journaled): the
     // entries before its end.
-    let last_node = recorded
-        .iter()
-        .find_map(|e| match &e.kind {
-            tcm::TraceKind::Spawned { node, name, .. } if name == "last" => Some(*node),
-            _ => None,
-        })
-        .expect("`last` was spawned");
+    let last_node = spawned(&recorded, "last");
     let journal = cut(
         &path,
         |e| !matches!(e.input, tcm_journal::Input::Ended { node, .. } if node == last_node),
@@ -217,13 +222,7 @@ async fn a_resumed_run_goes_on_and_a_command_in_flight_is_interrupted() {
 #[tokio::test(start_paused = true)]
 async fn a_resumed_run_journals_on_and_its_journal_replays() {
     let (path, recorded, _) = record("twice").await;
-    let last_node = recorded
-        .iter()
-        .find_map(|e| match &e.kind {
-            tcm::TraceKind::Spawned { node, name, .. } if name == "last" => Some(*node),
-            _ => None,
-        })
-        .expect("`last` was spawned");
+    let last_node = spawned(&recorded, "last");
     // The crash: the file cut in the middle of `last`'s end record.
     let text = std::fs::read_to_string(&path).expect("read");
     let at = text
