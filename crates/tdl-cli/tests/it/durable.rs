@@ -168,3 +168,63 @@ fn a_killed_run_resumes_and_ends_as_an_uncrashed_one() {
         assert_eq!(handed, 8 + interrupted, "killed in room {room}");
     }
 }
+
+/// A damaged journal stops `tdl replay` and `tdl run --resume` at the damaged record, with its
+/// line and byte offset; a journal of another program is refused by `--resume`, clearly; a cut
+/// last record is dropped with a warning and the rest replays.
+#[test]
+fn bad_journals_are_refused_clearly() {
+    let dir = scratch("bad");
+    let journal = dir.join("j");
+    let (code, out, err) = tdl(&["run", ROUNDS, "--args", "2", "--journal", &arg(&journal)]);
+    assert_eq!(code, 0, "{out}{err}");
+    let good = std::fs::read(&journal).expect("the journal");
+    // A flipped byte in the fourth record (line 5).
+    let mut flipped = good.clone();
+    let starts: Vec<usize> = std::iter::once(0)
+        .chain(
+            good.iter()
+                .enumerate()
+                .filter(|(_, b)| **b == b'\n')
+                .map(|(i, _)| i + 1),
+        )
+        .collect();
+    let at = starts[4] + 12;
+    flipped[at] ^= 0x01;
+    std::fs::write(&journal, &flipped).expect("flip");
+    for args in [
+        vec!["replay", journal.to_str().expect("utf-8"), ROUNDS],
+        vec!["run", ROUNDS, "--resume", journal.to_str().expect("utf-8")],
+    ] {
+        let (code, out, err) = tdl(&args);
+        assert_eq!(code, 2, "{out}{err}");
+        assert!(
+            err.contains(&format!(
+                ":5: the record at byte {} does not match its checksum",
+                starts[4]
+            )),
+            "{err}"
+        );
+    }
+    // Another program's journal.
+    std::fs::write(&journal, &good).expect("restore");
+    let (code, out, err) = tdl(&[
+        "run",
+        "tests/data/durable/changed.tdl",
+        "--resume",
+        &arg(&journal),
+    ]);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(
+        err.contains("resume or replay it with the program that wrote it"),
+        "{err}"
+    );
+    // A last record cut short: dropped with a warning; the rest replays to its end.
+    std::fs::write(&journal, &good[..good.len() - 5]).expect("cut");
+    let (code, out, err) = tdl(&["replay", &arg(&journal), ROUNDS]);
+    assert!(
+        err.contains("was cut short") && err.contains("it is dropped"),
+        "{err}"
+    );
+    assert_eq!(code, 0, "{out}{err}");
+}
