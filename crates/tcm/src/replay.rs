@@ -184,6 +184,8 @@ pub(crate) struct Replay {
     entries: Vec<Entry>,
     pub(crate) feed: Arc<Feed>,
     pub(crate) decode: ValueDecoder,
+    // How a body's value is compared with the journal's (the run's encoder).
+    pub(crate) encode: crate::ValueEncoder,
     at_end: AtEnd,
     // Commands started in the replay, their ends to come from the journal.
     stubs: BTreeMap<NodeId, Stub>,
@@ -215,6 +217,7 @@ impl Replay {
             entries: journal.entries,
             feed,
             decode,
+            encode: crate::json_values,
             at_end,
             stubs: BTreeMap::new(),
             displays: HashMap::new(),
@@ -572,6 +575,7 @@ fn end(
     if tap.is_none() {
         r.displays.remove(&display);
     }
+    let encode = r.encode;
     if let Ended::Returned(_, res) = &held {
         let name = inner.engine.info(node).map(|i| i.name).unwrap_or_default();
         let replayed = match res {
@@ -591,6 +595,16 @@ fn end(
                 say(&recorded),
                 say(&replayed)
             ));
+        }
+        // A value the run journaled, the body returns again.
+        if let (Ok(Ok(value)), Ok(Some(was))) = (res, &journaled) {
+            if let Some(is) = encode(value.as_ref()).filter(|is| is != was) {
+                return Err(format!(
+                    "node {display} ({name}) returned {was} in the run, and {is} in the replay: \
+                     the program differs from the run's, or its body read something outside the \
+                     journal"
+                ));
+            }
         }
     }
     inner.report_end(Some(now), held);

@@ -543,11 +543,18 @@ impl Runtime {
         self.replaying(journal, crate::replay::AtEnd::GoLive)
     }
 
-    /// How a replay makes the commands' values from the journal (the inverse of the encoder given
-    /// to [`Runtime::journal_with`]); JSON values by default ([`crate::json_decoded`]).
-    pub fn replay_values(self, decode: crate::ValueDecoder) -> Runtime {
+    /// How a replay reads values from the journal: `decode` makes a command's value from its
+    /// entry, and `encode` (the run's encoder, given to [`Runtime::journal_with`]) writes a
+    /// body's returned value to compare it with the run's; JSON values by default
+    /// ([`crate::json_values`], [`crate::json_decoded`]).
+    pub fn replay_values(
+        self,
+        encode: crate::ValueEncoder,
+        decode: crate::ValueDecoder,
+    ) -> Runtime {
         if let Ok(mut inner) = self.shared.inner.lock() {
             if let Some(r) = inner.replay.as_mut() {
+                r.encode = encode;
                 r.decode = decode;
             }
         }

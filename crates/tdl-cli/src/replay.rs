@@ -86,7 +86,10 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         .context("cannot start the async runtime")?;
     let inputs = journal.entries.len();
     rt.block_on(async move {
-        let runtime = crate::run::equip(tdl::Runtime::new().replay(journal), &program);
+        let runtime = tdl::Runtime::new()
+            .replay(journal)
+            .replay_values(crate::run::interpreted_value, tdl::json_decoded);
+        let runtime = crate::run::equip(runtime, &program);
         let (runtime, viewer) = crate::run::sinks(runtime, a.trace.as_deref(), a.view, &name)?;
         eprintln!(
             "replaying {name} from {} ({inputs} entries)",

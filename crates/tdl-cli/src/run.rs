@@ -74,7 +74,7 @@ pub(crate) struct Args {
 
 /// An interpreted program's value as the journal writes it (JSON), or a value that is JSON
 /// already (a task from an agent).
-fn interpreted_value(value: &(dyn std::any::Any + Send)) -> Option<serde_json::Value> {
+pub(crate) fn interpreted_value(value: &(dyn std::any::Any + Send)) -> Option<serde_json::Value> {
     match value.downcast_ref::<tdl_interp::Value>() {
         Some(v) => v.to_json().ok(),
         None => tdl::json_values(value),
@@ -210,7 +210,8 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
             );
             runtime = runtime
                 .journal_with(writer, interpreted_value)
-                .resume(journal);
+                .resume(journal)
+                .replay_values(interpreted_value, tdl::json_decoded);
         } else if let Some(path) = &a.journal {
             let header = tcm_journal::Header::new(program.hash())
                 .starting(serde_json::json!({ "task": name, "args": args }));

@@ -306,3 +306,38 @@ async fn a_recorded_read_is_read_back_from_the_journal() {
         "the replay did not read the world"
     );
 }
+
+/// A body that reads the world directly, not through `Ctx::record`, and returns what it read: the
+/// replay finds the value it returns differs from the run's, and says so.
+#[tokio::test(start_paused = true)]
+async fn a_body_returning_another_value_is_a_difference() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicU32, Ordering};
+    let world = Arc::new(AtomicU32::new(0));
+    let mission = |world: Arc<AtomicU32>| {
+        Task::goal("mission", move |ctx| async move {
+            ctx.spawn(takes("step", 1.0, json!(null))).start()?;
+            Ok(json!(world.fetch_add(1, Ordering::SeqCst)))
+        })
+    };
+    let path = scratch("value");
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let report = Runtime::new()
+        .journal(writer)
+        .run(mission(world.clone()))
+        .await
+        .expect("run");
+    assert!(report.is_clean(), "{report}");
+    let replayed = Runtime::new()
+        .replay(read(&path))
+        .run(mission(world.clone()))
+        .await
+        .expect("replay");
+    match &replayed.outcome {
+        RunOutcome::Diverged(why) => assert!(
+            why.contains("(mission) returned 0 in the run, and 1 in the replay"),
+            "{why}"
+        ),
+        other => panic!("the difference must be reported: {other:?}"),
+    }
+}
