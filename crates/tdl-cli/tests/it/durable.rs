@@ -26,30 +26,44 @@ fn arg(p: &Path) -> String {
 #[test]
 fn a_replay_gives_the_recorded_trace_byte_for_byte() {
     let dir = scratch("replay");
-    let (journal, recorded, replayed) = (dir.join("j"), dir.join("t1"), dir.join("t2"));
-    let (code, out, err) = tdl(&[
-        "run",
-        ROUNDS,
-        "--args",
-        "6",
-        "--journal",
-        &arg(&journal),
-        "--trace",
-        &arg(&recorded),
-    ]);
-    assert_eq!(code, 0, "{out}{err}");
-    let (code, out, err) = tdl(&["replay", &arg(&journal), ROUNDS, "--trace", &arg(&replayed)]);
-    assert_eq!(code, 0, "{out}{err}");
-    assert!(out.starts_with("completed"), "{out}");
-    let (a, b) = (
-        std::fs::read_to_string(&recorded).expect("the recorded trace"),
-        std::fs::read_to_string(&replayed).expect("the replayed trace"),
-    );
-    assert!(a.lines().count() > 100, "a real run: {a}");
-    for (i, (x, y)) in a.lines().zip(b.lines()).enumerate() {
-        assert_eq!(x, y, "line {} differs", i + 1);
+    // Rounds of commands and a handler; and timers: a polling monitor ended by a timeout, a step
+    // terminated by one.
+    for (program, args) in [(ROUNDS, "6"), ("tests/data/durable/watched.tdl", "8")] {
+        let (journal, recorded, replayed) = (dir.join("j"), dir.join("t1"), dir.join("t2"));
+        let _ = std::fs::remove_file(&journal);
+        let (code, out, err) = tdl(&[
+            "run",
+            program,
+            "--args",
+            args,
+            "--journal",
+            &arg(&journal),
+            "--trace",
+            &arg(&recorded),
+        ]);
+        assert_eq!(code, 0, "{out}{err}");
+        let (code, out, err) = tdl(&[
+            "replay",
+            &arg(&journal),
+            program,
+            "--trace",
+            &arg(&replayed),
+        ]);
+        assert_eq!(code, 0, "{program}: {out}{err}");
+        assert!(out.starts_with("completed"), "{program}: {out}");
+        let (a, b) = (
+            std::fs::read_to_string(&recorded).expect("the recorded trace"),
+            std::fs::read_to_string(&replayed).expect("the replayed trace"),
+        );
+        assert!(a.lines().count() > 100, "a real run: {a}");
+        for (i, (x, y)) in a.lines().zip(b.lines()).enumerate() {
+            assert_eq!(x, y, "{program}: line {} differs", i + 1);
+        }
+        assert_eq!(a, b, "{program}");
     }
-    assert_eq!(a, b);
+    let journal = dir.join("rounds.journal");
+    let (code, out, err) = tdl(&["run", ROUNDS, "--args", "6", "--journal", &arg(&journal)]);
+    assert_eq!(code, 0, "{out}{err}");
     // One constraint changed (a drive needs a range above 3): reported where it first shows.
     let (code, out, err) = tdl(&["replay", &arg(&journal), "tests/data/durable/changed.tdl"]);
     assert_eq!(code, 3, "{out}{err}");
