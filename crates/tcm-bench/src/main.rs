@@ -32,6 +32,7 @@
 
 mod heap;
 mod interp;
+mod journal;
 mod w7;
 
 use std::collections::VecDeque;
@@ -194,50 +195,6 @@ fn shell_journaled<F: FnOnce() -> Task>(
     let ns = start.elapsed().as_nanos() as f64 / nodes as f64;
     let _ = std::fs::remove_file(&path);
     (ns, report.stats.high_water)
-}
-
-/// W2's flat goal of `n` commands, the commands' bodies empty.
-fn flat_goal(n: usize) -> Task {
-    Task::goal("top", move |ctx| async move {
-        for _ in 0..n {
-            ctx.spawn(Task::command("noop", |_| async { Ok(()) }))
-                .start()?;
-        }
-        Ok(())
-    })
-}
-
-/// Resuming from a journal (`Runtime::replay` of a recorded run: the journal read back, checked,
-/// and replayed to its end, the goal's body run again, each command's end given from the journal):
-/// the journal's records, and the seconds from opening the file to the replayed run's end.
-fn resume_from_journal(n: usize) -> (usize, f64) {
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_time()
-        .build()
-        .expect("tokio runtime");
-    let path =
-        std::env::temp_dir().join(format!("tcm-bench-resume-{}.journal", std::process::id()));
-    let _ = std::fs::remove_file(&path);
-    let writer = tcm_journal::Writer::create(
-        &path,
-        "bench",
-        tcm_journal::Durability::Group(std::time::Duration::from_millis(10)),
-    )
-    .expect("a journal");
-    let recorded = rt
-        .block_on(Runtime::new().journal(writer).run(flat_goal(n)))
-        .expect("run");
-    assert_eq!(recorded.outcome, tcm::RunOutcome::Completed);
-    let start = Instant::now();
-    let journal = tcm_journal::read(&path, Some("bench")).expect("the journal reads back");
-    let records = journal.entries.len();
-    let replayed = rt
-        .block_on(Runtime::new().replay(journal).run(flat_goal(n)))
-        .expect("replay");
-    let secs = start.elapsed().as_secs_f64();
-    assert_eq!(replayed.outcome, tcm::RunOutcome::Completed, "{replayed}");
-    let _ = std::fs::remove_file(&path);
-    (records, secs)
 }
 
 fn shell_flat(n: usize, chained: bool) -> (f64, usize) {
@@ -724,7 +681,7 @@ fn main() {
         // Resuming: a journal of about a million records (W2 of a million commands, one end
         // each), read and replayed; the target is under 2 s.
         let nr = if quick { 100_000 } else { 1_000_000 };
-        let (records, secs) = resume_from_journal(nr);
+        let (records, secs) = journal::resume_from_journal(nr);
         if json {
             println!(
                 "{{\"workload\":\"resume\",\"layer\":\"journal\",\"n\":{records},\"seconds\":{secs:.3}}}"
