@@ -414,6 +414,15 @@ fn rust_item_attrs(item: &syn::Item) -> &[syn::Attribute] {
     }
 }
 
+/// `persistent` on `what`, which cannot be: an error, with `hint`.
+fn not_persistent(cx: &mut Cx, persistent: bool, span: Span, what: &str, hint: &str) {
+    if persistent {
+        cx.diags.push(
+            Diagnostic::error(span, format!("{what} cannot be `persistent`")).with_hint(hint),
+        );
+    }
+}
+
 /// `blocking` on what is not a command.
 fn not_blocking(span: Span, what: &str) -> Diagnostic {
     Diagnostic::error(span, format!("{what} cannot be `blocking`")).with_hint(
@@ -430,12 +439,13 @@ fn exception(
     keyword_span: Span,
     cx: &mut Cx,
 ) -> syn::Result<Item> {
-    if persistent {
-        cx.diags.push(
-            Diagnostic::error(keyword_span, "an exception cannot be `persistent`")
-                .with_hint("remove `persistent`"),
-        );
-    }
+    not_persistent(
+        cx,
+        persistent,
+        keyword_span,
+        "an exception",
+        "remove `persistent`",
+    );
     let name: Ident = input.parse()?;
     let parent = if input.peek(Token![:]) {
         input.parse::<Token![:]>()?;

@@ -11,12 +11,13 @@ pub(super) fn resource(
     keyword_span: Span,
     cx: &mut Cx,
 ) -> syn::Result<Item> {
-    if persistent {
-        cx.diags.push(
-            Diagnostic::error(keyword_span, "a resource cannot be `persistent`")
-                .with_hint("remove `persistent`"),
-        );
-    }
+    not_persistent(
+        cx,
+        persistent,
+        keyword_span,
+        "a resource",
+        "remove `persistent`",
+    );
     let name: Ident = input.parse()?;
     let group = take_group(
         input,
@@ -55,12 +56,13 @@ pub(super) fn state(
     keyword_span: Span,
     cx: &mut Cx,
 ) -> syn::Result<Item> {
-    if persistent {
-        cx.diags.push(
-            Diagnostic::error(keyword_span, "a state variable cannot be `persistent`")
-                .with_hint("remove `persistent`: a state variable lives as long as the run"),
-        );
-    }
+    not_persistent(
+        cx,
+        persistent,
+        keyword_span,
+        "a state variable",
+        "remove `persistent`: a state variable lives as long as the run",
+    );
     let name: Ident = input.parse()?;
     input.parse::<Token![:]>()?;
     let ty_name = input.call(Ident::parse_any)?;
