@@ -43,6 +43,11 @@ struct Shared {
     failed: Option<String>,
     // The writer is closing: the flusher writes what is left and stops.
     closing: bool,
+    // Bytes handed to the flusher so far, and how many of them are synced.
+    appended: u64,
+    synced: u64,
+    // A durable commit waits until this many are synced.
+    wanted: u64,
 }
 
 /// Appends a run's inputs to its journal (see the crate's documentation).
@@ -166,6 +171,9 @@ impl Writer {
                 pending: Vec::new(),
                 failed: None,
                 closing: false,
+                appended: 0,
+                synced: 0,
+                wanted: 0,
             }),
             Condvar::new(),
         ));
@@ -270,6 +278,7 @@ impl Writer {
                     });
                 }
                 s.pending.extend_from_slice(&self.batch);
+                s.appended += self.batch.len() as u64;
                 Ok(())
             }
         };
@@ -278,6 +287,33 @@ impl Writer {
             file: self.file.clone(),
             source,
         })
+    }
+
+    /// [`Writer::commit`], and then, whatever the durability, waits until everything appended is
+    /// synced: for an entry that must be on disk before the run acts on it outside (a remote
+    /// task's placement, before its start is sent), with group commit too.
+    pub fn commit_durable(&mut self) -> Result<(), JournalError> {
+        self.commit()?;
+        if self.store.is_some() {
+            return Ok(());
+        }
+        let (m, cv) = &*self.shared;
+        let mut s = lock(m);
+        let target = s.appended;
+        s.wanted = s.wanted.max(target);
+        cv.notify_all();
+        while s.synced < target && s.failed.is_none() && self.flusher.is_some() {
+            s = cv
+                .wait(s)
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+        match &s.failed {
+            Some(why) => Err(JournalError::Failed {
+                file: self.file.clone(),
+                why: why.clone(),
+            }),
+            None => Ok(()),
+        }
     }
 
     /// How many entries were appended.
@@ -384,9 +420,11 @@ fn flush_every(shared: &(Mutex<Shared>, Condvar), mut store: Box<dyn Store>, eve
     let mut spare = Vec::new();
     loop {
         let closing;
+        let taken;
         {
             let mut s = lock(m);
-            if !s.closing {
+            // A durable commit waiting is served at once.
+            if !s.closing && s.wanted <= s.synced {
                 s = cv
                     .wait_timeout(s, every)
                     .map(|(g, _)| g)
@@ -396,6 +434,7 @@ fn flush_every(shared: &(Mutex<Shared>, Condvar), mut store: Box<dyn Store>, eve
             if s.failed.is_none() {
                 std::mem::swap(&mut s.pending, &mut spare);
             }
+            taken = s.appended;
         }
         if !spare.is_empty() {
             let written = store
@@ -403,8 +442,18 @@ fn flush_every(shared: &(Mutex<Shared>, Condvar), mut store: Box<dyn Store>, eve
                 .and_then(|()| store.flush())
                 .and_then(|()| store.sync());
             spare.clear();
-            if let Err(e) = written {
-                lock(m).failed = Some(e.to_string());
+            let mut s = lock(m);
+            match written {
+                Ok(()) => s.synced = taken,
+                Err(e) => s.failed = Some(e.to_string()),
+            }
+            // A `commit_durable` may wait for this.
+            cv.notify_all();
+        } else {
+            // Nothing new: what was taken before is synced.
+            let mut s = lock(m);
+            if s.failed.is_none() {
+                s.synced = taken;
             }
         }
         if closing {

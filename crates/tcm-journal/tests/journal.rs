@@ -123,6 +123,26 @@ fn group_commit_reaches_the_disk_without_a_close() {
 }
 
 #[test]
+fn a_durable_commit_is_on_disk_when_it_returns_with_group_commit_too() {
+    let path = scratch("durable");
+    // An interval no test waits for: only the durable commit can have flushed.
+    let mut w =
+        Writer::create(&path, "p", Durability::Group(Duration::from_secs(3600))).expect("create");
+    w.add(0, 0, Input::Time).expect("add");
+    w.commit().expect("commit");
+    assert_eq!(read(&path, None).expect("read").entries.len(), 0);
+    w.add(5, 1, Input::Clock).expect("add");
+    w.commit_durable().expect("durable commit");
+    assert_eq!(read(&path, None).expect("read").entries.len(), 2);
+    // Again, with nothing new in between the flushes.
+    w.commit_durable().expect("durable commit");
+    w.append(9, 2, Input::Time).expect("append");
+    w.commit_durable().expect("durable commit");
+    assert_eq!(read(&path, None).expect("read").entries.len(), 3);
+    drop(w);
+}
+
+#[test]
 fn a_cut_last_record_is_dropped_with_a_warning() {
     let path = scratch("cut");
     write(&path, Durability::EveryRecord);

@@ -507,7 +507,7 @@ impl Ctx {
                 grace,
                 fail_parent: false,
                 wanted: None,
-                idempotent: false,
+                durable: None,
             },
         );
         Ok(id)

@@ -422,9 +422,15 @@ impl Inner {
             self.args.insert(node, args);
             any = true;
         }
-        if kept.idempotent {
-            if let Some(r) = self.replay.as_mut() {
-                r.idempotent(node);
+        if let Some(d) = kept.durable {
+            if self.journal.is_some() || self.replay.is_some() {
+                let display = self.engine.kind_and_display(node).map_or(0, |k| k.1);
+                if let Some(j) = self.journal.as_mut() {
+                    j.durable(display, &d);
+                }
+                if let Some(r) = self.replay.as_mut() {
+                    r.durable(node, d);
+                }
             }
         }
         if let Some(grace) = kept.grace {

@@ -26,6 +26,9 @@ pub(crate) struct Journaled {
     encode: ValueEncoder,
     // The values of ends reported and not yet journaled, by node display number.
     values: Vec<(u64, serde_json::Value)>,
+    // The encoders of tasks with their own (`Task::journaled`), by node display number, until
+    // the node's action returns.
+    encoders: std::collections::HashMap<u64, std::sync::Arc<crate::task::EncodeFn>>,
 }
 
 impl Journaled {
@@ -35,12 +38,24 @@ impl Journaled {
             failed: None,
             encode,
             values: Vec::new(),
+            encoders: std::collections::HashMap::new(),
+        }
+    }
+
+    /// Node `display`'s task says how its value is journaled (`Task::journaled`).
+    pub(crate) fn durable(&mut self, display: u64, d: &crate::task::Durable) {
+        if let Some(e) = &d.encode {
+            self.encoders.insert(display, e.clone());
         }
     }
 
     /// An action of node `display` returned `value`: kept, written, to go with its end.
     pub(crate) fn value(&mut self, display: u64, value: &(dyn std::any::Any + Send)) {
-        if let Some(json) = (self.encode)(value) {
+        let json = match self.encoders.remove(&display) {
+            Some(encode) => encode(value),
+            None => (self.encode)(value),
+        };
+        if let Some(json) = json {
             self.values.push((display, json));
         }
     }
@@ -161,12 +176,14 @@ pub(crate) fn failed_outcome(why: &str) -> tcm_core::FatalFailure {
 
 impl Journaled {
     /// A body of node `display` read `value` from outside the run (`Ctx::record`): written after
-    /// the inputs the engine took before it, and committed at once.
+    /// the inputs the engine took before it, and committed at once (`durable`: and synced, whatever
+    /// the journal's durability).
     pub(crate) fn recorded(
         &mut self,
         engine: &mut Engine<Action, Factory>,
         display: u64,
         value: serde_json::Value,
+        durable: bool,
     ) {
         self.drain(engine);
         if self.failed.is_some() {
@@ -179,11 +196,29 @@ impl Journaled {
         let written = self
             .writer
             .add(engine.now().as_nanos(), engine.steps(), input)
-            .and_then(|()| self.writer.commit());
+            .and_then(|()| {
+                if durable {
+                    self.writer.commit_durable()
+                } else {
+                    self.writer.commit()
+                }
+            });
         if let Err(e) = written {
             self.failed = Some(e.to_string());
         }
     }
+}
+
+/// Where a value read from outside comes from (`Ctx::record`).
+enum Look {
+    // The replay hands back the run's.
+    Replayed(serde_json::Value),
+    // Read live; journaled as node `Some(display)`'s, if the run keeps a journal.
+    Live(Option<u64>),
+}
+
+fn record_failed(why: String) -> tcm_core::Failure {
+    tcm_core::Failure::new("RecordFailed", why)
 }
 
 impl crate::Ctx {
@@ -198,38 +233,86 @@ impl crate::Ctx {
         T: serde::Serialize + serde::de::DeserializeOwned,
         F: FnOnce() -> T,
     {
-        let failed = |why: String| tcm_core::Failure::new("RecordFailed", why);
-        let display = {
-            let mut inner = self.shared.enter().map_err(tcm_core::Failure::from)?;
-            let display = inner
-                .engine
-                .kind_and_display(self.node)
-                .map_or(0, |(_, d)| d);
-            if let Some(r) = inner.replay.as_mut().filter(|r| r.active()) {
-                match r.recorded(display) {
-                    Some(v) => {
-                        return serde_json::from_value(v).map_err(|e| {
-                            failed(format!("the journal's value does not read back: {e}"))
-                        });
-                    }
-                    // The replay stops there (`replay.rs`, rule 4); the driver ends the run.
-                    None => self.shared.wake.notify_one(),
-                }
+        match self.look()? {
+            Look::Replayed(v) => replayed(v),
+            Look::Live(display) => {
+                let value = read();
+                self.keep_recorded(display, &value, false)?;
+                Ok(value)
             }
-            if inner.journal.is_none() {
-                drop(inner);
-                return Ok(read());
+        }
+    }
+
+    /// [`Ctx::record`] for a value read by awaiting (a query to another process).
+    pub async fn record_async<T, F, Fut>(&self, read: F) -> Result<T, tcm_core::Failure>
+    where
+        T: serde::Serialize + serde::de::DeserializeOwned,
+        F: FnOnce() -> Fut,
+        Fut: std::future::Future<Output = T>,
+    {
+        match self.look()? {
+            Look::Replayed(v) => replayed(v),
+            Look::Live(display) => {
+                let value = read().await;
+                self.keep_recorded(display, &value, false)?;
+                Ok(value)
             }
-            display
+        }
+    }
+
+    /// [`Ctx::record`], the value synced to disk before this returns whatever the journal's
+    /// durability: for what an action is about to do outside and a resumed run must find (where
+    /// a remote task is placed, before its start is sent; see [`crate::Task::reattach`]).
+    pub fn record_durable<T>(&self, value: T) -> Result<T, tcm_core::Failure>
+    where
+        T: serde::Serialize + serde::de::DeserializeOwned,
+    {
+        match self.look()? {
+            Look::Replayed(v) => replayed(v),
+            Look::Live(display) => {
+                self.keep_recorded(display, &value, true)?;
+                Ok(value)
+            }
+        }
+    }
+
+    fn look(&self) -> Result<Look, tcm_core::Failure> {
+        let mut inner = self.shared.enter().map_err(tcm_core::Failure::from)?;
+        let display = inner
+            .engine
+            .kind_and_display(self.node)
+            .map_or(0, |(_, d)| d);
+        if let Some(r) = inner.replay.as_mut().filter(|r| r.active()) {
+            match r.recorded(display) {
+                Some(v) => return Ok(Look::Replayed(v)),
+                // The replay stops there (`replay.rs`, rule 4); the driver ends the run.
+                None => self.shared.wake.notify_one(),
+            }
+        }
+        Ok(Look::Live(inner.journal.is_some().then_some(display)))
+    }
+
+    fn keep_recorded<T: serde::Serialize>(
+        &self,
+        display: Option<u64>,
+        value: &T,
+        durable: bool,
+    ) -> Result<(), tcm_core::Failure> {
+        let Some(display) = display else {
+            return Ok(());
         };
-        let value = read();
-        let json = serde_json::to_value(&value)
-            .map_err(|e| failed(format!("the value cannot be journaled: {e}")))?;
+        let json = serde_json::to_value(value)
+            .map_err(|e| record_failed(format!("the value cannot be journaled: {e}")))?;
         let mut inner = self.shared.enter().map_err(tcm_core::Failure::from)?;
         let fields = &mut *inner;
         if let Some(j) = fields.journal.as_mut() {
-            j.recorded(&mut fields.engine, display, json);
+            j.recorded(&mut fields.engine, display, json, durable);
         }
-        Ok(value)
+        Ok(())
     }
+}
+
+fn replayed<T: serde::de::DeserializeOwned>(v: serde_json::Value) -> Result<T, tcm_core::Failure> {
+    serde_json::from_value(v)
+        .map_err(|e| record_failed(format!("the journal's value does not read back: {e}")))
 }

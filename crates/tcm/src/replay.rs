@@ -27,7 +27,7 @@
 use crate::RunOutcome;
 use crate::host::{Ended, Inner, Shared};
 use crate::task::Value;
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use tcm_core::{Failure, Job, NodeId, Time};
@@ -166,10 +166,13 @@ impl Feed {
 
 /// A command started in the replay.
 struct Stub {
+    display: u64,
     // It is being cancelled: at the journal's end, it stopped.
     cancelled: bool,
     // Its action, if it may run twice: at the journal's end, started again.
     again: Option<crate::task::Action>,
+    // How its task lives through a crash, if it says (`Task::journaled`, `Task::reattach`).
+    durable: Option<Arc<crate::task::Durable>>,
 }
 
 /// What happens at the journal's end (rule 5).
@@ -191,8 +194,8 @@ pub(crate) struct Replay {
     stubs: BTreeMap<NodeId, Stub>,
     // The nodes of the stubs and held ends by display number, as the journal names them.
     displays: HashMap<u64, NodeId>,
-    // Nodes whose action may run twice (`Task::idempotent`).
-    idempotent: BTreeSet<NodeId>,
+    // What the tasks of nodes not started yet say of crashes (`Task::idempotent`, ...).
+    durable: HashMap<NodeId, Arc<crate::task::Durable>>,
     // Ends of bodies run again, held until the journal gives them.
     held: Vec<Ended>,
     // Inputs given.
@@ -221,7 +224,7 @@ impl Replay {
             at_end,
             stubs: BTreeMap::new(),
             displays: HashMap::new(),
-            idempotent: BTreeSet::new(),
+            durable: HashMap::new(),
             held: Vec::new(),
             given: 0,
             recorded,
@@ -253,20 +256,27 @@ impl Replay {
 
     /// A command started: a stub (rule 1), which keeps its action if it may run twice (rule 5).
     pub(crate) fn stub(&mut self, node: NodeId, display: u64, action: crate::task::Action) {
-        let again = self.idempotent.remove(&node).then_some(action);
+        let durable = self.durable.remove(&node);
+        let again = durable
+            .as_ref()
+            .is_some_and(|d| d.idempotent)
+            .then_some(action);
         self.displays.insert(display, node);
         self.stubs.insert(
             node,
             Stub {
+                display,
                 cancelled: false,
                 again,
+                durable,
             },
         );
     }
 
-    /// `node`'s task is idempotent (`Task::idempotent`).
-    pub(crate) fn idempotent(&mut self, node: NodeId) {
-        self.idempotent.insert(node);
+    /// What `node`'s task says of crashes (`Task::idempotent`, `Task::journaled`,
+    /// `Task::reattach`).
+    pub(crate) fn durable(&mut self, node: NodeId, d: Arc<crate::task::Durable>) {
+        self.durable.insert(node, d);
     }
 
     /// Whether `node` is a stub; marked as being cancelled.
@@ -406,11 +416,17 @@ pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
             return;
         };
         let pos = r.feed.next_input();
+        let steps = inner.engine.steps();
         let Some(e) = r.entries.get(pos) else {
+            // No input left: the bodies catch up with the journal's last entries (a value they
+            // read, a reading) before it ends, unless nothing left to run takes them.
+            let last = r.entries.last().map_or(0, |e| e.at);
+            if steps < last && !inner.quiet() {
+                return;
+            }
             finish(inner, shared);
             return;
         };
-        let steps = inner.engine.steps();
         if steps < e.at {
             return;
         }
@@ -561,10 +577,17 @@ fn end(
     let Some(r) = inner.replay.as_mut() else {
         return Ok(false);
     };
-    if tap.is_none() && r.stubs.remove(&node).is_some() {
+    if let Some(stub) = tap.is_none().then(|| r.stubs.remove(&node)).flatten() {
         r.displays.remove(&display);
         let decode = r.decode;
-        let result = journaled.map(|v| v.and_then(decode).unwrap_or_else(|| Box::new(()) as Value));
+        let own = stub.durable.and_then(|d| d.decode.clone());
+        let result = journaled.map(|v| {
+            v.and_then(|v| match &own {
+                Some(d) => d(v),
+                None => decode(v),
+            })
+            .unwrap_or_else(|| Box::new(()) as Value)
+        });
         inner.report_end(Some(now), Ended::Returned(Job::from(node), Ok(result)));
         return Ok(true);
     }
@@ -641,11 +664,22 @@ fn finish(inner: &mut Inner, shared: &Arc<Shared>) {
                 inner.report_end(None, ended);
                 inner.start_effects(shared);
             }
-            for (node, Stub { cancelled, again }) in stubs {
+            for (node, stub) in stubs {
                 let now = inner.engine.at_clock();
-                if cancelled {
+                let reattach = stub.durable.as_ref().and_then(|d| d.reattach.clone());
+                if stub.cancelled {
                     inner.engine.handle_action_stopped(now, Job::from(node));
-                } else if let Some(action) = again {
+                } else if let Some(reattach) = reattach {
+                    // It goes on with what it started outside, from what it recorded.
+                    let recorded = inner
+                        .replay
+                        .as_mut()
+                        .and_then(|r| r.recorded.remove(&stub.display))
+                        .map(Vec::from)
+                        .unwrap_or_default();
+                    let (engine, mut host) = inner.split(shared);
+                    tcm_core::Shell::start(&mut host, engine, node, reattach(recorded));
+                } else if let Some(action) = stub.again {
                     // Idempotent: started again, as the host starts any action.
                     let (engine, mut host) = inner.split(shared);
                     tcm_core::Shell::start(&mut host, engine, node, action);

@@ -26,9 +26,29 @@ pub(crate) struct Kept {
     pub(crate) fail_parent: bool,
     // The resources it uses, by name until the spawn resolves them (`resource.rs`).
     pub(crate) wanted: Option<Box<crate::resource::Wanted>>,
-    // Its action may run twice (`Task::idempotent`).
-    pub(crate) idempotent: bool,
+    // How it lives through a crash of the run (`Task::idempotent`, `Task::journaled`,
+    // `Task::reattach`).
+    pub(crate) durable: Option<Arc<Durable>>,
 }
+
+/// How a task's nodes live through a crash of their run (docs/semantics.md, "Durable runs"):
+/// whether the action may run twice, how the journal writes and reads back its value, and how a
+/// resumed run re-attaches to what it started outside.
+#[derive(Clone, Default)]
+pub(crate) struct Durable {
+    pub(crate) idempotent: bool,
+    pub(crate) encode: Option<Arc<EncodeFn>>,
+    pub(crate) decode: Option<Arc<DecodeFn>>,
+    pub(crate) reattach: Option<Reattach>,
+}
+
+/// A task's own [`crate::ValueEncoder`].
+pub(crate) type EncodeFn = dyn Fn(&(dyn Any + Send)) -> Option<serde_json::Value> + Send + Sync;
+/// A task's own [`crate::ValueDecoder`].
+pub(crate) type DecodeFn = dyn Fn(serde_json::Value) -> Option<Value> + Send + Sync;
+/// A task's re-attachment: the action that goes on with what the node's action started, given
+/// what it recorded (`Ctx::record`) in the run.
+pub(crate) type Reattach = Arc<dyn Fn(Vec<serde_json::Value>) -> Action + Send + Sync>;
 
 /// A value an action returns, handed to whoever waits for the node ([`crate::Spawner::wait_value`]).
 pub type Value = Box<dyn Any + Send>;
@@ -271,7 +291,7 @@ pub struct Task {
     pub(crate) wanted: Option<Box<crate::resource::Wanted>>,
     // The version of the program that defines it (`Task::version`).
     pub(crate) version: Option<Arc<str>>,
-    pub(crate) idempotent: bool,
+    pub(crate) durable: Option<Arc<Durable>>,
 }
 
 impl Task {
@@ -291,7 +311,7 @@ impl Task {
             grace: None,
             wanted: None,
             version: None,
-            idempotent: false,
+            durable: None,
         }
     }
 
@@ -508,8 +528,66 @@ impl Task {
     /// the action was running at the crash, it is started again; an action not so declared fails
     /// with the exception `Interrupted` instead (docs/semantics.md, "Durable runs").
     pub fn idempotent(mut self) -> Task {
-        self.idempotent = true;
+        self.durable_mut().idempotent = true;
         self
+    }
+
+    /// Has a run's journal write this task's value with serde, and its replay read it back as a
+    /// `T`, instead of the run's own encoder and decoder ([`crate::Runtime::journal_with`],
+    /// [`crate::Runtime::replay_values`]): for a command whose value a waiting parent reads as a
+    /// `T` ([`crate::Spawner::wait_value`]), so that the replay hands the parent the same type.
+    pub fn journaled<T>(mut self) -> Task
+    where
+        T: serde::Serialize + serde::de::DeserializeOwned + Any + Send,
+    {
+        let d = self.durable_mut();
+        d.encode = Some(Arc::new(|v: &(dyn Any + Send)| {
+            v.downcast_ref::<T>()
+                .and_then(|t| serde_json::to_value(t).ok())
+        }));
+        d.decode = Some(Arc::new(|j: serde_json::Value| {
+            serde_json::from_value::<T>(j)
+                .ok()
+                .map(|t| Box::new(t) as Value)
+        }));
+        self
+    }
+
+    /// As [`Task::journaled`], with the task's own conversions to and from JSON (`None`: no
+    /// value in the journal; the replay then hands `()`).
+    pub fn journaled_with(
+        mut self,
+        encode: impl Fn(&(dyn Any + Send)) -> Option<serde_json::Value> + Send + Sync + 'static,
+        decode: impl Fn(serde_json::Value) -> Option<Value> + Send + Sync + 'static,
+    ) -> Task {
+        let d = self.durable_mut();
+        d.encode = Some(Arc::new(encode));
+        d.decode = Some(Arc::new(decode));
+        self
+    }
+
+    /// How a resumed run goes on with this task's action when it was running at the crash
+    /// ([`crate::Runtime::resume`]): `reattach` is the node's new action, given what the action
+    /// recorded in the run ([`Ctx::record`], in order; empty if it recorded nothing), instead of
+    /// starting it again ([`Task::idempotent`]) or failing it with `Interrupted`. A remote task
+    /// uses it to find its body on the agent that still runs it and wait for its end there
+    /// (docs/semantics.md, "Durable runs").
+    pub fn reattach<F, Fut, T>(mut self, reattach: F) -> Task
+    where
+        F: Fn(Ctx, Vec<serde_json::Value>) -> Fut + Send + Sync + 'static,
+        Fut: Future<Output = Result<T, Failure>> + Send + 'static,
+        T: Any + Send,
+    {
+        let f = Arc::new(reattach);
+        self.durable_mut().reattach = Some(Arc::new(move |recorded| {
+            let f = f.clone();
+            Action::new(move |ctx| f(ctx, recorded))
+        }));
+        self
+    }
+
+    fn durable_mut(&mut self) -> &mut Durable {
+        Arc::make_mut(self.durable.get_or_insert_with(Arc::default))
     }
 
     /// Keeps every node of this task after it completes, instead of reclaiming it (TDL's
@@ -581,7 +659,7 @@ impl Task {
             grace: self.grace,
             fail_parent: false,
             wanted: self.wanted,
-            idempotent: self.idempotent,
+            durable: self.durable,
         };
         let spawn = Spawn {
             parent,

@@ -341,3 +341,130 @@ async fn a_body_returning_another_value_is_a_difference() {
         other => panic!("the difference must be reported: {other:?}"),
     }
 }
+
+/// A job server outside the run: a job started is counted, and its result is known once its
+/// time has passed.
+#[derive(Clone, Default)]
+struct Jobs(std::sync::Arc<std::sync::Mutex<Vec<u32>>>);
+
+impl Jobs {
+    fn start(&self) -> u32 {
+        let mut jobs = self.0.lock().expect("jobs");
+        let next = 7 + jobs.len() as u32;
+        jobs.push(next);
+        *jobs.last().expect("a job")
+    }
+    fn started(&self) -> usize {
+        self.0.lock().expect("jobs").len()
+    }
+}
+
+/// A typed value (`Task::journaled`) read by its parent, then a job started outside through a
+/// durable record (`Ctx::record_durable`), whose node re-attaches to it when the run resumes
+/// (`Task::reattach`) and waits for its result there: `job + 1`, after 2 s.
+fn outside(jobs: Jobs) -> Task {
+    Task::goal("mission", move |ctx| {
+        let jobs = jobs.clone();
+        async move {
+            let measured: u32 = ctx
+                .spawn(
+                    Task::command("measure", |ctx| async move {
+                        ctx.sleep(Duration::from_secs(1)).await;
+                        Ok(3u32)
+                    })
+                    .journaled::<u32>(),
+                )
+                .wait_value()
+                .await?;
+            let wait_for = |ctx: tcm::Ctx, job: u32| async move {
+                ctx.sleep(Duration::from_secs(2)).await;
+                Ok::<u32, Failure>(job + 1)
+            };
+            let j = jobs.clone();
+            let job = Task::command("job", move |ctx| {
+                let j = j.clone();
+                async move {
+                    let id = ctx.record_durable(j.start())?;
+                    wait_for(ctx, id).await
+                }
+            })
+            .journaled::<u32>()
+            .reattach(move |ctx, recorded| async move {
+                let id: u32 = recorded
+                    .first()
+                    .and_then(|v| serde_json::from_value(v.clone()).ok())
+                    .ok_or_else(|| Failure::new("Lost", "no job was recorded"))?;
+                wait_for(ctx, id).await
+            });
+            let result: u32 = ctx.spawn(job).wait_value().await?;
+            if (measured, result) != (3, 8) {
+                return Err(Failure::new(
+                    "Wrong",
+                    format!("read {measured} and {result}"),
+                ));
+            }
+            ctx.spawn(takes("report", 0.1, json!(measured + result)))
+                .start()?;
+            Ok(())
+        }
+    })
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_resumed_run_reattaches_to_what_a_command_started_outside() {
+    let path = scratch("reattach");
+    let jobs = Jobs::default();
+    let writer = Writer::create(
+        &path,
+        "mission@1",
+        Durability::Group(Duration::from_secs(3600)),
+    )
+    .expect("create");
+    let rec = Recorder::new();
+    let report = Runtime::new()
+        .with_sink(rec.clone())
+        .journal(writer)
+        .run(outside(jobs.clone()))
+        .await
+        .expect("run");
+    assert!(report.is_clean(), "{report}");
+    let uncrashed = rec.events();
+    let job_node = spawned(&uncrashed, "job");
+    assert_eq!(jobs.started(), 1);
+    // The crash: the journal up to the job's end, its placement record in it.
+    let journal = cut(
+        &path,
+        |e| !matches!(e.input, tcm_journal::Input::Ended { node, .. } if node == job_node),
+    );
+    assert!(
+        journal.entries.iter().any(
+            |e| matches!(&e.input, tcm_journal::Input::Recorded { node, value }
+                if *node == job_node && *value == json!(7))
+        ),
+        "the job's start is in the journal"
+    );
+    let rec = Recorder::new();
+    let resumed = Runtime::new()
+        .with_sink(rec.clone())
+        .resume(journal)
+        .run(outside(jobs.clone()))
+        .await
+        .expect("resume");
+    let events = rec.events();
+    assert_checked(&events);
+    assert!(resumed.is_clean(), "{resumed}");
+    // The job was not started again, its node ended once, and the parent read both values as
+    // `u32`s: the report's value is 3 + 8.
+    assert_eq!(jobs.started(), 1);
+    let completed = |node: u64| {
+        events
+            .iter()
+            .filter(|e| {
+                matches!(e.kind, tcm::TraceKind::Transition { node: n, facet: tcm::Facet::Handling,
+                    to: tcm::State::Completed, .. } if n == node)
+            })
+            .count()
+    };
+    assert_eq!(completed(job_node), 1);
+    assert_eq!(completed(spawned(&events, "report")), 1);
+}
