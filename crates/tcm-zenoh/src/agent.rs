@@ -2,7 +2,9 @@
 //! for itself and one per offered task, runs a body for each `Start` it receives (once, however
 //! often the message comes), reports its end, and on a `Cancel` aborts the body, runs the task's
 //! cleanup and confirms. When an executive's token goes, the bodies it started are aborted and
-//! cleaned up too: nobody is left to want them.
+//! cleaned up too: nobody is left to want them; unless the agent holds them for a while
+//! ([`AgentBuilder::hold`], `agent/hold.rs`), so that the executive, resumed from its journal,
+//! re-attaches to them.
 
 use crate::Error;
 use crate::body::{Link, RemoteCtx};
@@ -24,6 +26,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
 
 mod builder;
+mod hold;
 
 pub use builder::AgentBuilder;
 
@@ -51,8 +54,12 @@ pub struct AgentStats {
     pub ended: u64,
     /// Bodies aborted by a cancel.
     pub cancelled: u64,
-    /// Bodies aborted because their executive's token went.
+    /// Bodies aborted because their executive's token went (and, with [`AgentBuilder::hold`],
+    /// no executive re-attached to them in time).
     pub orphaned: u64,
+    /// Tasks an executive resumed from its journal re-attached to: running, or ended with their
+    /// end kept.
+    pub reattached: u64,
     /// Messages received twice, ignored.
     pub duplicates: u64,
     /// Messages of a running task numbered past the next one expected (a gap, a forged sequence
@@ -112,6 +119,7 @@ impl Agent {
             offers: BTreeMap::new(),
             duplicate: false,
             limits: Limits::default(),
+            hold: std::time::Duration::ZERO,
         }
     }
 
@@ -186,6 +194,8 @@ struct Running {
     link: Arc<Link>,
     offer: Offer,
     args: Json,
+    // Its executive's token went: aborted unless it re-attaches in time (`hold.rs`).
+    orphaned: bool,
 }
 
 #[derive(Default)]
@@ -203,6 +213,10 @@ struct AgentState {
     stats: AgentStats,
     // The ignored messages not logged yet, by executive.
     noise: Noise,
+    // With a hold: the ends of bodies that ended, for an executive that re-attaches (`hold.rs`).
+    outcomes: hold::Outcomes,
+    // How often each executive's token went: a hold ends only the absence it began with.
+    absences: BTreeMap<String, u64>,
 }
 
 impl AgentState {
@@ -248,6 +262,8 @@ pub(crate) struct AgentInner {
     rt: tokio::runtime::Handle,
     pub(crate) duplicate: bool,
     limits: Limits,
+    // How long the bodies of an executive whose token went keep running (`hold.rs`).
+    hold: std::time::Duration,
     state: Mutex<AgentState>,
 }
 
@@ -340,6 +356,8 @@ impl AgentInner {
         };
         let kind = msg.body.name();
         match msg.body {
+            // Outside the task's sequence (`hold.rs`).
+            ToAgent::Reattach => self.reattach(exec.to_string(), msg.task),
             ToAgent::Start {
                 node,
                 name,
@@ -424,7 +442,7 @@ impl AgentInner {
                         });
                     }
                     ToAgent::Reply { call, result } => r.link.answer(call, result),
-                    ToAgent::Start { .. } => {}
+                    ToAgent::Start { .. } | ToAgent::Reattach => {}
                 }
             }
         }
@@ -579,6 +597,7 @@ impl AgentInner {
                 link: link.clone(),
                 offer: offer.clone(),
                 args: args.clone(),
+                orphaned: false,
             },
         );
         drop(s);
@@ -595,7 +614,7 @@ impl AgentInner {
         };
         match first {
             Poll::Ready(result) => {
-                if self.finish(&key) {
+                if self.finish(&key, &result) {
                     if let Some(body) = link.send_now(ToExec::Done { result }) {
                         self.rt.spawn(async move { link.send(body).await });
                     }
@@ -615,7 +634,7 @@ impl AgentInner {
                 let handle = self.rt.spawn(async move {
                     body_link.send(ToExec::Started).await;
                     let result = fut.await;
-                    if me.finish(&key2) {
+                    if me.finish(&key2, &result) {
                         body_link.send(ToExec::Done { result }).await;
                     }
                 });
@@ -656,26 +675,47 @@ impl AgentInner {
         }
     }
 
-    /// The body of `key` ended by itself: it is no longer running, so a cancel that comes now is
-    /// late. False if it was not running any more (cancelled meanwhile).
-    fn finish(&self, key: &(String, u64)) -> bool {
+    /// The body of `key` ended by itself with `result`: it is no longer running, so a cancel that
+    /// comes now is late (with a hold, its end is kept for an executive that re-attaches). False
+    /// if it was not running any more (cancelled meanwhile).
+    fn finish(&self, key: &(String, u64), result: &Result<Json, RemoteFailure>) -> bool {
         let mut s = self.lock();
         let Some(r) = s.running.get(key) else {
             return false;
         };
         let seq = r.last_seq;
+        if !self.hold.is_zero() {
+            let link = r.link.clone();
+            s.outcomes.keep(key.clone(), seq, link, result.clone());
+        }
         s.end(key.clone(), seq);
         s.stats.ended += 1;
         true
     }
 
-    /// Executive `exec`'s token went: its bodies are aborted and cleaned up.
+    /// Executive `exec`'s token went: its bodies are aborted and cleaned up, at once or, with a
+    /// hold, when it ends (`hold.rs`).
     fn executive_gone(self: &Arc<Self>, exec: &str) {
+        {
+            let mut s = self.lock();
+            s.live.remove(exec);
+            s.publishers.remove(exec);
+        }
+        if !self.hold.is_zero() {
+            self.hold_for(exec);
+            return;
+        }
+        self.abandon(exec, |_| true);
+    }
+
+    /// Aborts and cleans up the bodies of `exec` that `which` picks; `exec` is no longer live.
+    fn abandon(self: &Arc<Self>, exec: &str, which: impl Fn(&Running) -> bool) {
         let mut s = self.lock();
         let keys: Vec<(String, u64)> = s
             .running
-            .keys()
-            .filter(|(e, _)| e == exec)
+            .iter()
+            .filter(|(k, r)| k.0 == exec && which(r))
+            .map(|(k, _)| k)
             .cloned()
             .collect();
         for key in keys {
@@ -691,7 +731,5 @@ impl AgentInner {
                 s.end(key, r.last_seq);
             }
         }
-        s.live.remove(exec);
-        s.publishers.remove(exec);
     }
 }

@@ -102,6 +102,29 @@ impl Link {
             .await
     }
 
+    /// Sends the message `make` makes from the number of the last message sent, numbered 0
+    /// (outside the sequence: the answer to a reattach, `agent/hold.rs`); the next message is
+    /// numbered after that last one.
+    pub(crate) async fn send_aside(&self, make: impl FnOnce(u64) -> ToExec) {
+        let sent = async {
+            let publisher = self.agent.outlet(&self.exec).await?;
+            let seq = self.seq.lock().await;
+            let bytes = Msg {
+                task: self.task,
+                seq: 0,
+                body: make(*seq),
+            }
+            .encode();
+            self.agent
+                .put(&self.exec, publisher.as_deref(), bytes)
+                .await
+        };
+        if let Err(e) = sent.await {
+            tracing::warn!(target: "tcm_zenoh", agent = self.agent.name, task = self.task,
+                "cannot reach the executive: {e}");
+        }
+    }
+
     /// The executive answered call `call`.
     pub(crate) fn answer(&self, call: u64, result: Result<Answer, RemoteFailure>) {
         let tx = self

@@ -47,6 +47,8 @@ pub(crate) enum Incoming {
 struct Pending {
     agent: String,
     last_seq: u64,
+    // Resumed from the journal: waits for the agent's `Attached` (numbered 0).
+    reattaching: bool,
     tx: mpsc::UnboundedSender<Incoming>,
     // The node's context, for warnings in the trace about its messages.
     ctx: Ctx,
@@ -170,7 +172,42 @@ impl Executive {
         defaults: RemoteOptions,
     ) -> Result<Executive, Error> {
         let session = zenoh::open(config).await.map_err(Error::zenoh)?;
-        Executive::join(system, session, defaults, false).await
+        Executive::join(system, None, session, defaults, false).await
+    }
+
+    /// As [`Executive::open_with`], under the id `id` instead of its zenoh session's: an
+    /// executive that may be resumed from its journal (docs/distributed.md, "An executive that
+    /// comes back") opens under an id of its own, and its resumed run under the same, so that
+    /// agents holding its bodies let it re-attach to them. Two live executives of a system must
+    /// not share an id. `id` must be a valid name (ASCII letters, digits, `_`, `-`, `.`).
+    pub async fn open_as(
+        system: &str,
+        id: &str,
+        config: zenoh::Config,
+        defaults: RemoteOptions,
+    ) -> Result<Executive, Error> {
+        if !wire::valid_name(id) {
+            return Err(Error::BadName(id.into()));
+        }
+        let session = zenoh::open(config).await.map_err(Error::zenoh)?;
+        Executive::join(system, Some(id.into()), session, defaults, false).await
+    }
+
+    /// Before a run resumes from `journal`: the remote tasks this executive places from now on
+    /// are numbered after every task the journal's run placed (its placement records), so that
+    /// none is taken by an agent for one it had.
+    pub fn resume_from(&self, journal: &tcm_journal::Journal) {
+        let last = journal
+            .entries
+            .iter()
+            .filter_map(|e| match &e.input {
+                tcm_journal::Input::Recorded { value, .. } => crate::remote::placed_task(value),
+                _ => None,
+            })
+            .max();
+        if let Some(last) = last {
+            self.inner.next_task.fetch_max(last + 1, Ordering::Relaxed);
+        }
     }
 
     /// Opens an executive listening on a free port of 127.0.0.1 (peer mode, multicast scouting
@@ -193,7 +230,7 @@ impl Executive {
             match zenoh::open(crate::config::loopback_listen(port)?).await {
                 Ok(session) => {
                     let exec =
-                        Executive::join(system, session, defaults.clone(), duplicate).await?;
+                        Executive::join(system, None, session, defaults.clone(), duplicate).await?;
                     return Ok((exec, port));
                 }
                 Err(e) => last = Some(Error::zenoh(e)),
@@ -204,6 +241,7 @@ impl Executive {
 
     async fn join(
         system: &str,
+        id: Option<String>,
         session: zenoh::Session,
         defaults: RemoteOptions,
         duplicate: bool,
@@ -211,7 +249,7 @@ impl Executive {
         if !wire::valid_name(system) {
             return Err(Error::BadName(system.into()));
         }
-        let id = session.zid().to_string();
+        let id = id.unwrap_or_else(|| session.zid().to_string());
         let rt = tokio::runtime::Handle::try_current()
             .map_err(|_| Error::Zenoh("an executive must open inside a tokio runtime".into()))?;
         let (outbox, mut outgoing) = mpsc::unbounded_channel::<(String, Msg<ToAgent>)>();
@@ -533,6 +571,28 @@ impl Inner {
             });
             return;
         }
+        // The answer to a reattach, numbered 0, outside the task's sequence (`remote.rs`).
+        if msg.seq == 0 {
+            if let Some(p) = s.pending.get_mut(&msg.task).filter(|p| p.reattaching) {
+                let ends = match &msg.body {
+                    ToExec::Attached { sent, done, .. } => {
+                        p.last_seq = *sent;
+                        Some(done.is_some())
+                    }
+                    ToExec::Unattached { .. } => Some(true),
+                    _ => None,
+                };
+                if let Some(ends) = ends {
+                    p.reattaching = false;
+                    let last = p.last_seq;
+                    let _ = p.tx.send(Incoming::Msg(msg.body));
+                    if ends {
+                        s.end(msg.task, last);
+                    }
+                    return;
+                }
+            }
+        }
         let (known, ctx) = match (s.pending.get(&msg.task), s.ended.get(&msg.task)) {
             (Some(p), _) => (Known::Running(p.last_seq), Some(p.ctx.clone())),
             (None, Some((last, _, ctx))) => (Known::Ended(*last), Some(ctx.clone())),
@@ -624,6 +684,7 @@ impl Inner {
     /// Places remote task `task` (of node `node`, numbered `display`) on a live agent that
     /// offers `name`: `agent`, or the first by name when `None`. Waits until there is one; the
     /// task is then pending there, its messages going to `tx`. `None` once the executive closed.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) async fn place(
         &self,
         agent: Option<&str>,
@@ -632,6 +693,7 @@ impl Inner {
         ctx: &Ctx,
         display: u64,
         tx: mpsc::UnboundedSender<Incoming>,
+        reattaching: bool,
     ) -> Option<String> {
         let node = ctx.node();
         let mut rx = self.changed.subscribe();
@@ -651,6 +713,7 @@ impl Inner {
                         Pending {
                             agent: chosen.clone(),
                             last_seq: 0,
+                            reattaching,
                             tx,
                             ctx: ctx.clone(),
                         },
@@ -686,8 +749,32 @@ impl Inner {
         f(&mut self.lock().stats);
     }
 
-    /// Sends `msg` to `agent`'s inbox, reliably (zenoh blocks rather than drop it when congested).
-    pub(crate) async fn send(&self, agent: &str, msg: &Msg<ToAgent>) -> Result<(), Error> {
+    /// A task of the resumed run's journal, numbered `task`, is this executive's again: the ones
+    /// it places from now on are numbered after it.
+    pub(crate) fn reattached(&self, task: u64) {
+        self.next_task
+            .fetch_max(task.saturating_add(1), Ordering::Relaxed);
+    }
+
+    /// Sends `msg` to `agent`'s inbox, reliably (zenoh blocks rather than drop it when congested);
+    /// from a current-thread runtime (a journaled run's tree), on the executive's own runtime,
+    /// as zenoh needs.
+    pub(crate) async fn send(
+        self: &Arc<Self>,
+        agent: &str,
+        msg: &Msg<ToAgent>,
+    ) -> Result<(), Error> {
+        if !on_current_thread() {
+            return self.send_here(agent, msg).await;
+        }
+        let (me, agent, msg) = (self.clone(), agent.to_string(), msg.clone());
+        self.rt
+            .spawn(async move { me.send_here(&agent, &msg).await })
+            .await
+            .map_err(Error::zenoh)?
+    }
+
+    async fn send_here(&self, agent: &str, msg: &Msg<ToAgent>) -> Result<(), Error> {
         let publisher = self.publisher(agent).await?;
         let bytes = msg.encode();
         if self.duplicate {
@@ -698,8 +785,15 @@ impl Inner {
 
     /// Waits until `agent`'s inbox is reachable: its publisher declared and a subscriber of it
     /// known, or given up after a while (the sends then go out anyway).
-    pub(crate) async fn reach(&self, agent: &str) -> Result<(), Error> {
-        self.publisher(agent).await.map(drop)
+    pub(crate) async fn reach(self: &Arc<Self>, agent: &str) -> Result<(), Error> {
+        if !on_current_thread() {
+            return self.publisher(agent).await.map(drop);
+        }
+        let (me, agent) = (self.clone(), agent.to_string());
+        self.rt
+            .spawn(async move { me.publisher(&agent).await.map(drop) })
+            .await
+            .map_err(Error::zenoh)?
     }
 
     /// Queues `msg` for `agent`, from where no await is possible.
@@ -724,4 +818,10 @@ impl Inner {
         let mut s = self.lock();
         Ok(s.publishers.entry(agent.to_string()).or_insert(p).clone())
     }
+}
+
+/// Whether this is a current-thread tokio runtime's thread, where zenoh's calls cannot run.
+fn on_current_thread() -> bool {
+    tokio::runtime::Handle::try_current()
+        .is_ok_and(|h| h.runtime_flavor() == tokio::runtime::RuntimeFlavor::CurrentThread)
 }

@@ -1,24 +1,23 @@
 //! Remote tasks on the executive's side: a node of the tree whose action is carried out by an
-//! agent. The action places the task, sends the start, then hands each message of the agent to
-//! the tree (a value or a typed failure ends it; a goal's calls spawn, wait for and terminate
-//! children), enforces the timeouts, and turns the node's termination into a cancel that the agent
-//! confirms once its cleanup ran (docs/distributed.md, "A remote task's life").
+//! agent. The action (`remote/life.rs`) places the task, sends the start, then hands each message
+//! of the agent to the tree (a value or a typed failure ends it; a goal's calls spawn, wait for
+//! and terminate children, [`Body`]), enforces the timeouts, and turns the node's termination into
+//! a cancel that the agent confirms once its cleanup ran (docs/distributed.md, "A remote task's
+//! life").
 
-use crate::executive::{Executive, Incoming, Inner};
-use crate::failure::{
-    AgentLost, RemoteCancelled, RemoteError, RemoteFailure, RemoteTimeout, TimeoutKind,
-};
-use crate::wire::{
-    self, Answer, ChildAt, ChildEnded, ChildRef, ChildSpec, Constraint, Json, Kind, Msg, Op,
-    ToAgent, ToExec,
-};
+use crate::executive::{Executive, Inner};
+use crate::failure::{RemoteError, RemoteFailure};
+use crate::wire::{Answer, ChildAt, ChildEnded, ChildRef, ChildSpec, Constraint, Json, Kind, Op};
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::Duration;
-use tcm::{Ctx, Exception, Failure, NodeId, NodeKind, NodeRef, Spawner, Task, WatchOutcome};
-use tokio::sync::mpsc;
+use tcm::{Ctx, NodeId, NodeKind, NodeRef, Spawner, Task, WatchOutcome};
 use tokio::task::JoinSet;
-use tokio::time::Instant;
+
+mod life;
+
+pub(crate) use life::placed_task;
+use life::{reattach, run};
 
 /// Where a remote task runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -189,11 +188,30 @@ impl Remote {
     /// As [`Remote::task`], with the node's value read from the body's JSON as a `T`, so the
     /// tree waits for it as for a local task's value (`wait_value::<T>()`); a value that does not
     /// read as a `T` fails the node with [`RemoteError`].
+    /// A resumed run's replay hands the waiting parent the same `T`, read from the journal
+    /// ([`Task::journaled`]).
     pub fn typed_task<T>(self) -> Task
     where
-        T: serde::de::DeserializeOwned + Send + 'static,
+        T: Serialize + serde::de::DeserializeOwned + Send + 'static,
     {
         self.task_map(|v| serde_json::from_value::<T>(v).map_err(|e| e.to_string()))
+            .journaled::<T>()
+    }
+
+    /// As [`Remote::task_map`], with `write` making the value JSON again, for a run's journal: a
+    /// resumed run's replay hands the waiting parent the same `T` ([`Task::journaled_with`]).
+    pub fn task_map_journaled<T, F, W>(self, read: F, write: W) -> Task
+    where
+        T: Send + 'static,
+        F: Fn(Json) -> Result<T, String> + Send + Sync + 'static,
+        W: Fn(&T) -> Json + Send + Sync + 'static,
+    {
+        let read = Arc::new(read);
+        let decode = read.clone();
+        self.task_map(move |v| read(v)).journaled_with(
+            move |v| v.downcast_ref::<T>().map(&write),
+            move |j| decode(j).ok().map(|t| Box::new(t) as tcm::Value),
+        )
     }
 
     /// As [`Remote::task`], with the node's value made from the body's JSON by `read`, for a
@@ -227,6 +245,7 @@ impl Remote {
         });
         let grace = spec.options.grace;
         let read = Arc::new(read);
+        let again = (spec.clone(), read.clone(), args.clone());
         let task = Task::retryable_with(kind, self.name, args, move |ctx, args| {
             let (spec, read) = (spec.clone(), read.clone());
             async move {
@@ -239,6 +258,23 @@ impl Remote {
                 })
             }
         });
+        // A command that was running when the run crashed finds its body on the agent again
+        // (docs/distributed.md, "An executive that comes back").
+        let task = match kind {
+            NodeKind::Command => task.reattach(move |ctx, recorded| {
+                let (spec, read, args) = (again.0.clone(), again.1.clone(), again.2.clone());
+                async move {
+                    let name = spec.name.clone();
+                    let value = reattach(spec, ctx, args, recorded).await?;
+                    read(value).map_err(|e| {
+                        RemoteError::failure(format!(
+                            "the value of remote task {name} does not read: {e}"
+                        ))
+                    })
+                }
+            }),
+            _ => task,
+        };
         match grace {
             Some(g) => task.grace(g),
             None => task,
@@ -259,285 +295,6 @@ struct Spec {
     name: String,
     kind: Kind,
     options: RemoteOptions,
-}
-
-/// The remote task as the executive sees it once placed: where it runs and the sequence of the
-/// messages sent to it. Dropped before it ended (the node's action was dropped), it cancels the
-/// body on the agent.
-struct Link {
-    exec: Arc<Inner>,
-    task: u64,
-    agent: String,
-    seq: u64,
-    ended: bool,
-    cancelled: bool,
-}
-
-impl Link {
-    fn next(&mut self, body: ToAgent) -> Msg<ToAgent> {
-        self.seq += 1;
-        Msg {
-            task: self.task,
-            seq: self.seq,
-            body,
-        }
-    }
-
-    async fn send(&mut self, body: ToAgent) -> Result<(), Failure> {
-        let msg = self.next(body);
-        self.exec
-            .send(&self.agent, &msg)
-            .await
-            .map_err(|e| RemoteError::failure(format!("cannot reach agent {}: {e}", self.agent)))
-    }
-
-    /// Tells the agent to cancel the body, once.
-    async fn cancel(&mut self) {
-        if !self.cancelled && !self.ended {
-            self.cancelled = true;
-            if let Err(e) = self.send(ToAgent::Cancel).await {
-                tracing::warn!(target: "tcm_zenoh", task = self.task, "cancel not sent: {e}");
-            }
-        }
-    }
-
-    /// The task ended on this side: later messages are late.
-    fn end(&mut self) {
-        if !self.ended {
-            self.ended = true;
-            self.exec.forget(self.task);
-        }
-    }
-}
-
-impl Drop for Link {
-    fn drop(&mut self) {
-        if !self.ended {
-            if !self.cancelled {
-                let msg = self.next(ToAgent::Cancel);
-                self.exec.send_later(&self.agent, msg);
-                self.exec.count(|s| s.cancels += 1);
-            }
-            self.exec.forget(self.task);
-        }
-    }
-}
-
-async fn sleep_until(at: Option<Instant>) {
-    match at {
-        Some(at) => tokio::time::sleep_until(at).await,
-        None => std::future::pending().await,
-    }
-}
-
-fn timeout(
-    kind: TimeoutKind,
-    spec: &Spec,
-    agent: Option<&str>,
-    after: Option<Duration>,
-) -> Failure {
-    spec.exec.count(|s| s.timeouts += 1);
-    RemoteTimeout {
-        kind,
-        task: spec.name.clone(),
-        agent: agent.map(str::to_string),
-        after_ms: after.map_or(0, |d| d.as_millis() as u64),
-    }
-    .raise()
-}
-
-/// The action of a remote task's node.
-async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, Failure> {
-    // Looking at the signal now gives the action its grace period: a terminated node waits for
-    // the agent's confirmation.
-    let cancelled = ctx.cancelled();
-    tokio::pin!(cancelled);
-    let exec = spec.exec.clone();
-    let opts = &spec.options;
-    let node = ctx.node();
-    let display = ctx.info(node).ok().flatten().map_or(0, |i| i.display);
-    let task = exec.next_task();
-    let (tx, mut rx) = mpsc::unbounded_channel();
-    let scheduled = Instant::now();
-    let sts = opts.schedule_to_start.map(|d| scheduled + d);
-    let named = match &spec.at {
-        At::Agent(a) => Some(a.as_str()),
-        At::Any => None,
-    };
-    if !wire::valid_name(&spec.name) || !named.is_none_or(wire::valid_name) {
-        return Err(RemoteError::failure(format!(
-            "bad task or agent name in {}{}: use ASCII letters, digits, `_`, `-` and `.`",
-            spec.name,
-            named.map(|a| format!(" on {a}")).unwrap_or_default()
-        )));
-    }
-    let agent = tokio::select! {
-        a = exec.place(named, &spec.name, task, &ctx, display, tx) => match a {
-            Some(a) => a,
-            None => return Err(RemoteError::failure("the executive was closed")),
-        },
-        () = sleep_until(sts) => {
-            return Err(timeout(TimeoutKind::ScheduleToStart, &spec, named, opts.schedule_to_start));
-        }
-        () = &mut cancelled => return Ok(Json::Null),
-    };
-    // The trace says where the action runs (a `placed` record) before anything comes back.
-    ctx.placed(&agent)
-        .map_err(|e| RemoteError::failure(e.to_string()))?;
-    let mut link = Link {
-        exec: exec.clone(),
-        task,
-        agent: agent.clone(),
-        seq: 0,
-        ended: false,
-        cancelled: false,
-    };
-    // The start waits until the agent's inbox is known here: sent before, it would be lost.
-    tokio::select! {
-        r = exec.reach(&agent) => r.map_err(|e| RemoteError::failure(e.to_string()))?,
-        () = sleep_until(sts) => {
-            link.end();
-            return Err(timeout(TimeoutKind::ScheduleToStart, &spec, Some(&agent), opts.schedule_to_start));
-        }
-        () = &mut cancelled => {
-            link.end();
-            return Ok(Json::Null);
-        }
-    }
-    link.send(ToAgent::Start {
-        node: display,
-        name: spec.name.clone(),
-        task_kind: spec.kind,
-        args,
-    })
-    .await?;
-    let mut body = Body {
-        ctx: ctx.clone(),
-        exec: exec.clone(),
-        agent: agent.clone(),
-        children: Vec::new(),
-        calls: JoinSet::new(),
-    };
-    let mut started = false;
-    let mut stc: Option<Instant> = None;
-    let mut hb: Option<Instant> = None;
-    loop {
-        tokio::select! {
-            biased;
-            msg = rx.recv() => {
-                let Some(msg) = msg else {
-                    link.end();
-                    return Err(RemoteError::failure("the executive closed"));
-                };
-                match msg {
-                    Incoming::Closed => {
-                        link.ended = true;
-                        return Err(RemoteError::failure("the executive was closed"));
-                    }
-                    Incoming::Lost => {
-                        link.ended = true;
-                        if link.cancelled {
-                            return Ok(Json::Null);
-                        }
-                        exec.count(|s| s.agent_lost += 1);
-                        return Err(AgentLost { agent, task: spec.name.clone() }.raise());
-                    }
-                    Incoming::Msg(ToExec::Started) => {
-                        started = true;
-                        let now = Instant::now();
-                        stc = opts.start_to_close.map(|d| now + d);
-                        hb = opts.heartbeat.map(|d| now + d);
-                    }
-                    Incoming::Msg(ToExec::Heartbeat) => {
-                        hb = opts.heartbeat.map(|d| Instant::now() + d);
-                    }
-                    Incoming::Msg(ToExec::SetState { var, value }) => {
-                        if let Err(e) = ctx.set_state_named(&var, value) {
-                            let text = format!(
-                                "agent {agent} set state variable `{var}` for remote task {task}: {e}"
-                            );
-                            tracing::warn!("{text}");
-                            let _ = ctx.warn(text);
-                        }
-                    }
-                    Incoming::Msg(ToExec::Done { result }) => {
-                        link.ended = true;
-                        if link.cancelled {
-                            return Ok(Json::Null);
-                        }
-                        return match result {
-                            Ok(v) => {
-                                exec.count(|s| s.succeeded += 1);
-                                Ok(v)
-                            }
-                            Err(f) => {
-                                exec.count(|s| s.failed += 1);
-                                if f.exception == "RemoteRefused" {
-                                    // A bound of the agent was reached: said in the log and
-                                    // the trace, as a start nobody ran.
-                                    let text = format!(
-                                        "remote task {task} ({}) refused by agent {agent}: {}",
-                                        spec.name, f.message
-                                    );
-                                    tracing::warn!(target: "tcm_zenoh", task, agent, "{text}");
-                                    let _ = ctx.warn(text);
-                                }
-                                Err(f.into_failure())
-                            }
-                        };
-                    }
-                    Incoming::Msg(ToExec::Cancelled) => {
-                        link.ended = true;
-                        if link.cancelled {
-                            exec.count(|s| s.cancelled += 1);
-                            return Ok(Json::Null);
-                        }
-                        // A cancel this executive never sent aborted the body (a forged one, or
-                        // an agent that cancels on its own): the node has no value to succeed
-                        // with.
-                        let text = format!(
-                            "remote task {task} ({}) on agent {agent} was cancelled, but no cancel \
-                             was sent to it: the node fails with RemoteCancelled",
-                            spec.name
-                        );
-                        tracing::warn!(target: "tcm_zenoh", task, agent, "{text}");
-                        let _ = ctx.warn(text);
-                        exec.count(|s| s.failed += 1);
-                        return Err(RemoteCancelled { agent, task: spec.name.clone() }.raise());
-                    }
-                    Incoming::Msg(ToExec::Call { call, op }) => {
-                        if let Some(result) = body.call(call, op) {
-                            link.send(ToAgent::Reply { call, result }).await?;
-                        }
-                    }
-                }
-            }
-            Some(done) = body.calls.join_next(), if !body.calls.is_empty() => {
-                if let Ok((call, result)) = done {
-                    link.send(ToAgent::Reply { call, result }).await?;
-                }
-            }
-            () = sleep_until(sts), if !started && !link.cancelled => {
-                link.cancel().await;
-                link.end();
-                return Err(timeout(TimeoutKind::ScheduleToStart, &spec, Some(&agent), opts.schedule_to_start));
-            }
-            () = sleep_until(stc), if started && !link.cancelled => {
-                link.cancel().await;
-                link.end();
-                return Err(timeout(TimeoutKind::StartToClose, &spec, Some(&agent), opts.start_to_close));
-            }
-            () = sleep_until(hb), if started && !link.cancelled => {
-                link.cancel().await;
-                link.end();
-                return Err(timeout(TimeoutKind::Heartbeat, &spec, Some(&agent), opts.heartbeat));
-            }
-            () = &mut cancelled, if !link.cancelled => {
-                exec.count(|s| s.cancels += 1);
-                link.cancel().await;
-            }
-        }
-    }
 }
 
 /// The executive's side of a remote goal's body: its children, and its calls in progress.

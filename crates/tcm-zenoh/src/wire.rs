@@ -117,6 +117,10 @@ pub(crate) enum ToAgent {
         call: u64,
         result: Result<Answer, RemoteFailure>,
     },
+    /// From an executive resumed from its journal, under the id of the one that placed the task
+    /// (docs/distributed.md, "An executive that comes back"): the task is wanted still; answer
+    /// with `Attached` (or `Unattached`). Numbered 0, outside the task's sequence.
+    Reattach,
 }
 
 /// What an agent tells an executive.
@@ -136,6 +140,16 @@ pub(crate) enum ToExec {
     /// The body sets a state variable of the executive's run (docs/semantics.md, "State and
     /// conditions"); `value` is the value itself in JSON (`null` for unknown).
     SetState { var: String, value: tcm::StateValue },
+    /// The answer to `Reattach`, numbered 0: the agent has the task. It applied the executive's
+    /// messages up to `received` and sent its own up to `sent` (the next are numbered after);
+    /// `done` is the body's end if it ended meanwhile (its `Done` may have been lost).
+    Attached {
+        received: u64,
+        sent: u64,
+        done: Option<Result<Json, RemoteFailure>>,
+    },
+    /// The answer to `Reattach`, numbered 0: the agent does not have the task (any more).
+    Unattached { reason: String },
 }
 
 impl ToAgent {
@@ -145,6 +159,7 @@ impl ToAgent {
             ToAgent::Start { .. } => "start",
             ToAgent::Cancel => "cancel",
             ToAgent::Reply { .. } => "reply",
+            ToAgent::Reattach => "reattach",
         }
     }
 }
@@ -159,6 +174,8 @@ impl ToExec {
             ToExec::Cancelled => "cancelled",
             ToExec::Call { .. } => "call",
             ToExec::SetState { .. } => "set_state",
+            ToExec::Attached { .. } => "attached",
+            ToExec::Unattached { .. } => "unattached",
         }
     }
 }

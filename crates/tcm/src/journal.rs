@@ -276,6 +276,15 @@ impl crate::Ctx {
         }
     }
 
+    /// Whether the run is replaying its journal now ([`crate::Runtime::replay`],
+    /// [`crate::Runtime::resume`] before it goes live): the bodies run again, and what they do
+    /// outside the run must not be done twice.
+    pub fn replaying(&self) -> bool {
+        self.shared
+            .enter()
+            .is_ok_and(|inner| inner.replay.as_ref().is_some_and(|r| r.active()))
+    }
+
     fn look(&self) -> Result<Look, tcm_core::Failure> {
         let mut inner = self.shared.enter().map_err(tcm_core::Failure::from)?;
         let display = inner

@@ -10,9 +10,20 @@ pub struct AgentBuilder {
     pub(super) offers: BTreeMap<String, Offer>,
     pub(super) duplicate: bool,
     pub(super) limits: Limits,
+    pub(super) hold: std::time::Duration,
 }
 
 impl AgentBuilder {
+    /// Keeps the bodies of an executive whose token went running for `hold`, so that the
+    /// executive, resumed from its journal under the same id, re-attaches to them (and takes the
+    /// ends of those that ended meanwhile) instead of starting them again (docs/distributed.md,
+    /// "An executive that comes back"); a body not re-attached within `hold` is aborted and
+    /// cleaned up. Default zero: aborted at once.
+    pub fn hold(mut self, hold: std::time::Duration) -> AgentBuilder {
+        self.hold = hold;
+        self
+    }
+
     /// Sets the agent's bounds (default: [`Limits::default`]).
     pub fn limits(mut self, limits: Limits) -> AgentBuilder {
         self.limits = limits;
@@ -127,6 +138,7 @@ impl AgentBuilder {
             rt,
             duplicate: self.duplicate,
             limits: self.limits,
+            hold: self.hold,
             state: Mutex::new(AgentState::default()),
         });
         let weak = Arc::downgrade(&inner);

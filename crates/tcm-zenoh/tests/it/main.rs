@@ -14,6 +14,7 @@ mod python;
 mod reach;
 mod remote_command;
 mod repeats;
+mod resume;
 mod state;
 mod suspension;
 mod tdl;

@@ -3,12 +3,12 @@
 //! value that does not read fails the node with `RemoteError`.
 
 use crate::util::{Net, bounded};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use tcm::testing::run_checked;
 use tcm::{Runtime, Task};
 use tcm_zenoh::{RemoteCtx, RemoteFailure};
 
-#[derive(Debug, PartialEq, Deserialize)]
+#[derive(Debug, PartialEq, Serialize, Deserialize)]
 struct Pose {
     x: f64,
     y: f64,

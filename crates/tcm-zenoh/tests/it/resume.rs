@@ -1,0 +1,191 @@
+//! An executive that comes back (docs/distributed.md, "An executive that comes back"): a run
+//! journals its remote tasks' placements; its process dies (here: its tokio runtime is shut
+//! down, nothing sent on the way out); a new executive under the same id resumes the run from
+//! the journal and re-attaches to the remote command in flight on an agent that held it. The
+//! body runs once, and the node ends once: with the body's value if it ended meanwhile, on time
+//! if it still runs, and with `AgentLost` if the agent's hold ended first.
+
+use crate::util::{BOUND, bounded, system};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::Duration;
+use tcm::testing::assert_checked;
+use tcm::{Recorder, Runtime, Task};
+use tcm_journal::{Durability, Writer};
+use tcm_zenoh::{Agent, At, Executive, RemoteOptions};
+
+/// The mission: one remote command `slow` on agent `arm`, its value read as a `u32`; the run
+/// fails unless it is 42.
+fn mission(exec: Executive) -> Task {
+    Task::goal("mission", move |ctx| {
+        let exec = exec.clone();
+        async move {
+            let v: u32 = ctx
+                .spawn(
+                    exec.remote(At::agent("arm"), "slow", ())
+                        .typed_task::<u32>(),
+                )
+                .wait_value()
+                .await?;
+            if v != 42 {
+                return Err(tcm::Failure::new("Wrong", format!("got {v}")));
+            }
+            Ok(())
+        }
+    })
+}
+
+struct Case {
+    // How long the body takes, how long the agent holds it, when the executive dies, and how
+    // long it stays dead.
+    body: Duration,
+    hold: Duration,
+    crash_after: Duration,
+    dead_for: Duration,
+}
+
+/// Runs the case: what the resumed run reported, its trace, and how often the body started.
+async fn crash_and_resume(
+    case: Case,
+) -> (
+    tcm::Report,
+    Vec<tcm::TraceEvent>,
+    u32,
+    tcm_zenoh::AgentStats,
+) {
+    let system = system("resume");
+    let port = tcm_zenoh::config::free_port().expect("port");
+    let starts = Arc::new(AtomicU32::new(0));
+    let counted = starts.clone();
+    let body = case.body;
+    let arm = Agent::builder(system.clone(), "arm")
+        .hold(case.hold)
+        .command("slow", move |_ctx, (): ()| {
+            counted.fetch_add(1, Ordering::SeqCst);
+            async move {
+                tokio::time::sleep(body).await;
+                Ok::<_, tcm_zenoh::RemoteFailure>(42u32)
+            }
+        })
+        .start(tcm_zenoh::config::loopback_listen(port).expect("config"))
+        .await
+        .expect("the agent starts");
+    let dir = std::env::temp_dir().join(format!("tcm-zenoh-{system}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch");
+    let path = dir.join("run.journal");
+
+    // The first executive, in a runtime of its own that dies with it.
+    let first = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let (sys, p) = (system.clone(), path.clone());
+    let (give, session) = tokio::sync::oneshot::channel();
+    first.spawn(async move {
+        let config = tcm_zenoh::config::loopback_connect(port).expect("config");
+        let exec = Executive::open_as(&sys, "exec-a", config, RemoteOptions::default())
+            .await
+            .expect("executive opens");
+        let _ = give.send(exec.session().clone());
+        exec.wait_for("arm", Some("slow"), Duration::from_secs(10))
+            .await
+            .expect("arm joins");
+        let writer = Writer::create(&p, "mission@1", Durability::EveryRecord).expect("journal");
+        let _ = Runtime::new().journal(writer).run(mission(exec)).await;
+    });
+    // Until the body runs on the agent, then a while more.
+    let deadline = tokio::time::Instant::now() + BOUND / 2;
+    while starts.load(Ordering::SeqCst) == 0 {
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "the body never started"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    tokio::time::sleep(case.crash_after).await;
+    // The crash: the journal as it is now; nothing the first executive's tasks would still send
+    // goes out, and its session's link breaks (its token goes).
+    let crashed = dir.join("crashed.journal");
+    std::fs::copy(&path, &crashed).expect("the journal at the crash");
+    first.shutdown_background();
+    session
+        .await
+        .expect("the first executive's session")
+        .close()
+        .await
+        .expect("closed");
+    tokio::time::sleep(case.dead_for).await;
+
+    let journal = tcm_journal::read(&crashed, Some("mission@1")).expect("the journal reads");
+    let config = tcm_zenoh::config::loopback_connect(port).expect("config");
+    let exec = Executive::open_as(&system, "exec-a", config, RemoteOptions::default())
+        .await
+        .expect("the executive opens again");
+    exec.resume_from(&journal);
+    let rec = Recorder::new();
+    let report = Runtime::new()
+        .with_sink(rec.clone())
+        .resume(journal)
+        .run(mission(exec.clone()))
+        .await
+        .expect("the run resumes");
+    exec.close().await;
+    let stats = arm.stats();
+    arm.close().await;
+    (report, rec.events(), starts.load(Ordering::SeqCst), stats)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_command_still_running_is_reattached_and_ends_once() {
+    let (report, events, starts, stats) = bounded(crash_and_resume(Case {
+        body: Duration::from_secs(3),
+        hold: Duration::from_secs(20),
+        crash_after: Duration::from_millis(300),
+        dead_for: Duration::from_millis(300),
+    }))
+    .await;
+    assert_checked(&events);
+    assert!(report.is_clean(), "{report}");
+    assert_eq!((starts, stats.reattached, stats.orphaned), (1, 1, 0));
+    let placed = events
+        .iter()
+        .filter(|e| matches!(&e.kind, tcm::TraceKind::Placed { agent, .. } if agent == "arm"))
+        .count();
+    assert_eq!(placed, 1, "placed again where it runs, once");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_command_that_ended_meanwhile_gives_its_kept_end() {
+    let (report, events, starts, stats) = bounded(crash_and_resume(Case {
+        body: Duration::from_millis(500),
+        hold: Duration::from_secs(20),
+        crash_after: Duration::from_millis(100),
+        dead_for: Duration::from_millis(1500),
+    }))
+    .await;
+    assert_checked(&events);
+    assert!(report.is_clean(), "{report}");
+    assert_eq!((starts, stats.reattached, stats.orphaned), (1, 1, 0));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_command_whose_hold_ended_fails_with_agent_lost() {
+    let (report, events, starts, stats) = bounded(crash_and_resume(Case {
+        body: Duration::from_secs(30),
+        hold: Duration::from_millis(200),
+        crash_after: Duration::from_millis(100),
+        dead_for: Duration::from_millis(1500),
+    }))
+    .await;
+    assert_checked(&events);
+    assert_eq!(starts, 1, "not started again");
+    assert_eq!((stats.reattached, stats.orphaned), (0, 1));
+    let lost: Vec<&str> = report
+        .unhandled
+        .iter()
+        .map(|u| u.failure.exception.as_ref())
+        .collect();
+    assert_eq!(lost, ["AgentLost"], "{report}");
+}
