@@ -181,7 +181,9 @@ impl Executive {
     /// executive that may be resumed from its journal (docs/distributed.md, "An executive that
     /// comes back") opens under an id of its own, and its resumed run under the same, so that
     /// agents holding its bodies let it re-attach to them. Two live executives of a system must
-    /// not share an id. `id` must be a valid name (ASCII letters, digits, `_`, `-`, `.`).
+    /// not share an id. `id` must be a valid name (ASCII letters, digits, `_`, `-`, `.`). Its
+    /// remote tasks are numbered from the wall clock's microseconds, so that a new run under the
+    /// id never reuses a number an agent remembers from an earlier one.
     pub async fn open_as(
         system: &str,
         id: &str,
@@ -192,7 +194,15 @@ impl Executive {
             return Err(Error::BadName(id.into()));
         }
         let session = zenoh::open(config).await.map_err(Error::zenoh)?;
-        Executive::join(system, Some(id.into()), session, defaults, false).await
+        let exec = Executive::join(system, Some(id.into()), session, defaults, false).await?;
+        // Agents remember the tasks of an id across its runs: this run's are numbered from the
+        // wall clock's microseconds, after those of any earlier run under the id (which placed
+        // fewer than one task per microsecond).
+        let base = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(1, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX / 2));
+        exec.inner.next_task.fetch_max(base, Ordering::Relaxed);
+        Ok(exec)
     }
 
     /// Before a run resumes from `journal`: the remote tasks this executive places from now on
@@ -346,6 +356,21 @@ impl Executive {
         if let Err(e) = self.inner.session.close().await {
             tracing::warn!(target: "tcm_zenoh", "closing the executive's session: {e}");
         }
+    }
+
+    /// Runs `fut` on the tokio runtime the executive was opened in, and waits for it. Zenoh's
+    /// calls need a multi-thread runtime; a tree driven on a current-thread one (a journaled run,
+    /// docs/semantics.md, "Durable runs") reaches zenoh through this, as remote tasks do. From a
+    /// multi-thread runtime, `fut` runs where it is.
+    pub async fn on_runtime<F>(&self, fut: F) -> Result<F::Output, Error>
+    where
+        F: std::future::Future + Send + 'static,
+        F::Output: Send + 'static,
+    {
+        if !on_current_thread() {
+            return Ok(fut.await);
+        }
+        self.inner.rt.spawn(fut).await.map_err(Error::zenoh)
     }
 
     /// The system's name.

@@ -103,6 +103,31 @@ pub(crate) async fn start(setup: &Setup, speed: f64, python: bool) -> anyhow::Re
     })
 }
 
+/// Joins the robot agent of `system` listening on `port` of 127.0.0.1 (started apart, and
+/// outliving this run) as the executive `id`, and waits until it is seen; `speak` is the robot
+/// agent's.
+pub(crate) async fn join(system: &str, port: u16, id: &str) -> anyhow::Result<Distributed> {
+    let config = tcm_zenoh::config::peer(&[], &[tcm_zenoh::config::endpoint(port)])
+        .context("cannot configure the executive")?;
+    let exec = Executive::open_as(system, id, config, tcm_zenoh::RemoteOptions::default())
+        .await
+        .context("cannot open the executive")?;
+    exec.wait_for("robot", Some("planPath"), JOIN)
+        .await
+        .context("the robot agent is not live")?;
+    let robot = Robot::remote(exec.clone(), "robot", "robot");
+    Ok(Distributed {
+        exec,
+        robot,
+        _agents: Agents {
+            children: Vec::new(),
+        },
+        voice: format!(
+            "system {system}, the robot agent on tcp/127.0.0.1:{port}, executive {id}, speak on the              robot agent"
+        ),
+    })
+}
+
 /// Starts `cmd` with piped stdin and stdout and waits for its `ready` line.
 fn spawn_agent(agents: &mut Agents, mut cmd: Command, what: &str) -> anyhow::Result<()> {
     let mut child = cmd

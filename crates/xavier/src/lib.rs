@@ -92,7 +92,57 @@ pub async fn run_scaled(
     sinks: Vec<Box<dyn TraceSink>>,
     scale: f64,
 ) -> Result<Done, tdl::Error> {
+    run_journaled(setup, mission, sinks, scale, None).await
+}
+
+/// A run's journal (docs/semantics.md, "Durable runs"): written from the start, or read to
+/// resume the run it recorded and written on.
+pub struct Journaling {
+    writer: tcm_journal::Writer,
+    resume: Option<tcm_journal::Journal>,
+}
+
+impl Journaling {
+    /// A new journal, `writer`'s.
+    pub fn new(writer: tcm_journal::Writer) -> Journaling {
+        Journaling {
+            writer,
+            resume: None,
+        }
+    }
+
+    /// The run `journal` recorded, resumed, its journal going on through `writer`
+    /// (`tcm_journal::Writer::reopen`).
+    pub fn resume(writer: tcm_journal::Writer, journal: tcm_journal::Journal) -> Journaling {
+        Journaling {
+            writer,
+            resume: Some(journal),
+        }
+    }
+
+    /// The journal resumed, if the run resumes one.
+    pub fn resumed(&self) -> Option<&tcm_journal::Journal> {
+        self.resume.as_ref()
+    }
+}
+
+/// Like [`run_scaled`], with a journal of the run's inputs when `journaling` is given, or resumed
+/// from one. The tree should run on a current-thread runtime then (docs/semantics.md, "Durable
+/// runs").
+pub async fn run_journaled(
+    setup: &Setup,
+    mission: Mission,
+    sinks: Vec<Box<dyn TraceSink>>,
+    scale: f64,
+    journaling: Option<Journaling>,
+) -> Result<Done, tdl::Error> {
     let mut rt = Runtime::new().time_scale(scale);
+    if let Some(j) = journaling {
+        rt = rt.journal(j.writer);
+        if let Some(journal) = j.resume {
+            rt = rt.resume(journal);
+        }
+    }
     for sink in sinks {
         rt = rt.with_sink(BoxedSink(sink));
     }

@@ -31,6 +31,11 @@ mod distributed {
 
     impl NoExecutive {
         pub(crate) async fn close(&self) {}
+        pub(crate) fn resume_from(&self, _journal: &tcm_journal::Journal) {}
+    }
+
+    pub(crate) async fn join(_system: &str, _port: u16, _id: &str) -> anyhow::Result<Distributed> {
+        start(&Setup::default(), 1.0, false).await
     }
 
     pub(crate) async fn start(
@@ -44,6 +49,8 @@ mod distributed {
         )
     }
 }
+
+mod durable;
 
 #[cfg(not(feature = "distributed"))]
 const NO_AGENT: &str = "xavier: this build has no robot agent (the feature `distributed` is off): \
@@ -60,7 +67,7 @@ use tdl::{JsonLines, Recorder, TextLogSink, TraceSink};
 use xavier::display::{EventLog, LiveTree};
 use xavier::mission::Mission;
 use xavier::summary::Summary;
-use xavier::{Done, Setup, run_scaled, run_steered};
+use xavier::{Done, Setup, run_journaled, run_steered};
 use xavier_world::{Scenario, SharedWorld, World};
 
 /// Xavier, the mail-delivery robot of the TDL paper (Simmons & Apfelbaum 1998), on a simulated
@@ -146,6 +153,46 @@ struct Cli {
     /// With --distributed: serve `speak` from the robot agent, not from Python.
     #[arg(long, requires = "distributed")]
     no_python: bool,
+
+    /// With --distributed: join the robot agent listening on this port of 127.0.0.1 (started
+    /// apart, `xavier robot-agent --listen PORT`, and outliving this run) instead of starting
+    /// one; `speak` is the robot agent's.
+    #[arg(long, value_name = "PORT", requires_all = ["distributed", "system"])]
+    agent_port: Option<u16>,
+
+    /// With --agent-port: the system the robot agent joined.
+    #[arg(long, value_name = "NAME", requires = "agent_port")]
+    system: Option<String>,
+
+    /// With --agent-port: the executive's id, the same for a run and its resumption, so that the
+    /// robot agent lets the resumed run re-attach to the commands it holds.
+    #[arg(
+        long,
+        value_name = "ID",
+        default_value = "xavier",
+        requires = "agent_port"
+    )]
+    exec_id: String,
+
+    /// With --agent-port: keep a journal of the run's inputs in FILE (a new file), to resume it
+    /// after a crash (docs/semantics.md, "Durable runs").
+    #[arg(
+        long,
+        value_name = "FILE",
+        requires = "agent_port",
+        conflicts_with = "resume"
+    )]
+    journal: Option<PathBuf>,
+
+    /// With --agent-port: resume the run this journal recorded after the executive crashed, with
+    /// the seed, scenario and rooms it was started with; commands still running on the robot
+    /// agent are re-attached, and the journal goes on.
+    #[arg(long, value_name = "FILE", requires = "agent_port")]
+    resume: Option<PathBuf>,
+
+    /// How the journal reaches the disk: `every` record synced, or `group:MS`.
+    #[arg(long, value_name = "HOW", default_value = "every")]
+    journal_sync: String,
 }
 
 /// The scenarios, as the command line spells them.
@@ -244,10 +291,22 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         Clock::Virtual => None,
     };
     let world = SharedWorld::scaled(World::new(setup.seed, setup.scenario), scale);
-    let dist = match (&rt, cli.distributed) {
-        (Some(rt), true) => Some(rt.block_on(distributed::start(&setup, scale, !cli.no_python))?),
+    let dist = match (&rt, cli.distributed, cli.agent_port) {
+        (Some(rt), true, Some(port)) => {
+            let system = cli.system.clone().unwrap_or_default();
+            Some(rt.block_on(distributed::join(&system, port, &cli.exec_id))?)
+        }
+        (Some(rt), true, None) => {
+            Some(rt.block_on(distributed::start(&setup, scale, !cli.no_python))?)
+        }
         _ => None,
     };
+    let journaling = durable::journaling(&cli.journal, &cli.resume, &cli.journal_sync, &setup)?;
+    if let (Some(d), Some(j)) = (&dist, &journaling) {
+        if let Some(journal) = j.resumed() {
+            d.exec.resume_from(journal);
+        }
+    }
     let mission = match &dist {
         Some(d) => Mission::with_robot(d.robot.clone()),
         None => Mission::new(world.clone()),
@@ -314,7 +373,24 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     move |control: &tdl::Control| steer(approve, pause, viewer, *id, control);
                 Box::pin(run_steered(&setup, mission, sinks, scale, before))
             }
-            _ => Box::pin(async { Ok(run_scaled(&setup, mission, sinks, scale).await?) }),
+            _ => Box::pin(async {
+                Ok(run_journaled(&setup, mission, sinks, scale, journaling).await?)
+            }),
+        };
+    // A journaled run drives its tree on one thread, so that the inputs alone decide the order of
+    // its bodies' requests (docs/semantics.md, "Durable runs"); zenoh stays on `rt`.
+    let future: std::pin::Pin<Box<dyn Future<Output = anyhow::Result<Done>> + '_>> =
+        match (&rt, durable::one_thread(&cli.journal, &cli.resume)) {
+            (Some(_), true) => {
+                let tree = tokio::runtime::Builder::new_current_thread()
+                    .enable_all()
+                    .build()
+                    .context("cannot start the tree's runtime")?;
+                let done = tree.block_on(future);
+                drop(tree);
+                Box::pin(async move { done })
+            }
+            _ => future,
         };
     let done = match &rt {
         Some(rt) => rt.block_on(async {

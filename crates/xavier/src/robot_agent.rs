@@ -21,9 +21,15 @@ pub(crate) struct Cli {
     /// The agent's name.
     #[arg(long, default_value = "robot")]
     name: String,
-    /// The executive's port on 127.0.0.1.
-    #[arg(long)]
-    port: u16,
+    /// The executive's port on 127.0.0.1, if it listens (without it, give --listen: executives
+    /// connect to the agent).
+    #[arg(long, required_unless_present = "listen")]
+    port: Option<u16>,
+    /// How long, in seconds of the real clock, the commands of an executive that went keep
+    /// running for it to come back, resumed from its journal, and re-attach to them
+    /// (docs/distributed.md, "An executive that comes back").
+    #[arg(long, default_value_t = 30.0)]
+    hold: f64,
     /// A port on 127.0.0.1 to listen on, for agents that query the world (the voice).
     #[arg(long)]
     listen: Option<u16>,
@@ -65,9 +71,12 @@ async fn serve(cli: Cli) -> Result<(), String> {
     let world = SharedWorld::scaled(World::new(cli.seed, cli.scenario), cli.speed);
     use tcm_zenoh::config::endpoint;
     let listen: Vec<String> = cli.listen.map(endpoint).into_iter().collect();
-    let config =
-        tcm_zenoh::config::peer(&listen, &[endpoint(cli.port)]).map_err(|e| e.to_string())?;
-    let builder = xavier::robot::serve(&world, Agent::builder(cli.system.clone(), cli.name));
+    let connect: Vec<String> = cli.port.map(endpoint).into_iter().collect();
+    let config = tcm_zenoh::config::peer(&listen, &connect).map_err(|e| e.to_string())?;
+    let hold = std::time::Duration::try_from_secs_f64(cli.hold)
+        .map_err(|e| format!("--hold {}: {e}", cli.hold))?;
+    let builder =
+        xavier::robot::serve(&world, Agent::builder(cli.system.clone(), cli.name)).hold(hold);
     let agent = builder.start(config).await.map_err(|e| e.to_string())?;
     let _queries = xavier::robot::serve_queries(agent.session(), &cli.system, &world, cli.speed)
         .await

@@ -39,13 +39,17 @@ pub fn query_key(system: &str, what: &str) -> String {
 impl RemoteRobot {
     /// Asks the robot agent `what`, with `payload`; its JSON answer.
     async fn query(&self, what: &str, payload: Vec<u8>) -> Result<Value, Failure> {
-        let bytes = query(
-            self.exec.session(),
-            &query_key(self.exec.system(), what),
-            payload,
-        )
-        .await
-        .map_err(remote_error)?;
+        // On the executive's runtime: a journaled run's tree runs on a current-thread one.
+        let (session, key) = (
+            self.exec.session().clone(),
+            query_key(self.exec.system(), what),
+        );
+        let bytes = self
+            .exec
+            .on_runtime(async move { query(&session, &key, payload).await })
+            .await
+            .map_err(|e| remote_error(e.to_string()))?
+            .map_err(remote_error)?;
         serde_json::from_slice(&bytes)
             .map_err(|e| remote_error(format!("the robot's answer to {what} is not JSON: {e}")))
     }
@@ -129,13 +133,13 @@ impl RemoteRobot {
     pub(super) fn plan_path(&self, room: u32) -> Task {
         self.exec
             .remote(At::agent(&self.body), "planPath", room)
-            .task_map(|v| path_of(&v))
+            .task_map_journaled(|v| path_of(&v), |p: &Vec<Waypoint>| path_json(p))
     }
 
     /// The command `name` on the robot agent, its value read as a `T`.
     pub(super) fn command<T, A>(&self, name: &str, arg: A) -> Task
     where
-        T: serde::de::DeserializeOwned + Send + 'static,
+        T: serde::Serialize + serde::de::DeserializeOwned + Send + 'static,
         A: serde::Serialize,
     {
         self.exec
@@ -168,6 +172,10 @@ fn path_of(v: &Value) -> Result<Vec<Waypoint>, String> {
         .iter()
         .map(|p| Ok(Point::new(num(p, "x")?, num(p, "y")?)))
         .collect()
+}
+
+fn path_json(path: &[Waypoint]) -> Value {
+    Value::Array(path.iter().map(point_json).collect())
 }
 
 fn pose_json(p: &Pose) -> Value {

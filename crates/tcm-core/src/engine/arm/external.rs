@@ -89,9 +89,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
 
     /// Input: `node`'s action runs on another process of a distributed system, the agent
     /// `agent` (the shell's distribution layer says so when it sends the action there). Changes
-    /// nothing but the trace: a `placed` record.
+    /// nothing but the trace: a `placed` record. Not a step of the run ([`Engine::steps`]): a
+    /// command's action notes it, and a replay, which does not run commands, must count what the
+    /// run counted.
     pub fn note_placed(&mut self, now: Time, node: NodeId, agent: &str) -> Result<(), EngineError> {
+        let (steps, mark) = (self.steps, self.mark);
         self.advance(now);
+        (self.steps, self.mark) = (steps, mark);
         let node = self.live(node)?.display;
         emit!(
             self,
