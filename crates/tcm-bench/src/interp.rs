@@ -196,6 +196,10 @@ fn xavier_registry() -> Registry {
         tdl_interp::Function::dynamic(2, |_| Ok(Value::Unit)),
     )
     .dynamic_function(
+        "pose_now",
+        tdl_interp::Function::dynamic(2, |_| Ok(Value::Unit)),
+    )
+    .dynamic_function(
         "stretches",
         tdl_interp::Function::dynamic(1, |_| Ok(Value::Unit)),
     )

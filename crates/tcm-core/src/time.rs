@@ -62,4 +62,4 @@ impl fmt::Display for Time {
 
 /// A shell's clock as the engine reads it when it needs the time ([`crate::Engine::with_clock`]):
 /// the engine stays free of I/O, the shell says how time is read.
-pub type Clock = std::sync::Arc<dyn Fn() -> Time + Send + Sync>;
+pub type Clock = std::sync::Arc<dyn Fn(u64) -> Time + Send + Sync>;

@@ -138,23 +138,23 @@ impl Cancels {
         rt: Option<&tokio::runtime::Handle>,
         node: NodeId,
         action: TaskRef,
-    ) {
+    ) -> bool {
         let grace = self.grace_of(node).unwrap_or(self.default);
         let Some(tx) = self.signals.get(&node) else {
             self.abort(shared, &action);
-            return;
+            return true;
         };
         // Fired even when the action is dropped at once: other tasks that hold a clone of its
         // context (and awaited the signal) learn of the cancellation too.
         tx.send_replace(true);
         if self.pinned.contains(&node) {
             // A blocking body cannot be dropped: its node is terminated once it returns.
-            return;
+            return false;
         }
         if grace.is_zero() {
             self.signals.remove(&node);
             self.abort(shared, &action);
-            return;
+            return true;
         }
         let timer = {
             let shared = shared.clone();
@@ -181,6 +181,7 @@ impl Cancels {
                 timer: timer.abort_handle(),
             },
         );
+        false
     }
 
     /// Aborts a running job's task, counting it as queued until its stop is reported.

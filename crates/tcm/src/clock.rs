@@ -88,9 +88,10 @@ impl Clock {
         )
     }
 
-    /// A reading for the engine (`Engine::set_clock`): while a replay runs, the journal's next.
-    pub(crate) fn engine_reading(&self) -> Time {
-        if let Some(t) = self.feed.get().and_then(|f| f.reading()) {
+    /// A reading for the engine (`Engine::set_clock`), at its `steps`: while a replay runs, the
+    /// journal's reading of that step.
+    pub(crate) fn engine_reading(&self, steps: u64) -> Time {
+        if let Some(t) = self.feed.get().and_then(|f| f.reading(steps)) {
             return t;
         }
         self.now()

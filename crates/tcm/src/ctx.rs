@@ -563,6 +563,19 @@ impl Ctx {
         ) -> Result<T, tcm_core::EngineError>,
     ) -> Result<T, Error> {
         let mut inner = self.shared.enter()?;
+        // A command's own action (a monitor's activations are command nodes whose bodies run).
+        if inner.engine.records_inputs()
+            && self.purpose.is_none()
+            && matches!(
+                inner.engine.kind_and_display(self.node),
+                Some((tcm_core::NodeKind::Command, _))
+            )
+        {
+            // A replay does not run commands (`replay.rs`): the request is no step of the run,
+            // and at the engine's latest time, so that it reads no clock and fires no timer.
+            let now = inner.engine.now();
+            return Ok(inner.engine.aside(|e| f(e, now))?);
+        }
         let now = inner.engine.at_clock();
         Ok(f(&mut inner.engine, now)?)
     }

@@ -240,11 +240,17 @@ impl Inner {
             shared.stops.fetch_sub(1, Ordering::SeqCst);
             // Its abort is over: it no longer counts as queued (`Cancels::aborted`).
             self.cancels.aborted = self.cancels.aborted.saturating_sub(1);
-            if let Some(r) = self.replay.as_mut().filter(|r| r.active()) {
-                // Given when the journal gives it (`replay.rs`, rule 3).
-                let display = self.engine.kind_and_display(job.node()).map(|k| k.1);
-                r.hold(Ended::Dropped(job), display);
-                continue;
+            if let Some(r) = self.replay.as_mut() {
+                if r.reported(job) {
+                    // Held when it was aborted (`Replay::dropped_at_once`).
+                    continue;
+                }
+                if r.active() {
+                    // Given when the journal gives it (`replay.rs`, rule 3).
+                    let display = self.engine.kind_and_display(job.node()).map(|k| k.1);
+                    r.hold(Ended::Dropped(job), display);
+                    continue;
+                }
             }
             self.engine.handle_action_stopped(now, job);
         }
@@ -590,6 +596,11 @@ pub(crate) fn stops_first(inner: &mut Inner, shared: &Arc<Shared>) {
     let now = inner.engine.at_clock();
     inner.report_stopped(shared, now);
     inner.start_effects(shared);
+    if inner.replay.is_some() {
+        // A stop the journal gives now is given before what took the lock asks anything, as in
+        // the run, where the stop came first (`replay.rs`, rule 3).
+        crate::replay::feed(inner, shared);
+    }
 }
 
 /// The engine's lock. On a thread whose pump runs for this run, the ends it keeps are reported

@@ -211,8 +211,8 @@ impl Journaled {
 
 /// Where a value read from outside comes from (`Ctx::record`).
 enum Look {
-    // The replay hands back the run's.
-    Replayed(serde_json::Value),
+    // The replay hands back the run's, read at the run's step `at`.
+    Replayed(serde_json::Value, u64),
     // Read live; journaled as node `Some(display)`'s, if the run keeps a journal.
     Live(Option<u64>),
 }
@@ -234,7 +234,7 @@ impl crate::Ctx {
         F: FnOnce() -> T,
     {
         match self.look()? {
-            Look::Replayed(v) => replayed(v),
+            Look::Replayed(v, _) => replayed(v),
             Look::Live(display) => {
                 let value = read();
                 self.keep_recorded(display, &value, false)?;
@@ -251,7 +251,18 @@ impl crate::Ctx {
         Fut: std::future::Future<Output = T>,
     {
         match self.look()? {
-            Look::Replayed(v) => replayed(v),
+            Look::Replayed(v, at) => {
+                // Not before the run's step of the read: as in the run, where it took its time.
+                let wait = {
+                    let mut inner = self.shared.enter().map_err(tcm_core::Failure::from)?;
+                    let steps = inner.engine.steps();
+                    inner.replay.as_mut().and_then(|r| r.read_at(at, steps))
+                };
+                if let Some(rx) = wait {
+                    let _ = rx.await;
+                }
+                replayed(v)
+            }
             Look::Live(display) => {
                 let value = read().await;
                 self.keep_recorded(display, &value, false)?;
@@ -268,7 +279,7 @@ impl crate::Ctx {
         T: serde::Serialize + serde::de::DeserializeOwned,
     {
         match self.look()? {
-            Look::Replayed(v) => replayed(v),
+            Look::Replayed(v, _) => replayed(v),
             Look::Live(display) => {
                 self.keep_recorded(display, &value, true)?;
                 Ok(value)
@@ -293,7 +304,7 @@ impl crate::Ctx {
             .map_or(0, |(_, d)| d);
         if let Some(r) = inner.replay.as_mut().filter(|r| r.active()) {
             match r.recorded(display) {
-                Some(v) => return Ok(Look::Replayed(v)),
+                Some((v, at)) => return Ok(Look::Replayed(v, at)),
                 // The replay stops there (`replay.rs`, rule 4); the driver ends the run.
                 None => self.shared.wake.notify_one(),
             }

@@ -53,7 +53,8 @@ pub fn json_decoded(value: serde_json::Value) -> Option<Value> {
 /// What an entry is to the feed.
 #[derive(Clone, Copy)]
 enum Entered {
-    Reading(u64),
+    // Its time, and the run's steps when it was read.
+    Reading(u64, u64),
     Aside,
     Input,
 }
@@ -85,7 +86,7 @@ impl Feed {
                 readings: entries
                     .iter()
                     .map(|e| match e.input {
-                        Input::Clock => Entered::Reading(e.t),
+                        Input::Clock => Entered::Reading(e.t, e.at),
                         Input::Recorded { .. } => Entered::Aside,
                         _ => Entered::Input,
                     })
@@ -112,22 +113,35 @@ impl Feed {
         Some(Time::from_nanos(self.lock().latest))
     }
 
-    /// The engine's next reading, while replaying: the journal's, if its next entry is one.
-    pub(crate) fn reading(&self) -> Option<Time> {
+    /// The engine's reading at its `steps`, while replaying: the journal's next, if it is a
+    /// reading the run took at as many steps; the readings of earlier steps before it, which the
+    /// replay did not take, are passed (their times count). A reading the journal does not have
+    /// there gives the latest time.
+    pub(crate) fn reading(&self, steps: u64) -> Option<Time> {
         if !self.replaying.load(Ordering::Relaxed) {
             return None;
         }
         let mut s = self.lock();
         let mut pos = s.pos;
-        while let Some(Entered::Aside) = s.readings.get(pos) {
-            pos += 1;
-        }
-        match s.readings.get(pos).copied() {
-            Some(Entered::Reading(t)) => {
-                s.pos = pos + 1;
-                s.latest = s.latest.max(t);
+        loop {
+            match s.readings.get(pos).copied() {
+                Some(Entered::Aside) => pos += 1,
+                Some(Entered::Reading(t, at)) if at < steps => {
+                    s.missed += 1;
+                    s.latest = s.latest.max(t);
+                    pos += 1;
+                    s.pos = pos;
+                }
+                Some(Entered::Reading(t, at)) if at == steps => {
+                    s.pos = pos + 1;
+                    s.latest = s.latest.max(t);
+                    break;
+                }
+                _ => {
+                    s.extra += 1;
+                    break;
+                }
             }
-            _ => s.extra += 1,
         }
         Some(Time::from_nanos(s.latest))
     }
@@ -136,7 +150,7 @@ impl Feed {
     fn next_input(&self) -> usize {
         let s = self.lock();
         let mut pos = s.pos;
-        while let Some(Entered::Reading(_) | Entered::Aside) = s.readings.get(pos) {
+        while let Some(Entered::Reading(..) | Entered::Aside) = s.readings.get(pos) {
             pos += 1;
         }
         pos
@@ -147,7 +161,7 @@ impl Feed {
     fn given(&self, pos: usize, t: u64) {
         let mut s = self.lock();
         while s.pos < pos {
-            if let Some(Entered::Reading(r)) = s.readings.get(s.pos).copied() {
+            if let Some(Entered::Reading(r, _)) = s.readings.get(s.pos).copied() {
                 s.missed += 1;
                 s.latest = s.latest.max(r);
             }
@@ -198,22 +212,31 @@ pub(crate) struct Replay {
     durable: HashMap<NodeId, Arc<crate::task::Durable>>,
     // Ends of bodies run again, held until the journal gives them.
     held: Vec<Ended>,
+    // Bodies aborted at once, whose stops were held then, their drops not reported yet.
+    dropped: Vec<Job>,
     // Inputs given.
     given: u64,
     // What each body read from outside through `Ctx::record`, by node number, in order.
-    recorded: HashMap<u64, std::collections::VecDeque<serde_json::Value>>,
+    recorded: HashMap<u64, std::collections::VecDeque<(serde_json::Value, u64)>>,
+    // Bodies that read through `Ctx::record_async`, each waiting until the run has taken the
+    // steps it had when it read, as in the run, where the read took its time.
+    reads: Vec<(u64, tokio::sync::oneshot::Sender<()>)>,
     // How the run ends, once the replay decided it.
     pub(crate) outcome: Option<RunOutcome>,
 }
 
 impl Replay {
     pub(crate) fn new(journal: Journal, decode: ValueDecoder, at_end: AtEnd) -> Replay {
+        REPLAYS.store(true, Ordering::Relaxed);
         let feed = Arc::new(Feed::new(&journal.entries));
-        let mut recorded: HashMap<u64, std::collections::VecDeque<serde_json::Value>> =
+        let mut recorded: HashMap<u64, std::collections::VecDeque<(serde_json::Value, u64)>> =
             HashMap::new();
         for e in &journal.entries {
             if let Input::Recorded { node, value } = &e.input {
-                recorded.entry(*node).or_default().push_back(value.clone());
+                recorded
+                    .entry(*node)
+                    .or_default()
+                    .push_back((value.clone(), e.at));
             }
         }
         Replay {
@@ -226,15 +249,17 @@ impl Replay {
             displays: HashMap::new(),
             durable: HashMap::new(),
             held: Vec::new(),
+            dropped: Vec::new(),
             given: 0,
             recorded,
+            reads: Vec::new(),
             outcome: None,
         }
     }
 
     /// What node `display`'s body read next through `Ctx::record` in the run; a report if it read
     /// nothing more there (the replay then stops, rule 4).
-    pub(crate) fn recorded(&mut self, display: u64) -> Option<serde_json::Value> {
+    pub(crate) fn recorded(&mut self, display: u64) -> Option<(serde_json::Value, u64)> {
         let value = self.recorded.get_mut(&display).and_then(|q| q.pop_front());
         if value.is_none() && self.outcome.is_none() {
             let pos = self.feed.next_input();
@@ -313,9 +338,56 @@ impl Replay {
         self.held.push(ended);
     }
 
+    /// A body was aborted at once (no grace period): its stop is held now, as in the run its drop
+    /// came before anything else took the engine, whenever the drop is reported here.
+    pub(crate) fn dropped_at_once(&mut self, job: Job) {
+        if self.active() {
+            self.dropped.push(job);
+            self.held.push(Ended::Dropped(job));
+        }
+    }
+
+    /// The drop of `job` is reported: whether its stop was held already.
+    pub(crate) fn reported(&mut self, job: Job) -> bool {
+        match self.dropped.iter().position(|j| *j == job) {
+            Some(i) => {
+                self.dropped.swap_remove(i);
+                true
+            }
+            None => false,
+        }
+    }
+
     /// Jobs the engine counts as running that wait for the journal.
     pub(crate) fn waiting(&self) -> usize {
-        self.stubs.len() + self.held.len()
+        self.stubs.len() + self.held.len() + self.reads.len()
+    }
+
+    /// A body's read of the run's step `at` waits, if the replay has not taken as many: `None`
+    /// when it need not.
+    pub(crate) fn read_at(
+        &mut self,
+        at: u64,
+        steps: u64,
+    ) -> Option<tokio::sync::oneshot::Receiver<()>> {
+        if at <= steps {
+            return None;
+        }
+        let (tx, rx) = tokio::sync::oneshot::channel();
+        self.reads.push((at, tx));
+        Some(rx)
+    }
+
+    /// The reads whose step the replay has come to go on (in the order of their steps).
+    fn release_reads(&mut self, steps: u64) {
+        if self.reads.is_empty() {
+            return;
+        }
+        self.reads.sort_by_key(|(at, _)| *at);
+        while self.reads.first().is_some_and(|(at, _)| *at <= steps) {
+            let (_, tx) = self.reads.remove(0);
+            let _ = tx.send(());
+        }
     }
 
     /// Stops the replay at entry `pos` with a report (rule 4): nothing more is given, and the run
@@ -404,9 +476,65 @@ fn describe(input: &Input) -> String {
     }
 }
 
+/// Whether some replay ran in this process: only then do actions' polls mark themselves.
+static REPLAYS: AtomicBool = AtomicBool::new(false);
+
+thread_local! {
+    // How deep this thread is in polls of actions, and the run whose inputs wait for the end of
+    // the outermost one.
+    static IN_ACTION: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
+    static WAITING: std::cell::RefCell<Option<Arc<Shared>>> = const { std::cell::RefCell::new(None) };
+}
+
+/// The poll of an action, while a replay runs: the inputs the run has come to wait for its end,
+/// as in the run, where an input came between polls, never in the middle of one (rule 3).
+pub(crate) struct ActionPoll(bool);
+
+impl ActionPoll {
+    #[inline(always)]
+    pub(crate) fn begin() -> ActionPoll {
+        if !REPLAYS.load(Ordering::Relaxed) {
+            return ActionPoll(false);
+        }
+        IN_ACTION.with(|d| d.set(d.get() + 1));
+        ActionPoll(true)
+    }
+}
+
+impl Drop for ActionPoll {
+    fn drop(&mut self) {
+        if !self.0 {
+            return;
+        }
+        let outermost = IN_ACTION.with(|d| {
+            d.set(d.get().saturating_sub(1));
+            d.get() == 0
+        });
+        if !outermost {
+            return;
+        }
+        if let Some(shared) = WAITING.with(|w| w.borrow_mut().take()) {
+            // An access ends with its effects carried out, and so the inputs given.
+            drop(shared.enter());
+        }
+    }
+}
+
+/// Whether an action is being polled on this thread (then `shared`'s inputs wait for its end).
+fn in_action(shared: &Arc<Shared>) -> bool {
+    if IN_ACTION.with(|d| d.get()) == 0 {
+        return false;
+    }
+    WAITING.with(|w| *w.borrow_mut() = Some(shared.clone()));
+    true
+}
+
 /// Gives the engine the journal's inputs, in order, as far as the run has come (rule 3); at the
 /// journal's end, stops or goes live (rule 5).
 pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
+    if inner.replay.as_ref().is_some_and(|r| r.active()) && in_action(shared) {
+        return;
+    }
     loop {
         let Some(r) = inner
             .replay
@@ -417,6 +545,7 @@ pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
         };
         let pos = r.feed.next_input();
         let steps = inner.engine.steps();
+        r.release_reads(steps);
         let Some(e) = r.entries.get(pos) else {
             // No input left: the bodies catch up with the journal's last entries (a value they
             // read, a reading) before it ends, unless nothing left to run takes them.
@@ -675,7 +804,7 @@ fn finish(inner: &mut Inner, shared: &Arc<Shared>) {
                         .replay
                         .as_mut()
                         .and_then(|r| r.recorded.remove(&stub.display))
-                        .map(Vec::from)
+                        .map(|q| q.into_iter().map(|(v, _)| v).collect())
                         .unwrap_or_default();
                     let (engine, mut host) = inner.split(shared);
                     tcm_core::Shell::start(&mut host, engine, node, reattach(recorded));

@@ -280,7 +280,7 @@ impl Runtime {
         let mut engine = engine(run);
         // The engine reads the clock itself for the inputs that may not need it (`Engine::at_clock`).
         let read = clock.clone();
-        engine.set_clock(Arc::new(move || read.engine_reading()));
+        engine.set_clock(Arc::new(move |steps| read.engine_reading(steps)));
         Runtime {
             shared: Arc::new(Shared {
                 inner: Mutex::new(Inner::new(engine, stopped_rx)),

@@ -130,6 +130,23 @@ impl Mission {
     }
 }
 
+/// Where the robot stands, read through the run's journal (`Ctx::record_async`): a run resumed
+/// after a crash plans its legs from where the robot stood when the crashed run planned them, not
+/// from where it stands now (docs/semantics.md, "Durable runs").
+pub async fn pose_now(ctx: &Ctx, m: &Mission) -> Result<xavier_world::Pose, Failure> {
+    let read = ctx
+        .record_async(|| async {
+            m.robot
+                .pose()
+                .await
+                .map(|p| (p.x, p.y, p.heading))
+                .map_err(|f| f.message)
+        })
+        .await?;
+    let (x, y, heading) = read.map_err(|why| Failure::new("RemoteError", why))?;
+    Ok(xavier_world::Pose { x, y, heading })
+}
+
 /// In a handler: terminates the later siblings of the failed node (the rest of the old route).
 pub fn stop_the_rest(ctx: &Ctx) -> Result<(), Failure> {
     if let Some(failing) = ctx.failing_node() {

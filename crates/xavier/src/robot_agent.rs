@@ -2,7 +2,9 @@
 //! distributed Xavier"), the same binary in another mode, so the demo always finds it. It holds the simulated world of a seed and scenario, joins the system on
 //! 127.0.0.1 as the agent `robot`, offers the robot's commands and answers the mission's queries
 //! (`xavier::robot::serve`, `serve_queries`). It prints `ready` once it serves, and exits when its
-//! standard input closes (the demo that started it ended, however it ended).
+//! standard input closes (the demo that started it ended, however it ended), printing what it did
+//! (`agent: started N, …`). Started apart (`--listen`), it holds the commands of an executive that
+//! went for `--hold` seconds, for the executive to come back and re-attach to them.
 
 use clap::Parser;
 use std::io::{Read, Write};
@@ -96,6 +98,23 @@ async fn serve(cli: Cli) -> Result<(), String> {
         let _ = tx.send(());
     });
     let _ = rx.await;
+    // What the agent did, for a person or a test reading it: bodies started, re-attached by an
+    // executive that came back, and aborted for want of one.
+    let stats = agent.stats();
+    {
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(
+            out,
+            "agent: started {}, ended {}, cancelled {}, reattached {}, orphaned {}, duplicates {}",
+            stats.started,
+            stats.ended,
+            stats.cancelled,
+            stats.reattached,
+            stats.orphaned,
+            stats.duplicates
+        );
+        let _ = out.flush();
+    }
     agent.close().await;
     Ok(())
 }

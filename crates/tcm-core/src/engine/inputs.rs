@@ -98,7 +98,26 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             if let Some(q) = self.inputs.as_mut() {
                 q.push_back((now, at, input));
             }
+            self.recorded += 1;
         }
+    }
+
+    /// Whether the engine records its inputs (for a journal).
+    #[must_use]
+    pub fn records_inputs(&self) -> bool {
+        self.inputs.is_some()
+    }
+
+    /// Carries out `request`, a request of a command's action, as no step of the run unless it is
+    /// an input (a state variable set, say): a replay does not run commands, and must count what
+    /// the run counted ([`Engine::steps`]).
+    pub fn aside<R>(&mut self, request: impl FnOnce(&mut Self) -> R) -> R {
+        let (steps, mark, recorded) = (self.steps, self.mark, self.recorded);
+        let r = request(self);
+        if self.recorded == recorded {
+            (self.steps, self.mark) = (steps, mark);
+        }
+        r
     }
 
     /// The engine read its clock, `t`: recorded first, as the input it is.

@@ -226,6 +226,8 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     steer: Option<Box<steer::Steering>>,
     // The inputs taken, while recording them for a journal (`inputs.rs`).
     inputs: Option<VecDeque<(Time, u64, inputs::InputRecord)>>,
+    // How many inputs (readings aside) were recorded so far (`Engine::aside`).
+    recorded: u64,
 }
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
@@ -273,6 +275,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             states: state::States::default(),
             steer: None,
             inputs: None,
+            recorded: 0,
         };
         engine.push_trace(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,
@@ -385,7 +388,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     fn catch_up(&mut self) {
         self.behind = false;
         if let Some(clock) = &self.clock {
-            let t = clock();
+            let t = clock(self.steps);
             self.clock_read(t);
             if t > self.now {
                 self.now = t;
@@ -400,7 +403,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     fn catch_up_quietly(&mut self) {
         self.behind = false;
         if let Some(clock) = &self.clock {
-            let t = clock();
+            let t = clock(self.steps);
             if t > self.now {
                 self.now = t;
             }
@@ -527,7 +530,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             return;
         }
         self.behind = false;
-        if let Some(now) = self.clock.as_ref().map(|clock| clock()) {
+        if let Some(now) = self.clock.as_ref().map(|clock| clock(self.steps)) {
             self.clock_read(now);
             self.fire_timers(now, false);
             if now > self.now {

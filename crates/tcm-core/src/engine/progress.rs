@@ -62,8 +62,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         };
         if n.stopping {
             // A terminated node's action ended before it could be stopped: whatever it returned,
-            // the node was terminated (docs/semantics.md, "Termination").
-            self.handle_action_stopped(now, node);
+            // the node was terminated (docs/semantics.md, "Termination"). Part of this input: no
+            // input or step of its own, so that a replay giving this end does what the run did.
+            self.stopped(node);
             return Ok(());
         }
         if n.state(Facet::Handling) != State::Active
@@ -111,6 +112,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.record(|e| InputRecord::Stopped {
             node: e.display_of(node),
         });
+        self.stopped(node);
+    }
+
+    /// `node`'s action no longer runs, after a cancellation.
+    fn stopped(&mut self, node: NodeId) {
         let stopping =
             self.check_run(node).is_ok() && self.nodes.get(node).is_some_and(|n| n.stopping);
         if stopping {

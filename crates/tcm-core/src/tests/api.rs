@@ -499,7 +499,7 @@ fn monitor_info_answers_for_the_monitor_and_its_activations() {
 fn counting_clock(e: &mut Bare) -> (Arc<AtomicU64>, Arc<AtomicU64>) {
     let (at, reads) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
     let (a, r) = (at.clone(), reads.clone());
-    e.set_clock(Arc::new(move || {
+    e.set_clock(Arc::new(move |_| {
         r.fetch_add(1, Ordering::Relaxed);
         Time::ZERO + s(a.load(Ordering::Relaxed) as f64 / 1000.0)
     }));

@@ -95,7 +95,7 @@ fn each_reading_of_the_clock_is_recorded() {
     let mut sim = Sim::new();
     let reading = Arc::new(AtomicU64::new(7_000_000_000));
     let clock = reading.clone();
-    sim.engine.set_clock(Arc::new(move || {
+    sim.engine.set_clock(Arc::new(move |_| {
         Time::from_nanos(clock.load(Ordering::Relaxed))
     }));
     sim.engine.record_inputs(true);

@@ -333,6 +333,8 @@ impl<F: Future + Unpin> Future for CatchUnwind<F> {
         cx: &mut std::task::Context<'_>,
     ) -> std::task::Poll<Self::Output> {
         let fut = &mut self.0;
+        // While a replay runs, its inputs wait for the end of this poll (`replay.rs`, rule 3).
+        let _poll = crate::replay::ActionPoll::begin();
         match std::panic::catch_unwind(AssertUnwindSafe(|| Pin::new(fut).poll(cx))) {
             Ok(std::task::Poll::Pending) => std::task::Poll::Pending,
             Ok(std::task::Poll::Ready(v)) => std::task::Poll::Ready(Ok(v)),

@@ -126,21 +126,28 @@ impl Shell<Action, Factory> for Host<'_> {
         }
         // Removed from the running actions either way: an action in its grace period is never
         // parked again, so it keeps the run busy, not stuck, until it stops.
-        match self.aborts.remove(&node) {
+        let at_once = match self.aborts.remove(&node) {
             Some(Running::Task(h)) => {
                 self.cancels
-                    .cancel(self.shared, self.spawner, node, TaskRef::Task(h));
+                    .cancel(self.shared, self.spawner, node, TaskRef::Task(h))
             }
             Some(Running::Parked(p)) => {
                 self.cancels
-                    .cancel(self.shared, self.spawner, node, TaskRef::Parked(p));
+                    .cancel(self.shared, self.spawner, node, TaskRef::Parked(p))
             }
             // The pump holds it: it drops it unpolled, or cancels the task it becomes.
             Some(Running::Inline) => {
                 self.inline_cancelled.push(node);
                 self.shared.inline_cancels.fetch_add(1, Ordering::Relaxed);
+                true
             }
-            None => {}
+            None => false,
+        };
+        if at_once {
+            if let Some(r) = self.replay.as_mut() {
+                // Its stop is certain now, whenever its drop is reported (`replay.rs`, rule 3).
+                r.dropped_at_once(Job::from(node));
+            }
         }
         self.parking.forget_job(Job::from(node));
         self.activation_data.remove(&node);

@@ -41,6 +41,9 @@ pub(crate) fn registry() -> Registry {
                 .collect::<Vec<_>>()
         })
         .function("stretches", mission::stretches)
+        .async_function("pose_now", |ctx: Ctx, m: Host<Mission>| async move {
+            mission::pose_now(&ctx, &m.0).await.map(Host)
+        })
         .function("stop_the_rest", |ctx: Ctx| mission::stop_the_rest(&ctx))
         .function("give_up", |ctx: Ctx, m: Host<Mission>, room: u32| {
             mission::give_up(&ctx, &m.0, room)

@@ -2,6 +2,7 @@
 //! virtual time, asserted on the trace, and the `xavier` binary.
 
 mod binary;
+mod crash;
 mod distributed;
 mod interpreted;
 mod scenarios;
