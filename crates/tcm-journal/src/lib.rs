@@ -72,6 +72,10 @@ pub struct Entry {
     /// when it was read (a replay gives readings in order, wherever they are taken).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub at: u64,
+    /// A body of the run gave it itself (an event it raised, a state variable it set): a replay
+    /// runs the body again, which gives it again, and so does not give it from the journal.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub body: bool,
     /// What came in.
     #[serde(flatten)]
     pub input: Input,

@@ -213,10 +213,23 @@ impl Writer {
 
     /// Adds one input to the batch [`Writer::commit`] writes (`at`: see [`Entry::at`]).
     pub fn add(&mut self, t: u64, at: u64, input: Input) -> Result<(), JournalError> {
+        self.add_given(t, at, input, false)
+    }
+
+    /// [`Writer::add`], `body` saying whether a body of the run gave the input itself
+    /// ([`Entry::body`]).
+    pub fn add_given(
+        &mut self,
+        t: u64,
+        at: u64,
+        input: Input,
+        body: bool,
+    ) -> Result<(), JournalError> {
         let entry = Entry {
             n: self.next,
             t,
             at,
+            body,
             input,
         };
         self.scratch.clear();

@@ -582,6 +582,10 @@ impl Inner {
                         .filter(|(_, p)| p.agent == agent)
                         .map(|(id, _)| *id)
                         .collect();
+                    if !lost.is_empty() {
+                        tracing::warn!(target: "tcm_zenoh", agent,
+                            "agent {agent}'s token was deleted: {} remote task(s) placed there fail with AgentLost", lost.len());
+                    }
                     for id in lost {
                         if let Some(p) = s.pending.get(&id) {
                             let _ = p.tx.send(Incoming::Lost);

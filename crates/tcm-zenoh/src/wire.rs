@@ -148,8 +148,14 @@ pub(crate) enum ToExec {
         sent: u64,
         done: Option<Result<Json, RemoteFailure>>,
     },
-    /// The answer to `Reattach`, numbered 0: the agent does not have the task (any more).
-    Unattached { reason: String },
+    /// The answer to `Reattach`, numbered 0: the agent does not have the task. `started`: it had
+    /// it (it ended, was cancelled, or was aborted when its hold ended); if not, its start never
+    /// reached the agent, and the executive sends it now.
+    Unattached {
+        reason: String,
+        #[serde(default)]
+        started: bool,
+    },
 }
 
 impl ToAgent {

@@ -577,6 +577,11 @@ impl Ctx {
             return Ok(inner.engine.aside(|e| f(e, now))?);
         }
         let now = inner.engine.at_clock();
+        // A body's (or a callback's), not the program's session's: run again by a replay, which
+        // gives what it gives again.
+        if inner.engine.records_inputs() && self.node != inner.engine.root() {
+            return Ok(inner.engine.by_body(|e| f(e, now))?);
+        }
         Ok(f(&mut inner.engine, now)?)
     }
 }

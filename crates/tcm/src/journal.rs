@@ -66,7 +66,7 @@ impl Journaled {
     pub(crate) fn drain(&mut self, engine: &mut Engine<Action, Factory>) {
         // One batch for the inputs of one access: they are written (and, with a sync per record,
         // synced) together, before the effects they cause.
-        while let Some((t, at, input)) = engine.poll_input() {
+        while let Some((t, at, input, body)) = engine.poll_input_given() {
             if self.failed.is_some() {
                 continue;
             }
@@ -103,7 +103,7 @@ impl Journaled {
                         value: Some(value),
                     },
                 ),
-                (other, _) => self.writer.add(t.as_nanos(), at, entry(other)),
+                (other, _) => self.writer.add_given(t.as_nanos(), at, entry(other), body),
             };
             if let Err(e) = added {
                 self.failed = Some(e.to_string());

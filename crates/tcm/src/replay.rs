@@ -87,6 +87,8 @@ impl Feed {
                     .iter()
                     .map(|e| match e.input {
                         Input::Clock => Entered::Reading(e.t, e.at),
+                        // The replay's body gives it again.
+                        _ if e.body => Entered::Aside,
                         Input::Recorded { .. } => Entered::Aside,
                         _ => Entered::Input,
                     })

@@ -80,7 +80,24 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// point of what the bodies ask).
     #[must_use]
     pub fn poll_input(&mut self) -> Option<(Time, u64, InputRecord)> {
+        self.poll_input_given()
+            .map(|(t, at, input, _)| (t, at, input))
+    }
+
+    /// [`Engine::poll_input`], with whether a body gave the input itself ([`Engine::by_body`]):
+    /// a replay runs the body again, which gives it again.
+    #[must_use]
+    pub fn poll_input_given(&mut self) -> Option<(Time, u64, InputRecord, bool)> {
         self.inputs.as_mut()?.pop_front()
+    }
+
+    /// Carries out `request`, a request of a body that the replay of a journal runs again: an
+    /// input it gives (an event it raises, a state variable it sets) is recorded as the body's.
+    pub fn by_body<R>(&mut self, request: impl FnOnce(&mut Self) -> R) -> R {
+        self.by_body = true;
+        let r = request(self);
+        self.by_body = false;
+        r
     }
 
     /// Records an input at the engine's time, if recording.
@@ -95,8 +112,9 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             let now = self.now;
             let input = input(self);
             let at = self.mark;
+            let body = self.by_body;
             if let Some(q) = self.inputs.as_mut() {
-                q.push_back((now, at, input));
+                q.push_back((now, at, input, body));
             }
             self.recorded += 1;
         }
@@ -125,7 +143,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     pub(super) fn clock_read(&mut self, t: Time) {
         let at = self.steps;
         if let Some(q) = self.inputs.as_mut() {
-            q.push_back((t, at, InputRecord::Clock));
+            q.push_back((t, at, InputRecord::Clock, false));
         }
     }
 

@@ -225,7 +225,9 @@ pub struct Engine<A, F = (), S: Keep<Node<A, F>> = Owned> {
     // Pausing, breakpoints, faults and approvals, from the first request (`steer.rs`).
     steer: Option<Box<steer::Steering>>,
     // The inputs taken, while recording them for a journal (`inputs.rs`).
-    inputs: Option<VecDeque<(Time, u64, inputs::InputRecord)>>,
+    inputs: Option<VecDeque<(Time, u64, inputs::InputRecord, bool)>>,
+    // A body is giving the engine an input itself (`Engine::by_body`).
+    by_body: bool,
     // How many inputs (readings aside) were recorded so far (`Engine::aside`).
     recorded: u64,
 }
@@ -276,6 +278,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             steer: None,
             inputs: None,
             recorded: 0,
+            by_body: false,
         };
         engine.push_trace(TraceKind::RunStarted {
             version: TRACE_FORMAT_VERSION,

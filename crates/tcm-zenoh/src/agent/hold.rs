@@ -101,6 +101,7 @@ impl AgentInner {
                 None
             }
         };
+        let had = answer.is_none() && self.lock().ended.contains_key(&key);
         let me = self.clone();
         self.rt.spawn(async move {
             match answer {
@@ -113,15 +114,26 @@ impl AgentInner {
                     .await;
                 }
                 None => {
-                    let reason = format!(
-                        "agent {} does not have task {task} of executive {exec} (never started, \
-                         cancelled, or aborted when its hold ended)",
-                        me.name
-                    );
+                    let reason = if had {
+                        format!(
+                            "agent {} no longer has task {task} of executive {exec} (cancelled, or \
+                             aborted when its hold ended)",
+                            me.name
+                        )
+                    } else {
+                        format!(
+                            "agent {} never had task {task} of executive {exec}: its start did not \
+                             reach it",
+                            me.name
+                        )
+                    };
                     let bytes = Msg {
                         task,
                         seq: 0,
-                        body: ToExec::Unattached { reason },
+                        body: ToExec::Unattached {
+                            reason,
+                            started: had,
+                        },
                     }
                     .encode();
                     let sent = match me.outlet(&exec).await {

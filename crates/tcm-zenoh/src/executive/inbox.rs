@@ -49,7 +49,8 @@ impl Inner {
                         p.last_seq = *sent;
                         Some(done.is_some())
                     }
-                    ToExec::Unattached { .. } => Some(true),
+                    // Never started there: the executive sends the start now.
+                    ToExec::Unattached { started, .. } => Some(*started),
                     _ => None,
                 };
                 if let Some(ends) = ends {

@@ -205,7 +205,7 @@ pub(super) async fn run(spec: Arc<Spec>, ctx: Ctx, args: Json) -> Result<Json, F
         args,
     })
     .await?;
-    follow(&spec, &ctx, link, rx, cancelled, sts).await
+    follow(&spec, &ctx, link, rx, cancelled, sts, None).await
 }
 
 /// The action a resumed run gives a remote command that was running at the crash, from what its
@@ -286,7 +286,15 @@ pub(super) async fn reattach(
     exec.send(&placed.agent, &ask)
         .await
         .map_err(|e| RemoteError::failure(format!("cannot reach agent {}: {e}", placed.agent)))?;
-    follow(&spec, &ctx, link, rx, cancelled, sts).await
+    // Sent if the agent never had the task: the crash came between the placement's record and
+    // the start.
+    let start = ToAgent::Start {
+        node: display,
+        name: spec.name.clone(),
+        task_kind: spec.kind,
+        args,
+    };
+    follow(&spec, &ctx, link, rx, cancelled, sts, Some(start)).await
 }
 
 /// Follows a placed remote task until it ends: its messages, its timeouts, and the node's
@@ -298,6 +306,7 @@ async fn follow(
     mut rx: mpsc::UnboundedReceiver<Incoming>,
     mut cancelled: Cancelled<'_>,
     sts: Option<Instant>,
+    mut unstarted: Option<ToAgent>,
 ) -> Result<Json, Failure> {
     let exec = spec.exec.clone();
     let opts = &spec.options;
@@ -349,7 +358,13 @@ async fn follow(
                         hb = opts.heartbeat.map(|d| now + d);
                         done
                     }
-                    Incoming::Msg(ToExec::Unattached { reason }) => {
+                    Incoming::Msg(ToExec::Unattached { started: false, .. }) if unstarted.is_some() => {
+                        if let Some(start) = unstarted.take() {
+                            link.send(start).await?;
+                        }
+                        None
+                    }
+                    Incoming::Msg(ToExec::Unattached { reason, .. }) => {
                         link.ended = true;
                         if link.cancelled {
                             return Ok(Json::Null);

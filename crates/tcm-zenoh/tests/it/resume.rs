@@ -189,3 +189,87 @@ async fn a_command_whose_hold_ended_fails_with_agent_lost() {
         .collect();
     assert_eq!(lost, ["AgentLost"], "{report}");
 }
+
+/// The crash came between a placement's record and its start: the agent never had the task, so
+/// the resumed executive sends the start now, and the body runs once, there.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
+    bounded(async {
+        let system = system("unstarted");
+        let dir = std::env::temp_dir().join(format!("tcm-zenoh-{system}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch");
+        let path = dir.join("run.journal");
+        // A whole run, journaled; then its journal cut after the placement's record, before the
+        // command's end, as a crash before the start left would leave it.
+        let agent = |starts: Arc<AtomicU32>| {
+            Agent::builder(system.clone(), "arm")
+                .hold(Duration::from_secs(20))
+                .command("slow", move |_ctx, (): ()| {
+                    starts.fetch_add(1, Ordering::SeqCst);
+                    async move {
+                        tokio::time::sleep(Duration::from_millis(200)).await;
+                        Ok::<_, tcm_zenoh::RemoteFailure>(42u32)
+                    }
+                })
+        };
+        let port = tcm_zenoh::config::free_port().expect("port");
+        let first = Arc::new(AtomicU32::new(0));
+        let arm = agent(first.clone())
+            .start(tcm_zenoh::config::loopback_listen(port).expect("config"))
+            .await
+            .expect("the agent starts");
+        let config = tcm_zenoh::config::loopback_connect(port).expect("config");
+        let exec = Executive::open_as(&system, "exec-b", config, RemoteOptions::default())
+            .await
+            .expect("executive opens");
+        exec.wait_for("arm", Some("slow"), Duration::from_secs(10))
+            .await
+            .expect("arm joins");
+        let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("journal");
+        let report = Runtime::new()
+            .journal(writer)
+            .run(mission(exec.clone()))
+            .await
+            .expect("run");
+        assert!(report.is_clean(), "{report}");
+        exec.close().await;
+        arm.close().await;
+        let mut journal = tcm_journal::read(&path, Some("mission@1")).expect("reads");
+        let placed = journal
+            .entries
+            .iter()
+            .position(|e| matches!(e.input, tcm_journal::Input::Recorded { .. }))
+            .expect("the placement was recorded");
+        journal.entries.truncate(placed + 1);
+        // A new agent under the same name, which never had the task.
+        let port = tcm_zenoh::config::free_port().expect("port");
+        let second = Arc::new(AtomicU32::new(0));
+        let arm = agent(second.clone())
+            .start(tcm_zenoh::config::loopback_listen(port).expect("config"))
+            .await
+            .expect("the agent starts again");
+        let config = tcm_zenoh::config::loopback_connect(port).expect("config");
+        let exec = Executive::open_as(&system, "exec-b", config, RemoteOptions::default())
+            .await
+            .expect("the executive opens again");
+        exec.resume_from(&journal);
+        let rec = Recorder::new();
+        let report = Runtime::new()
+            .with_sink(rec.clone())
+            .resume(journal)
+            .run(mission(exec.clone()))
+            .await
+            .expect("the run resumes");
+        exec.close().await;
+        arm.close().await;
+        assert_checked(&rec.events());
+        assert!(report.is_clean(), "{report}");
+        assert_eq!(
+            second.load(Ordering::SeqCst),
+            1,
+            "started once, on the new agent"
+        );
+    })
+    .await;
+}

@@ -468,3 +468,48 @@ async fn a_resumed_run_reattaches_to_what_a_command_started_outside() {
     assert_eq!(completed(job_node), 1);
     assert_eq!(completed(spawned(&events, "report")), 1);
 }
+
+/// A body that raises an event itself and sets a state variable: the replay's body does both
+/// again, and the journal's copies of them are not given a second time.
+#[tokio::test(start_paused = true)]
+async fn what_a_body_gives_the_engine_itself_is_given_once_in_the_replay() {
+    let mission = || {
+        Task::goal("mission", |ctx| async move {
+            ctx.spawn(takes("first", 1.0, json!(1))).wait().await?;
+            ctx.raise("ready")?;
+            let ready = ctx.external("ready")?;
+            ctx.spawn(takes("after", 0.5, json!(2)))
+                .with(tcm::Constraint::disable(
+                    tcm::Facet::Handling,
+                    tcm::When::External(ready),
+                ))
+                .wait()
+                .await?;
+            ctx.spawn(takes("last", 0.5, json!(3))).wait().await?;
+            Ok(())
+        })
+    };
+    let path = scratch("body-inputs");
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let rec = Recorder::new();
+    let report = Runtime::new()
+        .with_sink(rec.clone())
+        .journal(writer)
+        .run(mission())
+        .await
+        .expect("run");
+    assert!(report.is_clean(), "{report}");
+    let rec2 = Recorder::new();
+    let replayed = Runtime::new()
+        .with_sink(rec2.clone())
+        .replay(read(&path))
+        .run(mission())
+        .await
+        .expect("replay");
+    assert!(
+        !matches!(replayed.outcome, RunOutcome::Diverged(_)),
+        "{:?}",
+        replayed.outcome
+    );
+    assert_eq!(lines(&rec2.events()), lines(&rec.events()));
+}

@@ -110,16 +110,17 @@ fn executive(system: &str, port: u16, seed: u64, scenario: &str) -> Command {
     cmd.args(["--distributed", "--agent-port", &port.to_string()])
         .args(["--system", system, "--seed", &seed.to_string()])
         .args(["--scenario", scenario])
-        .stdin(Stdio::null())
-        .stderr(Stdio::null());
+        .stdin(Stdio::null());
     cmd
 }
 
 /// Runs `cmd` to its end, bounded; its exit code and standard output.
 fn finish(mut cmd: Command) -> (Option<i32>, String) {
     let out = tempfile(&cmd);
+    let err = out.with_extension("err");
     let mut child = cmd
         .stdout(std::fs::File::create(&out).expect("an output file"))
+        .stderr(std::fs::File::create(&err).expect("an error file"))
         .spawn()
         .expect("xavier starts");
     let start = Instant::now();
@@ -133,7 +134,12 @@ fn finish(mut cmd: Command) -> (Option<i32>, String) {
         }
         std::thread::sleep(Duration::from_millis(20));
     };
-    let text = std::fs::read_to_string(&out).unwrap_or_default();
+    let mut text = std::fs::read_to_string(&out).unwrap_or_default();
+    let log = std::fs::read_to_string(&err).unwrap_or_default();
+    if !log.trim().is_empty() {
+        text.push_str("\n--- its standard error:\n");
+        text.push_str(&log);
+    }
     (status.code(), text)
 }
 
@@ -258,7 +264,11 @@ fn a_round_killed_at_seeded_points_resumes_and_ends_as_the_uncrashed_round() {
             let _ = std::fs::remove_file(&journal);
             let agent = RobotAgent::start(&system, port, seed, scenario);
             let mut first = executive(&system, port, seed, scenario);
-            first.arg("--journal").arg(&journal).stdout(Stdio::null());
+            first
+                .arg("--journal")
+                .arg(&journal)
+                .stdout(Stdio::null())
+                .stderr(Stdio::null());
             let mut first = first.spawn().expect("the executive starts");
             // A point of the round: after its start, before its end.
             let kill_at = round.mul_f64(0.05 + 0.9 * seeded.fraction());
