@@ -44,6 +44,50 @@ struct Case {
     dead_for: Duration,
 }
 
+/// The agent `arm` of `system`, listening on `port`, holding an absent executive's bodies for
+/// `hold`, offering `slow`: counted in `starts`, it takes `body` and returns 42.
+async fn arm(
+    system: &str,
+    port: u16,
+    hold: Duration,
+    body: Duration,
+    starts: &Arc<AtomicU32>,
+) -> Agent {
+    let counted = starts.clone();
+    Agent::builder(system.to_string(), "arm")
+        .hold(hold)
+        .command("slow", move |_ctx, (): ()| {
+            counted.fetch_add(1, Ordering::SeqCst);
+            async move {
+                tokio::time::sleep(body).await;
+                Ok::<_, tcm_zenoh::RemoteFailure>(42u32)
+            }
+        })
+        .start(tcm_zenoh::config::loopback_listen(port).expect("config"))
+        .await
+        .expect("the agent starts")
+}
+
+/// The executive `id` of `system`, connected to the agent's `port`, once it sees `arm`.
+async fn executive(system: &str, port: u16, id: &str) -> Executive {
+    let config = tcm_zenoh::config::loopback_connect(port).expect("config");
+    let exec = Executive::open_as(system, id, config, RemoteOptions::default())
+        .await
+        .expect("the executive opens");
+    exec.wait_for("arm", Some("slow"), Duration::from_secs(10))
+        .await
+        .expect("arm joins");
+    exec
+}
+
+/// A scratch journal for `system`.
+fn journal_path(system: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("tcm-zenoh-{system}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch");
+    dir.join("run.journal")
+}
+
 /// Runs the case: what the resumed run reported, its trace, and how often the body started.
 async fn crash_and_resume(
     case: Case,
@@ -56,24 +100,9 @@ async fn crash_and_resume(
     let system = system("resume");
     let port = tcm_zenoh::config::free_port().expect("port");
     let starts = Arc::new(AtomicU32::new(0));
-    let counted = starts.clone();
-    let body = case.body;
-    let arm = Agent::builder(system.clone(), "arm")
-        .hold(case.hold)
-        .command("slow", move |_ctx, (): ()| {
-            counted.fetch_add(1, Ordering::SeqCst);
-            async move {
-                tokio::time::sleep(body).await;
-                Ok::<_, tcm_zenoh::RemoteFailure>(42u32)
-            }
-        })
-        .start(tcm_zenoh::config::loopback_listen(port).expect("config"))
-        .await
-        .expect("the agent starts");
-    let dir = std::env::temp_dir().join(format!("tcm-zenoh-{system}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("scratch");
-    let path = dir.join("run.journal");
+    let arm = arm(&system, port, case.hold, case.body, &starts).await;
+    let path = journal_path(&system);
+    let dir = path.parent().expect("its directory").to_path_buf();
 
     // The first executive, in a runtime of its own that dies with it.
     let first = tokio::runtime::Builder::new_multi_thread()
@@ -84,14 +113,8 @@ async fn crash_and_resume(
     let (sys, p) = (system.clone(), path.clone());
     let (give, session) = tokio::sync::oneshot::channel();
     first.spawn(async move {
-        let config = tcm_zenoh::config::loopback_connect(port).expect("config");
-        let exec = Executive::open_as(&sys, "exec-a", config, RemoteOptions::default())
-            .await
-            .expect("executive opens");
+        let exec = executive(&sys, port, "exec-a").await;
         let _ = give.send(exec.session().clone());
-        exec.wait_for("arm", Some("slow"), Duration::from_secs(10))
-            .await
-            .expect("arm joins");
         let writer = Writer::create(&p, "mission@1", Durability::EveryRecord).expect("journal");
         let _ = Runtime::new().journal(writer).run(mission(exec)).await;
     });
@@ -119,10 +142,7 @@ async fn crash_and_resume(
     tokio::time::sleep(case.dead_for).await;
 
     let journal = tcm_journal::read(&crashed, Some("mission@1")).expect("the journal reads");
-    let config = tcm_zenoh::config::loopback_connect(port).expect("config");
-    let exec = Executive::open_as(&system, "exec-a", config, RemoteOptions::default())
-        .await
-        .expect("the executive opens again");
+    let exec = executive(&system, port, "exec-a").await;
     exec.resume_from(&journal);
     let rec = Recorder::new();
     let report = Runtime::new()
@@ -196,36 +216,14 @@ async fn a_command_whose_hold_ended_fails_with_agent_lost() {
 async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
     bounded(async {
         let system = system("unstarted");
-        let dir = std::env::temp_dir().join(format!("tcm-zenoh-{system}"));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("scratch");
-        let path = dir.join("run.journal");
+        let path = journal_path(&system);
         // A whole run, journaled; then its journal cut after the placement's record, before the
         // command's end, as a crash before the start left would leave it.
-        let agent = |starts: Arc<AtomicU32>| {
-            Agent::builder(system.clone(), "arm")
-                .hold(Duration::from_secs(20))
-                .command("slow", move |_ctx, (): ()| {
-                    starts.fetch_add(1, Ordering::SeqCst);
-                    async move {
-                        tokio::time::sleep(Duration::from_millis(200)).await;
-                        Ok::<_, tcm_zenoh::RemoteFailure>(42u32)
-                    }
-                })
-        };
+        let (hold, body) = (Duration::from_secs(20), Duration::from_millis(200));
         let port = tcm_zenoh::config::free_port().expect("port");
         let first = Arc::new(AtomicU32::new(0));
-        let arm = agent(first.clone())
-            .start(tcm_zenoh::config::loopback_listen(port).expect("config"))
-            .await
-            .expect("the agent starts");
-        let config = tcm_zenoh::config::loopback_connect(port).expect("config");
-        let exec = Executive::open_as(&system, "exec-b", config, RemoteOptions::default())
-            .await
-            .expect("executive opens");
-        exec.wait_for("arm", Some("slow"), Duration::from_secs(10))
-            .await
-            .expect("arm joins");
+        let agent = arm(&system, port, hold, body, &first).await;
+        let exec = executive(&system, port, "exec-b").await;
         let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("journal");
         let report = Runtime::new()
             .journal(writer)
@@ -234,7 +232,7 @@ async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
             .expect("run");
         assert!(report.is_clean(), "{report}");
         exec.close().await;
-        arm.close().await;
+        agent.close().await;
         let mut journal = tcm_journal::read(&path, Some("mission@1")).expect("reads");
         let placed = journal
             .entries
@@ -245,14 +243,8 @@ async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
         // A new agent under the same name, which never had the task.
         let port = tcm_zenoh::config::free_port().expect("port");
         let second = Arc::new(AtomicU32::new(0));
-        let arm = agent(second.clone())
-            .start(tcm_zenoh::config::loopback_listen(port).expect("config"))
-            .await
-            .expect("the agent starts again");
-        let config = tcm_zenoh::config::loopback_connect(port).expect("config");
-        let exec = Executive::open_as(&system, "exec-b", config, RemoteOptions::default())
-            .await
-            .expect("the executive opens again");
+        let agent = arm(&system, port, hold, body, &second).await;
+        let exec = executive(&system, port, "exec-b").await;
         exec.resume_from(&journal);
         let rec = Recorder::new();
         let report = Runtime::new()
@@ -262,7 +254,7 @@ async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
             .await
             .expect("the run resumes");
         exec.close().await;
-        arm.close().await;
+        agent.close().await;
         assert_checked(&rec.events());
         assert!(report.is_clean(), "{report}");
         assert_eq!(
