@@ -7,13 +7,16 @@
 //!    what they asked it in the run. Commands do not: the host keeps a command's start as a *stub*
 //!    whose end comes from the journal, with its value (decoded by a [`ValueDecoder`]) or its typed
 //!    failure.
-//! 2. The journal is the run's clock: each reading the engine takes is the journal's next
-//!    (`clock.rs`, [`Feed`]); the shell reads the latest; nothing waits for tokio's time; timers fire
-//!    where the journal says time passed.
+//! 2. The journal is the run's clock: each reading the engine takes is the journal's reading of
+//!    the same step (`clock.rs`, [`Feed`], `replay/feed.rs`); the shell reads the latest; nothing
+//!    waits for tokio's time; timers fire where the journal says time passed.
 //! 3. The inputs are given in the journal's order, each once the run has taken as many steps as
-//!    when it took it (`Entry::at`: the records it had made, traced or not), and, for an end, once
-//!    its job waits for it: a stub, or a body that ended again. A body's end (or its stop) is held
-//!    until the journal gives it.
+//!    when it took it (`Entry::at`: the inputs and requests it had been given a time for, a
+//!    command's own requests aside), between the polls of actions ([`ActionPoll`]), and, for an
+//!    end, once its job waits for it: a stub, or a body that ended again. A body's end (or its
+//!    stop) is held until the journal gives it; the stop of a body aborted at once is held from
+//!    its abort. An input a body gave itself (`Entry::body`) is the replay's body's to give again,
+//!    and a read through `Ctx::record_async` goes on at the run's step of the read.
 //! 4. At the first difference (the run took more steps than the journal's run had, a body ended
 //!    otherwise than the journal says, a node the journal names does not exist, or nothing left
 //!    to run gives the next input) the replay stops: the run ends [`RunOutcome::Diverged`] with a
@@ -21,17 +24,23 @@
 //! 5. At the journal's end a replay ends ([`RunOutcome::JournalEnded`], unless the run ended
 //!    first); a resumed run goes on live: its time from the journal's last, its new inputs
 //!    journaled, a `control` record by `journal` saying where it resumed, the bodies' held ends
-//!    given, and each command still running at the crash failed with the typed exception
-//!    `Interrupted` (a stop, if it was being cancelled).
+//!    given, and each command still running at the crash re-attached (`Task::reattach`), started
+//!    again (`Task::idempotent`), or failed with the typed exception `Interrupted` (a stop, if it
+//!    was being cancelled).
 
 use crate::RunOutcome;
 use crate::host::{Ended, Inner, Shared};
 use crate::task::Value;
 use std::collections::{BTreeMap, HashMap};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use tcm_core::{Failure, Job, NodeId, Time};
 use tcm_journal::{Entry, Input, Journal};
+
+mod feed;
+
+pub(crate) use feed::{ActionPoll, Feed};
+use feed::{REPLAYS, in_action};
 
 /// Who asks for the `control` record that says where a run resumed.
 pub const RESUMED_BY: &str = "journal";
@@ -48,136 +57,6 @@ pub type ValueDecoder = fn(serde_json::Value) -> Option<Value>;
 /// wrote).
 pub fn json_decoded(value: serde_json::Value) -> Option<Value> {
     Some(Box::new(value))
-}
-
-/// What an entry is to the feed.
-#[derive(Clone, Copy)]
-enum Entered {
-    // Its time, and the run's steps when it was read.
-    Reading(u64, u64),
-    Aside,
-    Input,
-}
-
-/// The journal as the run's clock while it replays (rule 2).
-pub(crate) struct Feed {
-    replaying: AtomicBool,
-    state: Mutex<FeedState>,
-}
-
-struct FeedState {
-    // Each entry: a clock reading (its time), an entry no input (a body's recorded value), or an
-    // input; by entry number.
-    readings: Vec<Entered>,
-    // The next entry.
-    pos: usize,
-    // The latest time given.
-    latest: u64,
-    // Readings the replay took that the journal does not have there, and the reverse.
-    extra: u64,
-    missed: u64,
-}
-
-impl Feed {
-    fn new(entries: &[Entry]) -> Feed {
-        Feed {
-            replaying: AtomicBool::new(true),
-            state: Mutex::new(FeedState {
-                readings: entries
-                    .iter()
-                    .map(|e| match e.input {
-                        Input::Clock => Entered::Reading(e.t, e.at),
-                        // The replay's body gives it again.
-                        _ if e.body => Entered::Aside,
-                        Input::Recorded { .. } => Entered::Aside,
-                        _ => Entered::Input,
-                    })
-                    .collect(),
-                pos: 0,
-                latest: 0,
-                extra: 0,
-                missed: 0,
-            }),
-        }
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, FeedState> {
-        self.state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-    }
-
-    /// The latest time given, while replaying.
-    pub(crate) fn latest(&self) -> Option<Time> {
-        if !self.replaying.load(Ordering::Relaxed) {
-            return None;
-        }
-        Some(Time::from_nanos(self.lock().latest))
-    }
-
-    /// The engine's reading at its `steps`, while replaying: the journal's next, if it is a
-    /// reading the run took at as many steps; the readings of earlier steps before it, which the
-    /// replay did not take, are passed (their times count). A reading the journal does not have
-    /// there gives the latest time.
-    pub(crate) fn reading(&self, steps: u64) -> Option<Time> {
-        if !self.replaying.load(Ordering::Relaxed) {
-            return None;
-        }
-        let mut s = self.lock();
-        let mut pos = s.pos;
-        loop {
-            match s.readings.get(pos).copied() {
-                Some(Entered::Aside) => pos += 1,
-                Some(Entered::Reading(t, at)) if at < steps => {
-                    s.missed += 1;
-                    s.latest = s.latest.max(t);
-                    pos += 1;
-                    s.pos = pos;
-                }
-                Some(Entered::Reading(t, at)) if at == steps => {
-                    s.pos = pos + 1;
-                    s.latest = s.latest.max(t);
-                    break;
-                }
-                _ => {
-                    s.extra += 1;
-                    break;
-                }
-            }
-        }
-        Some(Time::from_nanos(s.latest))
-    }
-
-    /// The next entry that is no reading, from the next entry on; its number.
-    fn next_input(&self) -> usize {
-        let s = self.lock();
-        let mut pos = s.pos;
-        while let Some(Entered::Reading(..) | Entered::Aside) = s.readings.get(pos) {
-            pos += 1;
-        }
-        pos
-    }
-
-    /// Entry `pos`, at `t`, was given: the readings before it that the replay did not take are
-    /// passed (their times count).
-    fn given(&self, pos: usize, t: u64) {
-        let mut s = self.lock();
-        while s.pos < pos {
-            if let Some(Entered::Reading(r, _)) = s.readings.get(s.pos).copied() {
-                s.missed += 1;
-                s.latest = s.latest.max(r);
-            }
-            s.pos += 1;
-        }
-        s.pos = pos + 1;
-        s.latest = s.latest.max(t);
-    }
-
-    /// The replay is over.
-    fn stop(&self) -> Time {
-        self.replaying.store(false, Ordering::Relaxed);
-        Time::from_nanos(self.lock().latest)
-    }
 }
 
 /// A command started in the replay.
@@ -476,59 +355,6 @@ fn describe(input: &Input) -> String {
         Input::Recorded { node, .. } => format!("a value node {node} read"),
         Input::Control { what, by } => format!("the operation `{what}` by {by}"),
     }
-}
-
-/// Whether some replay ran in this process: only then do actions' polls mark themselves.
-static REPLAYS: AtomicBool = AtomicBool::new(false);
-
-thread_local! {
-    // How deep this thread is in polls of actions, and the run whose inputs wait for the end of
-    // the outermost one.
-    static IN_ACTION: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
-    static WAITING: std::cell::RefCell<Option<Arc<Shared>>> = const { std::cell::RefCell::new(None) };
-}
-
-/// The poll of an action, while a replay runs: the inputs the run has come to wait for its end,
-/// as in the run, where an input came between polls, never in the middle of one (rule 3).
-pub(crate) struct ActionPoll(bool);
-
-impl ActionPoll {
-    #[inline(always)]
-    pub(crate) fn begin() -> ActionPoll {
-        if !REPLAYS.load(Ordering::Relaxed) {
-            return ActionPoll(false);
-        }
-        IN_ACTION.with(|d| d.set(d.get() + 1));
-        ActionPoll(true)
-    }
-}
-
-impl Drop for ActionPoll {
-    fn drop(&mut self) {
-        if !self.0 {
-            return;
-        }
-        let outermost = IN_ACTION.with(|d| {
-            d.set(d.get().saturating_sub(1));
-            d.get() == 0
-        });
-        if !outermost {
-            return;
-        }
-        if let Some(shared) = WAITING.with(|w| w.borrow_mut().take()) {
-            // An access ends with its effects carried out, and so the inputs given.
-            drop(shared.enter());
-        }
-    }
-}
-
-/// Whether an action is being polled on this thread (then `shared`'s inputs wait for its end).
-fn in_action(shared: &Arc<Shared>) -> bool {
-    if IN_ACTION.with(|d| d.get()) == 0 {
-        return false;
-    }
-    WAITING.with(|w| *w.borrow_mut() = Some(shared.clone()));
-    true
 }
 
 /// Gives the engine the journal's inputs, in order, as far as the run has come (rule 3); at the
