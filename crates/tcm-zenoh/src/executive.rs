@@ -1,8 +1,8 @@
 //! The executive: the process that owns the one task tree. It joins a system, follows which agents
 //! are live and what they offer (their liveliness tokens), receives the messages of its remote
 //! tasks and hands each, once and in order, to the node's action (`executive/inbox.rs`,
-//! `remote.rs`), and fails the
-//! remote tasks of an agent whose token is deleted with [`AgentLost`](crate::AgentLost).
+//! `remote.rs`), and fails the remote tasks of an agent whose token is deleted with
+//! [`AgentLost`](crate::AgentLost).
 
 use crate::noise::{Ignored, Noise, Noted};
 use crate::wire::{self, Json, Msg, ToAgent, ToExec};
