@@ -88,6 +88,27 @@ fn journal_path(system: &str) -> std::path::PathBuf {
     dir.join("run.journal")
 }
 
+/// Resumes the mission from `journal` with a new executive `id` of `system` on the agent's
+/// `port`: its report and trace.
+async fn resume(
+    system: &str,
+    port: u16,
+    id: &str,
+    journal: tcm_journal::Journal,
+) -> (tcm::Report, Vec<tcm::TraceEvent>) {
+    let exec = executive(system, port, id).await;
+    exec.resume_from(&journal);
+    let rec = Recorder::new();
+    let report = Runtime::new()
+        .with_sink(rec.clone())
+        .resume(journal)
+        .run(mission(exec.clone()))
+        .await
+        .expect("the run resumes");
+    exec.close().await;
+    (report, rec.events())
+}
+
 /// Runs the case: what the resumed run reported, its trace, and how often the body started.
 async fn crash_and_resume(
     case: Case,
@@ -142,19 +163,10 @@ async fn crash_and_resume(
     tokio::time::sleep(case.dead_for).await;
 
     let journal = tcm_journal::read(&crashed, Some("mission@1")).expect("the journal reads");
-    let exec = executive(&system, port, "exec-a").await;
-    exec.resume_from(&journal);
-    let rec = Recorder::new();
-    let report = Runtime::new()
-        .with_sink(rec.clone())
-        .resume(journal)
-        .run(mission(exec.clone()))
-        .await
-        .expect("the run resumes");
-    exec.close().await;
+    let (report, events) = resume(&system, port, "exec-a", journal).await;
     let stats = arm.stats();
     arm.close().await;
-    (report, rec.events(), starts.load(Ordering::SeqCst), stats)
+    (report, events, starts.load(Ordering::SeqCst), stats)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -244,18 +256,9 @@ async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
         let port = tcm_zenoh::config::free_port().expect("port");
         let second = Arc::new(AtomicU32::new(0));
         let agent = arm(&system, port, hold, body, &second).await;
-        let exec = executive(&system, port, "exec-b").await;
-        exec.resume_from(&journal);
-        let rec = Recorder::new();
-        let report = Runtime::new()
-            .with_sink(rec.clone())
-            .resume(journal)
-            .run(mission(exec.clone()))
-            .await
-            .expect("the run resumes");
-        exec.close().await;
+        let (report, events) = resume(&system, port, "exec-b", journal).await;
         agent.close().await;
-        assert_checked(&rec.events());
+        assert_checked(&events);
         assert!(report.is_clean(), "{report}");
         assert_eq!(
             second.load(Ordering::SeqCst),
