@@ -136,6 +136,10 @@ pub enum Then {
     /// Activates the monitor: `activate <when>` (monitors only). Fires also when the event's node
     /// reaches the event by termination.
     Activate,
+    /// As [`Then::Activate`], the activation carrying the data the monitor keeps at this index
+    /// (TCM's `TCM_ActivateAt(monitor, event, data)`). Made by [`crate::Engine::activate_when`],
+    /// which keeps the data; a constraint written with it otherwise is void.
+    ActivateWith(u16),
     /// `skip if <condition>`: when the node's turn comes (it would start), it completes without
     /// running if the condition holds; its outcome is `skipped`.
     Skip,
@@ -170,6 +174,13 @@ pub enum Constraint {
     /// (docs/semantics.md, "Steering a run", rule 5). No `constrained` record: its `held` record
     /// says it when its turn comes.
     Approval(Option<std::time::Duration>),
+}
+
+impl Then {
+    /// Whether it activates a monitor ([`Then::Activate`] or [`Then::ActivateWith`]).
+    pub fn activates(self) -> bool {
+        matches!(self, Then::Activate | Then::ActivateWith(_))
+    }
 }
 
 impl Constraint {
@@ -214,7 +225,11 @@ impl Constraint {
             self,
             Constraint::Trigger(
                 _,
-                Then::Terminate | Then::Activate | Then::Invariant | Then::Pause
+                Then::Terminate
+                    | Then::Activate
+                    | Then::ActivateWith(_)
+                    | Then::Invariant
+                    | Then::Pause
             ) | Constraint::Parallel
         )
     }
@@ -226,7 +241,11 @@ impl Constraint {
             self,
             Constraint::Trigger(
                 _,
-                Then::Terminate | Then::Activate | Then::Invariant | Then::Pause
+                Then::Terminate
+                    | Then::Activate
+                    | Then::ActivateWith(_)
+                    | Then::Invariant
+                    | Then::Pause
             )
         )
     }

@@ -95,6 +95,28 @@ impl Ctx {
         Ok(act)
     }
 
+    /// Activates `monitor` when `when` happens, that activation carrying `data` for its body,
+    /// which reads it with [`Ctx::activation_data`] (TCM's `TCM_ActivateAt(monitor, event, data)`,
+    /// `TCM_ActivateIn(monitor, delay, data)`, `TCM_ActivateInAfter`). `when` is an event of a
+    /// node, a time or a delay (`When::Now`, `At`, `In`, `Event`, `After`); a condition, a change
+    /// or an external event is refused, since it makes activations of its own (an external event
+    /// raised with data gives them its data). Like the constraint `activate at E`: applied to a
+    /// monitor that is not handling yet, it waits for it, and past the monitor's maximum it makes
+    /// no activation.
+    pub fn activate_when<T: Any + Send + Sync>(
+        &self,
+        monitor: NodeId,
+        when: tcm_core::When,
+        data: T,
+    ) -> Result<(), Error> {
+        let mut inner = self.shared.enter()?;
+        let now = inner.engine.at_clock();
+        inner
+            .engine
+            .activate_when(now, monitor, when, Arc::new(data))?;
+        Ok(())
+    }
+
     /// In a monitor activation: the data it was activated with ([`Ctx::activate_with`], or an
     /// external event raised with data, [`EventHandle::raise_with`](crate::EventHandle::raise_with)),
     /// if it is a `T`. `None` for an activation made otherwise (a period, a constraint, an event

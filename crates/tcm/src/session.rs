@@ -209,6 +209,17 @@ impl Session {
         self.ctx.activate(monitor)
     }
 
+    /// Activates a monitor when `when` happens, that activation carrying `data` (see
+    /// [`Ctx::activate_when`]).
+    pub fn activate_when<T: Any + Send + Sync>(
+        &self,
+        monitor: NodeId,
+        when: tcm_core::When,
+        data: T,
+    ) -> Result<(), Error> {
+        self.ctx.activate_when(monitor, when, data)
+    }
+
     /// Activates a monitor now with data for that activation (see [`Ctx::activate_with`]).
     pub fn activate_with<T: Any + Send + Sync>(
         &self,

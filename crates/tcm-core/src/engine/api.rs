@@ -240,6 +240,10 @@ pub enum EngineError {
     /// A monitor operation on a node that is not a monitor (or a monitor spawned without its body).
     #[error("node {{{0}}} is not a monitor (a monitor is spawned with its body and parameters)")]
     NotAMonitor(u64),
+    /// An activation trigger with data on something that carries none of its own
+    /// ([`Engine::activate_when`]).
+    #[error("{0}")]
+    ActivationData(&'static str),
     /// Activation of a monitor whose handling is not active.
     #[error("monitor {{{0}}} is not active: it has not started, has completed, or was terminated")]
     InactiveMonitor(u64),

@@ -46,7 +46,7 @@ impl Then {
         match self {
             Then::Enable(f) => TraceThen::Enable(f),
             Then::Terminate => TraceThen::Terminate,
-            Then::Activate => TraceThen::Activate,
+            Then::Activate | Then::ActivateWith(_) => TraceThen::Activate,
             Then::Skip => TraceThen::Skip,
             Then::Invariant => TraceThen::Invariant,
             Then::Pause => TraceThen::Pause,
@@ -58,7 +58,7 @@ impl Then {
         match self {
             Then::Enable(f) => f.to_string(),
             Then::Terminate => "terminate".into(),
-            Then::Activate => "activate".into(),
+            Then::Activate | Then::ActivateWith(_) => "activate".into(),
             Then::Skip => "skip".into(),
             Then::Invariant => "invariant".into(),
             Then::Pause => "pause".into(),
@@ -101,7 +101,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             Constraint::Parallel
             | Constraint::Trigger(
                 _,
-                Then::Terminate | Then::Activate | Then::Skip | Then::Invariant | Then::Pause,
+                Then::Terminate
+                | Then::Activate
+                | Then::ActivateWith(_)
+                | Then::Skip
+                | Then::Invariant
+                | Then::Pause,
             ) => &[],
         };
         for &f in gated {
@@ -245,8 +250,25 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     "expansion of a node that does not expand is always completed".into()
                 });
             }
-            Then::Activate if self.node(node).monitor().is_none() => {
+            Then::Activate | Then::ActivateWith(_) if self.node(node).monitor().is_none() => {
                 return self.void(node, || "`activate` applies to monitors only".into());
+            }
+            Then::ActivateWith(i)
+                if matches!(
+                    when,
+                    When::Condition(_) | When::Changed(_) | When::External(_)
+                ) || self
+                    .node(node)
+                    .cold
+                    .as_ref()
+                    .map_or(0, |c| c.payloads.len())
+                    <= usize::from(i) =>
+            {
+                return self.void(node, || {
+                    "an activation carries data only at an event or a time, through \
+                     `Engine::activate_when`"
+                        .into()
+                });
             }
             Then::Skip | Then::Invariant | Then::Pause if !matches!(when, When::Condition(_)) => {
                 return self.void(node, || {
@@ -260,7 +282,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         match when {
             When::Now => {
                 self.constrained(node, || TraceConstraint::trigger(TraceWhen::Now, traced));
-                if then == Then::Activate {
+                if then.activates() {
                     // TCM's "activate at self handling active", which avoids racing the monitor's
                     // own start.
                     let event = Event::on(node, Facet::Handling, Point::Active);
@@ -285,7 +307,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     TraceConstraint::trigger(TraceWhen::External(name), traced)
                 });
                 let ext = &mut self.externals[x.0 as usize];
-                if then == Then::Activate {
+                if then.activates() {
                     // Not latched: every raise from now on activates the monitor.
                     ext.activators.push(node);
                 } else if raised {
@@ -363,7 +385,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         // An activation due in the past still waits for the timer queue's turn, so a monitor
         // spawned with it has started by then.
         let now = self.time();
-        if at > now || then == Then::Activate {
+        if at > now || then.activates() {
             self.block(node, then);
             self.timers
                 .push(at.max(now), TimerKind::Trigger { target: node, then });
@@ -448,6 +470,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }),
             Then::Activate => {
                 self.activation_due(target);
+            }
+            Then::ActivateWith(i) => {
+                let data = self
+                    .nodes
+                    .get(target)
+                    .and_then(|n| n.cold.as_ref()?.payloads.get(usize::from(i)).cloned());
+                if let (Some(act), Some(data)) = (self.activation_due(target), data) {
+                    self.node_mut(act).cold_mut().data = Some(data);
+                }
             }
             // Never armed as a waiter or a timer: `state.rs` acts on these itself.
             Then::Skip | Then::Invariant | Then::Pause => {}

@@ -312,6 +312,10 @@ impl<A: Hash, F: Hash + Clone, S: Keep<Node<A, F>>> Hashing<'_, A, F, S> {
             Then::Pause => 5u8.hash(h),
             Then::Terminate => 1u8.hash(h),
             Then::Activate => 2u8.hash(h),
+            Then::ActivateWith(i) => {
+                6u8.hash(h);
+                i.hash(h);
+            }
         }
     }
 

@@ -31,7 +31,7 @@ use super::node::{Payload, Purpose};
 use super::timers::TimerKind;
 use super::{Engine, EngineError};
 use crate::arena::Keep;
-use crate::constraint::{Constraint, NodeRef};
+use crate::constraint::{Constraint, NodeRef, Then, When};
 use crate::ids::NodeId;
 use crate::time::Time;
 use crate::{Name, NodeKind};
@@ -183,6 +183,48 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         let id = self.make_activation(monitor);
         self.settle();
         Ok(id)
+    }
+
+    /// Activates `monitor` when `when` happens, that activation carrying `data` (TCM's
+    /// `TCM_ActivateAt(monitor, event, data)`, `TCM_ActivateIn(monitor, delay, data)`): the
+    /// activation node's [`Engine::activation_data`]. `when` is an event, a time or a delay
+    /// (`When::Now`, `At`, `In`, `Event`, `After`); an activation made by a condition, a change or
+    /// an external event carries no data of its own, and is refused. As for a `activate`
+    /// constraint otherwise: a trigger that fires after the monitor's maximum makes no activation,
+    /// and one applied to a monitor that is not handling yet waits for it.
+    pub fn activate_when(
+        &mut self,
+        now: Time,
+        monitor: NodeId,
+        when: When,
+        data: std::sync::Arc<dyn std::any::Any + Send + Sync>,
+    ) -> Result<(), EngineError> {
+        // One input: `constrain` advances the engine.
+        let n = self.live(monitor)?;
+        if n.monitor().is_none() {
+            return Err(EngineError::NotAMonitor(n.display));
+        }
+        if matches!(
+            when,
+            When::Condition(_) | When::Changed(_) | When::External(_)
+        ) {
+            return Err(EngineError::ActivationData(
+                "an activation by a condition, a change or an external event carries no data of \
+                 its own (an external event raised with data gives it to each activation)",
+            ));
+        }
+        let payloads = &mut self.node_mut(monitor).cold_mut().payloads;
+        let Ok(i) = u16::try_from(payloads.len()) else {
+            return Err(EngineError::ActivationData(
+                "more than 65,535 activation triggers with data on one monitor",
+            ));
+        };
+        payloads.push(data);
+        self.constrain(
+            now,
+            monitor,
+            Constraint::Trigger(when, Then::ActivateWith(i)),
+        )
     }
 
     /// Counts a trigger of the monitor of `node` (an activation node, or the monitor itself).

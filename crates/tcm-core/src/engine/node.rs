@@ -266,8 +266,12 @@ pub(crate) struct Cold<A, F> {
     pub(crate) never_ends: bool,
     // Held at its turn to start until approved (`Spawn::approval`), with its timeout.
     pub(crate) approval: Option<Option<std::time::Duration>>,
-    // For an activation made by an external event raised with data: that data.
+    // For an activation made by an external event raised with data, or by a trigger that carries
+    // data (`Then::ActivateWith`): that data.
     pub(crate) data: Option<std::sync::Arc<dyn std::any::Any + Send + Sync>>,
+    // For a monitor: the data its activation triggers carry (`Engine::activate_when`), by the
+    // index `Then::ActivateWith` names.
+    pub(crate) payloads: ThinVec<std::sync::Arc<dyn std::any::Any + Send + Sync>>,
 }
 
 /// Where a node's failure goes when no handler on the node takes it.
@@ -314,6 +318,7 @@ impl<A, F> Default for Cold<A, F> {
             never_ends: false,
             approval: None,
             data: None,
+            payloads: ThinVec::new(),
         }
     }
 }

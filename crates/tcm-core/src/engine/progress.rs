@@ -708,7 +708,9 @@ pub(super) fn timer_is_live<A, F, S: Keep<Node<A, F>>>(
         TimerKind::Trigger { target, then } => nodes.get(target).is_some_and(|n| match then {
             Then::Enable(facet) => n.state(facet) == State::Disabled,
             Then::Terminate => n.alive() && n.state(Facet::Execution) != State::Completed,
-            Then::Activate => n.alive() && n.state(Facet::Handling) != State::Completed,
+            Then::Activate | Then::ActivateWith(_) => {
+                n.alive() && n.state(Facet::Handling) != State::Completed
+            }
             // Never timers.
             Then::Skip | Then::Invariant | Then::Pause => false,
         }),

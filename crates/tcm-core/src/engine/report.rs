@@ -288,7 +288,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     Then::Enable(facet) => {
                         r.enable.entry((t.display, facet)).or_default().push(what)
                     }
-                    Then::Activate => {
+                    Then::Activate | Then::ActivateWith(_) => {
                         let what = format!("an activation when {what}");
                         r.activate.entry(t.display).or_default().push(what);
                     }

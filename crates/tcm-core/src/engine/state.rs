@@ -418,7 +418,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                     self.add_watch(node, Some(c), act, false);
                 }
             }
-            Then::Activate => {
+            // `Then::ActivateWith` is void on a condition (`arm`, step 1).
+            Then::Activate | Then::ActivateWith(_) => {
                 self.add_watch(node, Some(c), Act::Activate, holds);
                 if holds {
                     // As `activate` alone: once the monitor's handling is active.
@@ -461,6 +462,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         let Some(var) = self.states.vars.get(v.0 as usize) else {
             return self.void(node, || "unknown state variable".into());
         };
+        // (`Then::ActivateWith` was made void before: `arm`, step 1.)
         if then != Then::Activate {
             return self.void(node, || {
                 "`on change of` applies to `activate` (monitors) only".into()

@@ -495,6 +495,51 @@ fn monitor_info_answers_for_the_monitor_and_its_activations() {
     checked_trace(&mut e);
 }
 
+/// A trigger with data (`Engine::activate_when`) hands its data to the activation it makes, and
+/// the activation alone; `Then::ActivateWith` written by hand, naming data the monitor does not
+/// keep, is void, as is data on an activation by an external event.
+#[test]
+fn an_activation_trigger_with_data_hands_it_to_its_activation() {
+    let mut e: Bare = Engine::new(1);
+    let m = e
+        .spawn(
+            Time::ZERO,
+            Spawn::monitor(e.root(), "m", MonitorSpec::new("body")),
+        )
+        .expect("spawn");
+    e.activate_when(Time::ZERO, m, When::In(s(1.0)), std::sync::Arc::new(7u32))
+        .expect("a trigger with data");
+    e.constrain(
+        Time::ZERO,
+        m,
+        Constraint::Trigger(When::Now, Then::ActivateWith(3)),
+    )
+    .expect("void, not refused");
+    let x = e.external("x");
+    assert!(matches!(
+        e.activate_when(Time::ZERO, m, When::External(x), std::sync::Arc::new(8u32)),
+        Err(EngineError::ActivationData(_))
+    ));
+    assert!(e.poll_effect().is_none());
+    e.handle_timeout(Time::ZERO + s(1.0));
+    let (job, _, _) = invoked(&mut e);
+    let data = e.activation_data(job.node()).expect("data");
+    assert_eq!(data.downcast_ref::<u32>(), Some(&7));
+    assert!(e.activation_data(m).is_none());
+    let trace = checked_trace(&mut e);
+    let voids: Vec<_> = trace
+        .iter()
+        .filter_map(|t| match &t.kind {
+            TraceKind::ConstraintVoid { reason, .. } => Some(reason.as_str()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        voids,
+        ["an activation carries data only at an event or a time, through `Engine::activate_when`"]
+    );
+}
+
 /// A clock for `Engine::with_clock` that reads `at` (in ms) and counts its readings.
 fn counting_clock(e: &mut Bare) -> (Arc<AtomicU64>, Arc<AtomicU64>) {
     let (at, reads) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));

@@ -20,6 +20,7 @@ fn target(e: &mut SimEngine, root: NodeId, when: When, then: Then) -> NodeId {
         Then::Skip | Then::Invariant | Then::Pause => {
             unreachable!("conditions are tested in `conditions`")
         }
+        Then::ActivateWith(_) => unreachable!("made by `Engine::activate_when` alone"),
     }
 }
 

@@ -462,7 +462,10 @@ impl Frame {
                         return Ok(match then {
                             ::tdl::Then::Enable(f) => Constraint::disable(*f, When::Condition(c)),
                             ::tdl::Then::Terminate => Constraint::terminate(When::Condition(c)),
-                            ::tdl::Then::Activate => Constraint::activate(When::Condition(c)),
+                            // TDL writes no trigger with data (`Ctx::activate_when`).
+                            ::tdl::Then::Activate | ::tdl::Then::ActivateWith(_) => {
+                                Constraint::activate(When::Condition(c))
+                            }
                             ::tdl::Then::Skip => Constraint::skip_if(c),
                             ::tdl::Then::Invariant => Constraint::invariant(c),
                             ::tdl::Then::Pause => Constraint::pause_while(c),

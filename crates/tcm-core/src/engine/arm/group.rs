@@ -91,7 +91,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             delay,
             then,
         } = g;
-        if then == Then::Activate && self.node(target).monitor().is_none() {
+        if then.activates() && self.node(target).monitor().is_none() {
             return self.void(target, || "`activate` applies to monitors only".into());
         }
         let events = members
