@@ -248,7 +248,26 @@ enum TraceCommand {
     },
 }
 
+/// The commands that need zenoh (the feature `net`): built without it, each says how to build
+/// it in rather than being unknown.
+#[cfg(not(feature = "net"))]
+const NET_COMMANDS: [&str; 9] = [
+    "serve", "load", "unload", "programs", "start", "stop", "raise", "status", "certs",
+];
+
 fn main() -> ExitCode {
+    #[cfg(not(feature = "net"))]
+    if let Some(cmd) = std::env::args()
+        .nth(1)
+        .filter(|a| NET_COMMANDS.contains(&a.as_str()))
+    {
+        eprintln!(
+            "tdl: `tdl {cmd}` needs zenoh, and this tdl was built without the feature `net`: \
+             install it with `cargo install --path crates/tdl-cli --features net` \
+             (docs/tools.md)"
+        );
+        return ExitCode::from(2);
+    }
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(err) => {

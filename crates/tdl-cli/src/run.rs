@@ -316,7 +316,7 @@ async fn connect(
     let names: Vec<&str> = outside.iter().map(|(n, _)| n.as_str()).collect();
     bail!(
         "the program needs tasks from agents ({}), and this tdl was built without the feature \
-         `net` (zenoh): install it with its default features (`cargo install --path crates/tdl-cli`)",
+         `net` (zenoh): install it with `cargo install --path crates/tdl-cli --features net`",
         names.join(", ")
     )
 }

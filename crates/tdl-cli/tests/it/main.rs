@@ -6,15 +6,21 @@
 
 use std::process::Command;
 
+#[cfg(feature = "net")]
 mod certs;
 mod doc;
 mod durable;
 mod export;
 mod graph;
+#[cfg(feature = "net")]
 mod run;
+#[cfg(feature = "net")]
 mod serve;
+#[cfg(feature = "net")]
 mod serve_killed;
+#[cfg(feature = "net")]
 mod serve_python;
+#[cfg(feature = "net")]
 mod serve_tls;
 mod sim;
 mod steer;
@@ -419,4 +425,21 @@ fn trace_story_shows_handlers_retries_wiretaps_and_filters() {
     // A bad kind is a usage error.
     let (code, _, _) = tdl(&["trace", "story", file, "--kind", "nonsense"]);
     assert_eq!(code, 2);
+}
+
+/// Built without the feature `net` (the plain install), the commands that need zenoh say how to
+/// build them in, each with the usage error status, instead of being unknown commands.
+#[cfg(not(feature = "net"))]
+#[test]
+fn without_net_the_commands_that_need_zenoh_say_how_to_build_them_in() {
+    for cmd in ["serve", "load", "start", "status", "certs"] {
+        let (code, out, err) = tdl(&[cmd]);
+        assert_eq!(code, 2, "{cmd}: {err}");
+        assert!(out.is_empty(), "{cmd}: {out}");
+        assert!(
+            err.contains(&format!("`tdl {cmd}` needs zenoh"))
+                && err.contains("cargo install --path crates/tdl-cli --features net"),
+            "{cmd}: {err}"
+        );
+    }
 }
