@@ -19,7 +19,7 @@ use std::any::Any;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
 use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, mpsc};
+use std::sync::{Arc, Mutex, mpsc};
 use tcm_core::{
     Driver, Engine, EngineError, Event, Job, Name, NodeId, Spawn, Time, WatchOutcome, WatchToken,
 };
@@ -28,13 +28,16 @@ use tokio::sync::{Notify, oneshot, watch};
 
 mod aborts;
 mod ended;
+mod locked;
 mod shell;
 
 pub(crate) use aborts::{Aborts, Running};
 pub(crate) use ended::{CatchUnwind, Ended, TaskRef, panic_message, panicked, spawn_task};
+pub(crate) use locked::{Locked, lock, lock_as_is, run_callback};
 pub(crate) use shell::Host;
 
-/// A timer callback (`Ctx::invoke_when`, `Ctx::invoke_after`): run once, on the driver's task.
+/// A timer callback (`Ctx::invoke_when`, `Ctx::invoke_after`): run once, when the lock under which
+/// it came due is let go (`host/locked.rs`), or by the driver for one its timers made due.
 pub(crate) type Callback = Box<dyn FnOnce(Ctx, WatchOutcome) + Send>;
 
 /// A timer callback waiting for its event or time.
@@ -45,8 +48,8 @@ pub(crate) struct PendingCallback {
     pub(crate) f: Callback,
 }
 
-/// A timer callback whose event happened or whose time came: the driver traces it and runs it
-/// outside the lock.
+/// A timer callback whose event happened or whose time came: traced and run outside the lock
+/// (`host/locked.rs`).
 pub(crate) struct DueCallback {
     pub(crate) token: WatchToken,
     pub(crate) name: Name,
@@ -603,19 +606,10 @@ pub(crate) fn stops_first(inner: &mut Inner, shared: &Arc<Shared>) {
     }
 }
 
-/// The engine's lock. On a thread whose pump runs for this run, the ends it keeps are reported
-/// first (`pump.rs`): whatever looks at the engine sees them.
-#[inline]
-pub(crate) fn lock(shared: &Arc<Shared>) -> Result<MutexGuard<'_, Inner>, Error> {
-    let mut inner = shared.inner.lock().map_err(|_| Error::Poisoned)?;
-    crate::pump::flush(&mut inner, shared);
-    Ok(inner)
-}
-
 /// Exclusive access to the engine. When it ends, the engine's effects are carried out at once, by
 /// whoever changed the engine, and the driver is woken if it must.
 pub(crate) struct Access<'a> {
-    guard: MutexGuard<'a, Inner>,
+    guard: Locked<'a>,
     shared: &'a Arc<Shared>,
     // The effects were carried out and nothing changed since (`Access::carry_out`).
     settled: bool,

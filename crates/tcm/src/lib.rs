@@ -114,8 +114,8 @@ pub enum Error {
     /// task keeps none).
     #[error("the failed task keeps no arguments of type {0}")]
     ArgsType(&'static str),
-    /// `Runtime::start` was called outside a tokio runtime, where the driver cannot run.
-    #[error("`Runtime::start` must be called inside a tokio runtime")]
+    /// `Runtime::start` (or `EventHandle::spawn`) was called outside a tokio runtime.
+    #[error("`Runtime::start` and `EventHandle::spawn` must be called inside a tokio runtime")]
     NoRuntime,
     /// [`block_on_virtual`] could not build its tokio runtime.
     #[error("cannot start the tokio runtime: {0}")]

@@ -532,7 +532,7 @@ fn report_now(shared: &Arc<Shared>, job: Job, res: ActionResult) -> Result<bool,
     });
     let (mut inner, flushed) = match ended {
         Some(ended) => {
-            let mut inner = shared.inner.lock().map_err(|_| crate::Error::Poisoned)?;
+            let mut inner = crate::host::lock_as_is(shared)?;
             // The batch's clock reading if the report needs the time; else the report reads the
             // clock only if it turns out to need it.
             let now = inner.shares_readings().then(|| {

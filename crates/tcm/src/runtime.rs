@@ -14,7 +14,7 @@
 use crate::Error;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
-use crate::host::{DueCallback, Inner, Panicked, Root, Shared, Status, lock, panic_message};
+use crate::host::{DueCallback, Inner, Panicked, Root, Shared, Status, lock};
 use crate::session::Session;
 use crate::sink::TraceSink;
 use crate::task::Task;
@@ -209,6 +209,24 @@ impl EventHandle {
             name,
             value.into(),
         )?)
+    }
+
+    /// Spawns `fut` as a tokio task of the program beside the run: work outside the tree that
+    /// feeds it (a task reading a socket and raising events or setting state, TCM's
+    /// external-event callbacks). The run counts its wake-ups as it counts its own tasks', so
+    /// once an action wakes it, it runs before the next action is polled, as TCM's agenda
+    /// dispatched external input between any two actions; a task spawned with plain
+    /// `tokio::spawn` waits, on a current-thread runtime, until the actions that end without
+    /// awaiting let the thread go (docs/semantics.md, "Work beside the tree"). It runs on the
+    /// current tokio runtime; outside one, [`Error::NoRuntime`].
+    pub fn spawn<F>(&self, fut: F) -> Result<tokio::task::JoinHandle<F::Output>, Error>
+    where
+        F: std::future::Future + Send + 'static,
+        F::Output: Send + 'static,
+    {
+        let rt = tokio::runtime::Handle::try_current().map_err(|_| Error::NoRuntime)?;
+        let fut = crate::pump::Tracked::new(Box::pin(fut), &self.shared.queued, true);
+        Ok(rt.spawn(fut))
     }
 }
 

@@ -213,16 +213,52 @@ pub(super) fn without_run_ids(lines: Vec<String>) -> Vec<String> {
         .collect()
 }
 
+/// Timer callbacks, which run when the lock under which they came due is let go: on ends in a
+/// chain of actions that end at once, on an event already past (run inside the action), and one
+/// that spawns.
+fn callbacks() -> Task {
+    Task::goal("callbacks", |ctx| async move {
+        let x = ctx.spawn(noop("x")).start()?;
+        let y = ctx
+            .spawn(Task::command("y", move |ctx| async move {
+                ctx.invoke_when(
+                    "past",
+                    crate::Event::new(x, crate::Point::Completed),
+                    |_, _| {},
+                )?;
+                Ok(())
+            }))
+            .serial(NodeRef::Previous)
+            .start()?;
+        ctx.spawn(noop("z")).serial(NodeRef::Previous).start()?;
+        ctx.spawn(sleeper("s", 3)).start()?;
+        ctx.invoke_when(
+            "x done",
+            crate::Event::new(x, crate::Point::Completed),
+            |ctx, _| {
+                let _ = ctx.spawn(noop("from callback")).start();
+            },
+        )?;
+        ctx.invoke_when(
+            "y done",
+            crate::Event::new(y, crate::Point::Completed),
+            |_, _| {},
+        )?;
+        Ok(())
+    })
+}
+
 #[test]
 fn each_program_gives_the_same_trace_with_and_without_the_pump() {
     type Program = (&'static str, fn() -> Task);
-    let programs: [Program; 6] = [
+    let programs: [Program; 7] = [
         ("tie", tie),
         ("waits", waits),
         ("failures", failures),
         ("terminations", terminations),
         ("monitor", monitor),
         ("yields", yields),
+        ("callbacks", callbacks),
     ];
     for (name, program) in programs {
         let pumped = trace_of(Runtime::new(), program());

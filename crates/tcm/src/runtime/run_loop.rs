@@ -139,7 +139,7 @@ impl RunLoop {
             }
             if !turn.due.is_empty() {
                 for due in turn.due {
-                    self.run_callback(due);
+                    crate::host::run_callback(&self.shared, due);
                 }
                 // The callbacks may have changed the engine: look again at once.
                 continue;
@@ -160,38 +160,6 @@ impl RunLoop {
         };
         self.end();
         Ok(result)
-    }
-
-    /// Runs a timer callback on the driver's task, outside the lock (it may call the engine). A
-    /// panic is recorded, like an action's, and the run goes on.
-    fn run_callback(&self, due: DueCallback) {
-        let DueCallback {
-            name,
-            node,
-            f,
-            outcome,
-            ..
-        } = due;
-        let ctx = Ctx {
-            shared: self.shared.clone(),
-            node,
-            purpose: None,
-            job: None,
-            args: lock(&self.shared)
-                .ok()
-                .and_then(|i| i.args.get(&node).cloned()),
-            signal: Default::default(),
-        };
-        let res = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(ctx, outcome)));
-        if let Err(panic) = res {
-            if let Ok(mut inner) = lock(&self.shared) {
-                let by = (node != inner.engine.root()).then_some(node);
-                let message = panic_message(panic.as_ref());
-                let record =
-                    crate::host::panicked(&inner.engine, by, name.to_string(), true, message);
-                inner.panics.push(record);
-            }
-        }
     }
 
     fn end(&self) {

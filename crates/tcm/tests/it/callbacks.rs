@@ -169,3 +169,73 @@ async fn callbacks_due_at_one_time_run_in_the_order_they_were_set() {
     assert_eq!(report.outcome, RunOutcome::Completed);
     assert_eq!(*order.lock().expect("order"), ["a", "d", "b", "c"]);
 }
+
+/// A callback runs when its event happens, before the next action (TCM ran it when the event was
+/// signalled): commands `x`, then `y` after `x`, then `z` after `y`, all ending at once; a
+/// callback on "x execution completed" runs before `y`'s action, not after `z`'s. One set on an
+/// event already past runs at once, inside the action that set it, before `invoke_when` returns.
+/// (With every action a task, the trace is the same: `pump/tests.rs`.)
+#[tokio::test(start_paused = true)]
+async fn a_callback_runs_when_its_event_happens_before_the_next_action() {
+    let log: Arc<Mutex<Vec<&'static str>>> = Arc::default();
+    let l = log.clone();
+    let task = Task::goal("g", move |ctx| async move {
+        let note = |l: &Arc<Mutex<Vec<&'static str>>>, what| l.lock().expect("log").push(what);
+        let (lx, ly, lz) = (l.clone(), l.clone(), l.clone());
+        let x = ctx
+            .spawn(Task::command("x", move |_| async move {
+                note(&lx, "x");
+                Ok(())
+            }))
+            .start()?;
+        let y = ctx
+            .spawn(Task::command("y", move |ctx| async move {
+                note(&ly, "y");
+                // `x` completed already: this callback runs before `invoke_when` returns.
+                let lp = ly.clone();
+                ctx.invoke_when(
+                    "x was done",
+                    Event::on(x, Facet::Execution, Point::Completed),
+                    move |_, _| note(&lp, "past callback"),
+                )?;
+                note(&ly, "y after invoke_when");
+                Ok(())
+            }))
+            .with(Constraint::sequential_previous())
+            .start()?;
+        ctx.spawn(Task::command("z", move |_| async move {
+            note(&lz, "z");
+            Ok(())
+        }))
+        .with(Constraint::Sequential(Facet::Execution, y.into()))
+        .start()?;
+        let lc = l.clone();
+        ctx.invoke_when(
+            "x done",
+            Event::on(x, Facet::Execution, Point::Completed),
+            move |_, _| note(&lc, "callback"),
+        )?;
+        Ok(())
+    });
+    let (report, trace) = run_checked(Runtime::new(), task).await;
+    assert_eq!(report.outcome, RunOutcome::Completed);
+    assert_eq!(
+        *log.lock().expect("log"),
+        [
+            "x",
+            "callback",
+            "y",
+            "past callback",
+            "y after invoke_when",
+            "z"
+        ],
+    );
+    assert_order(
+        &story(&trace),
+        &[
+            "0 x execution completed",
+            "0 callback x done ran",
+            "0 z handling active",
+        ],
+    );
+}

@@ -5,6 +5,7 @@
 mod fig4;
 
 mod activation_data;
+mod beside;
 mod blocking;
 mod callbacks;
 mod cancel;
