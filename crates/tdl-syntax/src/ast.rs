@@ -362,6 +362,10 @@ impl ResourceOp {
 pub struct Block {
     /// Statements in order.
     pub stmts: Vec<Stmt>,
+    /// For each statement, the identifiers its tokens name (nested groups included), sorted:
+    /// whether a variable is named again later, which decides whether an argument is cloned
+    /// (`codegen::by_value`).
+    pub mentions: Vec<Vec<String>>,
     /// Span of the braces.
     pub span: Span,
 }

@@ -20,6 +20,7 @@
 
 mod attached;
 mod body;
+mod by_value;
 mod lower;
 mod pretty_print;
 mod spawn;
@@ -37,6 +38,7 @@ use crate::hir::FileScope;
 use crate::{Parse, parse_str};
 
 use attached::{AttachedParts, attached_handler, wiretap_fn};
+use by_value::Clones;
 
 pub use pretty_print::pretty;
 
@@ -174,7 +176,14 @@ pub fn generated_tags(program: &crate::hir::Program<'_>) -> Vec<crate::hir::Reso
             let Item::Task(task) = item else { continue };
             let resolved = std::cell::RefCell::new(Vec::new());
             let mut diags = Vec::new();
-            body::task_body(&file.scope, task, None, &mut diags, Some(&resolved));
+            body::task_body(
+                &file.scope,
+                task,
+                &Clones::of(task),
+                None,
+                &mut diags,
+                Some(&resolved),
+            );
             out.extend(resolved.into_inner().into_iter().map(|mut it| {
                 it.file = i;
                 it
@@ -314,10 +323,11 @@ pub(crate) fn priority_expr(p: &Priority) -> TokenStream {
 /// `h(args)` with its `maximum activate N`: a `tdl::Handler` expression.
 pub(crate) fn handler_expr(
     it: &HandlerRef,
+    clones: &Clones,
     span: Span,
     diags: &mut Vec<Diagnostic>,
 ) -> TokenStream {
-    let (name, args) = (&it.name, &it.args);
+    let (name, args) = (&it.name, clones.values(&it.args));
     let max = it.max_activate.as_ref().map(|n| {
         let n = count_expr(n, span, diags);
         quote!(.max_activations(#n))
@@ -334,6 +344,7 @@ fn task_items(
     diags: &mut Vec<Diagnostic>,
 ) -> TokenStream {
     let monitor = task.kind == TaskKind::Monitor;
+    let clones = Clones::of(task);
     let mut modifiers = TokenStream::new();
     if task.persistent {
         if task.kind == TaskKind::Handler {
@@ -370,7 +381,7 @@ fn task_items(
             }
             TaskConstraintKind::OnTerminate(it) => {
                 // One local each: a task may have several (labels are refused by the diagnosis).
-                let (name, args) = (&it.task, &it.args);
+                let (name, args) = (&it.task, clones.values(&it.args));
                 let var = format_ident!("tdl_on_terminate_{}", n_on_terminate);
                 n_on_terminate += 1;
                 prelude.extend(quote!(let #var = #name(#(#args),*);));
@@ -379,7 +390,7 @@ fn task_items(
             TaskConstraintKind::ExceptionHandler(it) => {
                 let var = format_ident!("tdl_handler_{}", n_handlers);
                 n_handlers += 1;
-                let handler = handler_expr(it, span, diags);
+                let handler = handler_expr(it, &clones, span, diags);
                 prelude.extend(quote!(let #var = #handler;));
                 modifiers.extend(quote!(.handler(#var)));
             }
@@ -422,7 +433,7 @@ fn task_items(
             each: ::tdl::EachActivation { #each ..::core::default::Default::default() },
         });
     }
-    let action = body::task_body(file, task, source, diags, None);
+    let action = body::task_body(file, task, &clones, source, diags, None);
     let name_str = task.name.to_string();
     let code = if task.blocking.is_some() {
         // A `blocking command`: the body runs on a blocking thread (its `?`, `return` and value

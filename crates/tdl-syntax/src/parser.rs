@@ -13,6 +13,8 @@ mod decls;
 mod externs;
 mod stmt;
 
+pub(crate) use stmt::idents;
+
 use proc_macro2::{Delimiter, Ident, Span, TokenStream, TokenTree};
 use syn::ext::IdentExt;
 use syn::parse::discouraged::Speculative;
@@ -588,14 +590,18 @@ fn task(
 pub(crate) fn parse_block(group: Group, cx: &mut Cx) -> Block {
     let span = group.span;
     let res = parse_group(group, cx, |input, cx| Ok(stmt::parse_stmts(input, cx)));
-    let stmts = match res {
-        Ok(stmts) => stmts,
+    let (stmts, mentions) = match res {
+        Ok(parsed) => parsed,
         Err(err) => {
             cx.syn_error(err, None);
-            Vec::new()
+            (Vec::new(), Vec::new())
         }
     };
-    Block { stmts, span }
+    Block {
+        stmts,
+        mentions,
+        span,
+    }
 }
 
 /// `wiretap NAME(args) before|after TASK { body }`: a check of every node of `TASK`, written as a

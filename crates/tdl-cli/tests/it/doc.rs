@@ -142,7 +142,7 @@ fn the_mission_has_a_page_per_task_an_svg_graph_and_no_broken_link() {
     for text in [
         "<pre class=\"sig\">pub goal deliver_mail(m: Mission, room: u32)</pre>",
         "<p>Figure 4&#39;s deliverMail: go to the room",
-        "<li><a href=\"task.give_up_no_path.html\"><code>give_up_no_path</code></a><code>(m.clone(), room)</code>, handles <a href=\"index.html#exception-NoPath\"><code>NoPath</code></a></li>",
+        "<li><a href=\"task.give_up_no_path.html\"><code>give_up_no_path</code></a><code>(m, room)</code>, handles <a href=\"index.html#exception-NoPath\"><code>NoPath</code></a></li>",
         "<li id=\"spawn-3\"><span class=\"kind rust\">rust</span><code>speak</code><code>(&amp;m.robot, &quot;Xavier here with your mail&quot;)</code>",
         "<li><code>sequential execution <a href=\"#spawn-2\"><code>center_on_door</code></a></code></li>",
         "<li><code>terminate at <a href=\"#spawn-4\"><code>monitor_pickup</code></a> handling completed</code></li>",

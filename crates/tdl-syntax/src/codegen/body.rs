@@ -51,6 +51,7 @@ pub(super) struct Action {
 pub(super) fn task_body(
     file: &FileScope<'_>,
     task: &Task,
+    clones: &super::by_value::Clones,
     source: Option<&str>,
     diags: &mut Vec<Diagnostic>,
     resolved: Option<&RefCell<Vec<ResolvedTag>>>,
@@ -64,6 +65,7 @@ pub(super) fn task_body(
         frames: Vec::new(),
         loops: Vec::new(),
         resolved,
+        clones,
     };
     let mut code = g.prelude();
     let stmts = &task.body.stmts;
@@ -279,6 +281,8 @@ pub(super) struct Gen<'s, 'a> {
     pub(super) loops: Vec<LoopId>,
     /// Where to record what each tag of a constraint resolved to ([`super::generated_tags`]).
     pub(super) resolved: Option<&'s RefCell<Vec<ResolvedTag>>>,
+    /// The arguments passed as clones (`by_value.rs`).
+    pub(super) clones: &'s super::by_value::Clones,
 }
 
 impl<'a> Gen<'_, 'a> {
@@ -432,7 +436,10 @@ impl<'a> Gen<'_, 'a> {
             Stmt::Retry(it) => {
                 let retry = match &it.args {
                     None => quote!(ctx.retry()?),
-                    Some(args) => quote!(ctx.retry_with((#(#args,)*))?),
+                    Some(args) => {
+                        let args = self.clones.values(args);
+                        quote!(ctx.retry_with((#(#args,)*))?)
+                    }
                 };
                 quote! {
                     let tdl_retry = #retry;

@@ -58,7 +58,7 @@ impl<'a> Gen<'_, 'a> {
     pub(super) fn spawn(&mut self, spawn: &'a Spawn) -> TokenStream {
         let prev = Self::prev_ident();
         let task_name = &spawn.task;
-        let args = &spawn.args;
+        let values = self.clones.values(&spawn.args);
         let (var, loops, late) = match self.scope.spawn_def(spawn) {
             Some(info) => (info.var.clone(), info.site.loops.clone(), info.late),
             None => (None, Vec::new(), false),
@@ -72,7 +72,7 @@ impl<'a> Gen<'_, 'a> {
             on,
         } = self.spawn_parts(spawn, &loops);
         let mut task = match &on {
-            None => quote!(#task_name(#(#args),*)),
+            None => quote!(#task_name(#(#values),*)),
             // `on AGENT`: the run's placer makes the task (docs/distributed.md, "TDL").
             Some(agent) => {
                 let name = task_name.to_string();
@@ -84,7 +84,7 @@ impl<'a> Gen<'_, 'a> {
                     ::core::convert::AsRef::<str>::as_ref(&(#agent)),
                     #name,
                     #kind,
-                    ::tdl::remote_args(#name, &(#(#args),*))?,
+                    ::tdl::remote_args(#name, &(#(#values),*))?,
                 )?)
             }
         };
@@ -251,7 +251,7 @@ impl<'a> Gen<'_, 'a> {
                     }
                     ConstraintKind::OnTerminate(it) => self.on_terminate(it, loops),
                     ConstraintKind::ExceptionHandler(it) => {
-                        let h = handler_expr(it, c.span, self.diags);
+                        let h = handler_expr(it, self.clones, c.span, self.diags);
                         quote!(.handler(#h))
                     }
                     ConstraintKind::MaximumActivate(n) => {
@@ -295,7 +295,7 @@ impl<'a> Gen<'_, 'a> {
     /// `on terminate [label:] spawn t(args)` on a spawn inside the loops `loops`: a labelled one
     /// that some tag names fulfils the label's reservation, which the spawned node takes over.
     fn on_terminate(&self, it: &OnTerminate, loops: &[LoopId]) -> TokenStream {
-        let (t, a) = (&it.task, &it.args);
+        let (t, a) = (&it.task, self.clones.values(&it.args));
         let task = quote!(#t(#(#a),*));
         match self.scope.cleanup(it).and_then(|c| c.var.as_ref()) {
             Some(var) => {

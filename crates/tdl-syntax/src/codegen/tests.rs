@@ -518,7 +518,7 @@ fn wrapped_source_markers_become_comments_too() {
             while i < n {
                 match i {
                     1 => {
-                        spawn step(i) with sequential execution previous;
+                        spawn step(i + 1) with sequential execution previous;
                     }
                     _ => {}
                 }
@@ -742,4 +742,37 @@ fn tdl_lint_attributes_are_stripped_and_rust_ones_kept() {
         assert!(!expanded.contains(&format!("tdl :: {lint}")), "{expanded}");
     }
     assert!(expanded.contains("allow (dead_code)"), "{expanded}");
+}
+
+/// Arguments by value (`by_value.rs`): a variable named again later is cloned; one named in no
+/// later statement, or only in another branch of an `if`, is moved; in a loop, a variable from
+/// outside it is cloned, one the loop binds anew each iteration is not; a handler's arguments
+/// count as later than the spawn's own; a task-level handler's arguments are cloned when the
+/// body names them.
+#[test]
+fn arguments_are_cloned_only_where_the_variable_is_named_again() {
+    let out = expand(
+        "exception E;
+         handler h(log: Log) handles E { }
+         command a(log: Log) { }
+         command b(s: Sender) { }
+         command d(log: Log, room: u32) { }
+         goal g(s: Sender, log: Log, rooms: Vec<u32>, c: bool) with exception handler h(log) {
+             spawn a(log);
+             if c { spawn b(s); } else { spawn b(s); }
+             for room in rooms { spawn d(log, room); }
+             spawn a(log) with exception handler h(log);
+         }",
+    );
+    for line in [
+        "let tdl_handler_0 = h(::core::clone::Clone::clone(&log));",
+        "ctx.spawn(a(::core::clone::Clone::clone(&log)))",
+        "ctx.spawn(b(s))",
+        "ctx.spawn(d(::core::clone::Clone::clone(&log), room))",
+        "ctx.spawn(a(::core::clone::Clone::clone(&log))).handler(h(log))",
+    ] {
+        assert!(has(&out, line), "missing {line:?} in:\n{out}");
+    }
+    assert!(!has(&out, "Clone::clone(&s)"), "{out}");
+    assert!(!has(&out, "Clone::clone(&room)"), "{out}");
 }

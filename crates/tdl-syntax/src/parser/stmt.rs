@@ -39,9 +39,11 @@ const RUST_KEYWORDS: &[&str] = &[
     "unsafe", "use", "where", "while", "yield", "Self",
 ];
 
-/// Parses statements until the end of `input`; never fails.
-pub(crate) fn parse_stmts(input: ParseStream, cx: &mut Cx) -> Vec<Stmt> {
+/// Parses statements until the end of `input`, with the identifiers each names
+/// ([`Block::mentions`]); never fails.
+pub(crate) fn parse_stmts(input: ParseStream, cx: &mut Cx) -> (Vec<Stmt>, Vec<Vec<String>>) {
     let mut out = Vec::new();
+    let mut mentions = Vec::new();
     while !input.is_empty() {
         if input.peek(Token![;]) {
             let _ = input.parse::<Token![;]>();
@@ -49,8 +51,12 @@ pub(crate) fn parse_stmts(input: ParseStream, cx: &mut Cx) -> Vec<Stmt> {
         }
         let hint = stmt_hint(input);
         cx.hint = None;
+        let start = input.cursor();
         match attempt(input, cx, stmt) {
-            Ok(it) => out.push(it),
+            Ok(it) => {
+                out.push(it);
+                mentions.push(idents(control::tokens_between(start, input.cursor())));
+            }
             Err(err) => {
                 let hint = cx.hint.take().or(hint);
                 cx.syn_error(err, hint);
@@ -58,6 +64,24 @@ pub(crate) fn parse_stmts(input: ParseStream, cx: &mut Cx) -> Vec<Stmt> {
             }
         }
     }
+    (out, mentions)
+}
+
+/// The identifiers `tokens` name, nested groups included, sorted and each once.
+pub(crate) fn idents(tokens: TokenStream) -> Vec<String> {
+    fn walk(tokens: TokenStream, out: &mut Vec<String>) {
+        for tt in tokens {
+            match tt {
+                proc_macro2::TokenTree::Ident(i) => out.push(i.to_string()),
+                proc_macro2::TokenTree::Group(g) => walk(g.stream(), out),
+                _ => {}
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(tokens, &mut out);
+    out.sort();
+    out.dedup();
     out
 }
 
@@ -541,9 +565,11 @@ fn with_group(input: ParseStream, cx: &mut Cx, labels: Vec<Ident>) -> syn::Resul
         parse_block(take_group(input, Delimiter::Brace, "`{`")?, cx)
     } else {
         let span = input.span();
+        let start = input.cursor();
         let single = spawn(input, cx, Vec::new(), None)?;
         Block {
             stmts: vec![Stmt::Spawn(single)],
+            mentions: vec![idents(control::tokens_between(start, input.cursor()))],
             span,
         }
     };

@@ -4,6 +4,7 @@
 
 mod blocking;
 mod build;
+mod by_value;
 mod entities;
 mod exceptions;
 mod external;

@@ -203,6 +203,7 @@ fn arm(input: ParseStream, cx: &mut Cx) -> syn::Result<Arm> {
             input.parse::<Token![,]>()?;
         }
         Block {
+            mentions: vec![super::idents(tokens.clone())],
             stmts: vec![Stmt::Rust(RustStmt { tokens, span })],
             span,
         }
