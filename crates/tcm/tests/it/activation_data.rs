@@ -14,30 +14,34 @@ struct Bump {
 /// What each activation saw: its number, its data, and whether data of another type read as some.
 type Seen = Arc<Mutex<Vec<(u32, Option<&'static str>, bool)>>>;
 
+/// A monitor of at most `max` activations, each noting its number, its `Bump` and whether data
+/// of another type (a `u32`) read as some.
+fn bumper(seen: &Seen, max: u32) -> Task {
+    let s = seen.clone();
+    let params = Monitor {
+        max_activations: Some(max),
+        ..Monitor::default()
+    };
+    Task::monitor("bumper", params, move |ctx| {
+        let s = s.clone();
+        async move {
+            let (n, _) = ctx.activation().unwrap_or_default();
+            let bump = ctx.activation_data::<Bump>().map(|b| b.side);
+            let wrong = ctx.activation_data::<u32>().is_some();
+            s.lock().expect("seen").push((n, bump, wrong));
+            Ok(())
+        }
+    })
+}
+
 #[tokio::test(start_paused = true)]
 async fn each_activation_reads_the_data_it_was_activated_with() {
     let seen: Seen = Arc::default();
-    let s = seen.clone();
+    let monitor = bumper(&seen, 3);
     let task = Task::goal("g", move |ctx| async move {
         // The monitor must be active before it is activated: start it at once.
         ctx.hold_children(false)?;
-        let params = Monitor {
-            max_activations: Some(3),
-            ..Monitor::default()
-        };
-        let bumper = ctx
-            .spawn(Task::monitor("bumper", params, move |ctx| {
-                let s = s.clone();
-                async move {
-                    let (n, _) = ctx.activation().unwrap_or_default();
-                    let bump = ctx.activation_data::<Bump>().map(|b| b.side);
-                    // Data of another type reads as none.
-                    let wrong = ctx.activation_data::<u32>().is_some();
-                    s.lock().expect("seen").push((n, bump, wrong));
-                    Ok(())
-                }
-            }))
-            .start()?;
+        let bumper = ctx.spawn(monitor).start()?;
         let first = ctx.activate_with(bumper, Bump { side: "left" })?;
         assert!(first.is_some());
         ctx.activate(bumper)?;
@@ -77,26 +81,14 @@ async fn data_outside_an_activation_reads_as_none() {
 #[tokio::test(start_paused = true)]
 async fn an_external_event_raised_with_data_hands_it_to_its_activation() {
     let seen: Seen = Arc::default();
-    let s = seen.clone();
+    let monitor = bumper(&seen, 2);
     let rt = Runtime::new();
     let events = rt.events();
     let task = Task::goal("g", move |ctx| async move {
         let bump = ctx.external("bump")?;
-        let params = Monitor {
-            max_activations: Some(2),
-            ..Monitor::default()
-        };
-        ctx.spawn(Task::monitor("bumper", params, move |ctx| {
-            let s = s.clone();
-            async move {
-                let (n, _) = ctx.activation().unwrap_or_default();
-                let bump = ctx.activation_data::<Bump>().map(|b| b.side);
-                s.lock().expect("seen").push((n, bump, false));
-                Ok(())
-            }
-        }))
-        .activate(tcm::When::External(bump))
-        .start()?;
+        ctx.spawn(monitor)
+            .activate(tcm::When::External(bump))
+            .start()?;
         Ok(())
     });
     tokio::spawn(async move {
@@ -126,24 +118,9 @@ async fn each_trigger_hands_its_own_data_to_the_activation_it_makes() {
     use std::time::Duration;
     use tcm::{Event, Point, When};
     let seen: Seen = Arc::default();
-    let s = seen.clone();
+    let monitor = bumper(&seen, 3);
     let task = Task::goal("g", move |ctx| async move {
-        let params = Monitor {
-            max_activations: Some(3),
-            ..Monitor::default()
-        };
-        let bumper = ctx
-            .spawn(Task::monitor("bumper", params, move |ctx| {
-                let s = s.clone();
-                async move {
-                    let (n, _) = ctx.activation().unwrap_or_default();
-                    let bump = ctx.activation_data::<Bump>().map(|b| b.side);
-                    let wrong = ctx.activation_data::<u32>().is_some();
-                    s.lock().expect("seen").push((n, bump, wrong));
-                    Ok(())
-                }
-            }))
-            .start()?;
+        let bumper = ctx.spawn(monitor).start()?;
         let drive = ctx
             .spawn(Task::command("drive", |ctx| async move {
                 ctx.sleep(Duration::from_secs(2)).await;
