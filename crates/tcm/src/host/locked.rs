@@ -64,14 +64,23 @@ impl std::ops::DerefMut for Locked<'_> {
 }
 
 impl Drop for Locked<'_> {
-    #[inline]
+    #[inline(always)]
     fn drop(&mut self) {
+        if self.guard.as_ref().is_some_and(|g| !g.due.is_empty()) {
+            self.run_due();
+        }
+    }
+}
+
+impl Locked<'_> {
+    /// Lets the lock go and runs the callbacks that came due under it (rare: off the path of
+    /// every other access).
+    #[cold]
+    #[inline(never)]
+    fn run_due(&mut self) {
         let Some(g) = self.guard.as_mut() else {
             return;
         };
-        if g.due.is_empty() {
-            return;
-        }
         if g.ended || std::thread::panicking() {
             g.due.clear();
             return;
