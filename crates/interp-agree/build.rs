@@ -6,7 +6,7 @@
 //! test checks that each was compiled.
 
 /// The files of each program, relative to this package.
-const PROGRAMS: [&[&str]; 21] = [
+const PROGRAMS: [&[&str]; 22] = [
     &["allowed_warnings"],
     &["approvals"],
     &["attached_handlers"],
@@ -20,6 +20,7 @@ const PROGRAMS: [&[&str]; 21] = [
     &["forward_references"],
     &["handled_exceptions"],
     &["handlers_retry"],
+    &["logging"],
     &["loops_iteration_tags"],
     &["near_cycles"],
     &[

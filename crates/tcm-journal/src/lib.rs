@@ -25,7 +25,7 @@ pub use write::{Durability, Store, Writer};
 use serde::{Deserialize, Serialize};
 
 /// The format version this crate writes, and the newest it reads.
-pub const JOURNAL_FORMAT_VERSION: u32 = 1;
+pub const JOURNAL_FORMAT_VERSION: u32 = 2;
 
 /// The journal's first record.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -154,6 +154,14 @@ pub enum Input {
         node: u64,
         /// What it read.
         value: serde_json::Value,
+    },
+    /// A body wrote a line to the run's log (`tcm::Ctx::log`, TDL's `log`): a replay gives a
+    /// command's again, as commands do not run in it.
+    Log {
+        /// The body's node.
+        node: u64,
+        /// The line.
+        message: String,
     },
     /// An operation from outside the run (a steering request, a handler attached): what and who.
     Control {

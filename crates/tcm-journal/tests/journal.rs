@@ -66,6 +66,13 @@ fn inputs() -> Vec<(u64, Input)> {
                 by: "operator".into(),
             },
         ),
+        (
+            4_500_000_000,
+            Input::Log {
+                node: 3,
+                message: "gripper \"open\"".into(),
+            },
+        ),
     ]
 }
 
@@ -74,7 +81,7 @@ fn write(path: &std::path::Path, durability: Durability) {
     for (i, (t, input)) in inputs().into_iter().enumerate() {
         w.append(t, 2 * i as u64, input).expect("append");
     }
-    assert_eq!(w.len(), 7);
+    assert_eq!(w.len(), 8);
     w.close().expect("close");
 }
 
@@ -150,24 +157,24 @@ fn a_cut_last_record_is_dropped_with_a_warning() {
     bytes.truncate(bytes.len() - 7);
     std::fs::write(&path, &bytes).expect("cut");
     let j = read(&path, Some("mission@3f2a")).expect("read");
-    assert_eq!(j.entries.len(), 6);
+    assert_eq!(j.entries.len(), 7);
     let w = j.warning.clone().expect("a warning");
-    assert!(w.contains("line 8") && w.contains("cut short"), "{w}");
+    assert!(w.contains("line 9") && w.contains("cut short"), "{w}");
     // A resumed run goes on writing it: the cut record is cut off the file, the numbers go on.
     let mut w = Writer::reopen(&path, &j, Durability::EveryRecord).expect("reopen");
     w.append(5_000_000_000, 12, Input::Time).expect("append");
     w.close().expect("close");
     let again = read(&path, Some("mission@3f2a")).expect("read");
     assert_eq!(again.warning, None);
-    assert_eq!(again.entries.len(), 7);
-    assert_eq!(again.entries[..6], j.entries[..]);
+    assert_eq!(again.entries.len(), 8);
+    assert_eq!(again.entries[..7], j.entries[..]);
     assert_eq!(
         (
-            again.entries[6].n,
-            again.entries[6].t,
-            &again.entries[6].input
+            again.entries[7].n,
+            again.entries[7].t,
+            &again.entries[7].input
         ),
-        (6, 5_000_000_000, &Input::Time)
+        (7, 5_000_000_000, &Input::Time)
     );
 }
 
@@ -217,14 +224,14 @@ fn a_journal_of_another_program_or_a_newer_format_is_refused() {
         )
     );
     let newer = scratch("newer");
-    let json = r#"{"journal":2,"program":"p"}"#;
+    let json = r#"{"journal":3,"program":"p"}"#;
     let header = format!("{:08x} {json}\n", crc32fast::hash(json.as_bytes()));
     std::fs::write(&newer, header).expect("write");
     assert!(matches!(
         read(&newer, None),
         Err(JournalError::NewerFormat {
-            found: 2,
-            supported: 1,
+            found: 3,
+            supported: 2,
             ..
         })
     ));
@@ -247,7 +254,7 @@ fn an_existing_file_is_not_overwritten() {
         e.contains("exists already: resume from it, or remove it first"),
         "{e}"
     );
-    assert_eq!(read(&path, None).expect("intact").entries.len(), 7);
+    assert_eq!(read(&path, None).expect("intact").entries.len(), 8);
 }
 
 /// A store that takes `room` bytes, then fails as a full disk does.

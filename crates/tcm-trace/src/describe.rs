@@ -35,11 +35,13 @@ pub enum RecordClass {
     State,
     /// Warnings.
     Warning,
+    /// Lines a task's body wrote to the run's log.
+    Log,
 }
 
 impl RecordClass {
     /// Every class, in the order above.
-    pub const ALL: [RecordClass; 14] = [
+    pub const ALL: [RecordClass; 15] = [
         RecordClass::Transition,
         RecordClass::Spawn,
         RecordClass::Constraint,
@@ -54,6 +56,7 @@ impl RecordClass {
         RecordClass::Resource,
         RecordClass::State,
         RecordClass::Warning,
+        RecordClass::Log,
     ];
 
     /// Its name in lowercase, as a filter writes it: `transition`, `spawn`, …
@@ -73,6 +76,7 @@ impl RecordClass {
             RecordClass::Resource => "resource",
             RecordClass::State => "state",
             RecordClass::Warning => "warning",
+            RecordClass::Log => "log",
         }
     }
 }
@@ -358,6 +362,7 @@ impl TraceKind {
             K::ResourceUnlocked { resource } => (C::Resource, None, format!("{resource} unlocked")),
             K::Placed { node, agent } => (C::Spawn, Some(*node), format!("runs on agent {agent}")),
             K::Warning { node, message } => (C::Warning, *node, format!("warning: {message}")),
+            K::Log { node, message } => (C::Log, Some(*node), format!("log: {message}")),
         })
     }
 }

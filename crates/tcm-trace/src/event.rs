@@ -9,7 +9,7 @@ use crate::state::{Facet, NodeKind, Outcome, Point, State};
 use serde::{Deserialize, Serialize};
 
 /// Version of the trace schema; bumped on any incompatible change.
-pub const TRACE_FORMAT_VERSION: u32 = 9;
+pub const TRACE_FORMAT_VERSION: u32 = 10;
 
 /// The oldest schema version the readers still accept (see `docs/trace-format.md`, "Versions").
 pub const OLDEST_READABLE_VERSION: u32 = 1;
@@ -683,6 +683,14 @@ pub enum TraceKind {
         /// Message.
         message: String,
     },
+    /// A line a task's body wrote to the run's log (TDL's `log` statement, `Ctx::log`), stamped
+    /// with the run's time when it wrote it.
+    Log {
+        /// The node whose body wrote it.
+        node: u64,
+        /// The line.
+        message: String,
+    },
 }
 
 impl TraceKind {
@@ -720,6 +728,7 @@ impl TraceKind {
             | TraceKind::Skipped { node }
             | TraceKind::Reclaimed { node }
             | TraceKind::Placed { node, .. }
+            | TraceKind::Log { node, .. }
             | TraceKind::MonitorParams { node, .. }
             | TraceKind::Activated { node, .. }
             | TraceKind::HandlerChosen { node, .. }

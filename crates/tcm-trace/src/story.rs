@@ -66,6 +66,9 @@ pub fn story(trace: &[TraceEvent]) -> Vec<String> {
             TraceKind::Placed { node, agent } => {
                 format!("{} runs on agent {agent}", name(&names, node))
             }
+            TraceKind::Log { node, message } => {
+                format!("{} logs: {message}", name(&names, node))
+            }
             TraceKind::StateSet { var, value } => format!("set {var} = {value}"),
             TraceKind::Skipped { node } => format!("{} skipped", name(&names, node)),
             _ => continue,

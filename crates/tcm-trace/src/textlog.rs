@@ -42,6 +42,8 @@
 //!   arm(2) to drive {3}`, `Resource release: …`, `Resource denied: …`, `Resource request dropped:
 //!   …`, reservations and locks; a request prints `Resource wait: drive {3} waits: base is held by
 //!   plan {1}` only when it must wait, naming the holders, a lock or a reservation.
+//! - A `log` record (a task's body writing to the run's log; TCM's tasks printed their own lines)
+//!   prints `<name> {<number>}: <line>`.
 
 use crate::event::{TraceEvent, TraceKind};
 use crate::replay::{Replay, ReplayNode};
@@ -262,6 +264,13 @@ impl TextLog {
                 ));
             }
             (TraceKind::Warning { message, .. }, _) => lines.push(format!("WARNING: {message}")),
+            (
+                TraceKind::Log {
+                    node: number,
+                    message,
+                },
+                Some(n),
+            ) => lines.push(format!("{} {{{number}}}: {message}", n.name())),
             (kind, node) => {
                 if let Some(line) = self.resource_line(kind, node) {
                     lines.push(line);

@@ -582,6 +582,7 @@ function refreshPanels() {
     if (tab === 'node') showNode();
     else if (tab === 'exceptions') showExceptions();
     else if (tab === 'stats') showStats();
+    else if (tab === 'log') showLog();
   }, 120);
 }
 
@@ -646,6 +647,7 @@ async function showNode() {
   }
   if (v.triggers.length) parts.push(el('h3', {}, 'Triggers'), el('ul', {}, ...v.triggers.map((t) => el('li', {}, t))));
   if (v.failures.length) parts.push(el('h3', {}, 'Failures'), el('ul', {}, ...v.failures.map(([f, t]) => el('li', {}, secs(t) + ' ' + f))));
+  if (v.logs.length) parts.push(el('h3', {}, 'Log'), el('ul', { id: 'logs' }, ...v.logs.map(([line, t]) => el('li', {}, secs(t) + ' ' + line))));
   parts.push(el('h3', {}, 'History'), el('table', {}, ...v.history.map(([what, t]) => el('tr', {}, el('td', {}, secs(t)), el('td', {}, what)))));
   tab.replaceChildren(...parts);
   steerNode(tab); // steer.js: the node's steering buttons, when the page steers the run
@@ -673,6 +675,24 @@ async function showStats() {
     el('td', {}, s.kind), el('td', {}, s.count), el('td', {}, s.succeeded), el('td', {}, s.skipped), el('td', {}, s.failed),
     el('td', {}, s.terminated), el('td', {}, s.unfinished),
     el('td', {}, s.ran ? secs(s.mean_ns) : ''), el('td', {}, s.ran ? secs(s.max_ns) : ''), el('td', {}, s.ran ? secs(s.total_ns) : '')))));
+}
+
+// The run's log: the lines bodies wrote (`log` records), each with its time and node; those after
+// the cursor are dimmed. A line moves the cursor to it; its node's name selects the node.
+const LOG_LINES = 2000;
+async function showLog() {
+  const tab = $('tab-log');
+  const p = new URLSearchParams({ name: '"ev":"log"', offset: 0, limit: LOG_LINES });
+  const r = await getJSON('/api/runs/' + S.runId + '/events?' + p);
+  if (!r.total) { tab.replaceChildren(el('p', { class: 'hint' }, 'No body wrote a log line (TDL\'s log statement).')); return; }
+  const lines = r.records.map((rec) => el('li', {
+    'data-seq': rec.seq, class: rec.seq > S.cursor ? 'later' : '', title: 'record ' + rec.seq + ': move the cursor here',
+    onclick: () => setCursor(rec.seq),
+  }, secs(rec.t) + ' ', nodeLink(rec.node), ': ' + rec.message));
+  const more = r.total > r.records.length
+    ? [el('p', { class: 'hint' }, 'The first ' + r.records.length + ' of ' + r.total + ' lines; the Events tab pages through them all (filter "ev":"log").')]
+    : [];
+  tab.replaceChildren(...more, el('ol', { id: 'loglist' }, ...lines));
 }
 
 let evOffset = 0, evAsked = 0;

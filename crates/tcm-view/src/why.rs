@@ -55,6 +55,8 @@ pub struct NodeView {
     pub history: Vec<(String, u64)>,
     /// Failures, as `exception: message` with when.
     pub failures: Vec<(String, u64)>,
+    /// The lines its body wrote to the run's log by that moment, with when.
+    pub logs: Vec<(String, u64)>,
     /// The handling's duration (active to completed, or to the moment), ns.
     pub ran_ns: Option<u64>,
     /// The wait between enabled and active, ns.
@@ -226,6 +228,12 @@ impl RunModel {
                 .iter()
                 .filter(|f| f.at.seq <= seq)
                 .map(|f| (format!("{}: {}", f.exception, f.message), f.at.t))
+                .collect(),
+            logs: row
+                .logs
+                .iter()
+                .filter(|(at, _)| at.seq <= seq)
+                .map(|(at, line)| (line.clone(), at.t))
                 .collect(),
             ran_ns,
             queued_ns,

@@ -8,7 +8,8 @@
 //! the Exceptions tab tells a failure a waiting parent took as taken by it; a skipped node looks
 //! skipped. On a run with state variables: a lane per variable with its value at the cursor, a
 //! node's wait on a condition with the values that hold it, skipped nodes counted apart, and a
-//! live page's lanes the same as the snapshot's.
+//! live page's lanes the same as the snapshot's. On a run whose bodies log: the Log tab lists
+//! each line with its time and node, and dims those after the cursor.
 //! Screenshots go to `target/viewer/`.
 
 mod common;
@@ -145,17 +146,22 @@ fn paused(
         .block_on(f))
 }
 
-/// The patrol's trace served whole, as `tdl view` serves a file; the viewer and the records.
-fn serve_patrol() -> anyhow::Result<(Viewer, usize)> {
-    let trace = paused(common::patrol())?;
-    let mut model = RunModel::new("patrol.jsonl");
-    for ev in &trace {
+/// `trace` served whole under the name `file`, as `tdl view` serves a file.
+fn serve_trace(file: &str, trace: &[TraceEvent]) -> anyhow::Result<Viewer> {
+    let mut model = RunModel::new(file);
+    for ev in trace {
         model.apply(ev).map_err(anyhow::Error::msg)?;
     }
     model.finished = true;
     let viewer = Viewer::serve(([127, 0, 0, 1], 0).into())?;
     viewer.add(model);
-    Ok((viewer, trace.len()))
+    Ok(viewer)
+}
+
+/// The patrol's trace served whole; the viewer and the records.
+fn serve_patrol() -> anyhow::Result<(Viewer, usize)> {
+    let trace = paused(common::patrol())?;
+    Ok((serve_trace("patrol.jsonl", &trace)?, trace.len()))
 }
 
 /// A browser on the viewer's page, once the run's `records` records are shown.
@@ -475,6 +481,78 @@ fn the_exceptions_tab_tells_a_failure_a_waiting_parent_took() -> anyhow::Result<
                 Duration::from_secs(15),
             )
             .await?;
+            anyhow::Ok(())
+        })?;
+    viewer.stop();
+    Ok(())
+}
+
+/// A patrol whose bodies log: the goal at once, `drive` after 1 s, `look` after 2 s; `dock`
+/// logs nothing.
+async fn logging() -> Vec<TraceEvent> {
+    use tcm::{Runtime, Task};
+    let after = |name: &'static str, s: u64, line: Option<&'static str>| {
+        Task::command(name, move |ctx| async move {
+            tokio::time::sleep(Duration::from_secs(s)).await;
+            if let Some(line) = line {
+                ctx.log(line)?;
+            }
+            Ok(())
+        })
+    };
+    let task = Task::goal("patrol", move |ctx| async move {
+        ctx.log("patrol begins")?;
+        ctx.spawn(after("drive", 1, Some("at the door"))).start()?;
+        ctx.spawn(after("look", 2, Some("nobody in"))).start()?;
+        ctx.spawn(after("dock", 3, None)).start()?;
+        Ok(())
+    });
+    tcm::testing::run_checked(Runtime::new(), task).await.1
+}
+
+#[test]
+fn the_log_tab_lists_the_lines_bodies_wrote_and_dims_those_after_the_cursor() -> anyhow::Result<()>
+{
+    let _one = one_browser_at_a_time();
+    let trace = paused(logging())?;
+    let viewer = serve_trace("logging.jsonl", &trace)?;
+    let url = viewer.url();
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?
+        .block_on(async {
+            let mut b = open_page(&url, trace.len()).await?;
+            b.click("#tabs [data-tab=log]").await?;
+            let lines = b
+                .wait_for(
+                    "(() => { const l = [...document.querySelectorAll('#loglist li')]; \
+                     return l.length === 3 ? l.map((x) => x.textContent) : null; })()",
+                    Duration::from_secs(10),
+                )
+                .await?;
+            let line = |i: usize| lines[i].as_str().unwrap_or_default().to_string();
+            for (i, (node, text)) in [
+                ("patrol {1}", "patrol begins"),
+                ("drive {2}", "at the door"),
+                ("look {3}", "nobody in"),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                ensure!(
+                    line(i).contains(&format!("{node}: {text}")),
+                    "line {i}: {}",
+                    line(i)
+                );
+            }
+            // The cursor at the run's end: no line is after it. A click on the first moves the
+            // cursor there, and the two written later are dimmed.
+            let later = "document.querySelectorAll('#loglist li.later').length";
+            ensure!(b.eval(later).await? == 0, "no line after the end");
+            js_click(&mut b, "#loglist li").await?;
+            b.wait_for(&format!("{later} === 2"), Duration::from_secs(10))
+                .await?;
+            b.screenshot(&shots().join("logging-log.png")).await?;
             anyhow::Ok(())
         })?;
     viewer.stop();

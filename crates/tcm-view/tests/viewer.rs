@@ -1,7 +1,7 @@
 //! The viewer's model and server on real runs (tcm on tokio's paused clock, every trace through
 //! the checker): why a node waits and when it stops waiting, an exception's story, counts and
 //! durations, the event filter, bad files named by line with what came before kept, a node's
-//! details at the cursor (a monitor's activations and triggers, children, agent); state variables
+//! details at the cursor (a monitor's activations and triggers, children, agent, log lines); state variables
 //! (each one's changes and value at a cursor, a wait on a condition with the values that hold it,
 //! what a skip, an invariant and a pause say at a cursor, skipped nodes counted apart); and the
 //! server: the snapshot, each live record with the rows it changed over a WebSocket (the rows a
@@ -221,6 +221,42 @@ async fn a_node_placed_on_an_agent_shows_the_agent() {
     assert_eq!(entry(grasp).len(), 4 + tcm_view::MARKS + 1);
     assert_eq!(entry(grasp)[4 + tcm_view::MARKS], "arm");
     assert_eq!(entry(look).len(), 4 + tcm_view::MARKS);
+}
+
+#[tokio::test(start_paused = true)]
+async fn a_nodes_log_lines_are_those_written_by_the_cursor() {
+    let task = Task::command("grasp", |ctx| async move {
+        ctx.log("opening")?;
+        tokio::time::sleep(secs(1)).await;
+        ctx.log("closed")?;
+        Ok(())
+    });
+    let trace = run_checked(Runtime::new(), task).await.1;
+    let m = model_of(&trace);
+    let grasp = number(&m, "grasp");
+    let logs = |seq: u64| m.node_view(grasp, seq).expect("grasp").logs;
+    let first = trace
+        .iter()
+        .find(|e| matches!(e.kind, TraceKind::Log { .. }))
+        .expect("a log record");
+    assert_eq!(logs(first.seq - 1), []);
+    assert_eq!(logs(first.seq), [("opening".to_string(), 0)]);
+    let last = trace.last().expect("records").seq;
+    assert_eq!(
+        logs(last),
+        [
+            ("opening".to_string(), 0),
+            ("closed".to_string(), 1_000_000_000)
+        ]
+    );
+    // The Events tab lists them, and finds them by their text.
+    let f = EventFilter {
+        name: Some("CLOSED".to_string()),
+        ..EventFilter::default()
+    };
+    let (total, lines) = m.events(&f, 0, 10);
+    assert_eq!(total, 1);
+    assert!(lines[0].contains("\"ev\":\"log\""), "{lines:?}");
 }
 
 /// A failure that a waiting parent took is told as taken by that parent, not as pending: the

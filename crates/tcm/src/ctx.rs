@@ -366,6 +366,16 @@ impl Ctx {
         self.with_engine(|e, now| e.note_placed(now, node, agent))
     }
 
+    /// Writes `message` to the run's log: a `log` record about this node, stamped with the run's
+    /// time (TDL's `log` statement). It goes where the trace goes: the trace file, the viewer,
+    /// `tcm::TracingSink` (at `INFO`). The run's time is the virtual clock's on a simulated run,
+    /// so a log line of a test is the same on every run.
+    pub fn log(&self, message: impl Into<String>) -> Result<(), Error> {
+        let node = self.node;
+        let message = message.into();
+        self.engine_call(true, |e, now| e.log(now, node, message))
+    }
+
     /// Adds a `warning` record about this node (about the run once the node has left the tree):
     /// something worth a person's attention that the tree cannot see itself (a message from an
     /// agent that arrived twice, say). The run goes on; it is counted with the run's other
@@ -562,15 +572,32 @@ impl Ctx {
             tcm_core::Time,
         ) -> Result<T, tcm_core::EngineError>,
     ) -> Result<T, Error> {
+        self.engine_call(false, f)
+    }
+
+    /// [`Ctx::with_engine`]; `journaled`: for a request the engine journals as an input whoever
+    /// asks it (a log line), made at the clock's time even from a command's own action, since a
+    /// replay gives the command's from the journal, at the same time.
+    fn engine_call<T>(
+        &self,
+        journaled: bool,
+        f: impl FnOnce(
+            &mut tcm_core::Engine<Action, Factory>,
+            tcm_core::Time,
+        ) -> Result<T, tcm_core::EngineError>,
+    ) -> Result<T, Error> {
         let mut inner = self.shared.enter()?;
+        let records = inner.engine.records_inputs();
+        let kind = records
+            .then(|| inner.engine.kind_and_display(self.node).map(|(k, _)| k))
+            .flatten();
         // A command's own action (a monitor's activations are command nodes whose bodies run).
-        if inner.engine.records_inputs()
-            && self.purpose.is_none()
-            && matches!(
-                inner.engine.kind_and_display(self.node),
-                Some((tcm_core::NodeKind::Command, _))
-            )
-        {
+        let command =
+            records && self.purpose.is_none() && kind == Some(tcm_core::NodeKind::Command);
+        // An action that outlived its node (a remote command's late message, once the command
+        // was terminated and left the tree): the replay does not make its request either.
+        let gone = records && kind.is_none() && self.node != inner.engine.root();
+        if gone || (command && !journaled) {
             // A replay does not run commands (`replay.rs`): the request is no step of the run,
             // and at the engine's latest time, so that it reads no clock and fires no timer.
             let now = inner.engine.now();
@@ -579,7 +606,7 @@ impl Ctx {
         let now = inner.engine.at_clock();
         // A body's (or a callback's), not the program's session's: run again by a replay, which
         // gives what it gives again.
-        if inner.engine.records_inputs() && self.node != inner.engine.root() {
+        if inner.engine.records_inputs() && !command && self.node != inner.engine.root() {
             return Ok(inner.engine.by_body(|e| f(e, now))?);
         }
         Ok(f(&mut inner.engine, now)?)

@@ -162,6 +162,7 @@ fn entry(input: InputRecord) -> Input {
         InputRecord::Time => Input::Time,
         InputRecord::Clock => Input::Clock,
         InputRecord::Control { what, by } => Input::Control { what, by },
+        InputRecord::Log { node, message } => Input::Log { node, message },
     }
 }
 

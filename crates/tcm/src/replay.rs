@@ -354,6 +354,7 @@ fn describe(input: &Input) -> String {
         Input::Clock => "a clock reading".into(),
         Input::Recorded { node, .. } => format!("a value node {node} read"),
         Input::Control { what, by } => format!("the operation `{what}` by {by}"),
+        Input::Log { node, .. } => format!("a line node {node} logged"),
     }
 }
 
@@ -500,6 +501,14 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
         }
         Input::Time => {
             inner.engine.handle_timeout(now);
+            Ok(true)
+        }
+        Input::Log { node, message } => {
+            let id = node_of(inner, *node)?;
+            inner
+                .engine
+                .log(now, id, message.clone())
+                .map_err(|e| format!("node {node}'s log line cannot be given: {e}"))?;
             Ok(true)
         }
         Input::Clock | Input::Recorded { .. } => Ok(true),

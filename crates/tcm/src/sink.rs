@@ -2,7 +2,8 @@
 //!
 //! Whatever the sinks, every `warning` record of a run (an unhandled failure's "No exception
 //! handler found …" among them) is logged through `tracing` at `WARN` level, target `tcm`, so a
-//! failure is never silent; [`TracingSink`] logs the whole tree.
+//! failure is never silent, and every `log` record (a body's `log` line) at `INFO`;
+//! [`TracingSink`] logs the whole tree.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -16,8 +17,8 @@ pub trait TraceSink: Send {
     fn record(&mut self, ev: &TraceEvent);
     /// The run ended; write out anything buffered.
     fn flush(&mut self) {}
-    /// Whether this sink logs warnings through `tracing` itself, so the runtime need not (default:
-    /// no).
+    /// Whether this sink logs warnings and log lines through `tracing` itself, so the runtime
+    /// need not (default: no).
     fn logs_warnings(&self) -> bool {
         false
     }
@@ -40,13 +41,24 @@ impl<T: TraceSink + ?Sized> TraceSink for Box<T> {
     }
 }
 
-/// Logs a `warning` record through `tracing`; other records are ignored.
-pub(crate) fn log_warning(ev: &TraceEvent) {
-    if let TraceKind::Warning { node, message } = &ev.kind {
-        match node {
-            Some(node) => tracing::warn!(target: "tcm", node = *node, t_ns = ev.t, "{message}"),
-            None => tracing::warn!(target: "tcm", t_ns = ev.t, "{message}"),
+/// Logs a `warning` record (at `WARN`) or a `log` record (at `INFO`) through `tracing`; other
+/// records are ignored.
+pub(crate) fn log_notable(ev: &TraceEvent) {
+    match &ev.kind {
+        TraceKind::Warning {
+            node: Some(node),
+            message,
+        } => tracing::warn!(target: "tcm", node = *node, t_ns = ev.t, "{message}"),
+        TraceKind::Warning {
+            node: None,
+            message,
+        } => {
+            tracing::warn!(target: "tcm", t_ns = ev.t, "{message}");
         }
+        TraceKind::Log { node, message } => {
+            tracing::info!(target: "tcm", node = *node, t_ns = ev.t, "{message}");
+        }
+        _ => {}
     }
 }
 
@@ -131,7 +143,8 @@ impl TraceSink for Recorder {
 ///
 /// - `WARN`: warnings, among them each unhandled failure ("No exception handler found …",
 ///   with the failure's `exception` and its data as text in `failure`);
-/// - `INFO`: failures (`failed`, handled or not), terminations and handler choices;
+/// - `INFO`: the lines bodies log (`log`), failures (`failed`, handled or not), terminations
+///   and handler choices;
 /// - `DEBUG`: spawns and facet transitions;
 /// - `TRACE`: every other record.
 ///
@@ -218,6 +231,9 @@ impl TraceSink for TracingSink {
                 message,
             } => {
                 tracing::warn!(target: "tcm", t_ns, "{message}");
+            }
+            TraceKind::Log { node, message } => {
+                tracing::info!(target: "tcm", t_ns, node = *node, name = self.name(*node), "{message}");
             }
             TraceKind::Terminated { node } => {
                 tracing::info!(target: "tcm", t_ns, node = *node, name = self.name(*node), "terminated");

@@ -342,7 +342,7 @@ mod tests {
                 _ => {}
             }
         }
-        assert_eq!(kinds.len(), 49, "{kinds:?}");
+        assert_eq!(kinds.len(), 50, "{kinds:?}");
         for file in ["run.jsonl", "handled_run.jsonl"] {
             let path = format!("{}/tests/data/{file}", env!("CARGO_MANIFEST_DIR"));
             let text = std::fs::read_to_string(&path).expect("a test trace");

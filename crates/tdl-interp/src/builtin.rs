@@ -228,6 +228,7 @@ const CTX_METHODS: &[&str] = &[
     "terminate",
     "raise",
     "warn",
+    "log",
     "is_cancelled",
     "activation",
     "placed",
@@ -346,6 +347,7 @@ pub(crate) fn ctx_method(ctx: &Ctx, name: &str, args: &[Value]) -> Option<Call> 
         "terminate" => node(arg(0)).and_then(|n| done(ctx.terminate(n))),
         "raise" => res(&arg(0)).and_then(|r| done(ctx.raise(&r))),
         "warn" => done(ctx.warn(arg(0).to_string())),
+        "log" => done(ctx.log(arg(0).to_string())),
         "placed" => res(&arg(0)).and_then(|r| done(ctx.placed(&r))),
         "is_cancelled" => Ok(Value::Bool(ctx.is_cancelled())),
         "activation" => Ok(Value::option(ctx.activation().map(|(a, t)| {

@@ -202,6 +202,8 @@ pub(crate) enum St {
     Resource(ResourceOp, ResRef),
     Set(tdl::StateVar, Option<Ex>),
     Raise(NameEx),
+    /// `log "format", args…;`: the line, a `format!` expression.
+    Log(Ex),
     Loop(Box<LoopSt>),
 }
 

@@ -42,7 +42,7 @@ pub(crate) fn st(s: &St, f: &dyn Fn(Node<'_>) -> bool) -> bool {
         },
         St::With(w) => block(&w.body, f),
         St::Retry(args) => args.as_deref().is_some_and(all),
-        St::Set(_, Some(e)) => ex(e, f),
+        St::Set(_, Some(e)) | St::Log(e) => ex(e, f),
         St::Loop(l) => loop_st(l, f),
         St::Fail(fs) => fs.fields.iter().any(|(_, e)| ex(e, f)),
         St::Constrain(_)

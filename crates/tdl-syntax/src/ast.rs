@@ -401,6 +401,8 @@ pub enum Stmt {
     Set(SetState),
     /// `raise "name";` or `raise (expr);`: an external event raised.
     Raise(Raise),
+    /// `log "format", args…;`: a line for the run's log, stamped with the run's time.
+    Log(Log),
     /// `if cond { ... } [else ...]`.
     If(If),
     /// `['label:] for pat in expr { ... }`.
@@ -505,6 +507,27 @@ pub struct Fail {
     pub fields: Vec<syn::FieldValue>,
     /// Span of the `fail` keyword.
     pub span: Span,
+}
+
+/// `log "format", args…;`: a line for the run's log (a `log` trace record), formatted as
+/// `format!` formats, stamped with the run's time (docs/language.md, "Logging").
+#[derive(Clone, Debug)]
+pub struct Log {
+    /// The format string.
+    pub format: syn::LitStr,
+    /// The arguments after it, positional or named (`name = expr`).
+    pub args: Vec<syn::Expr>,
+    /// Span of the `log` keyword.
+    pub span: Span,
+}
+
+impl Log {
+    /// The arguments of `format!` it stands for: `"format", args…`.
+    pub fn format_args(&self) -> TokenStream {
+        let format = &self.format;
+        let args = &self.args;
+        quote::quote!(#format #(, #args)*)
+    }
 }
 
 /// `if cond { ... } [else ...]`.

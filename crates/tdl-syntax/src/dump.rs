@@ -237,6 +237,7 @@ fn dump_stmt(out: &mut String, stmt: &Stmt, depth: usize) {
             &format!("set {} = {}", it.name, tokens(&it.value)),
         ),
         Stmt::Raise(it) => line(out, depth, &format!("raise {}", print::external(&it.name))),
+        Stmt::Log(it) => line(out, depth, &format!("log {}", it.format_args())),
         Stmt::Bypass(_) => line(out, depth, "bypass"),
         Stmt::Trigger(_) => line(out, depth, "trigger"),
         Stmt::Retry(it) => match &it.args {

@@ -12,6 +12,7 @@ use crate::ir::{Body, Call, Callee, HandlerUse, Op, TagOf, TagUseOf, TaskId, Tim
 use crate::value::{Sym, VExpr, lower};
 
 mod body;
+mod control;
 mod rust;
 
 use body::BodyCompiler;

@@ -14,7 +14,7 @@ use std::path::Path;
 
 /// The programs the interpreter runs as the compiler does: each compiled by `build.rs`, with a
 /// module of its own in `runs/`.
-const RUNS: [&str; 21] = [
+const RUNS: [&str; 22] = [
     "allowed_warnings",
     "approvals",
     "attached_handlers",
@@ -28,6 +28,7 @@ const RUNS: [&str; 21] = [
     "forward_references",
     "handled_exceptions",
     "handlers_retry",
+    "logging",
     "loops_iteration_tags",
     "near_cycles",
     "node_refs_bind_parent",

@@ -15,6 +15,7 @@ mod fig6_monitor_pickup;
 mod forward_references;
 mod handled_exceptions;
 mod handlers_retry;
+mod logging;
 mod loops_iteration_tags;
 mod near_cycles;
 mod node_refs_bind_parent;

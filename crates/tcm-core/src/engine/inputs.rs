@@ -60,6 +60,14 @@ pub enum InputRecord {
     /// the clock's time (`Engine::at_clock`): the record's time is the reading. A replay gives
     /// the engine these readings, in order, for the same commands to carry the same times.
     Clock,
+    /// A body wrote a line to the run's log: a command's is given again by a replay, which does
+    /// not run commands; another body's, the replay's body writes again.
+    Log {
+        /// The node's display number.
+        node: u64,
+        /// The line.
+        message: String,
+    },
     /// An operation from outside the run, as its `control` record says it.
     Control {
         /// What was done.

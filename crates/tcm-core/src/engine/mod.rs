@@ -66,6 +66,12 @@ macro_rules! emit {
         }
         $engine.warnings += 1;
     };
+    ($engine:expr, TraceKind::Log $body:tt $(,)?) => {
+        if $engine.tracing || $engine.keep_warnings {
+            let kind = TraceKind::Log $body;
+            $engine.push_trace(kind);
+        }
+    };
     ($engine:expr, TraceKind::Failed $body:tt $(,)?) => {
         if $engine.tracing {
             let kind = TraceKind::Failed $body;
@@ -292,8 +298,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.tracing = on;
     }
 
-    /// Keeps tracing `warning` records while tracing is off (off by default), so a shell can log
-    /// them without paying for the rest of the trace.
+    /// Keeps tracing `warning` and `log` records while tracing is off (off by default), so a
+    /// shell can log them without paying for the rest of the trace.
     pub fn trace_warnings(&mut self, on: bool) {
         self.keep_warnings = on;
     }

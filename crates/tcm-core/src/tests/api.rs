@@ -128,6 +128,47 @@ fn an_overdue_cancelled_action_is_a_warning_and_its_stop_terminates_the_node() {
 }
 
 #[test]
+fn a_log_line_is_a_record_at_its_time_about_a_live_node_and_kept_with_the_warnings() {
+    let mut e: Bare = Engine::new(1);
+    let z = command(&mut e, "z", &[]);
+    started(&mut e, z);
+    e.log(Time::ZERO + s(1.5), z, "half way".into())
+        .expect("z is live");
+    e.handle_action_finished(Time::ZERO + s(2.0), z, Ok(()))
+        .expect("finished");
+    // Gone: refused, as every input about a node that left the tree.
+    assert!(e.log(Time::ZERO + s(3.0), z, "late".into()).is_err());
+    let trace = checked_trace(&mut e);
+    let logs: Vec<(u64, u64, &str)> = trace
+        .iter()
+        .filter_map(|r| match &r.kind {
+            TraceKind::Log { node, message } => Some((r.t, *node, message.as_str())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(logs, [(1_500_000_000, 1, "half way")]);
+    // Tracing off (after the first record), a shell that logs warnings still gets the lines, and
+    // no spawn or transition.
+    let mut e: Bare = Engine::new(1);
+    e.set_tracing(false);
+    e.trace_warnings(true);
+    let z = command(&mut e, "z", &[]);
+    started(&mut e, z);
+    e.log(Time::ZERO, z, "quiet".into()).expect("z is live");
+    let kept: Vec<TraceKind> = std::iter::from_fn(|| e.poll_trace())
+        .map(|r| r.kind)
+        .filter(|k| !matches!(k, TraceKind::RunStarted { .. }))
+        .collect();
+    assert_eq!(
+        kept,
+        [TraceKind::Log {
+            node: 1,
+            message: "quiet".into()
+        }]
+    );
+}
+
+#[test]
 fn a_wiretap_check_is_a_job_reported_like_an_action() {
     let mut e: Bare = Engine::new(1);
     e.wiretap("move", TapWhen::Before, "stable?");

@@ -88,6 +88,18 @@ fn terminate_at_time_not_owed_by_a_trace_that_ends_before() {
     caught(&b.build(), Rule::Terminate);
 }
 
+/// The small run with one more record after it, a second after its end.
+fn after_small_run(kind: TraceKind) -> Vec<TraceEvent> {
+    let mut t = small_run();
+    let seq = t.len() as u64;
+    t.push(TraceEvent {
+        seq,
+        t: 2 * S,
+        kind,
+    });
+    t
+}
+
 #[test]
 fn shape_rules() {
     let mut t = small_run();
@@ -102,14 +114,10 @@ fn shape_rules() {
     let mut b = Tb::new();
     b.tr(5, H, D, E);
     caught(&b.build(), Rule::BeforeSpawn);
-    let mut t = small_run();
-    let n = t.len() as u64;
-    t.push(TraceEvent {
-        seq: n,
-        t: 2 * S,
-        kind: TraceKind::Suspended { node: 2 },
-    });
-    caught(&t, Rule::AfterReclaim);
+    caught(
+        &after_small_run(TraceKind::Suspended { node: 2 }),
+        Rule::AfterReclaim,
+    );
     let mut b = Tb::new();
     b.goal(1, 0, "a").goal(1, 0, "a");
     caught(&b.build(), Rule::DuplicateNode);
@@ -119,28 +127,27 @@ fn shape_rules() {
     let mut b = Tb::new();
     b.tr(0, H, A, C);
     caught(&b.build(), Rule::RootRecord);
-    // A `placed` record names a node in the tree, as every record about a node does.
+    // A `placed` or `log` record names a node in the tree, as every record about a node does.
     let placed = |node| TraceKind::Placed {
         node,
         agent: "arm".into(),
     };
-    let mut b = Tb::new();
-    b.push(placed(3));
-    caught(&b.build(), Rule::BeforeSpawn);
-    let mut t = small_run();
-    let n = t.len() as u64;
-    t.push(TraceEvent {
-        seq: n,
-        t: 2 * S,
-        kind: placed(2),
-    });
-    caught(&t, Rule::AfterReclaim);
-    let mut b = Tb::new();
-    b.command(1, 0, "grasp")
-        .push(placed(1))
-        .start_command(1)
-        .finish_command(1);
-    assert_eq!(rules(&b.build()), []);
+    let log = |node| TraceKind::Log {
+        node,
+        message: "gripper open".into(),
+    };
+    for note in [&placed as &dyn Fn(u64) -> TraceKind, &log] {
+        let mut b = Tb::new();
+        b.push(note(3));
+        caught(&b.build(), Rule::BeforeSpawn);
+        caught(&after_small_run(note(2)), Rule::AfterReclaim);
+        let mut b = Tb::new();
+        b.command(1, 0, "grasp")
+            .push(note(1))
+            .start_command(1)
+            .finish_command(1);
+        assert_eq!(rules(&b.build()), []);
+    }
 }
 
 #[test]

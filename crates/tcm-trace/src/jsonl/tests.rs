@@ -10,7 +10,7 @@ fn lines_serialise_flat_with_tags() {
     let t = small_run();
     assert_eq!(
         to_line(&t[0]),
-        r#"{"seq":0,"t":0,"ev":"run_started","version":9,"run":0}"#
+        r#"{"seq":0,"t":0,"ev":"run_started","version":10,"run":0}"#
     );
     assert_eq!(
         to_line(&t[1]),
@@ -35,6 +35,22 @@ fn lines_serialise_flat_with_tags() {
     assert_eq!(
         super::parse_line(&to_line(&placed), 1).expect("reads back"),
         placed
+    );
+    let log = TraceEvent {
+        seq: 10,
+        t: 2 * S,
+        kind: TraceKind::Log {
+            node: 4,
+            message: "battery 42.5".into(),
+        },
+    };
+    assert_eq!(
+        to_line(&log),
+        r#"{"seq":10,"t":2000000000,"ev":"log","node":4,"message":"battery 42.5"}"#
+    );
+    assert_eq!(
+        super::parse_line(&to_line(&log), 1).expect("reads back"),
+        log
     );
     let c = TraceEvent {
         seq: 3,
@@ -81,6 +97,10 @@ fn round_trip_every_kind() {
     b.push(TraceKind::Warning {
         node: Some(2),
         message: "w".into(),
+    });
+    b.push(TraceKind::Log {
+        node: 2,
+        message: "l \"q\"\n".into(),
     });
     b.push(TraceKind::StateDeclared {
         var: "battery".into(),
@@ -207,10 +227,10 @@ fn errors_name_the_line_and_the_problem() {
         e.starts_with("line 1: not a trace record: EOF while parsing"),
         "{e}"
     );
-    let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":10,\"run\":0}");
+    let e = error_text("{\"seq\":0,\"t\":0,\"ev\":\"run_started\",\"version\":11,\"run\":0}");
     assert_eq!(
         e,
-        "line 1: the trace has format version 10, but this reader reads versions 1 to 9"
+        "line 1: the trace has format version 11, but this reader reads versions 1 to 10"
     );
     assert!(matches!(
         read_jsonl(&b"\xff\n"[..]),
@@ -251,7 +271,7 @@ fn documented_examples_are_exact() {
             thens.insert(key(&value["constraint"]["then"]));
         }
     }
-    assert_eq!(kinds.len(), 49, "{kinds:?}");
+    assert_eq!(kinds.len(), 50, "{kinds:?}");
     assert_eq!(forms.len(), 3, "{forms:?}");
     // Every kind of "when" with every kind of "then" is shown (the empty string is not a trigger).
     assert_eq!(whens.len(), 8, "{whens:?}");

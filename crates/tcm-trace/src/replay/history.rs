@@ -112,6 +112,8 @@ pub struct Row {
     pub refused: Option<(Mark, &'static str)>,
     /// The agent its action runs on, for a node placed on one (a `placed` record).
     pub agent: Option<String>,
+    /// The lines its body wrote to the run's log (`log` records), with when.
+    pub logs: Vec<(Mark, String)>,
 }
 
 impl Row {
@@ -132,6 +134,7 @@ impl Row {
             handles: None,
             retry_of: None,
             agent: None,
+            logs: Vec::new(),
             request: None,
             granted: None,
             released: None,
@@ -574,6 +577,12 @@ impl Replay {
             }
             K::Placed { node, agent } => {
                 self.edit(*node, |row| assign(&mut row.agent, Some(agent.clone())));
+            }
+            K::Log { node, message } => {
+                self.edit(*node, |row| {
+                    row.logs.push((at, message.clone()));
+                    true
+                });
             }
             K::Warning {
                 node: Some(node),

@@ -116,7 +116,7 @@ impl RunLoop {
     /// an await on the next thing that can change the engine.
     pub(crate) async fn drive(self, sinks: &mut [Box<dyn TraceSink>]) -> Result<RunOutcome, Error> {
         let mut trace = Vec::new();
-        // Warnings go through `tracing` once: here, unless a sink logs them already.
+        // Warnings and log lines go through `tracing` once: here, unless a sink logs them already.
         let logged = sinks.iter().any(|s| s.logs_warnings());
         let result = loop {
             let turn = match self.turn(&mut trace) {
@@ -128,7 +128,7 @@ impl RunLoop {
             };
             for ev in trace.drain(..) {
                 if !logged {
-                    crate::sink::log_warning(&ev);
+                    crate::sink::log_notable(&ev);
                 }
                 for s in sinks.iter_mut() {
                     s.record(&ev);

@@ -16,10 +16,11 @@ fn scratch(name: &str) -> std::path::PathBuf {
     dir.join("run.journal")
 }
 
-/// A command that takes `secs` of the run's time and returns `value`.
+/// A command that takes `secs` of the run's time, logs, and returns `value`.
 fn takes(name: &'static str, secs: f64, value: serde_json::Value) -> Task {
     Task::command(name, move |ctx| async move {
         ctx.sleep(Duration::from_secs_f64(secs)).await;
+        ctx.log(format!("{name} took {secs} s"))?;
         Ok(value)
     })
 }
@@ -35,6 +36,7 @@ fn mission(extra: bool, idempotent: bool) -> Task {
             .spawn(takes("measure", 1.0, json!(2.5)))
             .wait_value()
             .await?;
+        ctx.log(format!("measured {v}"))?;
         if v.as_f64().unwrap_or(0.0) > 2.0 {
             let start = ctx.external("start")?;
             ctx.spawn(takes("go", 0.5, json!(null)))
@@ -112,6 +114,25 @@ async fn a_replay_gives_the_runs_trace_record_for_record() {
     let (path, recorded, report) = record("same").await;
     assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
     assert_checked(&recorded);
+    // The lines bodies and commands logged, at the run's time when they did: a command's is
+    // journaled, as the replay does not run commands.
+    let logs: Vec<(u64, &str)> = recorded
+        .iter()
+        .filter_map(|e| match &e.kind {
+            tcm::TraceKind::Log { message, .. } => Some((e.t / 1_000_000, message.as_str())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        logs,
+        [
+            (1000, "measure took 1 s"),
+            (1000, "measured 2.5"),
+            (2000, "around took 0.7 s"),
+            (2200, "go took 0.5 s"),
+            (4000, "last took 2 s")
+        ]
+    );
     let rec = Recorder::new();
     let replayed = Runtime::new()
         .with_sink(rec.clone())

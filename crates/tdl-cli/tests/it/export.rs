@@ -220,7 +220,7 @@ fn every_documented_record_reads_back_and_fits_its_schema() {
     let (code, _, stderr, out) = export(&file.display().to_string(), &dir);
     assert_eq!(code, 0, "{stderr}");
     let kinds: std::collections::BTreeSet<String> = kinds(&trace).into_iter().collect();
-    assert_eq!(kinds.len(), 49, "{kinds:?}");
+    assert_eq!(kinds.len(), 50, "{kinds:?}");
     assert_read_back(&out, &trace);
 }
 

@@ -74,6 +74,10 @@ impl Frame {
                 let name = self.name(name)?;
                 self.ctx()?.raise(&name)?;
             }
+            St::Log(line) => {
+                let line = self.eval(line)?.to_string();
+                self.ctx()?.log(line)?;
+            }
             _ => {
                 return Err(Flow::Fail(Failure::new(
                     "Interpreter",

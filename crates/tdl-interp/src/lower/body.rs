@@ -174,6 +174,12 @@ impl<'a> Lower<'_, 'a> {
                 let name = self.name_ex(&it.name);
                 Self::push(out, St::Raise(name));
             }
+            Stmt::Log(it) => {
+                let args = it.format_args();
+                let line: syn::Expr = syn::parse_quote!(format!(#args));
+                let line = self.expr(&line);
+                Self::push(out, St::Log(line));
+            }
             Stmt::Retry(it) => {
                 let args = it
                     .args

@@ -262,6 +262,7 @@ fn stmt_span(stmt: &Stmt) -> Span {
         Stmt::Resource(it) => it.span,
         Stmt::Set(it) => it.span,
         Stmt::Raise(it) => it.span,
+        Stmt::Log(it) => it.span,
     }
 }
 
@@ -433,6 +434,10 @@ impl<'a> Gen<'_, 'a> {
             }
             Stmt::Set(it) => super::state::set(self.file, it),
             Stmt::Raise(it) => super::state::raise(it),
+            Stmt::Log(it) => {
+                let args = it.format_args();
+                quote!(ctx.log(::std::format!(#args))?;)
+            }
             Stmt::Retry(it) => {
                 let retry = match &it.args {
                     None => quote!(ctx.retry()?),

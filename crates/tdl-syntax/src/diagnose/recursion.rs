@@ -252,6 +252,7 @@ impl<'a> Must<'a> {
             Stmt::Rust(it) => self.exited |= may_exit(it.tokens.clone()),
             Stmt::Bind(it) => self.exited |= may_exit(it.expr.to_token_stream()),
             Stmt::Set(it) => self.exited |= may_exit(it.value.to_token_stream()),
+            Stmt::Log(it) => self.exited |= may_exit(it.format_args()),
             Stmt::Raise(it) => {
                 if let crate::ast::ExternalName::Expr(expr) = &it.name {
                     self.exited |= may_exit(expr.to_token_stream());
@@ -392,6 +393,7 @@ fn by_hand(block: &Block) -> bool {
         Stmt::With(it) => by_hand(&it.body),
         Stmt::Bind(it) => tokens(it.expr.to_token_stream()),
         Stmt::Set(it) => tokens(it.value.to_token_stream()),
+        Stmt::Log(it) => tokens(it.format_args()),
         Stmt::If(it) => {
             let mut at = it;
             loop {

@@ -141,6 +141,7 @@ impl<'a> Visit<'a> for Walk<'a> {
                 self.scope.stmts.push(Tdl::Fail(it));
             }
             Stmt::Resource(it) => self.scope.resource_stmts.push(it),
+            Stmt::Log(it) => self.rust(it.format_args(), &site),
             Stmt::Set(it) => {
                 self.rust(it.value.to_token_stream(), &site);
                 self.scope.sets.push(it);

@@ -114,6 +114,7 @@ pub fn walk_stmt<'a, V: Visit<'a> + ?Sized>(v: &mut V, stmt: &'a Stmt) {
         | Stmt::Retry(_)
         | Stmt::Resource(_)
         | Stmt::Set(_)
+        | Stmt::Log(_)
         | Stmt::Raise(_) => {}
     }
 }

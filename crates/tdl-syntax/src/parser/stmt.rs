@@ -20,8 +20,8 @@ use super::constraint::{
 };
 use super::{Cx, attempt, parse_block, parse_group, recover, take_group};
 use crate::ast::{
-    Arm, Bind, BindTarget, Binding, Block, ConstraintStmt, Else, ExternalName, Fail, For, If, Loop,
-    Match, Raise, ResourceOp, ResourceStmt, Retry, RustStmt, SetState, Spawn, Stmt, While,
+    Arm, Bind, BindTarget, Binding, Block, ConstraintStmt, Else, ExternalName, Fail, For, If, Log,
+    Loop, Match, Raise, ResourceOp, ResourceStmt, Retry, RustStmt, SetState, Spawn, Stmt, While,
     WithGroup,
 };
 use crate::keyword::{peek_words, starts_constraint};
@@ -67,13 +67,19 @@ pub(crate) fn parse_stmts(input: ParseStream, cx: &mut Cx) -> (Vec<Stmt>, Vec<Ve
     (out, mentions)
 }
 
-/// The identifiers `tokens` name, nested groups included, sorted and each once.
+/// The identifiers `tokens` name, nested groups included, and those string literals name as a
+/// format string names its inline arguments, sorted and each once.
 pub(crate) fn idents(tokens: TokenStream) -> Vec<String> {
     fn walk(tokens: TokenStream, out: &mut Vec<String>) {
         for tt in tokens {
             match tt {
                 proc_macro2::TokenTree::Ident(i) => out.push(i.to_string()),
                 proc_macro2::TokenTree::Group(g) => walk(g.stream(), out),
+                proc_macro2::TokenTree::Literal(l) => {
+                    if let Ok(text) = syn::parse2::<syn::LitStr>(TokenTree::Literal(l).into()) {
+                        out.extend(format_names(&text.value()));
+                    }
+                }
                 _ => {}
             }
         }
@@ -82,6 +88,28 @@ pub(crate) fn idents(tokens: TokenStream) -> Vec<String> {
     walk(tokens, &mut out);
     out.sort();
     out.dedup();
+    out
+}
+
+/// The variables a format string names inline (`{x}`, `{x:?}`), as `format!` reads it: a string
+/// that is no format names none, so its names only make a clone that was not needed.
+fn format_names(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut rest = text;
+    while let Some(open) = rest.find('{') {
+        rest = &rest[open + 1..];
+        if let Some(after) = rest.strip_prefix('{') {
+            rest = after;
+            continue;
+        }
+        let end = rest.find(['}', ':']).unwrap_or(rest.len());
+        let name = &rest[..end];
+        if name.starts_with(|c: char| c.is_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_alphanumeric() || c == '_')
+        {
+            out.push(name.to_string());
+        }
+    }
     out
 }
 
@@ -280,6 +308,9 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
     if is_raise(cursor) {
         return raise(input, cx).map(Stmt::Raise);
     }
+    if is_log(cursor) {
+        return log(input, cx).map(Stmt::Log);
+    }
     if is_constraint_stmt(cursor) {
         return constraint_stmt(input, cx).map(Stmt::Constrain);
     }
@@ -289,6 +320,13 @@ fn stmt(input: ParseStream, cx: &mut Cx) -> syn::Result<Stmt> {
             return Err(syn::Error::new(
                 name.span(),
                 format!("the name of an external event is a string: write `raise \"{name}\";`"),
+            ));
+        }
+        if let (true, Some((name, _))) = (word == "log", rest.ident()) {
+            cx.hint = Some(LOG_HINT);
+            return Err(syn::Error::new(
+                name.span(),
+                format!("a log line starts with its format string: write `log \"{{{name}}}\";`"),
             ));
         }
     }
@@ -415,6 +453,45 @@ fn raise(input: ParseStream, cx: &mut Cx) -> syn::Result<Raise> {
     input.parse::<Token![;]>()?;
     Ok(Raise {
         name,
+        span: keyword.span(),
+    })
+}
+
+/// True when the cursor is at `log "…"`.
+fn is_log(cursor: Cursor<'_>) -> bool {
+    let Some((word, rest)) = first_ident(cursor) else {
+        return false;
+    };
+    word == "log"
+        && rest.literal().is_some_and(|(lit, _)| {
+            let text = lit.to_string();
+            text.starts_with('"') || text.starts_with("r\"") || text.starts_with("r#")
+        })
+}
+
+const LOG_HINT: &str = "a log reads `log \"text\";` or `log \"format\", args…;`, formatted as \
+     `format!` formats (`log \"battery {:.1}%\", state!(battery);`, `log \"at {door}\";`)";
+
+/// `log "format", args…;`.
+fn log(input: ParseStream, cx: &mut Cx) -> syn::Result<Log> {
+    cx.hint = Some(LOG_HINT);
+    let keyword = input.call(Ident::parse_any)?;
+    let format: syn::LitStr = input.parse()?;
+    let mut args = Vec::new();
+    while input.peek(Token![,]) {
+        input.parse::<Token![,]>()?;
+        if input.peek(Token![;]) {
+            break;
+        }
+        args.push(input.parse::<syn::Expr>()?);
+    }
+    if !input.peek(Token![;]) {
+        return Err(input.error("expected `,` and an argument, or `;`, after the log's format"));
+    }
+    input.parse::<Token![;]>()?;
+    Ok(Log {
+        format,
+        args,
         span: keyword.span(),
     })
 }

@@ -199,3 +199,51 @@ fn without_an_environment_declaration_the_checker_says_so_once() {
         .collect();
     assert_eq!(notes.len(), 1, "{:?}", report.notes);
 }
+
+const LOGGED: &str = r#"
+state healthy: bool = true;
+command work(n: u32) { log "work {n} at charge {:?}", state!(healthy); }
+command fault() { set healthy = false; log "fault"; }
+goal main() {
+    log "start";
+    spawn fault();
+    spawn work(1) with pause while !healthy;
+}
+"#;
+
+#[test]
+fn a_log_line_changes_nothing_the_checker_explores_and_needs_no_note() {
+    let report = verify(&load(LOGGED), "main", &[]);
+    assert_eq!(report.status(), Status::Ok, "{:?}", report.results);
+    assert!(
+        report.notes.iter().all(|n| !n.contains("ctx")),
+        "{:?}",
+        report.notes
+    );
+    // The same program without its lines: the same states.
+    let bare: String = LOGGED
+        .lines()
+        .map(|l| match l.find("log \"") {
+            Some(at) => format!("{}{}", &l[..at], if l.ends_with('}') { "}" } else { "" }),
+            None => l.to_owned(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert!(!bare.contains("log"), "{bare}");
+    let without = verify(&load(&bare), "main", &[]);
+    assert_eq!(
+        (report.unique, report.explored, report.ended),
+        (without.unique, without.explored, without.ended)
+    );
+    // Written as Rust on `ctx`, the same line is code the checker does not run, and says so.
+    let by_hand = LOGGED.replace("log \"fault\";", "ctx.log(\"fault\")?;");
+    let report = verify(&load(&by_hand), "main", &[]);
+    assert!(
+        report
+            .notes
+            .iter()
+            .any(|n| n.contains("uses `ctx` is not run")),
+        "{:?}",
+        report.notes
+    );
+}

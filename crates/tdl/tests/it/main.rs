@@ -10,6 +10,7 @@ mod exceptions;
 mod external;
 mod facade;
 mod groups;
+mod logging;
 mod loops;
 mod monitor_limits;
 mod monitors;

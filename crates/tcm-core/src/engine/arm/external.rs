@@ -1,5 +1,5 @@
 //! External events (interned by name, raised as inputs, latched), watches for the shell, and
-//! the two inputs that change nothing but the trace (`note_placed`, `warn`).
+//! the inputs that change nothing but the trace (`note_placed`, `log`, `warn`).
 
 use super::super::node::{Node, WaitKind, Waiter};
 use super::super::{Effect, Engine, EngineError, WatchOutcome};
@@ -104,6 +104,21 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 agent: agent.to_string(),
             }
         );
+        Ok(())
+    }
+
+    /// Input: `node`'s body wrote `message` to the run's log (TDL's `log` statement). Changes
+    /// nothing but the trace: a `log` record, stamped with `now`. A step of the run, and an input
+    /// recorded for a journal whoever gives it: a replay, which does not run commands, gives a
+    /// command's line from the journal.
+    pub fn log(&mut self, now: Time, node: NodeId, message: String) -> Result<(), EngineError> {
+        self.advance(now);
+        let node = self.live(node)?.display;
+        self.record(|_| super::super::InputRecord::Log {
+            node,
+            message: message.clone(),
+        });
+        emit!(self, TraceKind::Log { node, message });
         Ok(())
     }
 

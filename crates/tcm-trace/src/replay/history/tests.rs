@@ -48,6 +48,32 @@ fn a_row_marks_the_record_of_each_point_reached() {
 }
 
 #[test]
+fn a_row_keeps_the_lines_its_body_logged_with_when() {
+    let mut b = Tb::new();
+    b.command(1, 0, "dig").start_command(1);
+    let log = |message: &str| TraceKind::Log {
+        node: 1,
+        message: message.into(),
+    };
+    b.at(S).push(log("dug 3 cm"));
+    b.at(2 * S).push(log("dug 6 cm")).finish_command(1);
+    let trace = b.build();
+    let r = fold(&trace);
+    let logs: Vec<_> = r
+        .row(1)
+        .expect("dig")
+        .logs
+        .iter()
+        .map(|(at, line)| (at.t, line.as_str(), trace[at.seq as usize].kind.node()))
+        .collect();
+    assert_eq!(
+        logs,
+        [(S, "dug 3 cm", Some(1)), (2 * S, "dug 6 cm", Some(1))]
+    );
+    assert_eq!(r.row(0).map(|row| row.logs.len()), Some(0));
+}
+
+#[test]
 fn an_exception_story_follows_the_handler_the_bypass_and_the_retry() {
     let mut b = Tb::new();
     b.goal(1, 0, "mission").start_goal(1);
