@@ -49,8 +49,11 @@ pub(crate) enum Incoming {
 struct Pending {
     agent: String,
     last_seq: u64,
-    // Resumed from the journal: waits for the agent's `Attached` (numbered 0).
-    reattaching: bool,
+    // The agent's answers (`Attached`, numbered 0) still to come: to the question of a resumed
+    // run, and to the one asked after a gap in the task's messages.
+    questions: u32,
+    // The agent was asked where the task stands after a gap (once per task).
+    asked: bool,
     tx: mpsc::UnboundedSender<Incoming>,
     // The node's context, for warnings in the trace about its messages.
     ctx: Ctx,
@@ -641,7 +644,8 @@ impl Inner {
                         Pending {
                             agent: chosen.clone(),
                             last_seq: 0,
-                            reattaching,
+                            questions: u32::from(reattaching),
+                            asked: false,
                             tx,
                             ctx: ctx.clone(),
                         },

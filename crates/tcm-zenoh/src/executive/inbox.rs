@@ -4,7 +4,7 @@
 use super::{Incoming, Inner, ignored_text};
 use crate::noise::Ignored;
 use crate::sequence::{Known, Verdict, verdict};
-use crate::wire::{self, Msg, ToExec};
+use crate::wire::{self, Msg, ToAgent, ToExec};
 use std::sync::Arc;
 
 impl Inner {
@@ -43,10 +43,13 @@ impl Inner {
         }
         // The answer to a reattach, numbered 0, outside the task's sequence (`remote.rs`).
         if msg.seq == 0 {
-            if let Some(p) = s.pending.get_mut(&msg.task).filter(|p| p.reattaching) {
+            if let Some(p) = s.pending.get_mut(&msg.task).filter(|p| p.questions > 0) {
                 let ends = match &msg.body {
+                    // An answer may have been made before messages it was overtaken by (a
+                    // `done` refused as out of order, which the second question is for): the
+                    // number of the last applied never goes back.
                     ToExec::Attached { sent, done, .. } => {
-                        p.last_seq = *sent;
+                        p.last_seq = p.last_seq.max(*sent);
                         Some(done.is_some())
                     }
                     // Never started there: the executive sends the start now.
@@ -54,7 +57,7 @@ impl Inner {
                     _ => None,
                 };
                 if let Some(ends) = ends {
-                    p.reattaching = false;
+                    p.questions -= 1;
                     let last = p.last_seq;
                     let _ = p.tx.send(Incoming::Msg(msg.body));
                     if ends {
@@ -94,8 +97,28 @@ impl Inner {
                 )
             }
         };
+        // A gap in a running task's messages: one was lost on the way (the agent's publisher can
+        // send before zenoh routes it to an executive that came back under the same id). The
+        // agent is asked where the task stands, once, as a resumed executive asks (`Reattach`,
+        // numbered 0); its answer, outside the sequence, closes the gap or ends the task.
+        let ask = match (known, s.pending.get_mut(&msg.task)) {
+            (Known::Running(last), Some(p)) if msg.seq > last.saturating_add(1) && !p.asked => {
+                p.asked = true;
+                p.questions += 1;
+                Some(p.agent.clone())
+            }
+            _ => None,
+        };
         if let Some(kind) = kind {
             drop(s);
+            if let Some(agent) = ask {
+                let question = Msg {
+                    task: msg.task,
+                    seq: 0,
+                    body: ToAgent::Reattach,
+                };
+                self.send_later(&agent, question);
+            }
             self.ignored(Some(msg.task), kind, ctx, || {
                 ignored_text(&msg, &what, whose)
             });

@@ -2,7 +2,8 @@
 //! knows the keys and forges messages by hand) cannot drive a remote node where its executive did
 //! not: a `cancel` the executive never sent is not a success but a `RemoteCancelled` failure, and
 //! a message numbered past the next one expected (a sequence poisoned with 2^64-1, a gap) is
-//! refused on both sides and changes nothing (docs/distributed.md, "Exactly once"). The agent
+//! refused on both sides and changes nothing but a question to the agent where the task stands
+//! (docs/distributed.md, "Exactly once"). The agent
 //! binary logs what it ignores, one line per executive and interval.
 
 use crate::util::{JOIN, Log, Net, Stranger, bounded};
@@ -184,6 +185,9 @@ async fn a_poisoned_sequence_number_cannot_make_the_executive_ignore_the_real_do
                 )
                 .await;
             eventually("two messages refused", || exec2.stats().refused == 2).await;
+            // The gap made the executive ask the agent where the task stands, once; the answer
+            // (still running) changes nothing.
+            eventually("the agent asked", || arm.stats().reattached == 1).await;
             assert_eq!(arm.running(), 1, "the body still runs");
             gate.send_replace(true);
             Ok(())

@@ -3,13 +3,13 @@
 //! SIGKILL at seeded points of the round, on the real clock scaled ×40, while its robot agent, a
 //! process of its own, outlives it and holds the commands it was running. `xavier --resume` then
 //! resumes the run from the journal. A replay may stop at a difference it finds between the run
-//! and itself (`Diverged`, said, nothing run live): those are counted, at most one in 25 (about one
-//! in 250 was seen). Each other resumed run must end as the uncrashed run of the same
-//! seed and scenario ended (the rooms delivered and given up and why, the exceptions, the distance
-//! driven, the run's outcome); its whole trace (the run replayed from the journal, then the rest)
-//! must pass the checker; the agent must have aborted no body for want of its executive; and over
-//! the campaign, commands in flight at a kill must have been re-attached (each node ends once:
-//! the checker holds every node to one end).
+//! and itself (`Diverged`, said, nothing run live): those are counted, at most one in 25 (one in
+//! 250 was seen; docs/semantics.md, "Durable runs", item 9). Each other resumed run must end as
+//! the uncrashed run of the same seed and scenario ended (the rooms delivered and given up and
+//! why, the exceptions, the distance driven, the run's outcome); its whole trace (the run replayed
+//! from the journal, then the rest) must pass the checker; the agent must have aborted no body for
+//! want of its executive; and over the campaign, commands in flight at a kill must have been
+//! re-attached (each node ends once: the checker holds every node to one end).
 //!
 //! `TDL_CRASH_POINTS` sets the number of kill points (50 by default, spread over five seeds and
 //! three scenarios).
@@ -275,12 +275,17 @@ fn a_round_killed_at_seeded_points_resumes_and_ends_as_the_uncrashed_round() {
             let port = tcm_zenoh::config::free_port().expect("a port");
             let journal = dir().join(format!("{system}.journal"));
             let trace = dir().join(format!("{system}.jsonl"));
+            // The crashed run's own trace, up to the kill: kept with the journal when the replay
+            // differs from the run, to see where.
+            let before = dir().join(format!("{system}-before.jsonl"));
             let _ = std::fs::remove_file(&journal);
             let agent = RobotAgent::start(&system, port, seed, scenario);
             let mut first = executive(&system, port, seed, scenario);
             first
                 .arg("--journal")
                 .arg(&journal)
+                .arg("--trace")
+                .arg(&before)
                 .stdout(Stdio::null())
                 .stderr(Stdio::null());
             let mut first = first.spawn().expect("the executive starts");
@@ -308,7 +313,13 @@ fn a_round_killed_at_seeded_points_resumes_and_ends_as_the_uncrashed_round() {
             if let Some(why) = diverged(&out) {
                 // The replay stopped at a difference and said so (exit status 1, nothing run
                 // live): counted, and bounded below.
-                eprintln!("{at}: the replay diverged: {why}");
+                eprintln!(
+                    "{at}: the replay diverged: {why}\n  kept: the journal {}, the crashed run's \
+                     trace {}, the resumed run's {}",
+                    journal.display(),
+                    before.display(),
+                    trace.display()
+                );
                 divergences.push(format!("{at}: {why}"));
                 continue;
             }
@@ -327,6 +338,7 @@ fn a_round_killed_at_seeded_points_resumes_and_ends_as_the_uncrashed_round() {
             reattached += count(&said, "reattached");
             let _ = std::fs::remove_file(&journal);
             let _ = std::fs::remove_file(&trace);
+            let _ = std::fs::remove_file(&before);
         }
     }
     eprintln!(
@@ -335,8 +347,8 @@ fn a_round_killed_at_seeded_points_resumes_and_ends_as_the_uncrashed_round() {
         divergences.len()
     );
     assert!(resumed_mid_round * 2 >= done, "most kills land in a round");
-    // A replay that reports a difference never goes on silently; it happened about once in 250
-    // kill points while these tests were written (docs/semantics.md, "Durable runs", item 9).
+    // A replay that reports a difference never goes on silently; it happened once in 250 kill
+    // points in the last long campaign (docs/semantics.md, "Durable runs", item 9).
     assert!(
         divergences.len() * 25 <= done,
         "more than one in 25 resumed rounds diverged: {divergences:#?}"
