@@ -490,6 +490,31 @@ async fn a_resumed_run_reattaches_to_what_a_command_started_outside() {
     assert_eq!(completed(spawned(&events, "report")), 1);
 }
 
+/// `mission` run with a journal (a sync per record), then replayed from it: the run's report and
+/// trace, the replay's report and trace.
+async fn journaled_and_replayed(
+    name: &str,
+    mission: impl Fn() -> Task,
+) -> (tcm::Report, Vec<TraceEvent>, tcm::Report, Vec<TraceEvent>) {
+    let path = scratch(name);
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let rec = Recorder::new();
+    let report = Runtime::new()
+        .with_sink(rec.clone())
+        .journal(writer)
+        .run(mission())
+        .await
+        .expect("run");
+    let again = Recorder::new();
+    let replayed = Runtime::new()
+        .with_sink(again.clone())
+        .replay(read(&path))
+        .run(mission())
+        .await
+        .expect("replay");
+    (report, rec.events(), replayed, again.events())
+}
+
 /// A body that raises an event itself and sets a state variable: the replay's body does both
 /// again, and the journal's copies of them are not given a second time.
 #[tokio::test(start_paused = true)]
@@ -510,27 +535,58 @@ async fn what_a_body_gives_the_engine_itself_is_given_once_in_the_replay() {
             Ok(())
         })
     };
-    let path = scratch("body-inputs");
-    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
-    let rec = Recorder::new();
-    let report = Runtime::new()
-        .with_sink(rec.clone())
-        .journal(writer)
-        .run(mission())
-        .await
-        .expect("run");
+    let (report, recorded, replayed, again) = journaled_and_replayed("body-inputs", mission).await;
     assert!(report.is_clean(), "{report}");
-    let rec2 = Recorder::new();
-    let replayed = Runtime::new()
-        .with_sink(rec2.clone())
-        .replay(read(&path))
-        .run(mission())
-        .await
-        .expect("replay");
     assert!(
         !matches!(replayed.outcome, RunOutcome::Diverged(_)),
         "{:?}",
         replayed.outcome
     );
-    assert_eq!(lines(&rec2.events()), lines(&rec.events()));
+    assert_eq!(lines(&again), lines(&recorded));
+}
+
+/// An action that outlives its node (a remote command's late message, after the command was
+/// terminated and left the tree) warns through the `Ctx` it kept: the run takes no step for it,
+/// as the replay, which does not run the command, does not make the request, so the replay does
+/// not stop `Diverged` at the next input. The late warning is the only record the replay lacks.
+#[tokio::test(start_paused = true)]
+async fn a_request_of_an_action_that_outlived_its_node_is_no_step_of_the_run() {
+    let mission = || {
+        Task::goal("mission", |ctx| async move {
+            ctx.spawn(Task::command("remote", |ctx| async move {
+                let late = ctx.clone();
+                tokio::spawn(async move {
+                    tokio::time::sleep(Duration::from_millis(1500)).await;
+                    let _ = late.warn("a late end of remote task 7, ignored");
+                });
+                std::future::pending::<()>().await;
+                Ok(())
+            }))
+            .with(tcm::Constraint::terminate(tcm::When::In(
+                Duration::from_secs(1),
+            )))
+            .start()?;
+            ctx.spawn(takes("after", 2.0, json!(2))).wait().await?;
+            ctx.spawn(takes("last", 0.5, json!(3))).wait().await?;
+            Ok(())
+        })
+    };
+    let (report, recorded, replayed, again) = journaled_and_replayed("outlived", mission).await;
+    assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
+    assert_checked(&recorded);
+    let late = |e: &TraceEvent| matches!(&e.kind, tcm::TraceKind::Warning { message, .. } if message.starts_with("a late end"));
+    assert_eq!(recorded.iter().filter(|e| late(e)).count(), 1);
+    assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
+    let without = |events: &[TraceEvent]| {
+        let kept: Vec<TraceEvent> = events.iter().filter(|e| !late(e)).cloned().collect();
+        lines(&kept)
+            .into_iter()
+            .map(|l| {
+                let mut v: serde_json::Value = serde_json::from_str(&l).expect("json");
+                v.as_object_mut().map(|o| o.remove("seq"));
+                v.to_string()
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(without(&again), without(&recorded));
 }
