@@ -9,9 +9,11 @@
 //! compiled binary declares). Each other record is an [`Entry`].
 //!
 //! - [`Writer`] appends entries with a chosen [`Durability`]: every record synced to the disk
-//!   before `append` returns, or group commit (synced at most every N milliseconds by a thread of
-//!   the writer's, and when it is closed). A failed write or sync is an error, and the writer
-//!   refuses every append after it: a run never goes on unjournaled (its caller fails the run).
+//!   before `append` returns; group commit (synced at most every N milliseconds by a thread of
+//!   the writer's, and when it is closed); or group commit and everything synced before the run
+//!   acts outside the process (its caller asks, [`Writer::commit_before_acting`]). A failed
+//!   write or sync is an error, and the writer refuses every append after it: a run never goes
+//!   on unjournaled (its caller fails the run).
 //! - [`read`] reads a journal back for a program: a last record cut short (a crash mid-write) is
 //!   dropped with a warning; a record whose checksum does not match stops the reading with its
 //!   line and byte offset; a journal of another program or of a newer format is refused.

@@ -20,6 +20,34 @@ pub enum Durability {
     /// Group commit: records are synced together at most this long after they were appended (and
     /// when the writer is closed). A crash loses at most that much of the run's end.
     Group(Duration),
+    /// Group commit, and everything appended synced before the run acts outside the process:
+    /// before it starts or cancels a command ([`Writer::commit_before_acting`]). Nothing the
+    /// robot does follows an input the journal could lose; a crash loses at most this long of
+    /// the inputs whose effects stayed inside the process (a command's end among them: resumed,
+    /// such a command is taken for one in flight).
+    BeforeActing(Duration),
+}
+
+impl std::str::FromStr for Durability {
+    type Err = String;
+
+    /// `every`, `group:MS` or `acting:MS` (milliseconds), as `--journal-sync` takes it.
+    fn from_str(text: &str) -> Result<Durability, String> {
+        if text == "every" {
+            return Ok(Durability::EveryRecord);
+        }
+        let wrong = || format!("--journal-sync {text}: give `every`, `group:MS` or `acting:MS`");
+        let (mode, ms) = text.split_once(':').ok_or_else(wrong)?;
+        let every = ms
+            .parse::<u64>()
+            .map(Duration::from_millis)
+            .map_err(|_| format!("--journal-sync {text}: MS is a number of milliseconds"))?;
+        match mode {
+            "group" => Ok(Durability::Group(every)),
+            "acting" => Ok(Durability::BeforeActing(every)),
+            _ => Err(wrong()),
+        }
+    }
 }
 
 /// Where a journal's bytes go: a file, or (for tests of a failing disk) anything that can be
@@ -58,6 +86,8 @@ pub struct Writer {
     // With group commit: what `append` and the flusher share, and the flusher.
     shared: Arc<(Mutex<Shared>, Condvar)>,
     flusher: Option<JoinHandle<()>>,
+    // Everything appended is synced before the run acts outside (`Durability::BeforeActing`).
+    before_acting: bool,
     // The first failure of a sync per record.
     failed: Option<String>,
     // The record being made, reused.
@@ -179,7 +209,7 @@ impl Writer {
         ));
         let (store, flusher) = match durability {
             Durability::EveryRecord => (Some(store), None),
-            Durability::Group(every) => {
+            Durability::Group(every) | Durability::BeforeActing(every) => {
                 let shared = shared.clone();
                 let spawned = std::thread::Builder::new()
                     .name("tcm-journal".into())
@@ -196,6 +226,7 @@ impl Writer {
             store,
             shared,
             flusher,
+            before_acting: matches!(durability, Durability::BeforeActing(_)),
             failed: None,
             scratch: Vec::with_capacity(256),
             batch: Vec::with_capacity(4096),
@@ -244,14 +275,21 @@ impl Writer {
     /// Adds the plainest input, an action's end with no value, to the batch: the same record as
     /// [`Writer::add`] with [`Input::Ended`] makes, without building it.
     pub fn add_ended(&mut self, t: u64, at: u64, node: u64) {
-        self.scratch.clear();
-        ended(self.next, t, at, node, &mut self.scratch);
-        self.seal();
+        // Written in place after room for its checksum, which is filled in once it is known.
+        let start = self.batch.len();
+        self.batch.extend_from_slice(&[b' '; 9]);
+        ended(self.next, t, at, node, &mut self.batch);
+        let crc = crc32fast::hash(&self.batch[start + 9..]);
+        self.batch[start..start + 8].copy_from_slice(&hex(crc));
+        self.batch.push(b'\n');
+        self.next += 1;
     }
 
     /// Moves the record in `scratch` into the batch, its checksum before it.
     fn seal(&mut self) {
-        hex(crc32fast::hash(&self.scratch), &mut self.batch);
+        self.batch
+            .extend_from_slice(&hex(crc32fast::hash(&self.scratch)));
+        self.batch.push(b' ');
         self.batch.extend_from_slice(&self.scratch);
         self.batch.push(b'\n');
         self.next += 1;
@@ -302,6 +340,22 @@ impl Writer {
         })
     }
 
+    /// Whether everything appended must be synced before the run acts outside the process
+    /// ([`Durability::BeforeActing`]).
+    pub fn syncs_before_acting(&self) -> bool {
+        self.before_acting
+    }
+
+    /// With [`Durability::BeforeActing`], [`Writer::commit_durable`]: the run is about to start
+    /// or cancel a command. Otherwise [`Writer::commit`].
+    pub fn commit_before_acting(&mut self) -> Result<(), JournalError> {
+        if self.before_acting {
+            self.commit_durable()
+        } else {
+            self.commit()
+        }
+    }
+
     /// [`Writer::commit`], and then, whatever the durability, waits until everything appended is
     /// synced: for an entry that must be on disk before the run acts on it outside (a remote
     /// task's placement, before its start is sent), with group commit too.
@@ -313,6 +367,9 @@ impl Writer {
         let (m, cv) = &*self.shared;
         let mut s = lock(m);
         let target = s.appended;
+        if s.synced >= target && s.failed.is_none() {
+            return Ok(());
+        }
         s.wanted = s.wanted.max(target);
         cv.notify_all();
         while s.synced < target && s.failed.is_none() && self.flusher.is_some() {
@@ -402,27 +459,18 @@ fn ended(n: u64, t: u64, at: u64, node: u64, out: &mut Vec<u8>) {
 }
 
 /// `n` in decimal.
-fn decimal(mut n: u64, out: &mut Vec<u8>) {
-    let mut digits = [0u8; 20];
-    let mut i = digits.len();
-    loop {
-        i -= 1;
-        digits[i] = b'0' + (n % 10) as u8;
-        n /= 10;
-        if n == 0 {
-            break;
-        }
-    }
-    out.extend_from_slice(&digits[i..]);
+fn decimal(n: u64, out: &mut Vec<u8>) {
+    out.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
 }
 
-/// A checksum in eight lowercase hex digits, then a space.
-fn hex(crc: u32, out: &mut Vec<u8>) {
+/// A checksum in eight lowercase hex digits.
+fn hex(crc: u32) -> [u8; 8] {
     const DIGITS: &[u8; 16] = b"0123456789abcdef";
-    for shift in (0..8).rev() {
-        out.push(DIGITS[((crc >> (shift * 4)) & 0xf) as usize]);
+    let mut out = [0u8; 8];
+    for (i, digit) in out.iter_mut().enumerate() {
+        *digit = DIGITS[((crc >> ((7 - i) * 4)) & 0xf) as usize];
     }
-    out.push(b' ');
+    out
 }
 
 /// The group-commit flusher: every `every` (and once more when the writer closes), what was

@@ -330,3 +330,25 @@ fn a_full_disk_fails_the_append_and_every_one_after() {
         assert!(e.contains("No space left on device"), "{e}");
     }
 }
+
+#[test]
+fn a_durability_reads_as_journal_sync_gives_it() {
+    let read = |s: &str| s.parse::<Durability>();
+    assert_eq!(read("every"), Ok(Durability::EveryRecord));
+    assert_eq!(
+        read("group:5"),
+        Ok(Durability::Group(Duration::from_millis(5)))
+    );
+    assert_eq!(
+        read("acting:10"),
+        Ok(Durability::BeforeActing(Duration::from_millis(10)))
+    );
+    assert_eq!(
+        read("acting:soon"),
+        Err("--journal-sync acting:soon: MS is a number of milliseconds".to_string())
+    );
+    assert_eq!(
+        read("always"),
+        Err("--journal-sync always: give `every`, `group:MS` or `acting:MS`".to_string())
+    );
+}

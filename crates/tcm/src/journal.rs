@@ -51,7 +51,12 @@ impl Journaled {
 
     /// An action of node `display` returned `value`: kept, written, to go with its end.
     pub(crate) fn value(&mut self, display: u64, value: &(dyn std::any::Any + Send)) {
-        let json = match self.encoders.remove(&display) {
+        let own = if self.encoders.is_empty() {
+            None
+        } else {
+            self.encoders.remove(&display)
+        };
+        let json = match own {
             Some(encode) => encode(value),
             None => (self.encode)(value),
         };
@@ -110,7 +115,15 @@ impl Journaled {
             }
         }
         if self.failed.is_none() {
-            if let Err(e) = self.writer.commit() {
+            // With `BeforeActing` durability, synced first when these inputs start or cancel a
+            // command: nothing the robot does follows an input the journal could lose.
+            let committed = if self.writer.syncs_before_acting() && engine.effects_reach_commands()
+            {
+                self.writer.commit_before_acting()
+            } else {
+                self.writer.commit()
+            };
+            if let Err(e) = committed {
                 self.failed = Some(e.to_string());
             }
         }

@@ -66,9 +66,14 @@ pub(crate) struct Args {
     /// its task is `idempotent`. The task and its arguments are the journal's.
     #[arg(long, value_name = "JOURNAL")]
     resume: Option<PathBuf>,
-    /// How the journal reaches the disk: `every` record synced, or `group:MS`, synced together at
-    /// most MS milliseconds after they were written.
-    #[arg(long, value_name = "every|group:MS", default_value = "group:10")]
+    /// How the journal reaches the disk: `every` record synced; `group:MS`, synced together at
+    /// most MS milliseconds after they were written; or `acting:MS`, as `group:MS` and everything
+    /// synced before a command starts or is cancelled (the default).
+    #[arg(
+        long,
+        value_name = "every|group:MS|acting:MS",
+        default_value = "acting:10"
+    )]
     journal_sync: String,
 }
 
@@ -83,18 +88,7 @@ pub(crate) fn interpreted_value(value: &(dyn std::any::Any + Send)) -> Option<se
 
 /// `--journal-sync` read.
 fn durability(text: &str) -> anyhow::Result<tcm_journal::Durability> {
-    match text.split_once(':') {
-        None if text == "every" => Ok(tcm_journal::Durability::EveryRecord),
-        Some(("group", ms)) => {
-            let ms: u64 = ms.parse().with_context(|| {
-                format!("--journal-sync {text}: MS is a number of milliseconds")
-            })?;
-            Ok(tcm_journal::Durability::Group(
-                std::time::Duration::from_millis(ms),
-            ))
-        }
-        _ => anyhow::bail!("--journal-sync {text}: give `every` or `group:MS`"),
-    }
+    text.parse().map_err(anyhow::Error::msg)
 }
 
 /// The files, read.

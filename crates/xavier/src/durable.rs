@@ -18,16 +18,7 @@ pub(crate) fn one_thread(journal: &Option<PathBuf>, resume: &Option<PathBuf>) ->
 
 /// `--journal-sync` read.
 fn durability(text: &str) -> anyhow::Result<Durability> {
-    if text == "every" {
-        return Ok(Durability::EveryRecord);
-    }
-    let Some(ms) = text.strip_prefix("group:") else {
-        bail!("--journal-sync {text}: give `every` or `group:MS`");
-    };
-    let ms: u64 = ms
-        .parse()
-        .with_context(|| format!("--journal-sync {text}: MS is a number of milliseconds"))?;
-    Ok(Durability::Group(std::time::Duration::from_millis(ms)))
+    text.parse().map_err(anyhow::Error::msg)
 }
 
 /// What a run started with, as its journal's header says it.

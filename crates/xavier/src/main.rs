@@ -190,7 +190,8 @@ struct Cli {
     #[arg(long, value_name = "FILE", requires = "agent_port")]
     resume: Option<PathBuf>,
 
-    /// How the journal reaches the disk: `every` record synced, or `group:MS`.
+    /// How the journal reaches the disk: `every` record synced, `group:MS`, or `acting:MS` (group
+    /// commit, and everything synced before a command starts or is cancelled).
     #[arg(long, value_name = "HOW", default_value = "every")]
     journal_sync: String,
 }

@@ -27,8 +27,8 @@ pub enum InputRecord {
         node: u64,
         /// For a wiretap check: the wiretap's number.
         tap: Option<u32>,
-        /// How it failed, if it did.
-        failure: Option<Failure>,
+        /// How it failed, if it did (boxed: most ends succeed, and inputs are queued one each).
+        failure: Option<Box<Failure>>,
     },
     /// A cancelled job stopped.
     Stopped {
@@ -113,8 +113,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     pub(super) fn record(&mut self, input: impl FnOnce(&Self) -> InputRecord) {
         if self.inputs.is_some() {
             // An input given the clock's time reads it now (`Engine::at_clock`): the reading is
-            // the input's time, which its entry holds, so it is no entry of its own.
-            if self.behind {
+            // the input's time, which its entry holds, so it is no entry of its own. Only when
+            // the time can matter (`Engine::wants_time`: traced, or a timer pending), as an
+            // unjournaled run reads it: otherwise the input keeps the engine's latest time, which
+            // its replay gives it again.
+            if self.behind && self.wants_time() {
                 self.catch_up_quietly();
             }
             let now = self.now;
@@ -159,7 +162,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     #[cold]
     #[inline(never)]
     pub(super) fn record_finished(&mut self, job: super::Job, result: &Result<(), Failure>) {
-        let failure = result.as_ref().err().cloned();
+        let failure = result.as_ref().err().cloned().map(Box::new);
         let node = job.node();
         self.record(|e| InputRecord::Finished {
             node: e.display_of(node),

@@ -464,6 +464,17 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.effects.pop_front()
     }
 
+    /// Whether an effect waiting to be polled starts or cancels a command's action: the run is
+    /// about to act outside the process (a journal with `BeforeActing` durability syncs first).
+    pub fn effects_reach_commands(&self) -> bool {
+        self.effects.iter().any(|e| match e {
+            Effect::Start { node, .. } | Effect::Cancel { node } => self
+                .query(*node)
+                .is_some_and(|n| n.kind == crate::NodeKind::Command),
+            _ => false,
+        })
+    }
+
     /// Output: the next trace record.
     #[must_use]
     pub fn poll_trace(&mut self) -> Option<TraceEvent> {

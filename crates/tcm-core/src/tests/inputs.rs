@@ -50,7 +50,7 @@ fn the_engine_records_its_inputs_in_order_with_their_times() {
     let finished = |node: u64, failure: Option<&'static str>| InputRecord::Finished {
         node,
         tap: None,
-        failure: failure.map(|e| Failure::new(e, "")),
+        failure: failure.map(|e| Box::new(Failure::new(e, ""))),
     };
     assert_eq!(
         got,

@@ -136,8 +136,8 @@ impl Inner {
         let result = match res {
             Ok(Ok(value)) => {
                 if let Some(j) = self.journal.as_mut() {
-                    if let Some(info) = self.engine.info(node) {
-                        j.value(info.display, value.as_ref());
+                    if let Some((_, display)) = self.engine.kind_and_display(node) {
+                        j.value(display, value.as_ref());
                     }
                 }
                 if !self.values.is_empty() {

@@ -162,3 +162,82 @@ async fn a_json_value_is_journaled_with_its_end() {
         journal.entries
     );
 }
+
+/// A store that keeps what was written, and how much of it a sync made durable.
+#[derive(Clone, Default)]
+struct Watched(std::sync::Arc<std::sync::Mutex<(Vec<u8>, usize)>>);
+
+impl Watched {
+    /// The text synced so far.
+    fn synced(&self) -> String {
+        let s = self.0.lock().expect("store");
+        String::from_utf8_lossy(&s.0[..s.1]).into_owned()
+    }
+}
+
+impl std::io::Write for Watched {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().expect("store").0.extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl tcm_journal::Store for Watched {
+    fn sync(&self) -> std::io::Result<()> {
+        let mut s = self.0.lock().expect("store");
+        s.1 = s.0.len();
+        Ok(())
+    }
+}
+
+/// With `BeforeActing` durability, the end of `a` is on the disk before `b`, which it releases,
+/// starts; with group commit alone (a minute here) it is not yet.
+#[tokio::test(start_paused = true)]
+async fn before_acting_the_inputs_that_start_a_command_are_synced() {
+    let run = |durability: Durability| async move {
+        let store = Watched::default();
+        let writer = Writer::on(
+            "watched.journal".into(),
+            Box::new(store.clone()),
+            "mission@1",
+            durability,
+        )
+        .expect("the header is written");
+        let seen = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+        let at_b = seen.clone();
+        let mission = Task::goal("mission", move |ctx| async move {
+            ctx.spawn(Task::command("a", |_| async {
+                tokio::time::sleep(Duration::from_secs(1)).await;
+                Ok(())
+            }))
+            .start()?;
+            ctx.spawn(Task::command("b", move |_| async move {
+                *at_b.lock().expect("seen") = store.synced();
+                Ok(())
+            }))
+            .serial(tcm::NodeRef::Previous)
+            .start()?;
+            Ok(())
+        });
+        let report = Runtime::new()
+            .journal(writer)
+            .run(mission)
+            .await
+            .expect("run");
+        assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
+        let synced = seen.lock().expect("seen");
+        synced.clone()
+    };
+    let a_ended = "\"in\":\"ended\",\"node\":2";
+    let acting = run(Durability::BeforeActing(Duration::from_secs(60))).await;
+    assert!(acting.contains(a_ended), "{acting}");
+    let group = run(Durability::Group(Duration::from_secs(60))).await;
+    assert!(
+        group.contains("\"journal\":"),
+        "the header is synced: {group}"
+    );
+    assert!(!group.contains(a_ended), "{group}");
+}

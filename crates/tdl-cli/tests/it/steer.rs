@@ -330,7 +330,10 @@ fn tdl_run_keeps_a_journal_of_its_inputs() {
         "sometimes",
     ]);
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("give `every` or `group:MS`"), "{err}");
+    assert!(
+        err.contains("give `every`, `group:MS` or `acting:MS`"),
+        "{err}"
+    );
 }
 
 /// The journal of an interpreted run holds each command's value, as JSON.
