@@ -175,12 +175,19 @@ impl TraceKind {
                 format!("reserved under {{{parent}}}"),
             ),
             K::Spawned {
-                node, parent, kind, ..
-            } => (
-                C::Spawn,
-                Some(*node),
-                format!("spawned ({kind:?}) under {{{parent}}}").to_lowercase(),
-            ),
+                node,
+                parent,
+                kind,
+                args,
+                ..
+            } => {
+                let mut text = format!("spawned ({kind:?}) under {{{parent}}}").to_lowercase();
+                if let Some(args) = args {
+                    text.push_str(" with ");
+                    text.push_str(args);
+                }
+                (C::Spawn, Some(*node), text)
+            }
             K::Constrained { node, constraint } => (
                 C::Constraint,
                 Some(*node),
@@ -390,6 +397,27 @@ mod tests {
         );
         let start = TraceKind::RunStarted { version: 6, run: 0 };
         assert_eq!(start.describe(|_| String::new()), None);
+    }
+
+    #[test]
+    fn a_spawn_is_told_with_the_arguments_its_record_carries() {
+        let spawned = |args: Option<&str>| TraceKind::Spawned {
+            node: 3,
+            parent: 1,
+            kind: crate::state::NodeKind::Command,
+            name: "drive".into(),
+            version: None,
+            args: args.map(String::from),
+        };
+        let told = |k: TraceKind| k.describe(|n| format!("n{n}")).map(|(_, _, t)| t);
+        assert_eq!(
+            told(spawned(Some("room = 3, map = …"))).as_deref(),
+            Some("spawned (command) under {1} with room = 3, map = …")
+        );
+        assert_eq!(
+            told(spawned(None)).as_deref(),
+            Some("spawned (command) under {1}")
+        );
     }
 
     #[test]

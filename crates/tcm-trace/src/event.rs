@@ -333,6 +333,11 @@ pub enum TraceKind {
         /// loaded at run time under one (a serving executive's content hash); absent otherwise.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         version: Option<String>,
+        /// The arguments its task was given, as text (`name = value, …`), when its task
+        /// describes them (TDL's tasks do, for arguments whose types print with `Debug`); absent
+        /// otherwise.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        args: Option<String>,
     },
     /// A constraint was applied to a node.
     Constrained {

@@ -23,7 +23,7 @@
 //!     TraceEvent {
 //!         seq: 1,
 //!         t: 0,
-//!         kind: TraceKind::Spawned { node: 1, parent: 0, kind: NodeKind::Goal, name: "A".into(), version: None },
+//!         kind: TraceKind::Spawned { node: 1, parent: 0, kind: NodeKind::Goal, name: "A".into(), version: None, args: None },
 //!     },
 //! ];
 //! let text = TextLog::render(TextLogOptions::default(), &trace);

@@ -146,6 +146,7 @@ mod tests {
                     kind: NodeKind::Command,
                     name: "move".into(),
                     version: None,
+                    args: None,
                 },
             ),
             ev(

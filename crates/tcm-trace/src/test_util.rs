@@ -59,6 +59,7 @@ impl Tb {
             kind,
             name: name.to_string(),
             version: None,
+            args: None,
         })
     }
 

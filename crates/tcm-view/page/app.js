@@ -620,6 +620,7 @@ async function showNode() {
   const add = (k, val) => { if (val !== null && val !== undefined && val !== '') kv.append(el('dt', {}, k), el('dd', {}, val)); };
   add('path', v.path);
   add('kind', v.kind);
+  add('arguments', v.args);
   add('at the cursor', v.life + ' · ' + FACETS.map((f, i) => f + ' ' + v.states[i]).join(', '));
   if (v.parent !== null) add('parent', nodeLink(v.parent));
   if (v.handles) add('handles', el('span', {}, v.handles[1] + ' for ', nodeLink(v.handles[0])));

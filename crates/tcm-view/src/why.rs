@@ -57,6 +57,9 @@ pub struct NodeView {
     pub failures: Vec<(String, u64)>,
     /// The lines its body wrote to the run's log by that moment, with when.
     pub logs: Vec<(String, u64)>,
+    /// The arguments its task was given (`name = value, …`), once spawned, when its task
+    /// describes them.
+    pub args: Option<String>,
     /// The handling's duration (active to completed, or to the moment), ns.
     pub ran_ns: Option<u64>,
     /// The wait between enabled and active, ns.
@@ -235,6 +238,7 @@ impl RunModel {
                 .filter(|(at, _)| at.seq <= seq)
                 .map(|(at, line)| (line.clone(), at.t))
                 .collect(),
+            args: row.args.clone().filter(|_| spawned),
             ran_ns,
             queued_ns,
             activations,

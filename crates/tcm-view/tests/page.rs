@@ -488,7 +488,7 @@ fn the_exceptions_tab_tells_a_failure_a_waiting_parent_took() -> anyhow::Result<
 }
 
 /// A patrol whose bodies log: the goal at once, `drive` after 1 s, `look` after 2 s; `dock`
-/// logs nothing.
+/// logs nothing. `drive` is given an argument, which its task describes.
 async fn logging() -> Vec<TraceEvent> {
     use tcm::{Runtime, Task};
     let after = |name: &'static str, s: u64, line: Option<&'static str>| {
@@ -502,7 +502,13 @@ async fn logging() -> Vec<TraceEvent> {
     };
     let task = Task::goal("patrol", move |ctx| async move {
         ctx.log("patrol begins")?;
-        ctx.spawn(after("drive", 1, Some("at the door"))).start()?;
+        let drive = after("drive", 1, Some("at the door"))
+            .with_args(("door".to_string(),))
+            .describe_args(|a| {
+                a.downcast_ref::<(String,)>()
+                    .map(|(to,)| format!("to = {to:?}"))
+            });
+        ctx.spawn(drive).start()?;
         ctx.spawn(after("look", 2, Some("nobody in"))).start()?;
         ctx.spawn(after("dock", 3, None)).start()?;
         Ok(())
@@ -511,7 +517,7 @@ async fn logging() -> Vec<TraceEvent> {
 }
 
 #[test]
-fn the_log_tab_lists_the_lines_bodies_wrote_and_dims_those_after_the_cursor() -> anyhow::Result<()>
+fn the_log_tab_lists_the_lines_bodies_wrote_and_a_nodes_details_its_arguments() -> anyhow::Result<()>
 {
     let _one = one_browser_at_a_time();
     let trace = paused(logging())?;
@@ -553,6 +559,24 @@ fn the_log_tab_lists_the_lines_bodies_wrote_and_dims_those_after_the_cursor() ->
             b.wait_for(&format!("{later} === 2"), Duration::from_secs(10))
                 .await?;
             b.screenshot(&shots().join("logging-log.png")).await?;
+            // `drive`'s details tell the argument it was spawned with; `look` was given none.
+            b.eval(&set_cursor(1_000_000)).await?;
+            b.click("#tabs [data-tab=node]").await?;
+            js_click(&mut b, "#tree .row:not([hidden])[data-n=\"2\"] .name").await?;
+            b.wait_for(
+                &format!("{} === 'to = \"door\"'", detail("arguments")),
+                Duration::from_secs(10),
+            )
+            .await?;
+            js_click(&mut b, "#tree .row:not([hidden])[data-n=\"3\"] .name").await?;
+            b.wait_for(
+                &format!(
+                    "document.querySelector('#tab-node h3').textContent.startsWith('look') && {} === null",
+                    detail("arguments")
+                ),
+                Duration::from_secs(10),
+            )
+            .await?;
             anyhow::Ok(())
         })?;
     viewer.stop();

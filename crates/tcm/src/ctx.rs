@@ -518,6 +518,7 @@ impl Ctx {
                 fail_parent: false,
                 wanted: None,
                 durable: None,
+                describe: None,
             },
         );
         Ok(id)

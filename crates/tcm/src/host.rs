@@ -410,6 +410,11 @@ impl Inner {
         if let Some(wanted) = kept.wanted.take() {
             spec.uses = self.resolve(*wanted)?;
         }
+        if let (Some(describe), Some(args)) = (kept.describe, kept.args.as_deref()) {
+            if self.engine.traces() {
+                spec.args = describe(args).map(String::into_boxed_str);
+            }
+        }
         let now = now.unwrap_or_else(|| self.engine.at_clock());
         let id = self.engine.spawn(now, spec)?;
         if kept.fail_parent {

@@ -66,7 +66,8 @@ pub use state::{
     BinOp, CondId, Expr, FromState, InvariantFailed, StateId, StateType, StateValue, StateVar,
 };
 pub use task::{
-    Action, ActionFuture, Attached, Exception, Factory, Handler, Monitor, Tap, Task, Value, factory,
+    Action, ActionFuture, Attached, DescribeArgs, Exception, Factory, Handler, Monitor, Tap, Task,
+    Value, factory,
 };
 pub use tcm_core::{
     Approval, ApprovalRefused, AttachId, BreakAt, Breakpoint, EachActivation, Fault, FaultOutcome,

@@ -29,7 +29,14 @@ pub(crate) struct Kept {
     // How it lives through a crash of the run (`Task::idempotent`, `Task::journaled`,
     // `Task::reattach`).
     pub(crate) durable: Option<Arc<Durable>>,
+    // Describes `args` for the node's `spawned` record (`Task::describe_args`).
+    pub(crate) describe: Option<DescribeArgs>,
 }
+
+/// Describes a task's kept arguments ([`Task::with_args`]) as text for its nodes' `spawned`
+/// records (`name = value, …`; `None` when they cannot be told). Called only when the run is
+/// traced.
+pub type DescribeArgs = fn(&(dyn Any + Send + Sync)) -> Option<String>;
 
 /// How a task's nodes live through a crash of their run (docs/semantics.md, "Durable runs"):
 /// whether the action may run twice, how the journal writes and reads back its value, and how a
@@ -292,6 +299,7 @@ pub struct Task {
     // The version of the program that defines it (`Task::version`).
     pub(crate) version: Option<Arc<str>>,
     pub(crate) durable: Option<Arc<Durable>>,
+    pub(crate) describe: Option<DescribeArgs>,
 }
 
 impl Task {
@@ -312,6 +320,7 @@ impl Task {
             wanted: None,
             version: None,
             durable: None,
+            describe: None,
         }
     }
 
@@ -473,6 +482,15 @@ impl Task {
     /// TDL tasks keep the tuple of their arguments (docs/language.md, "Wiretaps").
     pub fn with_args<A: Any + Send + Sync>(mut self, args: A) -> Task {
         self.args = Some(Arc::new(args));
+        self
+    }
+
+    /// Tells the arguments kept with [`Task::with_args`] in each node's `spawned` record, for the
+    /// viewer and `tdl trace story` (generated code tells each argument whose type is
+    /// `tdl::ShowArg`). `describe` runs at the spawn, only when the run is traced; its text must
+    /// be the same on every run for the same arguments, as the trace is.
+    pub fn describe_args(mut self, describe: DescribeArgs) -> Task {
+        self.describe = Some(describe);
         self
     }
 
@@ -660,6 +678,7 @@ impl Task {
             fail_parent: false,
             wanted: self.wanted,
             durable: self.durable,
+            describe: self.describe,
         };
         let spawn = Spawn {
             parent,
@@ -677,6 +696,8 @@ impl Task {
             // Resolved by name when the spawn is made (`Kept::wanted`).
             uses: None,
             version: self.version,
+            // Described by the host only when the run is traced (`Inner::spawn`).
+            args: None,
         };
         (spawn, kept)
     }

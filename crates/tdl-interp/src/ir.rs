@@ -449,6 +449,8 @@ pub(crate) struct TaskDef {
     pub(crate) name: &'static str,
     pub(crate) kind: TaskKind,
     pub(crate) params: Vec<(Arc<str>, Ty)>,
+    // The parameters, shared by each node's kept arguments to describe them (`value::Args`).
+    pub(crate) shown: crate::value::Params,
     pub(crate) result: Option<Ty>,
     pub(crate) persistent: bool,
     pub(crate) blocking: bool,

@@ -324,7 +324,8 @@ pub(crate) fn task(shared: &Arc<Shared>, idx: TaskIdx, args: Vec<Value>) -> Resu
             if args.is_empty() {
                 t
             } else {
-                t.with_args_erased(Some(Arc::new(Args(args.clone()))))
+                t.with_args_erased(Some(Arc::new(Args(args.clone(), Some(def.shown.clone())))))
+                    .describe_args(Args::describe)
             }
         }
         TaskKind::Monitor => {

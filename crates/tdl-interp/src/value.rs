@@ -14,6 +14,7 @@ use std::fmt::{self, Write as _};
 use std::sync::Arc;
 use std::time::Duration;
 
+use crate::ty::Ty;
 use tdl::{Ctx, NodeId};
 
 /// A value of an interpreted body.
@@ -430,9 +431,84 @@ impl Value {
 }
 
 /// The arguments of an interpreted goal or command, kept beside its node (`Task::with_args`): a
-/// handler's `retry with` replaces them, wiretap checks and attached handlers read them.
+/// handler's `retry with` replaces them, wiretap checks and attached handlers read them. With
+/// their parameters (names and types), when known, for the node's `spawned` record
+/// ([`Args::describe`]).
 #[derive(Clone, Debug, Default)]
-pub struct Args(pub Vec<Value>);
+pub struct Args(pub Vec<Value>, pub(crate) Option<Params>);
+
+/// A task's parameters, names and declared types, in order.
+pub(crate) type Params = Arc<[(Arc<str>, Ty)]>;
+
+impl Args {
+    /// The arguments as a node's `spawned` record tells them, `name = value, …`, each value as
+    /// the compiled program's `tdl::ShowArg` shows it, by the parameter's declared type: a
+    /// bool, number, string, duration, unit, or an option or list of those, as Rust's `Debug`
+    /// prints them (a list cut after `tdl::SHOWN_ITEMS` items); a value of another type as `…`
+    /// (so a host type the compiled program shows with its own `ShowArg` shows as `…` here).
+    /// `None` without the parameters (a `retry with`'s).
+    pub fn describe(args: &(dyn std::any::Any + Send + Sync)) -> Option<String> {
+        let args = args.downcast_ref::<Args>()?;
+        let params = args.1.as_ref()?;
+        let mut out = String::new();
+        for (i, ((name, ty), value)) in params.iter().zip(&args.0).enumerate() {
+            if i > 0 {
+                out.push_str(", ");
+            }
+            out.push_str(name);
+            out.push_str(" = ");
+            if shown(ty) {
+                show(value, &mut out);
+            } else {
+                out.push('…');
+            }
+        }
+        Some(out)
+    }
+}
+
+/// Whether the compiled program's `tdl::ShowArg` shows values of `ty`.
+fn shown(ty: &Ty) -> bool {
+    match ty {
+        Ty::Unit | Ty::Bool | Ty::Int { .. } | Ty::Float | Ty::Str | Ty::Duration => true,
+        Ty::List(t) | Ty::Option(t) => shown(t),
+        _ => false,
+    }
+}
+
+/// A value of a shown type as `tdl::ShowArg` shows the compiled one (see [`Args::describe`]).
+fn show(value: &Value, out: &mut String) {
+    match value {
+        Value::Unit
+        | Value::Bool(_)
+        | Value::Int(_)
+        | Value::Float(_)
+        | Value::Str(_)
+        | Value::Duration(_) => {
+            let _ = write!(out, "{value:?}");
+        }
+        Value::List(items) => {
+            out.push('[');
+            for (i, it) in items.iter().take(tdl::SHOWN_ITEMS).enumerate() {
+                if i > 0 {
+                    out.push_str(", ");
+                }
+                show(it, out);
+            }
+            if items.len() > tdl::SHOWN_ITEMS {
+                out.push_str(", …");
+            }
+            out.push(']');
+        }
+        Value::Variant(v) if &*v.ty == "Option" && v.fields.is_empty() => out.push_str("None"),
+        Value::Variant(v) if &*v.ty == "Option" && v.fields.len() == 1 => {
+            out.push_str("Some(");
+            show(&v.fields[0], out);
+            out.push(')');
+        }
+        _ => out.push('…'),
+    }
+}
 
 #[cfg(test)]
 mod tests {

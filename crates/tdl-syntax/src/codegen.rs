@@ -461,6 +461,7 @@ fn task_items(
             .map(|e| &e.args[..]);
         return wiretap_fn(task, tap, declared, &code, action.reassigns);
     }
+    let describe = describe_args(task);
     let build = match task.kind {
         TaskKind::Goal | TaskKind::Command => {
             let kind = if task.kind == TaskKind::Command {
@@ -498,7 +499,7 @@ fn task_items(
                             };
                             #code
                         }
-                    }).with_args_erased(tdl_kept) #modifiers
+                    }).with_args_erased(tdl_kept).describe_args(#describe) #modifiers
                 }
             }
         }
@@ -556,6 +557,35 @@ fn task_items(
         Allow::Nothing
     };
     task_shell(task, &build, allow)
+}
+
+/// A function that tells a goal's or command's kept arguments (the tuple of their declared
+/// types) for its nodes' `spawned` records: `name = value, …`, each value as `tdl::ShowArg`
+/// shows it, or `…` when its type is no `ShowArg`.
+fn describe_args(task: &crate::ast::Task) -> TokenStream {
+    let names: Vec<&Ident> = task.args.iter().map(|it| &it.name).collect();
+    let types: Vec<&syn::Type> = task.args.iter().map(|it| &it.ty).collect();
+    let holes = names
+        .iter()
+        .map(|n| format!("{n} = {{}}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    quote! {{
+        #[allow(clippy::type_complexity, non_snake_case)]
+        fn tdl_describe(
+            tdl_args: &(dyn ::core::any::Any + ::core::marker::Send + ::core::marker::Sync),
+        ) -> ::core::option::Option<::std::string::String> {
+            #[allow(unused_imports)]
+            use ::tdl::codegen::{DebugShown as _, NoDebugShown as _};
+            let (#(#names,)*) = tdl_args.downcast_ref::<(#(#types,)*)>()?;
+            #[allow(clippy::needless_borrow)]
+            ::core::option::Option::Some(::std::format!(
+                #holes,
+                #((&::tdl::codegen::Shown(#names)).tdl_shown()),*
+            ))
+        }
+        tdl_describe
+    }}
 }
 
 fn arg_pat(arg: &crate::ast::Arg) -> TokenStream {

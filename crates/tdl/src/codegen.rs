@@ -28,6 +28,37 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// An argument shown in a node's `spawned` record (`Task::describe_args`): as
+/// [`ShowArg`](crate::ShowArg) shows it when its type is one ([`DebugShown`]), else as `…`
+/// ([`NoDebugShown`]); generated code picks by borrow.
+pub struct Shown<'a, T>(pub &'a T);
+
+/// An argument whose type is [`ShowArg`](crate::ShowArg).
+pub trait DebugShown {
+    /// The argument as it shows.
+    fn tdl_shown(&self) -> String;
+}
+
+impl<T: crate::ShowArg> DebugShown for Shown<'_, T> {
+    fn tdl_shown(&self) -> String {
+        let mut out = String::new();
+        self.0.show_arg(&mut out);
+        out
+    }
+}
+
+/// An argument whose type does not print.
+pub trait NoDebugShown {
+    /// `…`.
+    fn tdl_shown(&self) -> String;
+}
+
+impl<T> NoDebugShown for &Shown<'_, T> {
+    fn tdl_shown(&self) -> String {
+        "…".to_string()
+    }
+}
+
 /// A task's arguments, kept by its body for re-runs (see the module docs).
 pub struct Args<T>(Mutex<Option<T>>);
 

@@ -41,8 +41,10 @@ pub use tdl_macros::tdl;
 mod caught;
 #[doc(hidden)]
 pub mod codegen;
+mod show;
 
 pub use caught::Caught;
+pub use show::{SHOWN_ITEMS, ShowArg};
 
 /// The runtime crate, for paths the re-exports do not cover.
 pub use tcm;

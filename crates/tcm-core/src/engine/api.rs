@@ -120,6 +120,9 @@ pub struct Spawn<A, F = ()> {
     /// The version of the program that defines its task, when the program was loaded under one
     /// (a serving executive's content hash): its `spawned` record names it.
     pub version: Option<std::sync::Arc<str>>,
+    /// The arguments its task was given, as text (`name = value, …`), for its `spawned` record;
+    /// a shell describes them only when the engine traces (`Engine::traces`).
+    pub args: Option<Box<str>>,
 }
 
 impl<A, F: Clone> Spawn<A, F> {
@@ -140,6 +143,7 @@ impl<A, F: Clone> Spawn<A, F> {
             retry: None,
             uses: None,
             version: None,
+            args: None,
         }
     }
 
@@ -160,6 +164,7 @@ impl<A, F: Clone> Spawn<A, F> {
             retry: None,
             uses: None,
             version: None,
+            args: None,
         }
     }
 

@@ -298,6 +298,12 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.tracing = on;
     }
 
+    /// Whether the engine traces (`set_tracing`): a shell builds what only the trace reads (a
+    /// spawn's description of its arguments) only then.
+    pub fn traces(&self) -> bool {
+        self.tracing
+    }
+
     /// Keeps tracing `warning` and `log` records while tracing is off (off by default), so a
     /// shell can log them without paying for the rest of the trace.
     pub fn trace_warnings(&mut self, on: bool) {

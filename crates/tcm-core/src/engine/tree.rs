@@ -65,6 +65,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             retry,
             mut uses,
             version,
+            args,
         } = spec;
         self.live(parent)?;
         if let Some(u) = uses.as_mut() {
@@ -168,7 +169,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
         }
         self.link(parent, id);
-        let display = self.emit_spawned(id, parent, version.as_ref());
+        let display = self.emit_spawned(id, parent, version.as_ref(), args);
         if self.tracing {
             let n = self.node(id);
             if let Some(m) = n.monitor() {
@@ -420,7 +421,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         node.suspended = self.node(parent).suspended;
         let id = self.nodes.insert(node);
         self.link(parent, id);
-        self.emit_spawned(id, parent, None);
+        self.emit_spawned(id, parent, None, None);
         if self.node(id).suspended {
             emit!(self, TraceKind::Suspended { node: display });
         }
@@ -450,7 +451,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         node.action = Some(payload);
         node.suspended = suspended;
         self.link(parent, r);
-        let display = self.emit_spawned(r, parent, None);
+        let display = self.emit_spawned(r, parent, None, None);
         if suspended {
             emit!(self, TraceKind::Suspended { node: display });
         }
@@ -478,6 +479,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         id: NodeId,
         parent: NodeId,
         version: Option<&std::sync::Arc<str>>,
+        args: Option<Box<str>>,
     ) -> u64 {
         let display = self.node(id).display;
         // The record (and its copy of the name) is only built when someone reads the trace.
@@ -491,6 +493,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 kind,
                 name,
                 version: version.map(ToString::to_string),
+                args: args.map(String::from),
             });
         }
         display

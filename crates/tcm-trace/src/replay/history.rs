@@ -114,6 +114,8 @@ pub struct Row {
     pub agent: Option<String>,
     /// The lines its body wrote to the run's log (`log` records), with when.
     pub logs: Vec<(Mark, String)>,
+    /// The arguments its task was given, as its `spawned` record tells them.
+    pub args: Option<String>,
 }
 
 impl Row {
@@ -135,6 +137,7 @@ impl Row {
             retry_of: None,
             agent: None,
             logs: Vec::new(),
+            args: None,
             request: None,
             granted: None,
             released: None,
@@ -421,11 +424,14 @@ impl Replay {
                 parent,
                 kind,
                 name,
+                args,
                 ..
             } => {
                 self.link(*node, *parent);
                 self.edit(*node, |row| {
-                    assign(&mut row.name, name.clone()) | assign(&mut row.kind, Some(*kind))
+                    assign(&mut row.name, name.clone())
+                        | assign(&mut row.kind, Some(*kind))
+                        | assign(&mut row.args, args.clone())
                 });
                 self.set(*node, M_SPAWNED, at);
                 if !kind.expands() {

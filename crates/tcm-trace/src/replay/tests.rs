@@ -142,6 +142,7 @@ fn bad_records_are_refused() {
             kind: NodeKind::Goal,
             name: "x".into(),
             version: None,
+            args: None,
         })),
         Err(ReplayError::Duplicate { node: 2 })
     );
@@ -152,6 +153,7 @@ fn bad_records_are_refused() {
             kind: NodeKind::Goal,
             name: "x".into(),
             version: None,
+            args: None,
         })),
         Err(ReplayError::UnknownParent { node: 5, parent: 1 })
     );

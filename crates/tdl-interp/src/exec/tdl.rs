@@ -112,7 +112,7 @@ impl Frame {
                     None => self.ctx()?.retry()?,
                     Some(args) => {
                         let args = self.eval_all_async(args).await?;
-                        self.ctx()?.retry_with(crate::value::Args(args))?
+                        self.ctx()?.retry_with(crate::value::Args(args, None))?
                     }
                 };
                 self.ctx()?.wait(node).await?;

@@ -25,7 +25,7 @@ pub(crate) fn lower_task(
 ) -> TaskDef {
     let scope = file.body(task);
     let mut l = Lower::new(registry, names, file, file_name, scope, diags);
-    let mut params = Vec::new();
+    let mut params: Vec<(Arc<str>, _)> = Vec::new();
     for arg in &task.args {
         let ty = l.ty(&arg.ty);
         l.check_type(&ty, arg.name.span());
@@ -40,6 +40,7 @@ pub(crate) fn lower_task(
     let mut def = TaskDef {
         name: crate::program::intern(&task.name.to_string()),
         kind: task.kind,
+        shown: params.iter().cloned().collect(),
         params,
         result,
         persistent: task.persistent && task.kind != TaskKind::Handler,

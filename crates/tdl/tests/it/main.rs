@@ -2,6 +2,7 @@
 //! written with `tdl!` (or compiled from `.tdl` files by `tdl-build`) run on virtual time, and
 //! each test asserts on the trace, which the trace checker also validates.
 
+mod args_shown;
 mod blocking;
 mod build;
 mod by_value;
