@@ -20,8 +20,9 @@
 //! Xavier mission at run time. W1 also runs at 10k, 100k and 1M to show the per-node cost does
 //! not grow.
 //!
-//! `--workload W1|W2|W3|W4|W5|W6|W7|W8|load|W1-scale`, `--layer core|shell|interp`, `--n N` and `--depth D` run one
-//! workload, one layer, one size (W1-scale then runs only that size); `--hold` makes the core
+//! `--workload W1|W2|W3|W4|W5|W6|W7|W8|load|W1-scale`, `--layer core|shell|shell-now|interp`,
+//! `--n N` and `--depth D` run one workload, one layer (`shell-now`: W1, W2 and W3 written with
+//! synchronous actions, `Task::command_now`), one size (W1-scale then runs only that size); `--hold` makes the core
 //! layer's W1-scale spawn every command before any runs (layer `core-hold`), so all N are alive at
 //! once as in the shell. `bench/compare` runs each workload in a process of its own with these, to
 //! read its peak RSS and to match the sizes the other systems can handle.
@@ -199,6 +200,54 @@ fn shell_journaled<F: FnOnce() -> Task>(
 
 fn shell_flat(n: usize, chained: bool) -> (f64, usize) {
     shell_flat_journaled(n, chained, None)
+}
+
+/// W1 (`chained`) or W2 through the async runtime, written with synchronous actions
+/// (`Task::goal_now`, `Task::command_now`): no future per action.
+fn shell_flat_now(n: usize, chained: bool) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = best(|| {
+        let (ns, h) = shell(n, || {
+            Task::goal_now("top", move |ctx| {
+                for _ in 0..n {
+                    let s = ctx.spawn(Task::command_now("noop", |_| Ok(())));
+                    let s = if chained {
+                        s.serial(NodeRef::Previous)
+                    } else {
+                        s
+                    };
+                    s.start()?;
+                }
+                Ok(())
+            })
+        });
+        hw = h;
+        ns
+    });
+    (ns, hw)
+}
+
+/// W3 written with synchronous actions.
+fn recursive_now(depth: usize) -> Task {
+    Task::goal_now("g", move |ctx| {
+        if depth > 1 {
+            let c = ctx.spawn(Task::command_now("c", |_| Ok(()))).start()?;
+            ctx.spawn(recursive_now(depth - 1))
+                .sequential(Facet::Execution, c)
+                .start()?;
+        }
+        Ok(())
+    })
+}
+
+fn shell_recursive_now(depth: usize) -> (f64, usize) {
+    let mut hw = 0;
+    let ns = best(|| {
+        let (ns, h) = shell(2 * depth, || recursive_now(depth));
+        hw = h;
+        ns
+    });
+    (ns, hw)
 }
 
 /// The journal's group commit in the benchmarks: every 10 ms.
@@ -540,7 +589,7 @@ struct Options {
 }
 
 const USAGE: &str = "usage: tcm-bench [--json] [--quick] [--workload W1|W2|W3|W4|W5|W6|W7|W8|load|W1-scale] \
-[--layer core|shell|interp|journal|shell-journal] [--n N] [--depth D] [--hold] [--cold-heap]";
+[--layer core|shell|shell-now|interp|journal|shell-journal] [--n N] [--depth D] [--hold] [--cold-heap]";
 
 fn parse_args() -> Result<Options, String> {
     let mut o = Options {
@@ -582,7 +631,7 @@ fn parse_args() -> Result<Options, String> {
                 let l = value("--layer")?;
                 if !matches!(
                     l.as_str(),
-                    "core" | "shell" | "interp" | "journal" | "shell-journal"
+                    "core" | "shell" | "shell-now" | "interp" | "journal" | "shell-journal"
                 ) {
                     return Err(format!("unknown layer {l:?}"));
                 }
@@ -619,6 +668,8 @@ fn main() {
     let on = |w: &str| o.workload.as_deref().is_none_or(|x| x == w);
     let core = o.layer.as_deref().is_none_or(|l| l == "core");
     let shell = o.layer.as_deref().is_none_or(|l| l == "shell");
+    // The shell with synchronous actions (`Task::command_now`): W1, W2 and W3.
+    let shell_now = o.layer.as_deref().is_none_or(|l| l == "shell-now");
     let interp = o.layer.as_deref().is_none_or(|l| l == "interp");
     // Only when asked for: a sync per record makes it slow.
     let journal = o.layer.as_deref() == Some("journal");
@@ -635,6 +686,9 @@ fn main() {
             if shell {
                 report(json, "W1", "shell", n, shell_flat(n, true), f);
             }
+            if shell_now {
+                report(json, "W1", "shell-now", n, shell_flat_now(n, true), f);
+            }
             if shell_journal {
                 let group = shell_flat_journaled(n, true, Some(GROUP_COMMIT));
                 report(json, "W1", "shell+journal-group", n, group, f);
@@ -650,6 +704,9 @@ fn main() {
             }
             if shell {
                 report(json, "W2", "shell", n, shell_flat(n, false), f);
+            }
+            if shell_now {
+                report(json, "W2", "shell-now", n, shell_flat_now(n, false), f);
             }
             if shell_journal {
                 let group = shell_flat_journaled(n, false, Some(GROUP_COMMIT));
@@ -720,6 +777,10 @@ fn main() {
         }
         if shell {
             report(json, "W3", "shell", 2 * depth, shell_recursive(depth), fd);
+        }
+        if shell_now {
+            let now = shell_recursive_now(depth);
+            report(json, "W3", "shell-now", 2 * depth, now, fd);
         }
     }
     if on("W5") {

@@ -38,6 +38,20 @@ pub struct Ctx {
 }
 
 impl Ctx {
+    /// The context of a job's action (not an invocation's): the node's own, holding its kept
+    /// arguments; its children are held until it returns (`Engine::hold_by_default`).
+    #[inline(always)]
+    pub(crate) fn of_job(shared: Arc<Shared>, job: Job, args: Option<AnyArgs>) -> Ctx {
+        Ctx {
+            shared,
+            node: job.node(),
+            purpose: None,
+            job: Some(job),
+            args,
+            signal: OnceLock::new(),
+        }
+    }
+
     /// This action's node.
     pub fn node(&self) -> NodeId {
         self.node

@@ -14,7 +14,7 @@ use crate::Error;
 use crate::cancel::Cancels;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
-use crate::task::{Action, ActionFuture, AnyArgs, Factory, Kept, Value};
+use crate::task::{Action, AnyArgs, Factory, Kept, Launch, Value};
 use std::any::Any;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
@@ -159,7 +159,7 @@ pub(crate) struct Inner {
     // Running actions, to abort on cancellation.
     pub(crate) aborts: Aborts,
     // Jobs started while the pump of this thread runs (`pump.rs`), for it to poll, in start order.
-    pub(crate) launches: Vec<(Job, ActionFuture)>,
+    pub(crate) launches: Vec<(Job, Launch)>,
     // Jobs cancelled while the pump holds them (started, not yet a task): rare, so a vector.
     inline_cancelled: Vec<NodeId>,
     // Cancellation signals, grace periods and the actions running in theirs (`cancel.rs`).

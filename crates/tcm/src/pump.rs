@@ -75,8 +75,9 @@ pub(crate) use parked::Parked;
 use parked::Spare;
 pub(crate) use tracked::{MaybeTracked, Tracked};
 
+use crate::ctx::Ctx;
 use crate::host::{CatchUnwind, Ended, Inner, Shared};
-use crate::task::ActionFuture;
+use crate::task::{ActionFuture, Launch, RunNow};
 use std::cell::RefCell;
 use std::future::Future;
 use std::sync::Arc;
@@ -414,11 +415,11 @@ impl Guard {
             let _ = push(|st| st.clock = Some((tcm_core::Time::ZERO, 0)));
             let mut stale = false;
             let mut cancels = shared.inline_cancels.load(Ordering::Relaxed);
-            while let Some((job, mut fut)) = batch.pop() {
+            while let Some((job, launch)) = batch.pop() {
                 // A job of this batch cancelled before its turn (rare) is dropped unpolled in its
                 // turn, as its task would be, aborted before it ran.
                 if shared.inline_cancels.load(Ordering::Relaxed) != cancels {
-                    batch.push((job, fut));
+                    batch.push((job, launch));
                     match shared.enter() {
                         Ok(mut inner) => inner.cancelled_in(&batch, &mut skip),
                         Err(_) => return,
@@ -429,19 +430,35 @@ impl Guard {
                 if !skip.is_empty() {
                     if let Some(i) = skip.iter().position(|n| *n == job.node()) {
                         skip.swap_remove(i);
-                        drop(fut);
+                        drop(launch);
                         let _ = push(|st| st.done.push(Ended::Dropped(job)));
                         unpolled = true;
                         continue;
                     }
                 }
-                let slot = spare.slot();
-                polling(true);
-                let first = poll_once(&mut fut, &slot.1);
-                polling(false);
+                // A synchronous action runs where its future would be polled: no future, no
+                // waker, and it is always done.
+                let first = match launch {
+                    Launch::Future(mut fut) => {
+                        let slot = spare.slot();
+                        polling(true);
+                        let first = poll_once(&mut fut, &slot.1);
+                        polling(false);
+                        spare.settle_after(&first);
+                        match first {
+                            Poll::Ready(res) => Ok(res),
+                            Poll::Pending => Err(fut),
+                        }
+                    }
+                    Launch::Now(f, args) => {
+                        polling(true);
+                        let res = run_now(f, Ctx::of_job(shared.clone(), job, args));
+                        polling(false);
+                        Ok(res)
+                    }
+                };
                 let (kept, to_drop) = match first {
-                    Poll::Ready(res) if !batch.is_empty() => {
-                        spare.settle();
+                    Ok(res) if !batch.is_empty() => {
                         // Reported before the next job of the batch runs, as its task's end
                         // would be: what it starts (the code in an action's closure included)
                         // runs before that job.
@@ -452,13 +469,12 @@ impl Guard {
                         }
                         continue;
                     }
-                    Poll::Ready(res) => {
+                    Ok(res) => {
                         // The last of its batch: reported by the next access, which comes before
                         // anything else runs.
-                        spare.settle();
                         push(|st| st.done.push(Ended::Returned(job, res)))
                     }
-                    Poll::Pending => match spare.park(&shared, job, fut) {
+                    Err(fut) => match spare.park(&shared, job, fut) {
                         Ok(p) => push(|st| st.parked.push((job, p))),
                         Err(fut) => push(|st| st.pending.push((job, fut))),
                     },
@@ -582,9 +598,9 @@ fn take_trailing_drops() -> Vec<Job> {
 }
 
 /// Drops, outside the lock, futures cancelled before their poll, and keeps their stops to report.
-fn drop_unpolled(dropped: &mut Vec<(Job, ActionFuture)>) {
-    for (job, fut) in dropped.drain(..) {
-        drop(fut);
+fn drop_unpolled(dropped: &mut Vec<(Job, Launch)>) {
+    for (job, launch) in dropped.drain(..) {
+        drop(launch);
         let _ = push(|st| st.done.push(Ended::Dropped(job)));
     }
 }
@@ -595,6 +611,14 @@ fn poll_once(fut: &mut ActionFuture, waker: &Waker) -> Poll<ActionResult> {
     let mut cx = Context::from_waker(waker);
     let once = tokio::task::unconstrained(CatchUnwind(fut.as_mut()));
     std::pin::pin!(once).poll(&mut cx)
+}
+
+/// Runs a synchronous action where its future would be polled once: its result, or its panic.
+#[inline(always)]
+fn run_now(f: Box<dyn RunNow>, ctx: Ctx) -> ActionResult {
+    // While a replay runs, its inputs wait for the end of this run (`replay.rs`, rule 3).
+    let _run = crate::replay::ActionPoll::begin();
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f.run(ctx)))
 }
 
 /// What a job's future returns, or its panic.

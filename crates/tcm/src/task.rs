@@ -2,13 +2,14 @@
 //! async action; plus task-level constraints, on-terminate tasks and exception handlers.
 
 use crate::ctx::Ctx;
+use crate::host::Shared;
 use std::any::Any;
 use std::future::Future;
 use std::pin::Pin;
 use std::sync::Arc;
 use std::time::Duration;
 use tcm_core::{
-    Constraint, EachActivation, Failure, HandlerSpec, MonitorSpec, Name, NodeId, NodeKind,
+    Constraint, EachActivation, Failure, HandlerSpec, Job, MonitorSpec, Name, NodeId, NodeKind,
     OnTerminate, Overrun, Spawn,
 };
 
@@ -63,13 +64,76 @@ pub type Value = Box<dyn Any + Send>;
 /// The future of a running action.
 pub type ActionFuture = Pin<Box<dyn Future<Output = Result<Value, Failure>> + Send>>;
 
-/// An action: called once when its node starts, it makes the action's future, which the host
-/// polls once where the node started and spawns as a tokio task only if it is not done then
-/// (`pump.rs`): an action that ends without awaiting costs one allocation (its future), no task.
-pub struct Action(pub(crate) Box<Launcher>);
+/// An action: called once when its node starts. An async one makes the action's future, which
+/// the host polls once where the node started and spawns as a tokio task only if it is not done
+/// then (`pump.rs`): an action that ends without awaiting costs one allocation (its future), no
+/// task. A synchronous one ([`Task::command_now`], [`Task::goal_now`]) is a plain function the
+/// pump calls where it would have polled the future: no future at all. One pointer either way, so
+/// that a task and a node are no larger for the choice.
+pub struct Action(pub(crate) Box<dyn Start>);
 
-/// The erased start of an action: make its future.
-pub(crate) type Launcher = dyn FnOnce(Ctx) -> ActionFuture + Send;
+/// The erased start of an action (`AsyncStart`, `NowStart`).
+pub(crate) trait Start: Send {
+    /// Starts the action of `job`, whose node keeps `args`: an async action's future is made now
+    /// (its closure runs), a synchronous action waits for its turn.
+    fn start(self: Box<Self>, shared: &Arc<Shared>, job: Job, args: Option<AnyArgs>) -> Launch;
+}
+
+/// A synchronous action, erased: run to its end with its context.
+pub(crate) trait RunNow: Send {
+    fn run(self: Box<Self>, ctx: Ctx) -> Result<Value, Failure>;
+}
+
+struct AsyncStart<F>(F);
+
+impl<F: FnOnce(Ctx) -> ActionFuture + Send> Start for AsyncStart<F> {
+    #[inline]
+    fn start(self: Box<Self>, shared: &Arc<Shared>, job: Job, args: Option<AnyArgs>) -> Launch {
+        Launch::Future((self.0)(Ctx::of_job(shared.clone(), job, args)))
+    }
+}
+
+struct NowStart<F>(F);
+
+impl<F: FnOnce(Ctx) -> Result<Value, Failure> + Send + 'static> Start for NowStart<F> {
+    #[inline]
+    fn start(self: Box<Self>, _: &Arc<Shared>, _: Job, args: Option<AnyArgs>) -> Launch {
+        Launch::Now(self, args)
+    }
+}
+
+impl<F: FnOnce(Ctx) -> Result<Value, Failure> + Send> RunNow for NowStart<F> {
+    #[inline]
+    fn run(self: Box<Self>, ctx: Ctx) -> Result<Value, Failure> {
+        (self.0)(ctx)
+    }
+}
+
+/// An action started: its future, or a synchronous action with its node's kept arguments, to
+/// run where the future would be first polled, with a context made then (`Ctx::of_job`). Small,
+/// as the pump moves it in and out of its batches.
+pub(crate) enum Launch {
+    /// An async action's future.
+    Future(ActionFuture),
+    /// A synchronous action and the arguments its context is to hold.
+    Now(Box<dyn RunNow>, Option<AnyArgs>),
+}
+
+impl Launch {
+    /// As a future, for a tokio task: a synchronous action runs at the task's first poll, as an
+    /// async action that ends without awaiting would end there. Out of line: the host's start
+    /// path stays small enough to be inlined where the pump serves it.
+    #[inline(never)]
+    pub(crate) fn into_future(self, shared: &Arc<Shared>, job: Job) -> ActionFuture {
+        match self {
+            Launch::Future(fut) => fut,
+            Launch::Now(f, args) => {
+                let ctx = Ctx::of_job(shared.clone(), job, args);
+                Box::pin(async move { f.run(ctx) })
+            }
+        }
+    }
+}
 
 impl Action {
     fn new<F, Fut, T>(f: F) -> Action
@@ -78,7 +142,25 @@ impl Action {
         Fut: Future<Output = Result<T, Failure>> + Send + 'static,
         T: Any + Send,
     {
-        Action(Box::new(move |ctx: Ctx| erase(f(ctx))))
+        Action::from_fn(move |ctx: Ctx| erase(f(ctx)))
+    }
+
+    fn from_fn(f: impl FnOnce(Ctx) -> ActionFuture + Send + 'static) -> Action {
+        Action(Box::new(AsyncStart(f)))
+    }
+
+    fn now<F, T>(f: F) -> Action
+    where
+        F: FnOnce(Ctx) -> Result<T, Failure> + Send + 'static,
+        T: Any + Send,
+    {
+        Action(Box::new(NowStart(move |ctx: Ctx| f(ctx).map(value))))
+    }
+
+    /// Starts the action of `job`, whose node keeps `args` (see [`Start::start`]).
+    #[inline(always)]
+    pub(crate) fn launch(self, shared: &Arc<Shared>, job: Job, args: Option<AnyArgs>) -> Launch {
+        self.0.start(shared, job, args)
     }
 }
 
@@ -346,7 +428,7 @@ impl Task {
         let mut task = Task::bare(
             kind,
             name.into(),
-            Some(Action(Box::new(move |ctx: Ctx| first(ctx)))),
+            Some(Action::from_fn(move |ctx: Ctx| first(ctx))),
         );
         task.retry = Some(fac);
         task
@@ -394,9 +476,9 @@ impl Task {
         let mut task = Task::bare(
             kind,
             name,
-            Some(Action(Box::new(move |ctx: Ctx| {
+            Some(Action::from_fn(move |ctx: Ctx| {
                 erase(first(ctx, first_args))
-            }))),
+            })),
         );
         task.retry = Some(fac);
         task.with_args(args)
@@ -420,6 +502,39 @@ impl Task {
         T: Any + Send,
     {
         Task::new(NodeKind::Command, name, f)
+    }
+
+    /// A task whose action ends without awaiting: `f` runs to its end when the node's turn to
+    /// run comes, as an async action that never awaits would, and its result is the action's.
+    /// No future is made: on a current-thread runtime it costs no allocation of its own and no
+    /// poll (`pump.rs`); elsewhere it runs in a task as an async action does. The trace is the
+    /// one the same body written async gives, record for record.
+    pub fn new_now<F, T>(kind: NodeKind, name: impl Into<Name>, f: F) -> Task
+    where
+        F: FnOnce(Ctx) -> Result<T, Failure> + Send + 'static,
+        T: Any + Send,
+    {
+        Task::bare(kind, name.into(), Some(Action::now(f)))
+    }
+
+    /// A goal whose body ends without awaiting (it only spawns and constrains): see
+    /// [`Task::new_now`].
+    pub fn goal_now<F, T>(name: impl Into<Name>, f: F) -> Task
+    where
+        F: FnOnce(Ctx) -> Result<T, Failure> + Send + 'static,
+        T: Any + Send,
+    {
+        Task::new_now(NodeKind::Goal, name, f)
+    }
+
+    /// A command whose action ends without awaiting (a simulator's step, a computed value): see
+    /// [`Task::new_now`].
+    pub fn command_now<F, T>(name: impl Into<Name>, f: F) -> Task
+    where
+        F: FnOnce(Ctx) -> Result<T, Failure> + Send + 'static,
+        T: Any + Send,
+    {
+        Task::new_now(NodeKind::Command, name, f)
     }
 
     /// A task whose action blocks or computes (a planner, a blocking driver call): `f` runs on

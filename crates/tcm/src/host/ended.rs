@@ -4,7 +4,7 @@
 
 use super::{Access, Inner, Panicked, Shared};
 use crate::pump::Parked;
-use crate::task::{Action, ActionFuture, Factory, Value};
+use crate::task::{Action, ActionFuture, Factory, Launch, Value};
 use std::any::Any;
 use std::future::Future;
 use std::panic::AssertUnwindSafe;
@@ -66,8 +66,8 @@ impl Access<'_> {
     /// goes to `dropped`, to drop unpolled.
     pub(crate) fn settle_and_take_launches(
         &mut self,
-        batch: &mut Vec<(Job, ActionFuture)>,
-        dropped: &mut Vec<(Job, ActionFuture)>,
+        batch: &mut Vec<(Job, Launch)>,
+        dropped: &mut Vec<(Job, Launch)>,
         skip: &mut Vec<NodeId>,
     ) {
         self.carry_out();
@@ -169,7 +169,7 @@ impl Inner {
     /// Adds to `skip` the nodes of the jobs in `batch` cancelled while the pump held them: the
     /// pump drops each unpolled when its turn comes, as tokio drops an aborted task when it reaches
     /// it in its queue.
-    pub(crate) fn cancelled_in(&mut self, batch: &[(Job, ActionFuture)], skip: &mut Vec<NodeId>) {
+    pub(crate) fn cancelled_in(&mut self, batch: &[(Job, Launch)], skip: &mut Vec<NodeId>) {
         if self.inline_cancelled.is_empty() {
             return;
         }

@@ -6,7 +6,7 @@ use super::{
 };
 use crate::cancel::Cancels;
 use crate::ctx::Ctx;
-use crate::task::{Action, ActionFuture, AnyArgs, Factory};
+use crate::task::{Action, AnyArgs, Factory, Launch};
 use std::any::Any;
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
@@ -23,7 +23,7 @@ pub(crate) struct Host<'a> {
     // start of a step: nothing that runs while the host carries effects out enters or leaves a pump.
     pub(super) pumps: Option<bool>,
     pub(super) aborts: &'a mut Aborts,
-    pub(super) launches: &'a mut Vec<(Job, ActionFuture)>,
+    pub(super) launches: &'a mut Vec<(Job, Launch)>,
     pub(super) inline_cancelled: &'a mut Vec<NodeId>,
     pub(super) cancels: &'a mut Cancels,
     pub(super) checks: &'a mut BTreeSet<Job>,
@@ -47,14 +47,19 @@ impl Host<'_> {
     /// Runs a job's future: left to the pump of this thread if it runs for this run (`pump.rs`),
     /// else spawned as a tokio task, under the lock (the task's own end takes the lock, so its
     /// abort handle is recorded before it can finish).
-    fn run(&mut self, job: Job, fut: ActionFuture) {
+    fn run(&mut self, job: Job, launch: Launch) {
         let shared = self.shared;
         let pumps = *self.pumps.get_or_insert_with(|| crate::pump::pumps(shared));
         let running = if pumps && self.cancels.aborted == 0 && crate::pump::nothing_queued(shared) {
-            self.launches.push((job, fut));
+            self.launches.push((job, launch));
             Running::Inline
         } else {
-            let h = spawn_task(self.shared, self.spawner, job, fut);
+            let h = spawn_task(
+                self.shared,
+                self.spawner,
+                job,
+                launch.into_future(shared, job),
+            );
             Running::Task(h.abort_handle())
         };
         if job.cancellable() {
@@ -77,16 +82,9 @@ impl Shell<Action, Factory> for Host<'_> {
         // The engine already holds the action's children (`Engine::hold_by_default`, set by
         // `Runtime::new`): a hand-written action holds them until it returns or waits, as
         // generated TDL does (docs/semantics.md, "Bodies and children").
-        let ctx = Ctx {
-            shared: self.shared.clone(),
-            node,
-            purpose: None,
-            job: Some(Job::from(node)),
-            args: self.args.get(&node).cloned(),
-            signal: Default::default(),
-        };
-        let fut = (action.0)(ctx);
-        self.run(Job::from(node), fut);
+        let job = Job::from(node);
+        let launch = action.launch(self.shared, job, self.args.get(&node).cloned());
+        self.run(job, launch);
     }
 
     fn invoke(
@@ -116,7 +114,7 @@ impl Shell<Action, Factory> for Host<'_> {
             signal: Default::default(),
         };
         let fut = body(ctx);
-        self.run(job, fut);
+        self.run(job, Launch::Future(fut));
     }
 
     fn cancel(&mut self, node: NodeId) {

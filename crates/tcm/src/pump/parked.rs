@@ -28,11 +28,20 @@ impl Spare {
         self.0.get_or_insert_with(Parked::spare)
     }
 
+    /// After a poll: when it returned, the slot serves the next poll (`settle`); left pending,
+    /// the future is parked in it (`park`).
+    #[inline(always)]
+    pub(super) fn settle_after<T>(&mut self, poll: &std::task::Poll<T>) {
+        if poll.is_ready() {
+            self.settle();
+        }
+    }
+
     /// After a poll that returned: the slot serves the next poll, unless something kept a clone
     /// of its waker (only the slot and its waker should hold it), whose late wake-up must not be
     /// taken for the next future's.
     #[inline(always)]
-    pub(super) fn settle(&mut self) {
+    fn settle(&mut self) {
         if let Some((p, _)) = &self.0 {
             if Arc::strong_count(p) != 2 {
                 self.0 = None;

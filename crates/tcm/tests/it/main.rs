@@ -17,6 +17,7 @@ mod introspection;
 mod journal;
 mod loud;
 mod monitors;
+mod now;
 mod panics;
 mod paper;
 mod patterns;

@@ -34,6 +34,29 @@ enum Kid {
     Marks,
     // Its future traces the log.
     Reads,
+    // Synchronous actions (`Task::command_now`, `Task::goal_now`), named as their async twins
+    // (`Kid::asynced`): one that ends, one that fails, a goal that spawns this many children, one
+    // that sends on the channel of that number, one that terminates the child this many places
+    // before it.
+    EndsNow,
+    FailsNow,
+    ParentNow(u8),
+    SendsNow(u8),
+    TerminatesNow(u8),
+}
+
+impl Kid {
+    /// The async twin of a synchronous kid: the same body, written async.
+    fn asynced(self) -> Kid {
+        match self {
+            Kid::EndsNow => Kid::Ends,
+            Kid::FailsNow => Kid::Fails,
+            Kid::ParentNow(n) => Kid::Parent(n),
+            Kid::SendsNow(c) => Kid::Sends(c),
+            Kid::TerminatesNow(b) => Kid::Terminates(b),
+            other => other,
+        }
+    }
 }
 
 fn kid() -> impl Strategy<Value = (Kid, Option<u8>)> {
@@ -53,6 +76,11 @@ fn kid() -> impl Strategy<Value = (Kid, Option<u8>)> {
         1 => Just(Kid::FailsBelow),
         1 => Just(Kid::Marks),
         1 => Just(Kid::Reads),
+        2 => Just(Kid::EndsNow),
+        1 => Just(Kid::FailsNow),
+        1 => (0u8..3).prop_map(Kid::ParentNow),
+        1 => (0u8..3).prop_map(Kid::SendsNow),
+        1 => (1u8..6).prop_map(Kid::TerminatesNow),
     ];
     (kid, proptest::option::weighted(0.5, 1u8..4))
 }
@@ -87,6 +115,36 @@ fn random_program(kids: Vec<(Kid, Option<u8>)>) -> Task {
                     Kid::Fails => Task::command("fails", |_| async {
                         Err::<(), _>(Failure::new("Boom", "random"))
                     }),
+                    Kid::EndsNow => Task::command_now("ends", |_| Ok(())),
+                    Kid::FailsNow => {
+                        Task::command_now("fails", |_| Err::<(), _>(Failure::new("Boom", "random")))
+                    }
+                    Kid::ParentNow(n) => Task::goal_now("parent", move |ctx| {
+                        for _ in 0..n {
+                            ctx.spawn(Task::command_now("grandchild", |_| Ok(())))
+                                .start()?;
+                        }
+                        Ok(())
+                    }),
+                    Kid::SendsNow(c) => {
+                        let senders = senders.clone();
+                        Task::command_now("sends", move |_| {
+                            let tx = senders.lock().ok().and_then(|mut s| s[c as usize].take());
+                            if let Some(tx) = tx {
+                                let _ = tx.send(());
+                            }
+                            Ok(())
+                        })
+                    }
+                    Kid::TerminatesNow(back) => {
+                        let victim = i.checked_sub(back as usize).map(|j| ids[j]);
+                        Task::command_now("terminates", move |ctx| {
+                            if let Some(v) = victim {
+                                ctx.terminate(v)?;
+                            }
+                            Ok(())
+                        })
+                    }
                     Kid::Parent(n) => Task::goal("parent", move |ctx| async move {
                         for _ in 0..n {
                             ctx.spawn(noop("grandchild")).start()?;
@@ -217,7 +275,7 @@ fn random_program(kids: Vec<(Kid, Option<u8>)>) -> Task {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 
-    /// Random programs (ending, sleeping, yielding, failing into a handler or below,
+    /// Random programs (ending, synchronously or not, sleeping, yielding, failing into a handler or below,
     /// retrying, spawning, waking one another through channels and engine watches,
     /// terminating one another, polling, sharing a resource, running code in their closures
     /// that others' futures look at; some after others, several released together) give the
@@ -230,9 +288,13 @@ proptest! {
         let rt = || Runtime::new().resource("base", 1);
         let pumped = trace_of(rt(), random_program(kids.clone()));
         let again = trace_of(rt(), random_program(kids.clone()));
+        let asynced: Vec<_> = kids.iter().cloned().map(|(k, a)| (k.asynced(), a)).collect();
         let tasks = trace_of(rt().without_pump(), random_program(kids));
+        let written_async = trace_of(rt(), random_program(asynced));
         prop_assert_eq!(without_run_ids(pumped.clone()), without_run_ids(again));
-        prop_assert_eq!(without_run_ids(pumped), without_run_ids(tasks));
+        prop_assert_eq!(without_run_ids(pumped.clone()), without_run_ids(tasks));
+        // A synchronous action gives the trace its body written async gives.
+        prop_assert_eq!(without_run_ids(pumped), without_run_ids(written_async));
     }
 }
 
