@@ -434,6 +434,26 @@ impl Task {
         task
     }
 
+    /// [`Task::retryable`] whose body ends without awaiting: its first run is a synchronous
+    /// action ([`Task::new_now`]); a retry runs the same body in a future (a retry's action is made
+    /// under the engine's lock, where the body cannot run). Generated TDL goals and commands whose
+    /// bodies never await are these.
+    pub fn retryable_now<F, T>(kind: NodeKind, name: impl Into<Name>, f: F) -> Task
+    where
+        F: Fn(Ctx) -> Result<T, Failure> + Send + Sync + 'static,
+        T: Any + Send,
+    {
+        let f = Arc::new(f);
+        let again = f.clone();
+        let fac: Factory = Arc::new(move |ctx: Ctx| {
+            let f = again.clone();
+            Box::pin(async move { f(ctx).map(value) })
+        });
+        let mut task = Task::bare(kind, name.into(), Some(Action::now(move |ctx| f(ctx))));
+        task.retry = Some(fac);
+        task
+    }
+
     /// A task whose action takes its arguments `args`, and can run again with the same or other
     /// arguments: a handler's [`Ctx::retry`] re-runs it with the failed run's arguments,
     /// [`Ctx::retry_with`] with new ones. The arguments are kept beside each node

@@ -469,10 +469,38 @@ fn task_items(
             } else {
                 quote!(::tdl::NodeKind::Goal)
             };
-            if names.is_empty() {
+            // A body that never awaits is a synchronous action (`Task::retryable_now`): no future.
+            let now = !awaits(&code);
+            if names.is_empty() && now {
+                quote! {
+                    #prelude
+                    ::tdl::Task::retryable_now(#kind, #name_str, move |ctx| { #code }) #modifiers
+                }
+            } else if names.is_empty() {
                 quote! {
                     #prelude
                     ::tdl::Task::retryable(#kind, #name_str, move |ctx| async move { #code }) #modifiers
+                }
+            } else if now {
+                quote! {
+                    #prelude
+                    let tdl_args = ::tdl::codegen::Args::new((#(#names,)*));
+                    let tdl_kept = {
+                        #[allow(unused_imports)]
+                        use ::tdl::codegen::{KeepArgs as _, NoKeepArgs as _};
+                        #[allow(clippy::needless_borrow)]
+                        (&tdl_args).tdl_kept()
+                    };
+                    ::tdl::Task::retryable_now(#kind, #name_str, move |ctx| {
+                        #[allow(unused_imports)]
+                        use ::tdl::codegen::{CloneArgsIn as _, TakeArgsIn as _};
+                        #[allow(clippy::needless_borrow)]
+                        let tdl_args = (&tdl_args).tdl_args_in(&ctx);
+                        let ::core::option::Option::Some((#(#pats,)*)) = tdl_args else {
+                            return ::core::result::Result::Err(::tdl::codegen::not_retryable(#name_str));
+                        };
+                        #code
+                    }).with_args_erased(tdl_kept).describe_args(#describe) #modifiers
                 }
             } else {
                 quote! {
@@ -557,6 +585,16 @@ fn task_items(
         Allow::Nothing
     };
     task_shell(task, &build, allow)
+}
+
+/// Whether generated code awaits anywhere (a `.await`, in it or in a block or closure within
+/// it): a body that does not is a synchronous action.
+fn awaits(code: &TokenStream) -> bool {
+    code.clone().into_iter().any(|t| match t {
+        proc_macro2::TokenTree::Ident(i) => i == "await",
+        proc_macro2::TokenTree::Group(g) => awaits(&g.stream()),
+        _ => false,
+    })
 }
 
 /// A function that tells a goal's or command's kept arguments (the tuple of their declared

@@ -197,8 +197,13 @@ fn handler_locals_are_bound_when_named_even_in_format_strings() {
 fn every_body_holds_its_children_and_goals_are_retryable() {
     let out = expand("command c(n: u32) { log(n); } goal g() { spawn c(1); }");
     assert_eq!(out.matches("ctx.hold_children(true)?;").count(), 2, "{out}");
+    // Neither body awaits: both are synchronous actions, retryable.
     assert!(
-        has(&out, "::tdl::Task::retryable(::tdl::NodeKind::Goal,"),
+        has(&out, "::tdl::Task::retryable_now(::tdl::NodeKind::Goal,"),
+        "{out}"
+    );
+    assert!(
+        has(&out, "::tdl::Task::retryable_now(::tdl::NodeKind::Command,"),
         "{out}"
     );
     assert!(
@@ -207,6 +212,11 @@ fn every_body_holds_its_children_and_goals_are_retryable() {
     );
     // The tuple of the arguments is kept beside each node (wiretap checks, `retry_with`).
     assert!(has(&out, ".with_args_erased(tdl_kept)"), "{out}");
+    // A body that awaits (a wait, Rust's `.await`) is an async action.
+    let out =
+        expand("command c() { tokio::task::yield_now().await; } goal g() { spawn c() with wait; }");
+    assert_eq!(out.matches("::tdl::Task::retryable(").count(), 2, "{out}");
+    assert!(!has(&out, "retryable_now"), "{out}");
 }
 
 #[test]
