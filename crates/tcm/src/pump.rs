@@ -1,72 +1,66 @@
 //! Running actions inline: an action that ends without awaiting costs no tokio task, and nothing
-//! of the run observes the difference.
+//! of the run observes the difference: the trace is the one tasks give, record for record.
 //!
-//! When a job's task ends, its end is reported under the engine's lock and the nodes it releases
-//! start (`host.rs`). On a current-thread runtime (virtual time, tests, `tcm-bench`) the host may
-//! then hand their futures to the *pump* of the thread, which polls each once, outside the lock,
-//! right after the end that released it. A future that is done then never becomes a task: its end
-//! is reported at once, under the lock, before the next future of its batch is polled, as its
-//! task's end would be (`report_now`; the last of a batch by the pump's next access to the engine,
-//! before anything else runs), and what it starts is handed to the host then, the code in an
-//! action's closure included. A future that is not done is *parked* ([`Parked`]): it has no task
-//! until it is first woken, and is spawned as a task then, queued where its task, idle until then,
-//! would be queued by that wake-up; parked futures are recorded under the lock with the next end
-//! reported, or every `REPORT_EVERY`. What the reported ends start is pumped in turn, in a loop,
-//! never recursively. Reading the clock is a large part of a report, so a report reads it only if
-//! it needs the time (`Engine::at_clock`: a traced run, a pending timer, a timer or monitor it
-//! starts). When the engine wants the time at once (`Engine::wants_time`), the ends reported while
-//! one batch is polled share a clock reading, taken afresh every `REPORT_EVERY` ends
-//! (`PumpState::now`): on virtual time the clock does not move while a batch is polled.
+//! # Ground rules
 //!
-//! **The same order as tasks.** A task spawned on a current-thread runtime runs after every task
-//! already queued. So a released action is pumped only when nothing of the run is queued: the
-//! run's tasks, the driver loop and the waits on the engine are wrapped in [`Tracked`], which counts
-//! those woken and not yet polled by a task, and a task aborted and not yet dropped counts too
-//! (`Cancels::aborted`). Then the task would have run next anyway, and the trace is the one tasks
-//! give, record for record (`tests` compares them). Otherwise the action is spawned as a
-//! task, behind what is queued. A future that `block_on` polls (the driver of `Runtime::run` in a
-//! test, a test's own body) is not counted: tokio polls it between tasks, and it changes nothing
-//! of the engine's order (the stops of dropped tasks are reported by whoever takes the lock next,
-//! `Shared::enter`, not only by the driver). While the pump runs, the driver is not woken merely
-//! to hand trace records to the sinks (it is woken once at the end), since that changes nothing
-//! of the engine. A wake-up of one of the run's tasks (or parked futures) by a future of the batch
-//! is held back (`hold_wake`) and delivered once the ends polled before that future are reported
-//! and what they release has started, as tasks would order them (`a_wake_within_a_batch_gives_the_same_trace_with_and_without_the_pump`);
-//! what the engine wakes under its lock is not held back. Each end reported hands what it starts
-//! to the host before the next end is reported, or the future that took the lock is served
-//! (`flush`), as a task's end does; so do the stops reported first by whoever takes the lock
-//! (`host::stops_first`).
+//! 1. **Who pumps.** Only the end of a job's own task pumps, on the thread of a current-thread
+//!    runtime (`pumps`). Everywhere else (an action's body spawning, the program's session, an
+//!    event handle, the driver loop, a blocking action's thread, any multi-thread runtime, where
+//!    each action is a task so that actions run in parallel) actions start as tokio tasks.
+//! 2. **Only when a task would run next.** A started action goes to the pump only when nothing of
+//!    the run is queued (`nothing_queued`): the run's tasks, the driver loop and the waits on the
+//!    engine are wrapped in [`Tracked`], which counts those woken and not yet polled, and a task
+//!    aborted and not yet dropped counts too (`Cancels::aborted`). Otherwise it is spawned, behind
+//!    what is queued. A future that `block_on` polls (a test's body, the driver of
+//!    `Runtime::run`) is not counted: tokio polls it between tasks.
+//! 3. **The lock.** The engine's lock (`Shared::enter`) is never held while a future is polled or
+//!    a synchronous action runs. A batch of launches is taken under it
+//!    (`Inner::settle_and_take_launches`) and run outside it; each end is reported under it.
+//! 4. **A batch, in start order.** Each launch is polled once (an async action's future) or called
+//!    (a synchronous action, `Task::command_now`). One that is done has its end reported under the
+//!    lock before the next launch of the batch runs (`report_now`), and what that end starts is
+//!    handed to the host then, the code in an action's closure included; the last end of a batch
+//!    is reported by the pump's next access to the engine, before anything else runs.
+//! 5. **Pending futures are parked.** A future left pending has no task until its first wake-up
+//!    ([`Parked`]); then it is spawned, queued where its task, idle until then, would be queued by
+//!    that wake-up. Parked futures are recorded under the lock with the next end reported, or
+//!    every `REPORT_EVERY`.
+//! 6. **Wake-ups keep the tasks' order.** A wake-up of one of the run's tasks (or parked futures)
+//!    by a launch of the batch is held back (`hold_wake`) until the ends before that launch are
+//!    reported and what they release has started; what the engine wakes under its lock is not
+//!    held back. Each end hands what it starts to the host before the next end is reported, or
+//!    the future that took the lock is served (`flush`); so do the stops reported first by
+//!    whoever takes the lock (`host::stops_first`).
+//! 7. **Cancellation keeps its meaning.** A job cancelled before its turn stays in its batch and
+//!    is dropped unpolled in its turn, as tokio drops an aborted task when it reaches it; its stop
+//!    is reported by whatever reports next, or handed over as a dropped task's
+//!    (`Inner::hand_over_stops`) when nothing of its batch follows. One cancelled after a poll that
+//!    left it pending is spawned and cancelled as any running task (signalled with its grace
+//!    period, or aborted); one that returned is reported as returned, and the engine terminates
+//!    its node. A panic fails its node.
+//! 8. **One clock reading per batch.** A report reads the clock only if it needs the time
+//!    (`Engine::at_clock`); when the engine wants it at once (`Engine::wants_time`), the ends of one
+//!    batch share a reading, taken afresh every `REPORT_EVERY` ends (`PumpState::clock`): on virtual
+//!    time the clock does not move while a batch runs.
+//! 9. **Never recursive.** What the reported ends start is pumped in turn, in a loop. While the
+//!    pump runs, the driver is not woken merely to hand trace records to the sinks (it is woken
+//!    once at the end).
 //!
-//! Cancellation keeps its meaning. A job cancelled before its poll stays in its batch and is
-//! dropped unpolled in its turn (a job polled before it may cancel it), as tokio drops an aborted
-//! task when it reaches it in its queue; its stop is reported by whatever reports next, and when
-//! nothing of its batch comes after it and nothing is started, or the next batch reports nothing
-//! (its futures all left pending), by whoever runs next (the stop is handed over as a dropped
-//! task's, `Inner::hand_over_stops`), not by the pump. A wake-up held
-//! back goes before such stops (a stop is reported by the next end, after what the future polled
-//! meanwhile woke). One cancelled after a poll that left it pending is spawned and then cancelled
-//! as any running task (signalled with its grace period, or aborted); one that returned is
-//! reported as returned, and the engine, which asked for its stop, terminates its node. A
-//! panicking future fails its node, as in a task.
+//! # What holds them
 //!
-//! Random programs (ending, sleeping, yielding, failing, retrying, spawning, waking one another
-//! through channels and engine watches, terminating one another, polling, sharing a resource,
-//! running code in their closures that others' futures look at) give the same trace as tasks,
-//! record for record, and the same pumped trace on every run
-//! (`random_programs_give_the_same_trace_with_and_without_the_pump`; 500,000 cases passed once,
-//! 200,000 with the closures' code, and the programs it found on the way are kept in
-//! `programs_once_found_giving_another_order_give_the_same_trace`). The limits:
+//! Random programs (ending, synchronously or not, sleeping, yielding, failing, retrying, spawning,
+//! waking one another through channels and engine watches, terminating one another, polling,
+//! sharing a resource, running code in their closures that others' futures look at) give the same
+//! trace as tasks, record for record, the same pumped trace on every run, and with each
+//! synchronous action the trace of its async twin (`tests/random.rs`; the programs the proptest
+//! once found are kept in `programs_once_found_giving_another_order_give_the_same_trace`); the
+//! other tests of the pump are in `tests.rs`. The limits:
 //! - tokio delivers a deferred wake-up (`tokio::task::yield_now`) when its queue is empty, or after
 //!   61 tasks (its event interval): the pump's inline actions are no tasks to count, so past 61
 //!   actions in one go a future that yielded resumes later than with tasks. A runtime built with a
 //!   larger event interval, as the tests here are, gives the same trace;
 //! - a task of the program's own, woken at the same instant by something outside the run, is not
 //!   counted.
-//!
-//! Only the end of a job's own task pumps, on the runtime's thread. Elsewhere (an action's body
-//! spawning, the program's session, an event handle, the driver loop, a blocking action's thread)
-//! actions start as tokio tasks, as before; so they do on a multi-thread runtime, where each action
-//! is a task of its own so that actions run in parallel on its workers.
 
 mod parked;
 mod tracked;
