@@ -470,39 +470,36 @@ fn task_items(
                 quote!(::tdl::NodeKind::Goal)
             };
             // A body that never awaits is a synchronous action (`Task::retryable_now`): no future.
-            let now = !awaits(&code);
-            if names.is_empty() && now {
+            let waits = awaits(&code);
+            let retryable = if waits {
+                quote!(retryable)
+            } else {
+                quote!(retryable_now)
+            };
+            if names.is_empty() {
+                let body = if waits {
+                    quote!(async move { #code })
+                } else {
+                    quote!({ #code })
+                };
                 quote! {
                     #prelude
-                    ::tdl::Task::retryable_now(#kind, #name_str, move |ctx| { #code }) #modifiers
-                }
-            } else if names.is_empty() {
-                quote! {
-                    #prelude
-                    ::tdl::Task::retryable(#kind, #name_str, move |ctx| async move { #code }) #modifiers
-                }
-            } else if now {
-                quote! {
-                    #prelude
-                    let tdl_args = ::tdl::codegen::Args::new((#(#names,)*));
-                    let tdl_kept = {
-                        #[allow(unused_imports)]
-                        use ::tdl::codegen::{KeepArgs as _, NoKeepArgs as _};
-                        #[allow(clippy::needless_borrow)]
-                        (&tdl_args).tdl_kept()
-                    };
-                    ::tdl::Task::retryable_now(#kind, #name_str, move |ctx| {
-                        #[allow(unused_imports)]
-                        use ::tdl::codegen::{CloneArgsIn as _, TakeArgsIn as _};
-                        #[allow(clippy::needless_borrow)]
-                        let tdl_args = (&tdl_args).tdl_args_in(&ctx);
-                        let ::core::option::Option::Some((#(#pats,)*)) = tdl_args else {
-                            return ::core::result::Result::Err(::tdl::codegen::not_retryable(#name_str));
-                        };
-                        #code
-                    }).with_args_erased(tdl_kept).describe_args(#describe) #modifiers
+                    ::tdl::Task::#retryable(#kind, #name_str, move |ctx| #body) #modifiers
                 }
             } else {
+                // The arguments taken (a re-run reads those kept for its node first), then the
+                // body: as the body's first statement, so an async body takes them in its future.
+                let body = quote! {{
+                    let ::core::option::Option::Some((#(#pats,)*)) = tdl_args else {
+                        return ::core::result::Result::Err(::tdl::codegen::not_retryable(#name_str));
+                    };
+                    #code
+                }};
+                let body = if waits {
+                    quote!(async move #body)
+                } else {
+                    body
+                };
                 quote! {
                     #prelude
                     let tdl_args = ::tdl::codegen::Args::new((#(#names,)*));
@@ -514,19 +511,13 @@ fn task_items(
                         #[allow(clippy::needless_borrow)]
                         (&tdl_args).tdl_kept()
                     };
-                    ::tdl::Task::retryable(#kind, #name_str, move |ctx| {
+                    ::tdl::Task::#retryable(#kind, #name_str, move |ctx| {
                         #[allow(unused_imports)]
                         use ::tdl::codegen::{CloneArgsIn as _, TakeArgsIn as _};
-                        // The borrow picks `TakeArgsIn` when the arguments are not `Clone`; a
-                        // re-run reads the arguments kept for its node first.
+                        // The borrow picks `TakeArgsIn` when the arguments are not `Clone`.
                         #[allow(clippy::needless_borrow)]
                         let tdl_args = (&tdl_args).tdl_args_in(&ctx);
-                        async move {
-                            let ::core::option::Option::Some((#(#pats,)*)) = tdl_args else {
-                                return ::core::result::Result::Err(::tdl::codegen::not_retryable(#name_str));
-                            };
-                            #code
-                        }
+                        #body
                     }).with_args_erased(tdl_kept).describe_args(#describe) #modifiers
                 }
             }
