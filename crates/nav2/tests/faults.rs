@@ -13,6 +13,8 @@ const FOUR_BLOCKS: &str = r#"[
    "ancestry": ["NavFailure"], "message": "injected: no progress"}
 ]"#;
 
+/// Writes `text` to a file of this name: each test its own, since tests run at once and a file
+/// written again while another test reads it is read cut short.
 fn faults_file(name: &str, text: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("nav2-faults");
     std::fs::create_dir_all(&dir).expect("a directory for the faults files");
@@ -81,7 +83,7 @@ fn the_binary_takes_faults_from_a_file_and_refuses_a_bad_one() {
     let trace = faults_file("four.jsonl", "");
     let out = std::process::Command::new(bin)
         .arg("--faults")
-        .arg(faults_file("four.json", FOUR_BLOCKS))
+        .arg(faults_file("four-binary.json", FOUR_BLOCKS))
         .arg("--trace")
         .arg(&trace)
         .output()
