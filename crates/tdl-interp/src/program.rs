@@ -312,15 +312,31 @@ pub(crate) fn task(shared: &Arc<Shared>, idx: TaskIdx, args: Vec<Value>) -> Resu
             };
             let s = shared.clone();
             let stored = (!args.is_empty()).then(|| Arc::new(args.clone()));
-            let t = Task::retryable(kind, name, move |ctx: Ctx| {
-                // A re-run reads the arguments kept for its node (`retry with`).
-                let args = match (ctx.args_ref::<Args>(), &stored) {
-                    (Some(a), _) => a.0.clone(),
-                    (None, Some(stored)) => (**stored).clone(),
-                    (None, None) => Vec::new(),
-                };
-                run(s.clone(), idx, ctx, args, None)
-            });
+            // A re-run reads the arguments kept for its node (`retry with`).
+            let args_of = move |ctx: &Ctx| match (ctx.args_ref::<Args>(), &stored) {
+                (Some(a), _) => a.0.clone(),
+                (None, Some(stored)) => (**stored).clone(),
+                (None, None) => Vec::new(),
+            };
+            // A body that never awaits is a synchronous action, as the compiler makes it.
+            let t = if def.awaits || def.blocking {
+                Task::retryable(kind, name, move |ctx: Ctx| {
+                    let args = args_of(&ctx);
+                    run(s.clone(), idx, ctx, args, None)
+                })
+            } else {
+                Task::retryable_now(kind, name, move |ctx: Ctx| {
+                    let args = args_of(&ctx);
+                    SyncRun {
+                        shared: s.clone(),
+                        idx,
+                        ctx,
+                        args,
+                        cells: None,
+                    }
+                    .run()
+                })
+            };
             if args.is_empty() {
                 t
             } else {
@@ -689,32 +705,35 @@ impl std::future::Future for RunFut {
     ) -> std::task::Poll<Self::Output> {
         match self.get_mut() {
             RunFut::Boxed(f) => f.as_mut().poll(cx),
-            RunFut::Sync(run) => {
-                let Some(SyncRun {
-                    shared,
-                    idx,
-                    ctx,
-                    args,
-                    cells,
-                }) = run.take()
-                else {
-                    return std::task::Poll::Ready(Err(Failure::new(
-                        "Interpreter",
-                        "an action polled after it ended",
-                    )));
-                };
-                let def = &shared.tasks[idx];
-                let mut f = frame(&shared, def, Some(ctx.clone()), &args);
-                if let Err(failure) = prologue(&mut f, def, &ctx, cells.as_ref()) {
-                    return std::task::Poll::Ready(Err(failure));
-                }
-                let r = locals(&mut f, def, &ctx)
-                    .map_err(Flow::Fail)
-                    .and_then(|()| f.block_sync(&def.body));
-                store(def, &f, cells.as_ref());
-                std::task::Poll::Ready(ending(def, r).and_then(|v| boxed(def, v)))
-            }
+            RunFut::Sync(run) => std::task::Poll::Ready(match run.take() {
+                Some(run) => run.run(),
+                None => Err(Failure::new(
+                    "Interpreter",
+                    "an action polled after it ended",
+                )),
+            }),
         }
+    }
+}
+
+impl SyncRun {
+    /// Runs the body, which never awaits, to its end.
+    fn run(self) -> Result<Box<dyn std::any::Any + Send>, Failure> {
+        let SyncRun {
+            shared,
+            idx,
+            ctx,
+            args,
+            cells,
+        } = self;
+        let def = &shared.tasks[idx];
+        let mut f = frame(&shared, def, Some(ctx.clone()), &args);
+        prologue(&mut f, def, &ctx, cells.as_ref())?;
+        let r = locals(&mut f, def, &ctx)
+            .map_err(Flow::Fail)
+            .and_then(|()| f.block_sync(&def.body));
+        store(def, &f, cells.as_ref());
+        ending(def, r).and_then(|v| boxed(def, v))
     }
 }
 
