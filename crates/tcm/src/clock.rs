@@ -5,7 +5,9 @@
 //! order, and the shell reads the latest; after it, a resumed run's time goes on from the
 //! journal's last.
 
-use crate::replay::Feed;
+mod feed;
+
+pub(crate) use feed::Feed;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, SystemTime};

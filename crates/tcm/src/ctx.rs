@@ -16,7 +16,10 @@ use tcm_core::{
 };
 use tokio::sync::{oneshot, watch};
 
+mod journal;
+mod resource;
 mod spawner;
+mod state;
 
 pub use spawner::{Ended, Spawner};
 

@@ -408,7 +408,7 @@ impl Inner {
         mut kept: Kept,
     ) -> Result<NodeId, EngineError> {
         if let Some(wanted) = kept.wanted.take() {
-            spec.uses = self.resolve(*wanted)?;
+            spec.uses = crate::resource::resolve(&mut self.engine, *wanted)?;
         }
         if let (Some(describe), Some(args)) = (kept.describe, kept.args.as_deref()) {
             if self.engine.traces() {
@@ -439,8 +439,8 @@ impl Inner {
         if let Some(d) = kept.durable {
             if self.journal.is_some() || self.replay.is_some() {
                 let display = self.engine.kind_and_display(node).map_or(0, |k| k.1);
-                if let Some(j) = self.journal.as_mut() {
-                    j.durable(display, &d);
+                if let (Some(j), Some(e)) = (self.journal.as_mut(), &d.encode) {
+                    j.encoder(display, e.clone());
                 }
                 if let Some(r) = self.replay.as_mut() {
                     r.durable(node, d);

@@ -31,6 +31,7 @@ mod cancel;
 mod clock;
 mod control;
 mod ctx;
+mod exception;
 mod faults;
 mod host;
 mod invoke;
@@ -53,6 +54,7 @@ mod timer;
 pub use cancel::DEFAULT_GRACE;
 pub use control::Control;
 pub use ctx::{Ctx, Ended, Spawner};
+pub use exception::Exception;
 pub use faults::{FaultsError, json_value, parse_faults, read_faults};
 pub use host::Panicked;
 pub use journal::{ValueEncoder, json_values};
@@ -66,8 +68,8 @@ pub use state::{
     BinOp, CondId, Expr, FromState, InvariantFailed, StateId, StateType, StateValue, StateVar,
 };
 pub use task::{
-    Action, ActionFuture, Attached, DescribeArgs, Exception, Factory, Handler, Monitor, Tap, Task,
-    Value, factory,
+    Action, ActionFuture, Attached, DescribeArgs, Factory, Handler, Monitor, Tap, Task, Value,
+    factory,
 };
 pub use tcm_core::{
     Approval, ApprovalRefused, AttachId, BreakAt, Breakpoint, EachActivation, Fault, FaultOutcome,

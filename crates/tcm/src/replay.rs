@@ -39,7 +39,8 @@ use tcm_journal::{Entry, Input, Journal};
 
 mod feed;
 
-pub(crate) use feed::{ActionPoll, Feed};
+pub(crate) use crate::clock::Feed;
+pub(crate) use feed::ActionPoll;
 use feed::{REPLAYS, in_action};
 
 /// Who asks for the `control` record that says where a run resumed.

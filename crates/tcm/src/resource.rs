@@ -6,11 +6,8 @@
 //! granting; this module turns names into the engine's resource handles under the lock, and makes
 //! the engine's refusals typed exceptions a handler takes by name.
 
-use crate::Error;
-use crate::ctx::Ctx;
-use crate::host::Inner;
-use crate::task::Exception;
-use tcm_core::{EngineError, Name, NodeId, ResourceId, ResourceInfo, Uses};
+use crate::exception::Exception;
+use tcm_core::{Engine, EngineError, Name, ResourceId, Uses};
 
 pub use tcm_core::{ResourceDenied, ResourceDropped};
 
@@ -104,89 +101,43 @@ pub(crate) struct Wanted {
     pub(crate) deny_if_busy: bool,
 }
 
-impl Inner {
-    /// Declares `r` (an error if its name is taken, or its capacity is 0).
-    pub(crate) fn declare(&mut self, r: &Resource) -> Result<ResourceId, EngineError> {
-        self.engine
-            .declare_resource(r.name.clone(), r.capacity, r.pending_limit)
-    }
-
-    /// The engine's uses for `wanted`: each name resolved, each declaration declared if new.
-    pub(crate) fn resolve(&mut self, wanted: Wanted) -> Result<Option<Box<Uses>>, EngineError> {
-        if wanted.uses.is_empty() {
-            return Ok(None);
-        }
-        let mut uses = Uses {
-            amounts: Vec::with_capacity(wanted.uses.len()),
-            priority: wanted.priority.unwrap_or(0),
-            deny_if_busy: wanted.deny_if_busy,
-        };
-        for (r, amount) in wanted.uses {
-            let id = self.resource_for(&r)?;
-            uses.amounts.push((id, amount));
-        }
-        Ok(Some(Box::new(uses)))
-    }
-
-    /// The resource `r` names: the run's resource of that name, or, for a declaration the run
-    /// does not have yet, the resource it declares now.
-    pub(crate) fn resource_for(&mut self, r: &ResourceRef) -> Result<ResourceId, EngineError> {
-        match (&r.0, self.engine.resource_id(r.name())) {
-            (_, Some(id)) => Ok(id),
-            (Ref::Declared(decl), None) => self.declare(decl),
-            (Ref::Named(name), None) => Err(EngineError::UnknownResource(name.to_string())),
-        }
-    }
+/// Declares `r` (an error if its name is taken, or its capacity is 0).
+pub(crate) fn declare<A, F: Clone>(
+    engine: &mut Engine<A, F>,
+    r: &Resource,
+) -> Result<ResourceId, EngineError> {
+    engine.declare_resource(r.name.clone(), r.capacity, r.pending_limit)
 }
 
-impl Ctx {
-    /// Reserves `resource` (a name the run declared, or a [`Resource`], declared on first use) for
-    /// `holder` (TCA: a resource reserved for one module): until it is unreserved, or the holder's
-    /// execution completes, only `holder` and its descendants are granted it; others wait
-    /// (docs/semantics.md, "Resources"). TDL's `reserve r;`.
-    pub fn reserve_resource(
-        &self,
-        resource: impl Into<ResourceRef>,
-        holder: NodeId,
-    ) -> Result<(), Error> {
-        let mut inner = self.shared.enter()?;
-        let now = inner.engine.at_clock();
-        let r = inner.resource_for(&resource.into())?;
-        Ok(inner.engine.reserve_resource(now, r, holder)?)
+/// The engine's uses for `wanted`: each name resolved, each declaration declared if new.
+pub(crate) fn resolve<A, F: Clone>(
+    engine: &mut Engine<A, F>,
+    wanted: Wanted,
+) -> Result<Option<Box<Uses>>, EngineError> {
+    if wanted.uses.is_empty() {
+        return Ok(None);
     }
-
-    /// Ends the reservation of `resource`, if it has one. TDL's `unreserve r;`.
-    pub fn unreserve_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
-        let mut inner = self.shared.enter()?;
-        let now = inner.engine.at_clock();
-        let r = inner.resource_for(&resource.into())?;
-        Ok(inner.engine.unreserve_resource(now, r)?)
+    let mut uses = Uses {
+        amounts: Vec::with_capacity(wanted.uses.len()),
+        priority: wanted.priority.unwrap_or(0),
+        deny_if_busy: wanted.deny_if_busy,
+    };
+    for (r, amount) in wanted.uses {
+        let id = resource_for(engine, &r)?;
+        uses.amounts.push((id, amount));
     }
+    Ok(Some(Box::new(uses)))
+}
 
-    /// Locks `resource`: nobody is granted it until it is unlocked; grants already made stay
-    /// (TCA's lock). TDL's `lock r;`.
-    pub fn lock_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
-        let mut inner = self.shared.enter()?;
-        let now = inner.engine.at_clock();
-        let r = inner.resource_for(&resource.into())?;
-        Ok(inner.engine.lock_resource(now, r)?)
-    }
-
-    /// Unlocks `resource`. TDL's `unlock r;`.
-    pub fn unlock_resource(&self, resource: impl Into<ResourceRef>) -> Result<(), Error> {
-        let mut inner = self.shared.enter()?;
-        let now = inner.engine.at_clock();
-        let r = inner.resource_for(&resource.into())?;
-        Ok(inner.engine.unlock_resource(now, r)?)
-    }
-
-    /// The resource `name` now: its capacity, holders, waiting requests, reservation and lock.
-    /// `None` if no resource of that name is declared.
-    pub fn resource_info(&self, name: &str) -> Result<Option<ResourceInfo>, Error> {
-        let inner = crate::host::lock(&self.shared)?;
-        Ok(inner
-            .engine
-            .resource_id(name)
-            .and_then(|r| inner.engine.resource_info(r)))
+/// The resource `r` names: the run's resource of that name, or, for a declaration the run does
+/// not have yet, the resource it declares now.
+pub(crate) fn resource_for<A, F: Clone>(
+    engine: &mut Engine<A, F>,
+    r: &ResourceRef,
+) -> Result<ResourceId, EngineError> {
+    match (&r.0, engine.resource_id(r.name())) {
+        (_, Some(id)) => Ok(id),
+        (Ref::Declared(decl), None) => declare(engine, decl),
+        (Ref::Named(name), None) => Err(EngineError::UnknownResource(name.to_string())),
     }
 }

@@ -357,7 +357,7 @@ impl Runtime {
     pub fn declare(mut self, resource: crate::Resource) -> Runtime {
         if self.setup.is_none() {
             let declared = match self.shared.inner.lock() {
-                Ok(mut inner) => inner.declare(&resource).map(|_| ()),
+                Ok(mut inner) => crate::resource::declare(&mut inner.engine, &resource).map(|_| ()),
                 Err(_) => Ok(()),
             };
             self.setup = declared.err();

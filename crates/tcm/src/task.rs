@@ -2,7 +2,9 @@
 //! async action; plus task-level constraints, on-terminate tasks and exception handlers.
 
 use crate::ctx::Ctx;
+use crate::exception::Exception;
 use crate::host::Shared;
+use crate::journal::EncodeFn;
 use std::any::Any;
 use std::future::Future;
 use std::pin::Pin;
@@ -50,8 +52,6 @@ pub(crate) struct Durable {
     pub(crate) reattach: Option<Reattach>,
 }
 
-/// A task's own [`crate::ValueEncoder`].
-pub(crate) type EncodeFn = dyn Fn(&(dyn Any + Send)) -> Option<serde_json::Value> + Send + Sync;
 /// A task's own [`crate::ValueDecoder`].
 pub(crate) type DecodeFn = dyn Fn(serde_json::Value) -> Option<Value> + Send + Sync;
 /// A task's re-attachment: the action that goes on with what the node's action started, given
@@ -195,37 +195,6 @@ where
     T: Any + Send,
 {
     Arc::new(move |ctx| erase(f(ctx)))
-}
-
-/// An exception type (TDL's `exception` declarations): a Rust error with an optional chain of
-/// ancestor types, so that a handler for `HardwareFailure` also catches `EngineOnFire`.
-pub trait Exception: std::error::Error + Send + Sync + 'static {
-    /// The names of the ancestor exception types, nearest first. Default: none.
-    fn ancestry() -> &'static [&'static str]
-    where
-        Self: Sized,
-    {
-        &[]
-    }
-
-    /// The exception type's name. Default: the short Rust type name.
-    fn name() -> &'static str
-    where
-        Self: Sized,
-    {
-        tcm_core::short_type_name::<Self>()
-    }
-
-    /// This exception as a failure that carries it (TDL's `fail`): `return Err(e.raise())`.
-    fn raise(self) -> Failure
-    where
-        Self: Sized,
-    {
-        let mut f = Failure::from(self);
-        f.exception = Self::name().into();
-        f.ancestry = Self::ancestry().iter().map(|a| Name::Borrowed(a)).collect();
-        f
-    }
 }
 
 /// The parameters of a monitor (TDL's `maximum activate`, `maximum trigger`, `period`, …).
