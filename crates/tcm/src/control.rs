@@ -13,8 +13,10 @@ mod steer;
 
 use crate::Error;
 use crate::ctx::Ctx;
+use crate::host::Shared;
 use crate::task::{Attached, Factory, Handler, Task};
 use std::any::Any;
+use std::sync::Arc;
 use tcm_core::{AttachId, NodeId, Stats, TapWhen, WatchOutcome, WiretapId};
 
 /// A handle on a running session: see the module's documentation. Cheap to clone.
@@ -44,7 +46,7 @@ impl Control {
 
     /// Inserts `task` as a top-level task, as [`Session::spawn`](crate::Session::spawn) does.
     pub fn spawn(&self, task: Task) -> Result<NodeId, Error> {
-        crate::session::spawn_top(&self.ctx.shared, task)
+        spawn_top(&self.ctx.shared, task)
     }
 
     /// Waits until `node`'s execution completes (see [`Ctx::wait`]).
@@ -59,13 +61,13 @@ impl Control {
 
     /// Raises the external event `name`.
     pub fn raise(&self, name: &str) -> Result<(), Error> {
-        crate::runtime::raise(&self.ctx.shared, name, None)
+        crate::events::raise(&self.ctx.shared, name, None)
     }
 
     /// Raises the external event `name` carrying `data`, which each monitor activation it makes
     /// reads with [`Ctx::activation_data`].
     pub fn raise_with<T: Any + Send + Sync>(&self, name: &str, data: T) -> Result<(), Error> {
-        crate::runtime::raise(&self.ctx.shared, name, Some(std::sync::Arc::new(data)))
+        crate::events::raise(&self.ctx.shared, name, Some(std::sync::Arc::new(data)))
     }
 
     /// The live top-level tasks, in spawn order.
@@ -141,4 +143,16 @@ impl Control {
     pub fn note(&self, what: &str, by: &str) -> Result<(), Error> {
         self.engine(|e, now| e.note_control(now, what, by))
     }
+}
+
+/// Inserts `task` as a top-level task of the run.
+pub(crate) fn spawn_top(shared: &Arc<Shared>, task: Task) -> Result<NodeId, Error> {
+    let mut inner = shared.enter()?;
+    if inner.ended {
+        return Err(Error::RunEnded);
+    }
+    let now = inner.engine.at_clock();
+    let root = inner.engine.root();
+    let (spec, kept) = task.into_parts(root);
+    Ok(inner.spawn_root(now, spec, kept)?)
 }

@@ -14,7 +14,7 @@
 use crate::Error;
 use crate::clock::Clock;
 use crate::ctx::Ctx;
-use crate::host::{DueCallback, Inner, Panicked, Root, Shared, Status, lock};
+use crate::host::{DueCallback, Inner, Shared, Status, lock};
 use crate::session::Session;
 use crate::sink::TraceSink;
 use crate::task::Task;
@@ -23,14 +23,14 @@ use std::future::Future;
 use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
-use tcm_core::{
-    Blocked, Engine, Failure, FailurePolicy, FatalFailure, Next, Stats, TapWhen, WatchOutcome,
-};
+use tcm_core::{Engine, Failure, FailurePolicy, Next, TapWhen};
 use tokio::sync::{Notify, watch};
 
 mod run_loop;
 
-pub(crate) use run_loop::{RunLoop, end_run};
+use crate::events::EventHandle;
+use crate::outcome::{Report, RunOutcome, end_run, report};
+pub(crate) use run_loop::RunLoop;
 
 static RUNS: AtomicU32 = AtomicU32::new(1);
 
@@ -40,210 +40,6 @@ fn engine(run: u32) -> Engine<crate::task::Action, crate::task::Factory> {
     let mut engine = Engine::new(run);
     engine.hold_by_default(true);
     engine
-}
-
-/// How a run ended.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum RunOutcome {
-    /// The top-level task's execution completed (it and its whole subtree).
-    Completed,
-    /// The top-level task's own action failed (whether or not a handler then took the failure).
-    TaskFailed(Failure),
-    /// The top-level task was terminated.
-    Terminated,
-    /// An unhandled failure under [`FailurePolicy::Fatal`].
-    Fatal(FatalFailure),
-    /// Nothing can progress (no action runs but those parked in an await on the engine, nothing is
-    /// ready, no timer is pending) and no event handle is open: these nodes wait on events that
-    /// will never come (docs/semantics.md, "Run outcome").
-    Stuck(Vec<Blocked>),
-    /// A replay ([`Runtime::replay`]) reached the end of its journal with the run still going
-    /// after `inputs` inputs (a journal cut by a crash).
-    JournalEnded {
-        /// The inputs given.
-        inputs: u64,
-    },
-    /// A replay ([`Runtime::replay`], [`Runtime::resume`]) found the program doing otherwise than
-    /// the run its journal recorded: where, and both versions (docs/semantics.md, "Durable runs").
-    Diverged(String),
-}
-
-impl RunOutcome {
-    /// How a run of these top-level tasks ended, once each did: the first, in spawn order, that
-    /// did not complete normally decides (its action failed, or it was terminated); otherwise the
-    /// run completed. `None` while one runs.
-    pub(crate) fn of_roots(roots: &[Root]) -> Option<RunOutcome> {
-        let mut outcome = RunOutcome::Completed;
-        for r in roots {
-            match r.outcome.as_ref()? {
-                WatchOutcome::Reached | WatchOutcome::Recovered { .. } | WatchOutcome::Skipped => {}
-                WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => {
-                    if outcome == RunOutcome::Completed {
-                        outcome = RunOutcome::TaskFailed(f.clone());
-                    }
-                }
-                WatchOutcome::Terminated | WatchOutcome::Dead => {
-                    if outcome == RunOutcome::Completed {
-                        outcome = RunOutcome::Terminated;
-                    }
-                }
-            }
-        }
-        Some(outcome)
-    }
-}
-
-/// The result of [`Runtime::run`].
-#[derive(Clone, Debug)]
-pub struct Report {
-    /// How the run ended.
-    pub outcome: RunOutcome,
-    /// Virtual (or real) time from the start of the run to its end.
-    pub elapsed: Duration,
-    /// Engine counters at the end.
-    pub stats: Stats,
-    /// The actions (and timer callbacks) that panicked, in order. Each panic failed its node and
-    /// the run went on; `tcm::testing::run_checked` fails the test for them.
-    pub panics: Vec<Panicked>,
-    /// Every failure no handler took, in order: the node's number and path of instance names,
-    /// the exception's type name and its data as text (the failure's message). Under the default
-    /// policy the run goes on after each (docs/semantics.md, "Failure without a handler"), so an
-    /// outcome `Completed` may come with unhandled failures: check this list, or
-    /// [`Report::is_clean`].
-    pub unhandled: Vec<FatalFailure>,
-    /// Nodes that failed during the run, handled or not.
-    pub failures: u64,
-    /// Warnings of the run (`warning` trace records, such as "No exception handler found"), each
-    /// also logged through `tracing` at `WARN` level with target `tcm`.
-    pub warnings: u64,
-}
-
-impl Report {
-    /// Whether the run completed with no unhandled failure, no warning and no panic.
-    pub fn is_clean(&self) -> bool {
-        self.outcome == RunOutcome::Completed
-            && self.unhandled.is_empty()
-            && self.warnings == 0
-            && self.panics.is_empty()
-    }
-}
-
-impl std::fmt::Display for Report {
-    /// The outcome, then one line per unhandled failure and panic, then the counts.
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match &self.outcome {
-            RunOutcome::Completed => write!(f, "completed")?,
-            RunOutcome::TaskFailed(fl) => {
-                write!(f, "task failed: {}: {}", fl.exception, fl.message)?;
-            }
-            RunOutcome::Terminated => write!(f, "terminated")?,
-            RunOutcome::Fatal(fl) => write!(f, "fatal: {fl}")?,
-            RunOutcome::Stuck(b) => write!(f, "stuck ({} waiting nodes)", b.len())?,
-            RunOutcome::JournalEnded { inputs } => {
-                write!(
-                    f,
-                    "the journal ended, after {inputs} inputs, with the run going on"
-                )?;
-            }
-            RunOutcome::Diverged(why) => write!(f, "diverged from the journal: {why}")?,
-        }
-        write!(f, " after {:?}", self.elapsed)?;
-        for u in &self.unhandled {
-            write!(f, "\n{u}")?;
-        }
-        for p in &self.panics {
-            write!(f, "\n{p}")?;
-        }
-        write!(
-            f,
-            "\n{} unhandled failure(s), {} failure(s), {} warning(s), {} panic(s)",
-            self.unhandled.len(),
-            self.failures,
-            self.warnings,
-            self.panics.len()
-        )
-    }
-}
-
-/// A handle to raise named external events from any thread or task. While any handle is open, a
-/// run with nothing else to do waits for it instead of ending as stuck.
-pub struct EventHandle {
-    shared: Arc<Shared>,
-}
-
-impl EventHandle {
-    /// A handle counted among the open ones.
-    pub(crate) fn new(shared: Arc<Shared>) -> EventHandle {
-        EventHandle { shared }
-    }
-
-    /// Raises the event `name` (latched: constraints applied later find it raised). After the
-    /// run ended, [`Error::RunEnded`].
-    pub fn raise(&self, name: &str) -> Result<(), Error> {
-        raise(&self.shared, name, None)
-    }
-
-    /// Raises the external event `name` carrying `data`: each monitor activation it makes reads
-    /// it with [`Ctx::activation_data`] (TCM's external event with data).
-    pub fn raise_with<T: std::any::Any + Send + Sync>(
-        &self,
-        name: &str,
-        data: T,
-    ) -> Result<(), Error> {
-        raise(&self.shared, name, Some(Arc::new(data)))
-    }
-
-    /// Sets the state variable `name` (declared by the program or the runtime; an undeclared one
-    /// is declared with the value's type): an input to the engine, recorded with its value
-    /// (docs/semantics.md, "State and conditions"). After the run ended, [`Error::RunEnded`], so
-    /// a feed of values knows to stop.
-    pub fn set_state(&self, name: &str, value: impl Into<crate::StateValue>) -> Result<(), Error> {
-        let mut s = self.shared.enter()?;
-        if s.ended {
-            return Err(Error::RunEnded);
-        }
-        let now = s.engine.at_clock();
-        Ok(crate::state::set_by_name(
-            &mut s.engine,
-            now,
-            name,
-            value.into(),
-        )?)
-    }
-
-    /// Spawns `fut` as a tokio task of the program beside the run: work outside the tree that
-    /// feeds it (a task reading a socket and raising events or setting state, TCM's
-    /// external-event callbacks). The run counts its wake-ups as it counts its own tasks', so
-    /// once an action wakes it, it runs before the next action is polled, as TCM's agenda
-    /// dispatched external input between any two actions; a task spawned with plain
-    /// `tokio::spawn` waits, on a current-thread runtime, until the actions that end without
-    /// awaiting let the thread go (docs/semantics.md, "Work beside the tree"). It runs on the
-    /// current tokio runtime; outside one, [`Error::NoRuntime`].
-    pub fn spawn<F>(&self, fut: F) -> Result<tokio::task::JoinHandle<F::Output>, Error>
-    where
-        F: std::future::Future + Send + 'static,
-        F::Output: Send + 'static,
-    {
-        let rt = tokio::runtime::Handle::try_current().map_err(|_| Error::NoRuntime)?;
-        let fut = crate::pump::Tracked::new(Box::pin(fut), &self.shared.queued, true);
-        Ok(rt.spawn(fut))
-    }
-}
-
-impl Clone for EventHandle {
-    fn clone(&self) -> Self {
-        self.shared.handles.fetch_add(1, Ordering::SeqCst);
-        EventHandle {
-            shared: self.shared.clone(),
-        }
-    }
-}
-
-impl Drop for EventHandle {
-    fn drop(&mut self) {
-        self.shared.handles.fetch_sub(1, Ordering::SeqCst);
-        self.shared.wake.notify_one();
-    }
 }
 
 /// A run of one top-level task.
@@ -606,9 +402,7 @@ impl Runtime {
     /// A handle to raise external events.
     pub fn events(&self) -> EventHandle {
         self.shared.handles.fetch_add(1, Ordering::SeqCst);
-        EventHandle {
-            shared: self.shared.clone(),
-        }
+        EventHandle::new(self.shared.clone())
     }
 
     /// Runs `task` as the top-level task until its execution completes, it fails fatally, or the run
@@ -716,35 +510,4 @@ impl Runtime {
             Ok(None)
         }
     }
-}
-
-/// Raises the external event `name`, with `data` if any (an input to the engine).
-pub(crate) fn raise(
-    shared: &Arc<Shared>,
-    name: &str,
-    data: Option<Arc<dyn std::any::Any + Send + Sync>>,
-) -> Result<(), Error> {
-    let mut s = shared.enter()?;
-    if s.ended {
-        return Err(Error::RunEnded);
-    }
-    let now = s.engine.at_clock();
-    let id = s.engine.external(name);
-    s.engine.handle_external_with(now, id, data);
-    Ok(())
-}
-
-/// The report of a run that ended with `outcome`.
-pub(crate) fn report(shared: &Arc<Shared>, outcome: RunOutcome) -> Result<Report, Error> {
-    let mut inner = lock(shared)?;
-    let stats = inner.final_stats.unwrap_or_else(|| inner.engine.stats());
-    Ok(Report {
-        outcome,
-        elapsed: shared.now().since_start(),
-        stats,
-        panics: std::mem::take(&mut inner.panics),
-        unhandled: inner.engine.unhandled().to_vec(),
-        failures: stats.failures,
-        warnings: stats.warnings,
-    })
 }

@@ -9,9 +9,11 @@
 
 use crate::Error;
 use crate::control::Control;
+use crate::control::spawn_top;
 use crate::ctx::Ctx;
+use crate::events::EventHandle;
 use crate::host::{Shared, lock};
-use crate::runtime::{EventHandle, Report, RunOutcome, end_run, report};
+use crate::outcome::{Report, RunOutcome, end_run, report};
 use crate::task::Task;
 use std::any::Any;
 use std::sync::Arc;
@@ -290,18 +292,6 @@ impl Session {
     {
         self.ctx.invoke_at(name, at, f)
     }
-}
-
-/// Inserts `task` as a top-level task of the run.
-pub(crate) fn spawn_top(shared: &Arc<Shared>, task: Task) -> Result<NodeId, Error> {
-    let mut inner = shared.enter()?;
-    if inner.ended {
-        return Err(Error::RunEnded);
-    }
-    let now = inner.engine.at_clock();
-    let root = inner.engine.root();
-    let (spec, kept) = task.into_parts(root);
-    Ok(inner.spawn_root(now, spec, kept)?)
 }
 
 impl Drop for Session {

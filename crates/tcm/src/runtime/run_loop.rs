@@ -167,38 +167,6 @@ impl RunLoop {
     }
 }
 
-/// The run is over: whatever still runs belongs to a run that is over, no callback will run, and
-/// whoever waits is told.
-pub(crate) fn end_run(shared: &Arc<Shared>) {
-    let mut launches = Vec::new();
-    let mut parked = Vec::new();
-    if let Ok(mut inner) = lock(shared) {
-        inner.ended = true;
-        for t in inner.aborts.drain() {
-            match t {
-                crate::host::TaskRef::Task(h) => h.abort(),
-                crate::host::TaskRef::Parked(p) => parked.extend(p.take()),
-            }
-        }
-        launches = std::mem::take(&mut inner.launches);
-        inner.cancels.end();
-        inner.callbacks.clear();
-        inner.due.clear();
-        inner.watchers.clear();
-        // The journal's last inputs are written and synced.
-        if let Some(mut j) = inner.journal.take() {
-            j.drain(&mut inner.engine);
-            if let Err(why) = j.close() {
-                tracing::error!(target: "tcm", "the run's journal is incomplete: {why}");
-            }
-        }
-        shared.status.send_modify(|s| s.ended = true);
-    }
-    // Started but never polled, or parked: dropped outside the lock (a drop may take it).
-    drop(launches);
-    drop(parked);
-}
-
 async fn sleep_until(at: Option<tokio::time::Instant>) {
     if let Some(at) = at {
         tokio::time::sleep_until(at).await;
