@@ -17,6 +17,7 @@ use tcm_core::{
 use tokio::sync::{oneshot, watch};
 
 mod journal;
+mod place;
 mod resource;
 mod spawner;
 mod state;

@@ -17,7 +17,6 @@ use crate::ctx::Ctx;
 use crate::task::{Action, AnyArgs, Factory, Kept, Launch, Value};
 use std::any::Any;
 use std::collections::{BTreeMap, BTreeSet};
-use std::fmt;
 use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, mpsc};
 use tcm_core::{
@@ -27,11 +26,14 @@ use tcm_trace::TraceEvent;
 use tokio::sync::{Notify, oneshot, watch};
 
 mod aborts;
+mod end;
 mod ended;
 mod locked;
 mod shell;
 
+pub(crate) use crate::outcome::Panicked;
 pub(crate) use aborts::{Aborts, Running};
+pub(crate) use end::{end_run, outcome_of_roots, report};
 pub(crate) use ended::{CatchUnwind, Ended, TaskRef, panic_message, panicked, spawn_task};
 pub(crate) use locked::{Locked, lock, lock_as_is, run_callback};
 pub(crate) use shell::Host;
@@ -63,37 +65,6 @@ pub(crate) struct Root {
     pub(crate) node: NodeId,
     token: u64,
     pub(crate) outcome: Option<WatchOutcome>,
-}
-
-/// An action (or wiretap check, or timer callback) that panicked: its node failed with
-/// `ActionPanicked`, and the run went on (docs/semantics.md, "Exceptions and handlers").
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Panicked {
-    /// Display number of the node whose action panicked (for a callback, of the node that set it;
-    /// `None` when the program set it).
-    pub node: Option<u64>,
-    /// The node's instance name, or the callback's name.
-    pub name: String,
-    /// Instance names from the top-level task down to the node, joined by `/`.
-    pub path: String,
-    /// Whether it was a timer callback rather than an action.
-    pub callback: bool,
-    /// The panic's message.
-    pub message: String,
-}
-
-impl fmt::Display for Panicked {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let what = if self.callback { "callback" } else { "action" };
-        write!(f, "{what} {}", self.name)?;
-        if let Some(n) = self.node {
-            write!(f, " {{{n}}}")?;
-        }
-        if !self.path.is_empty() {
-            write!(f, " ({})", self.path)?;
-        }
-        write!(f, " panicked: {}", self.message)
-    }
 }
 
 /// The actions parked in an await on an engine watch (`Ctx::wait` and the waits built on it), by

@@ -59,10 +59,10 @@ pub use ctx::{Ctx, Ended, Spawner};
 pub use events::EventHandle;
 pub use exception::Exception;
 pub use faults::{FaultsError, json_value, parse_faults, read_faults};
-pub use host::Panicked;
 pub use journal::{ValueEncoder, json_values};
+pub use outcome::Panicked;
 pub use outcome::{Report, RunOutcome};
-pub use place::{Json, Placer, remote_args, remote_value};
+pub use place::{Json, remote_args, remote_value};
 pub use replay::{INTERRUPTED, RESUMED_BY, ValueDecoder, json_decoded};
 pub use resource::{Resource, ResourceDenied, ResourceDropped, ResourceRef};
 pub use runtime::Runtime;
@@ -71,6 +71,7 @@ pub use sink::{JsonLines, Recorder, TextLogSink, TraceSink, TracingSink};
 pub use state::{
     BinOp, CondId, Expr, FromState, InvariantFailed, StateId, StateType, StateValue, StateVar,
 };
+pub use task::Placer;
 pub use task::{
     Action, ActionFuture, Attached, DescribeArgs, Factory, Handler, Monitor, Tap, Task, Value,
     factory,

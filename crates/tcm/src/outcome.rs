@@ -1,11 +1,9 @@
-//! How a run ended ([`RunOutcome`]), its [`Report`], and the end of a run: what runs is
-//! stopped, the journal closed (`end_run`).
+//! How a run ended ([`RunOutcome`]) and its [`Report`], with the actions that panicked
+//! ([`Panicked`]).
 
-use crate::Error;
-use crate::host::{Panicked, Root, Shared, lock};
-use std::sync::Arc;
+use std::fmt;
 use std::time::Duration;
-use tcm_core::{Blocked, Failure, FatalFailure, Stats, WatchOutcome};
+use tcm_core::{Blocked, Failure, FatalFailure, Stats};
 
 /// How a run ended.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -31,31 +29,6 @@ pub enum RunOutcome {
     /// A replay ([`Runtime::replay`], [`Runtime::resume`]) found the program doing otherwise than
     /// the run its journal recorded: where, and both versions (docs/semantics.md, "Durable runs").
     Diverged(String),
-}
-
-impl RunOutcome {
-    /// How a run of these top-level tasks ended, once each did: the first, in spawn order, that
-    /// did not complete normally decides (its action failed, or it was terminated); otherwise the
-    /// run completed. `None` while one runs.
-    pub(crate) fn of_roots(roots: &[Root]) -> Option<RunOutcome> {
-        let mut outcome = RunOutcome::Completed;
-        for r in roots {
-            match r.outcome.as_ref()? {
-                WatchOutcome::Reached | WatchOutcome::Recovered { .. } | WatchOutcome::Skipped => {}
-                WatchOutcome::Failed(f) | WatchOutcome::Handled(f) => {
-                    if outcome == RunOutcome::Completed {
-                        outcome = RunOutcome::TaskFailed(f.clone());
-                    }
-                }
-                WatchOutcome::Terminated | WatchOutcome::Dead => {
-                    if outcome == RunOutcome::Completed {
-                        outcome = RunOutcome::Terminated;
-                    }
-                }
-            }
-        }
-        Some(outcome)
-    }
 }
 
 /// The result of [`Runtime::run`].
@@ -130,49 +103,33 @@ impl std::fmt::Display for Report {
     }
 }
 
-/// The report of a run that ended with `outcome`.
-pub(crate) fn report(shared: &Arc<Shared>, outcome: RunOutcome) -> Result<Report, Error> {
-    let mut inner = lock(shared)?;
-    let stats = inner.final_stats.unwrap_or_else(|| inner.engine.stats());
-    Ok(Report {
-        outcome,
-        elapsed: shared.now().since_start(),
-        stats,
-        panics: std::mem::take(&mut inner.panics),
-        unhandled: inner.engine.unhandled().to_vec(),
-        failures: stats.failures,
-        warnings: stats.warnings,
-    })
+/// An action (or wiretap check, or timer callback) that panicked: its node failed with
+/// `ActionPanicked`, and the run went on (docs/semantics.md, "Exceptions and handlers").
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Panicked {
+    /// Display number of the node whose action panicked (for a callback, of the node that set it;
+    /// `None` when the program set it).
+    pub node: Option<u64>,
+    /// The node's instance name, or the callback's name.
+    pub name: String,
+    /// Instance names from the top-level task down to the node, joined by `/`.
+    pub path: String,
+    /// Whether it was a timer callback rather than an action.
+    pub callback: bool,
+    /// The panic's message.
+    pub message: String,
 }
 
-/// The run is over: whatever still runs belongs to a run that is over, no callback will run, and
-/// whoever waits is told.
-pub(crate) fn end_run(shared: &Arc<Shared>) {
-    let mut launches = Vec::new();
-    let mut parked = Vec::new();
-    if let Ok(mut inner) = lock(shared) {
-        inner.ended = true;
-        for t in inner.aborts.drain() {
-            match t {
-                crate::host::TaskRef::Task(h) => h.abort(),
-                crate::host::TaskRef::Parked(p) => parked.extend(p.take()),
-            }
+impl fmt::Display for Panicked {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let what = if self.callback { "callback" } else { "action" };
+        write!(f, "{what} {}", self.name)?;
+        if let Some(n) = self.node {
+            write!(f, " {{{n}}}")?;
         }
-        launches = std::mem::take(&mut inner.launches);
-        inner.cancels.end();
-        inner.callbacks.clear();
-        inner.due.clear();
-        inner.watchers.clear();
-        // The journal's last inputs are written and synced.
-        if let Some(mut j) = inner.journal.take() {
-            j.drain(&mut inner.engine);
-            if let Err(why) = j.close() {
-                tracing::error!(target: "tcm", "the run's journal is incomplete: {why}");
-            }
+        if !self.path.is_empty() {
+            write!(f, " ({})", self.path)?;
         }
-        shared.status.send_modify(|s| s.ended = true);
+        write!(f, " panicked: {}", self.message)
     }
-    // Started but never polled, or parked: dropped outside the lock (a drop may take it).
-    drop(launches);
-    drop(parked);
 }

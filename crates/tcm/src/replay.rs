@@ -696,7 +696,11 @@ pub(crate) fn turn(inner: &mut Inner, shared: &Arc<Shared>) -> tcm_core::Next {
 /// run's tasks ended first.
 pub(crate) fn outcome(inner: &Inner) -> Option<RunOutcome> {
     match inner.replay.as_ref()?.outcome.as_ref()? {
-        RunOutcome::JournalEnded { .. } if RunOutcome::of_roots(&inner.roots).is_some() => None,
+        RunOutcome::JournalEnded { .. }
+            if crate::host::outcome_of_roots(&inner.roots).is_some() =>
+        {
+            None
+        }
         o => Some(o.clone()),
     }
 }

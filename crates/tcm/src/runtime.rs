@@ -29,7 +29,8 @@ use tokio::sync::{Notify, watch};
 mod run_loop;
 
 use crate::events::EventHandle;
-use crate::outcome::{Report, RunOutcome, end_run, report};
+use crate::host::{end_run, report};
+use crate::outcome::{Report, RunOutcome};
 pub(crate) use run_loop::RunLoop;
 
 static RUNS: AtomicU32 = AtomicU32::new(1);

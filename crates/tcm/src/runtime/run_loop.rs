@@ -86,7 +86,7 @@ impl RunLoop {
             None
         } else if !inner.finishing {
             None
-        } else if let Some(outcome) = RunOutcome::of_roots(&inner.roots) {
+        } else if let Some(outcome) = crate::host::outcome_of_roots(&inner.roots) {
             Some(outcome)
         } else if quiet
             && self.shared.handles.load(Ordering::SeqCst) == 0
