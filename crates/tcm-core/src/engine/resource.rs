@@ -484,6 +484,8 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
 
     /// Step 3: grants the waiting requests that fit, in grant order, each all at once; queues the
     /// granted nodes to start (but `start`'s own, which goes on at once).
+    #[cold]
+    #[inline(never)]
     pub(super) fn scan_resources(&mut self) {
         self.res.dirty = false;
         if self.res.waiting.is_empty() {

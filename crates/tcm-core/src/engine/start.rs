@@ -12,6 +12,7 @@ use crate::ids::NodeId;
 use tcm_trace::{Facet, State, TraceKind};
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
+    #[inline(never)]
     pub(super) fn start(&mut self, id: NodeId) {
         let Some(n) = self.nodes.get_mut(id) else {
             return;

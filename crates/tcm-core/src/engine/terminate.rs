@@ -100,6 +100,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     /// 5. progress then completes expansion and execution bottom-up, each once it is enabled, so
     ///    constraints waiting on these nodes are released in the plan's order, and each node is
     ///    Terminated once its children are.
+    #[inline(never)]
     pub(super) fn do_terminate(&mut self, id: NodeId, explicit: bool) {
         let Some(n) = self.nodes.get(id) else { return };
         // The root never terminates; an on-terminate task runs to completion whatever happens.
