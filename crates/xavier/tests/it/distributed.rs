@@ -245,8 +245,11 @@ fn the_distributed_run_matches_the_single_process_run_of_the_same_seed() {
     }
     // Each of the robot's commands ran on the robot agent, `speak` on the voice when Python
     // serves it, and the trace says so: a `placed` record per remote node, nothing else placed.
+    // A node terminated before its action was sent (a poll of the motor's temperature spawned as
+    // the round ends, on a loaded machine) ran nowhere and has none.
     let mut names = BTreeMap::new();
     let mut placed = BTreeMap::new();
+    let mut terminated = std::collections::BTreeSet::new();
     for r in &t2 {
         match (r["ev"].as_str(), r["node"].as_u64()) {
             (Some("spawned"), Some(n)) => {
@@ -254,6 +257,9 @@ fn the_distributed_run_matches_the_single_process_run_of_the_same_seed() {
             }
             (Some("placed"), Some(n)) => {
                 placed.insert(n, r["agent"].as_str().unwrap_or_default().to_string());
+            }
+            (Some("terminated"), Some(n)) => {
+                terminated.insert(n);
             }
             _ => {}
         }
@@ -275,7 +281,11 @@ fn the_distributed_run_matches_the_single_process_run_of_the_same_seed() {
         } else {
             None
         };
-        assert_eq!(placed.get(n).map(String::as_str), want, "{name} {{{n}}}");
+        let got = placed.get(n).map(String::as_str);
+        if got.is_none() && terminated.contains(n) {
+            continue;
+        }
+        assert_eq!(got, want, "{name} {{{n}}}");
         if let Some(agent) = want {
             *by_agent.entry(agent).or_default() += 1;
         }
