@@ -210,6 +210,8 @@ class AgentStats:
     over_limit: int = 0
     #: Starts refused because the executive the key names is not live: not answered.
     strangers: int = 0
+    #: ``reattach`` questions answered ``attached`` (the task runs here).
+    reattached: int = 0
 
 
 @dataclass
@@ -562,6 +564,33 @@ class Agent:
                 r.out_seq,
                 wire.failed(wire.remote_error(f"the value of {r.ctx.task} is not JSON: {e}")),
             )
+        self._put(key, data)
+
+    def _answer_reattach(self, key: Tuple[str, int]) -> None:
+        """Answers an executive's ``reattach`` for ``key``, numbered 0: ``attached`` with where the
+        task's two sequences stand when it runs here; else ``unattached``, saying whether this
+        agent had it (it keeps no ends and holds no bodies, so an ended task is lost for the
+        executive: its node fails with ``AgentLost``)."""
+        executive, task = key
+        r = self._running.get(key)
+        if r is not None:
+            self.stats.reattached += 1
+            body = wire.attached(r.last_seq, r.out_seq)
+        elif key in self._ended:
+            body = wire.unattached(
+                f"agent {self.name} no longer has task {task} of executive {executive} "
+                "(it ended or was cancelled, and this agent keeps no ends)",
+                True,
+            )
+        else:
+            body = wire.unattached(
+                f"agent {self.name} never had task {task} of executive {executive}: "
+                "its start did not reach it",
+                False,
+            )
+        self._put(key, wire.encode(task, 0, body))
+
+    def _put(self, key: Tuple[str, int], data: bytes) -> None:
         try:
             p = self._publisher(key[0])
             if p is not None:
@@ -596,6 +625,10 @@ class Agent:
                 log.warning("agent %s: malformed start ignored: %s", self.name, e)
                 return
             self._start(key, msg.seq, node, name, kind, args)
+            return
+        if msg.kind == "reattach":
+            # Numbered 0, outside the task's sequence: answered, and nothing else changes.
+            self._answer_reattach(key)
             return
         r = self._running.get(key)
         if r is None:

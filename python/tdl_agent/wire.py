@@ -59,7 +59,7 @@ def executive_inbox(system: str, executive: str, agent: str) -> str:
 
 
 #: The kinds of message an executive sends to an agent.
-TO_AGENT = ("start", "cancel", "reply")
+TO_AGENT = ("start", "cancel", "reply", "reattach")
 
 
 class MalformedMessage(ValueError):
@@ -156,6 +156,25 @@ def start(node: int, name: str, task_kind: str, args: Json) -> Dict[str, Json]:
 def cancel() -> Dict[str, Json]:
     """Executive to agent: the node was terminated; abort, clean up, confirm."""
     return {"kind": "cancel"}
+
+
+def reattach() -> Dict[str, Json]:
+    """Executive to agent, numbered 0 outside the task's sequence: where does the task stand?
+    (An executive resumed from its journal, or one that saw a gap in the task's messages.)"""
+    return {"kind": "reattach"}
+
+
+def attached(received: int, sent: int) -> Dict[str, Json]:
+    """Agent to executive, numbered 0: the agent runs the task; it applied the executive's
+    messages up to ``received`` and sent its own up to ``sent``. (This agent keeps no ends, so
+    ``done`` is always ``None``.)"""
+    return {"kind": "attached", "received": received, "sent": sent, "done": None}
+
+
+def unattached(reason: str, started: bool) -> Dict[str, Json]:
+    """Agent to executive, numbered 0: the agent does not run the task; ``started`` says whether
+    it had it (it ended or was aborted) or never got its start."""
+    return {"kind": "unattached", "reason": reason, "started": started}
 
 
 def started() -> Dict[str, Json]:

@@ -245,6 +245,28 @@ class ExactlyOnce(unittest.TestCase):
         self.settle()
         self.assertEqual((self.agent.stats.cancelled, self.cleanups), (1, [30_000]))
 
+    def test_reattach_is_answered_outside_the_sequence_with_where_the_task_stands(self) -> None:
+        # Running: `attached`, numbered 0, with the executive's last message applied and ours.
+        self.deliver(10, 1, wire.start(14, "slow", "command", 30_000))
+        self.settle()
+        self.deliver(10, 0, wire.reattach())
+        self.assertEqual(self.out.sent[-1], (10, 0, wire.attached(1, 1)))
+        self.assertEqual(self.agent.stats.reattached, 1)
+        # Nothing else moved: the executive's cancel, number 2, is still the next one.
+        self.deliver(10, 2, wire.cancel())
+        self.settle()
+        self.assertEqual((self.agent.stats.cancelled, self.agent.stats.refused), (1, 0))
+        # Ended (this agent keeps no ends): `unattached`, had it.
+        self.deliver(10, 0, wire.reattach())
+        task, seq, body = self.out.sent[-1]
+        self.assertEqual((task, seq, body["kind"], body["started"]), (10, 0, "unattached", True))
+        # Never started here: `unattached`, never had it, so the executive sends its start.
+        self.deliver(11, 0, wire.reattach())
+        task, seq, body = self.out.sent[-1]
+        self.assertEqual((task, seq, body["kind"], body["started"]), (11, 0, "unattached", False))
+        self.assertIn("never had task 11", body["reason"])
+        self.assertEqual(self.agent.stats.malformed, 0)
+
     def test_a_message_of_unknown_kind_does_not_advance_the_sequence(self) -> None:
         self.deliver(9, 1, wire.start(13, "slow", "command", 30_000))
         self.settle()
