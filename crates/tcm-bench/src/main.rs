@@ -34,6 +34,7 @@
 mod heap;
 mod interp;
 mod journal;
+mod now;
 mod w7;
 
 use std::collections::VecDeque;
@@ -202,56 +203,6 @@ fn shell_flat(n: usize, chained: bool) -> (f64, usize) {
     shell_flat_journaled(n, chained, None)
 }
 
-/// W1 (`chained`) or W2 through the async runtime, written with synchronous actions
-/// (`Task::goal_now`, `Task::command_now`): no future per action. The async rows keep their goal
-/// as it was written (an async block with the loop in it), so that their figures compare across
-/// versions.
-fn shell_flat_now(n: usize, chained: bool) -> (f64, usize) {
-    let mut hw = 0;
-    let ns = best(|| {
-        let (ns, h) = shell(n, || {
-            Task::goal_now("top", move |ctx| {
-                for _ in 0..n {
-                    let s = ctx.spawn(Task::command_now("noop", |_| Ok(())));
-                    let s = if chained {
-                        s.serial(NodeRef::Previous)
-                    } else {
-                        s
-                    };
-                    s.start()?;
-                }
-                Ok(())
-            })
-        });
-        hw = h;
-        ns
-    });
-    (ns, hw)
-}
-
-/// W3 written with synchronous actions.
-fn recursive_now(depth: usize) -> Task {
-    Task::goal_now("g", move |ctx| {
-        if depth > 1 {
-            let c = ctx.spawn(Task::command_now("c", |_| Ok(()))).start()?;
-            ctx.spawn(recursive_now(depth - 1))
-                .sequential(Facet::Execution, c)
-                .start()?;
-        }
-        Ok(())
-    })
-}
-
-fn shell_recursive_now(depth: usize) -> (f64, usize) {
-    let mut hw = 0;
-    let ns = best(|| {
-        let (ns, h) = shell(2 * depth, || recursive_now(depth));
-        hw = h;
-        ns
-    });
-    (ns, hw)
-}
-
 /// The journal's group commit in the benchmarks: every 10 ms.
 const GROUP_COMMIT: tcm_journal::Durability =
     tcm_journal::Durability::Group(std::time::Duration::from_millis(10));
@@ -281,30 +232,6 @@ fn shell_flat_journaled(
             },
             journal,
         );
-        hw = h;
-        ns
-    });
-    (ns, hw)
-}
-
-fn recursive(depth: usize) -> Task {
-    Task::goal("g", move |ctx| async move {
-        if depth > 1 {
-            let c = ctx
-                .spawn(Task::command("c", |_| async { Ok(()) }))
-                .start()?;
-            ctx.spawn(recursive(depth - 1))
-                .sequential(Facet::Execution, c)
-                .start()?;
-        }
-        Ok(())
-    })
-}
-
-fn shell_recursive(depth: usize) -> (f64, usize) {
-    let mut hw = 0;
-    let ns = best(|| {
-        let (ns, h) = shell(2 * depth, || recursive(depth));
         hw = h;
         ns
     });
@@ -689,7 +616,7 @@ fn main() {
                 report(json, "W1", "shell", n, shell_flat(n, true), f);
             }
             if shell_now {
-                report(json, "W1", "shell-now", n, shell_flat_now(n, true), f);
+                report(json, "W1", "shell-now", n, now::shell_flat_now(n, true), f);
             }
             if shell_journal {
                 let group = shell_flat_journaled(n, true, Some(GROUP_COMMIT));
@@ -708,7 +635,7 @@ fn main() {
                 report(json, "W2", "shell", n, shell_flat(n, false), f);
             }
             if shell_now {
-                report(json, "W2", "shell-now", n, shell_flat_now(n, false), f);
+                report(json, "W2", "shell-now", n, now::shell_flat_now(n, false), f);
             }
             if shell_journal {
                 let group = shell_flat_journaled(n, false, Some(GROUP_COMMIT));
@@ -778,11 +705,18 @@ fn main() {
             report(json, "W3", "core", 2 * depth, core_recursive(depth), fd);
         }
         if shell {
-            report(json, "W3", "shell", 2 * depth, shell_recursive(depth), fd);
+            report(
+                json,
+                "W3",
+                "shell",
+                2 * depth,
+                now::shell_recursive(depth),
+                fd,
+            );
         }
         if shell_now {
-            let now = shell_recursive_now(depth);
-            report(json, "W3", "shell-now", 2 * depth, now, fd);
+            let w3 = now::shell_recursive_now(depth);
+            report(json, "W3", "shell-now", 2 * depth, w3, fd);
         }
     }
     if on("W5") {
