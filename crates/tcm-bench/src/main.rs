@@ -710,12 +710,12 @@ fn main() {
                 "W3",
                 "shell",
                 2 * depth,
-                now::shell_recursive(depth),
+                now::shell_recursive(depth, false),
                 fd,
             );
         }
         if shell_now {
-            let w3 = now::shell_recursive_now(depth);
+            let w3 = now::shell_recursive(depth, true);
             report(json, "W3", "shell-now", 2 * depth, w3, fd);
         }
     }

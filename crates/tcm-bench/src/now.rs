@@ -44,16 +44,6 @@ fn recursive_now(depth: usize) -> Task {
     })
 }
 
-pub(crate) fn shell_recursive_now(depth: usize) -> (f64, usize) {
-    let mut hw = 0;
-    let ns = best(|| {
-        let (ns, h) = shell(2 * depth, || recursive_now(depth));
-        hw = h;
-        ns
-    });
-    (ns, hw)
-}
-
 fn recursive(depth: usize) -> Task {
     Task::goal("g", move |ctx| async move {
         if depth > 1 {
@@ -68,10 +58,12 @@ fn recursive(depth: usize) -> Task {
     })
 }
 
-pub(crate) fn shell_recursive(depth: usize) -> (f64, usize) {
+/// W3 through the async runtime, its actions async or synchronous (`now`).
+pub(crate) fn shell_recursive(depth: usize, now: bool) -> (f64, usize) {
+    let root: fn(usize) -> Task = if now { recursive_now } else { recursive };
     let mut hw = 0;
     let ns = best(|| {
-        let (ns, h) = shell(2 * depth, || recursive(depth));
+        let (ns, h) = shell(2 * depth, || root(depth));
         hw = h;
         ns
     });

@@ -1,9 +1,11 @@
 //! Tasks: what a node runs. A task is a kind (goal, command, monitor), an instance name, and an
 //! async action; plus task-level constraints, on-terminate tasks and exception handlers.
 
+use crate::Error;
 use crate::ctx::Ctx;
 use crate::exception::Exception;
 use crate::journal::EncodeFn;
+use crate::place::Json;
 use std::any::Any;
 use std::future::Future;
 use std::sync::Arc;
@@ -686,23 +688,11 @@ impl Task {
 pub trait Placer: Send + Sync + 'static {
     /// The task for `name(args)` on `agent`, a goal or a command as `kind` says. Its node is the
     /// tree's like any other; its action runs on the agent.
-    fn place(
-        &self,
-        agent: &str,
-        name: &str,
-        kind: NodeKind,
-        args: crate::place::Json,
-    ) -> Result<Task, crate::Error>;
+    fn place(&self, agent: &str, name: &str, kind: NodeKind, args: Json) -> Result<Task, Error>;
 }
 
 impl<P: Placer + ?Sized> Placer for Arc<P> {
-    fn place(
-        &self,
-        agent: &str,
-        name: &str,
-        kind: NodeKind,
-        args: crate::place::Json,
-    ) -> Result<Task, crate::Error> {
+    fn place(&self, agent: &str, name: &str, kind: NodeKind, args: Json) -> Result<Task, Error> {
         (**self).place(agent, name, kind, args)
     }
 }
