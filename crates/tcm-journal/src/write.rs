@@ -198,7 +198,7 @@ impl Writer {
     ) -> Result<Writer, JournalError> {
         let shared = Arc::new((
             Mutex::new(Shared {
-                pending: Vec::new(),
+                pending: Vec::with_capacity(HANDED_OVER),
                 failed: None,
                 closing: false,
                 appended: 0,
@@ -273,15 +273,15 @@ impl Writer {
     }
 
     /// Adds the plainest input, an action's end with no value, to the batch: the same record as
-    /// [`Writer::add`] with [`Input::Ended`] makes, without building it.
+    /// [`Writer::add`] with [`Input::Ended`] makes, handed over in a compact form that whoever
+    /// writes the batch out turns into its line ([`render`]): with group commit, the flusher, off
+    /// the run's thread.
     pub fn add_ended(&mut self, t: u64, at: u64, node: u64) {
-        // Written in place after room for its checksum, which is filled in once it is known.
-        let start = self.batch.len();
-        self.batch.extend_from_slice(&[b' '; 9]);
-        ended(self.next, t, at, node, &mut self.batch);
-        let crc = crc32fast::hash(&self.batch[start + 9..]);
-        self.batch[start..start + 8].copy_from_slice(&hex(crc));
-        self.batch.push(b'\n');
+        let mut record = [0u8; ENDED_LEN];
+        for (i, v) in [self.next, t, at, node].into_iter().enumerate() {
+            record[1 + 8 * i..9 + 8 * i].copy_from_slice(&v.to_le_bytes());
+        }
+        self.batch.extend_from_slice(&record);
         self.next += 1;
     }
 
@@ -311,8 +311,10 @@ impl Writer {
                         why: why.clone(),
                     });
                 }
+                self.scratch.clear();
+                render(&self.batch, &mut self.scratch);
                 let written = store
-                    .write_all(&self.batch)
+                    .write_all(&self.scratch)
                     .and_then(|()| store.flush())
                     .and_then(|()| store.sync());
                 if let Err(e) = &written {
@@ -342,6 +344,7 @@ impl Writer {
 
     /// Whether everything appended must be synced before the run acts outside the process
     /// ([`Durability::BeforeActing`]).
+    #[inline]
     pub fn syncs_before_acting(&self) -> bool {
         self.before_acting
     }
@@ -402,6 +405,8 @@ impl Writer {
     }
 
     fn finish(&mut self) -> Result<(), JournalError> {
+        // What was added and not committed yet is written too.
+        let committed = self.commit();
         if let Some(f) = self.flusher.take() {
             lock(&self.shared.0).closing = true;
             self.shared.1.notify_all();
@@ -416,7 +421,7 @@ impl Writer {
                 file: self.file.clone(),
                 why,
             }),
-            None => Ok(()),
+            None => committed,
         }
     }
 }
@@ -458,6 +463,44 @@ fn ended(n: u64, t: u64, at: u64, node: u64, out: &mut Vec<u8>) {
     out.push(b'}');
 }
 
+/// The room made at first for what the run hands the flusher between two of its turns (the
+/// batches swap, so both keep what they grew to).
+const HANDED_OVER: usize = 1 << 16;
+
+/// The compact form of an [`Writer::add_ended`] record in a batch: a zero byte (no line starts
+/// with one: a line starts with its checksum in hex), then its number, time, steps and node, each
+/// eight bytes, little-endian.
+const ENDED_LEN: usize = 33;
+
+/// Appends to `out` the lines of `batch`: its lines as they are, and each compact record
+/// ([`ENDED_LEN`]) as the line [`encode`] makes of it, its checksum in front.
+fn render(batch: &[u8], out: &mut Vec<u8>) {
+    let mut rest = batch;
+    while let Some(&first) = rest.first() {
+        if first == 0 && rest.len() >= ENDED_LEN {
+            let field = |i: usize| {
+                let mut b = [0u8; 8];
+                b.copy_from_slice(&rest[1 + 8 * i..9 + 8 * i]);
+                u64::from_le_bytes(b)
+            };
+            let start = out.len();
+            out.extend_from_slice(&[b' '; 9]);
+            ended(field(0), field(1), field(2), field(3), out);
+            let crc = crc32fast::hash(&out[start + 9..]);
+            out[start..start + 8].copy_from_slice(&hex(crc));
+            out.push(b'\n');
+            rest = &rest[ENDED_LEN..];
+        } else {
+            let end = rest
+                .iter()
+                .position(|&b| b == b'\n')
+                .map_or(rest.len(), |i| i + 1);
+            out.extend_from_slice(&rest[..end]);
+            rest = &rest[end..];
+        }
+    }
+}
+
 /// `n` in decimal.
 fn decimal(n: u64, out: &mut Vec<u8>) {
     out.extend_from_slice(itoa::Buffer::new().format(n).as_bytes());
@@ -478,7 +521,8 @@ fn hex(crc: u32) -> [u8; 8] {
 /// never waits for the disk; a failure is kept for the next append to report.
 fn flush_every(shared: &(Mutex<Shared>, Condvar), mut store: Box<dyn Store>, every: Duration) {
     let (m, cv) = shared;
-    let mut spare = Vec::new();
+    let mut spare = Vec::with_capacity(HANDED_OVER);
+    let mut text = Vec::new();
     loop {
         let closing;
         let taken;
@@ -498,8 +542,10 @@ fn flush_every(shared: &(Mutex<Shared>, Condvar), mut store: Box<dyn Store>, eve
             taken = s.appended;
         }
         if !spare.is_empty() {
+            text.clear();
+            render(&spare, &mut text);
             let written = store
-                .write_all(&spare)
+                .write_all(&text)
                 .and_then(|()| store.flush())
                 .and_then(|()| store.sync());
             spare.clear();

@@ -110,6 +110,54 @@ fn a_journal_reads_back_as_written_with_either_durability() {
     }
 }
 
+/// Plain ends are handed over in a compact form, turned into their lines by whoever writes the
+/// batch (the flusher, with group commit): the file is the same, byte for byte, as when each is
+/// added whole, mixed in one batch with records of other kinds.
+#[test]
+fn a_plain_end_added_compact_is_the_line_it_would_be_added_whole() {
+    for durability in [
+        Durability::EveryRecord,
+        Durability::Group(Duration::from_millis(5)),
+    ] {
+        let mut files = Vec::new();
+        for compact in [false, true] {
+            let path = scratch(&format!("compact-{compact}-{}", files.len()));
+            let mut w = Writer::create(&path, "p", durability).expect("create");
+            for (i, (t, input)) in inputs().into_iter().enumerate() {
+                let at = 3 * i as u64;
+                match input {
+                    Input::Ended {
+                        node,
+                        tap: None,
+                        value: None,
+                    } if compact => w.add_ended(t, at, node),
+                    other => w.add(t, at, other).expect("add"),
+                }
+                // Two plain ends of their own, and a commit every third input.
+                if compact {
+                    w.add_ended(t, at + 1, 7 + i as u64);
+                } else {
+                    let plain = Input::Ended {
+                        node: 7 + i as u64,
+                        tap: None,
+                        value: None,
+                    };
+                    w.add(t, at + 1, plain).expect("add");
+                }
+                if i % 3 == 2 {
+                    w.commit().expect("commit");
+                }
+            }
+            w.close().expect("close");
+            let j = read(&path, Some("p")).expect("read");
+            assert_eq!(j.warning, None);
+            assert_eq!(j.entries.len(), 16);
+            files.push(std::fs::read(&path).expect("the journal"));
+        }
+        assert_eq!(files[0], files[1], "{durability:?}");
+    }
+}
+
 #[test]
 fn group_commit_reaches_the_disk_without_a_close() {
     let path = scratch("group");
