@@ -316,7 +316,11 @@ impl Inner {
     pub(crate) fn start_effects_pumping(&mut self, shared: &Arc<Shared>, pumps: Option<bool>) {
         // The inputs that caused these effects are journaled first (`journal.rs`).
         if let Some(j) = self.journal.as_mut() {
-            j.drain(&mut self.engine);
+            // Synced before acting, an access with no input may still have to sync what earlier
+            // ones wrote, before the commands it starts.
+            if self.engine.has_inputs() || j.syncs_before_acting() {
+                j.drain(&mut self.engine);
+            }
         }
         // Most accesses leave no effect (a spawn whose parent holds its children): the host is
         // borrowed only for one.

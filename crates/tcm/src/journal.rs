@@ -48,20 +48,32 @@ impl Journaled {
         self.encoders.insert(display, encode);
     }
 
-    /// An action of node `display` returned `value`: kept, written, to go with its end.
-    pub(crate) fn value(&mut self, display: u64, value: &(dyn std::any::Any + Send)) {
+    /// An action returned `value`: kept, written, to go with its end. `display` gives its node's
+    /// display number, looked up only if the value is written (most are not: `()`).
+    pub(crate) fn value(
+        &mut self,
+        display: impl Fn() -> Option<u64>,
+        value: &(dyn std::any::Any + Send),
+    ) {
         let own = if self.encoders.is_empty() {
             None
         } else {
-            self.encoders.remove(&display)
+            display().and_then(|d| self.encoders.remove(&d))
         };
         let json = match own {
             Some(encode) => encode(value),
             None => (self.encode)(value),
         };
-        if let Some(json) = json {
+        if let (Some(json), Some(display)) = (json, display()) {
             self.values.push((display, json));
         }
+    }
+
+    /// Whether everything written is synced before the run starts or cancels a command
+    /// (`Durability::BeforeActing`).
+    #[inline]
+    pub(crate) fn syncs_before_acting(&self) -> bool {
+        self.writer.syncs_before_acting()
     }
 
     /// Writes the inputs the engine took since the last call.

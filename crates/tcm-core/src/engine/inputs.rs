@@ -99,6 +99,13 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.inputs.as_mut()?.pop_front()
     }
 
+    /// Whether a recorded input waits to be polled ([`Engine::poll_input`]).
+    #[inline]
+    #[must_use]
+    pub fn has_inputs(&self) -> bool {
+        self.inputs.as_ref().is_some_and(|q| !q.is_empty())
+    }
+
     /// Carries out `request`, a request of a body that the replay of a journal runs again: an
     /// input it gives (an event it raises, a state variable it sets) is recorded as the body's.
     pub fn by_body<R>(&mut self, request: impl FnOnce(&mut Self) -> R) -> R {

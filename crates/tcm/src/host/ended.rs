@@ -136,9 +136,11 @@ impl Inner {
         let result = match res {
             Ok(Ok(value)) => {
                 if let Some(j) = self.journal.as_mut() {
-                    if let Some((_, display)) = self.engine.kind_and_display(node) {
-                        j.value(display, value.as_ref());
-                    }
+                    let engine = &self.engine;
+                    j.value(
+                        || engine.kind_and_display(node).map(|k| k.1),
+                        value.as_ref(),
+                    );
                 }
                 if !self.values.is_empty() {
                     if let Some(slot) = self.values.get_mut(&node) {
