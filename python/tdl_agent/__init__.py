@@ -258,7 +258,13 @@ class _Running:
     last_seq: int
     out_seq: int = 0
     task: Optional["asyncio.Task[None]"] = None
+    #: Its executive's token went, and the agent holds it: aborted when the hold ends, unless
+    #: the executive re-attaches first.
+    orphaned: bool = False
 
+
+#: How many ended bodies' ends an agent with a hold keeps (the oldest dropped first).
+OUTCOMES_KEPT = 4096
 
 #: How long the first messages to an executive wait for its inbox to be known (seconds).
 REACH = 3.0
@@ -314,6 +320,13 @@ class Agent:
     not); a publisher kept for at most ``max_executives`` executives, each live (its token seen)
     and released when its token goes. A start past a bound is refused: the body does not run and
     the executive's node fails at once with ``RemoteRefused``.
+
+    With ``hold`` (seconds; docs/distributed.md, "An executive that comes back"), the bodies of an
+    executive whose token went keep running that long, and the ends of bodies are kept (the last
+    4,096), so that the executive, resumed from its journal under the same id, re-attaches to
+    them: ``reattach`` is answered ``attached`` with the body's end if it ended meanwhile. A body
+    not re-attached when the hold ends is aborted and cleaned up (``orphaned``). With no hold (the
+    default), the bodies are aborted when the token goes.
     """
 
     def __init__(
@@ -325,6 +338,7 @@ class Agent:
         max_bodies: int = 1024,
         max_threads: int = 16,
         max_executives: int = 16,
+        hold: float = 0.0,
     ) -> None:
         for n in (system, name):
             if not wire.valid_name(n):
@@ -344,6 +358,14 @@ class Agent:
         self.max_bodies = max_bodies
         self.max_threads = max_threads
         self.max_executives = max_executives
+        self.hold = hold
+        # With a hold: the ends of bodies, by executive and task, for an executive that
+        # re-attaches: (last number applied, last sent, the end's ``result``).
+        self._outcomes: "collections.OrderedDict[Tuple[str, int], Tuple[int, int, Json]]" = (
+            collections.OrderedDict()
+        )
+        # How often each executive's token went: a hold ends only the absence it began with.
+        self._absences: Dict[str, int] = {}
         # Worker threads running a body's function now (cancelled ones included).
         self._threads = 0
         # Bodies' functions and cleanups; a few more threads than bodies, for the cleanups.
@@ -568,18 +590,25 @@ class Agent:
 
     def _answer_reattach(self, key: Tuple[str, int]) -> None:
         """Answers an executive's ``reattach`` for ``key``, numbered 0: ``attached`` with where the
-        task's two sequences stand when it runs here; else ``unattached``, saying whether this
-        agent had it (it keeps no ends and holds no bodies, so an ended task is lost for the
-        executive: its node fails with ``AgentLost``)."""
+        task's two sequences stand when it runs here (no longer orphaned), or, with a hold, when
+        it ended here with its end; else ``unattached``, saying whether this agent had it (an
+        ended task whose end is not kept is lost for the executive: its node fails with
+        ``AgentLost``)."""
         executive, task = key
         r = self._running.get(key)
+        outcome = self._outcomes.get(key)
         if r is not None:
+            r.orphaned = False
             self.stats.reattached += 1
             body = wire.attached(r.last_seq, r.out_seq)
+        elif outcome is not None:
+            self.stats.reattached += 1
+            body = wire.attached(outcome[0], outcome[1], outcome[2])
         elif key in self._ended:
+            kept = "aborted when its hold ended" if self.hold > 0 else "this agent keeps no ends"
             body = wire.unattached(
                 f"agent {self.name} no longer has task {task} of executive {executive} "
-                "(it ended or was cancelled, and this agent keeps no ends)",
+                f"(it ended or was cancelled, and {kept})",
                 True,
             )
         else:
@@ -767,6 +796,11 @@ class Agent:
             self._end(key)
             self.stats.ended += 1
             self._send(key, r, result)
+            if self.hold > 0:
+                # Its `done` may be lost with an executive that went: kept for a reattach.
+                self._outcomes[key] = (r.last_seq, r.out_seq, result["result"])
+                while len(self._outcomes) > OUTCOMES_KEPT:
+                    self._outcomes.popitem(last=False)
 
     async def _clean_up(self, key: Tuple[str, int], r: _Running, confirm: bool) -> None:
         cleanup = r.offer.cleanup
@@ -820,14 +854,18 @@ class Agent:
             self._ended.popitem(last=False)
 
     def _executive_gone(self, executive: str) -> None:
-        for key in [k for k in self._running if k[0] == executive]:
-            r = self._running[key]
-            self._end(key)
-            self.stats.orphaned += 1
-            r.ctx.cancelled.set()
-            if r.task is not None:
-                r.task.cancel()
-            self._spawn(self._clean_up(key, r, confirm=False))
+        """``executive``'s token went: its bodies are aborted and cleaned up, at once or, with a
+        hold, when the hold ends unless the executive re-attaches first (or goes again
+        meanwhile: that absence ends them)."""
+        if self.hold > 0 and self._loop is not None:
+            for key, r in self._running.items():
+                if key[0] == executive:
+                    r.orphaned = True
+            absence = self._absences.get(executive, 0) + 1
+            self._absences[executive] = absence
+            self._loop.call_later(self.hold, self._hold_ended, executive, absence)
+        else:
+            self._abandon(executive)
         self._live.discard(executive)
         p = self._publishers.pop(executive, None)
         if p is not None:
@@ -835,3 +873,19 @@ class Agent:
                 p.undeclare()
             except Exception as e:
                 log.debug("undeclaring the publisher to %s: %s", executive, e)
+
+    def _hold_ended(self, executive: str, absence: int) -> None:
+        if self._absences.get(executive) == absence:
+            self._abandon(executive, orphaned_only=True)
+
+    def _abandon(self, executive: str, orphaned_only: bool = False) -> None:
+        """Aborts and cleans up the bodies ``executive`` started (those still orphaned only)."""
+        for key in [k for k, r in self._running.items()
+                    if k[0] == executive and (r.orphaned or not orphaned_only)]:
+            r = self._running[key]
+            self._end(key)
+            self.stats.orphaned += 1
+            r.ctx.cancelled.set()
+            if r.task is not None:
+                r.task.cancel()
+            self._spawn(self._clean_up(key, r, confirm=False))

@@ -164,11 +164,12 @@ def reattach() -> Dict[str, Json]:
     return {"kind": "reattach"}
 
 
-def attached(received: int, sent: int) -> Dict[str, Json]:
-    """Agent to executive, numbered 0: the agent runs the task; it applied the executive's
-    messages up to ``received`` and sent its own up to ``sent``. (This agent keeps no ends, so
-    ``done`` is always ``None``.)"""
-    return {"kind": "attached", "received": received, "sent": sent, "done": None}
+def attached(received: int, sent: int, done: Optional[Json] = None) -> Dict[str, Json]:
+    """Agent to executive, numbered 0: the agent has the task; it applied the executive's
+    messages up to ``received`` and sent its own up to ``sent``; ``done``, the ``result`` of the
+    body's end (``{"Ok": value}`` or ``{"Err": failure}``) if it ended while the executive was
+    away (its ``done`` may have been lost), else ``None``: the body runs."""
+    return {"kind": "attached", "received": received, "sent": sent, "done": done}
 
 
 def unattached(reason: str, started: bool) -> Dict[str, Json]:

@@ -317,6 +317,96 @@ class ExactlyOnce(unittest.TestCase):
         self.assertEqual(self.out.sent, [(6, 1, {"kind": "started"})])
 
 
+class Hold(unittest.TestCase):
+    """With a hold, an executive's bodies outlive its token for a while: one re-attached in time
+    runs on, one that ended meanwhile gives its kept end, one not re-attached is aborted and
+    cleaned up when the hold ends (docs/distributed.md, "An executive that comes back")."""
+
+    def setUp(self) -> None:
+        self.loop = asyncio.new_event_loop()
+        self.agent = tdl_agent.Agent("sys", "py", hold=0.3)
+        self.out = Recorder()
+        self.cleanups: List[Any] = []
+
+        async def slow(ctx: tdl_agent.TaskContext, ms: int) -> int:
+            await asyncio.sleep(ms / 1000)
+            return ms
+
+        async def cleanup(ms: int) -> None:
+            self.cleanups.append(ms)
+
+        self.agent.command("slow", slow, on_terminate=cleanup)
+        self.agent._loop = self.loop
+        self.agent._live.add("exec1")
+        self.agent._publisher = lambda executive: self.out  # type: ignore[method-assign]
+
+    def tearDown(self) -> None:
+        for r in self.agent._running.values():
+            if r.task is not None:
+                r.task.cancel()
+        self.loop.run_until_complete(asyncio.sleep(0.01))
+        self.loop.close()
+
+    def deliver(self, task: int, seq: int, body: Any) -> None:
+        self.agent._receive("exec1", wire.encode(task, seq, body))
+
+    def wait(self, seconds: float) -> None:
+        self.loop.run_until_complete(asyncio.sleep(seconds))
+
+    def test_bodies_outlive_their_executive_for_the_hold_and_reattach_with_their_ends(self) -> None:
+        self.deliver(1, 1, wire.start(11, "slow", "command", 20_000))  # re-attached while running
+        self.deliver(2, 1, wire.start(12, "slow", "command", 50))  # ends while the executive is away
+        self.deliver(3, 1, wire.start(13, "slow", "command", 20_000))  # never re-attached
+        self.wait(0.02)
+        self.agent._executive_gone("exec1")
+        self.wait(0.1)
+        # Nothing was aborted; the short body ended, and its `done` went out (to be lost).
+        self.assertEqual((self.agent.stats.orphaned, self.cleanups), (0, []))
+        self.assertIn((2, 2, wire.done(50)), self.out.sent)
+        # The executive comes back under the same id and re-attaches to tasks 1 and 2.
+        self.agent._executive_up("exec1")
+        self.deliver(1, 0, wire.reattach())
+        self.assertEqual(self.out.sent[-1], (1, 0, wire.attached(1, 1)))
+        self.deliver(2, 0, wire.reattach())
+        self.assertEqual(self.out.sent[-1], (2, 0, wire.attached(1, 2, {"Ok": 50})))
+        self.assertEqual(self.agent.stats.reattached, 2)
+        # The hold ends: task 3, never re-attached, is aborted and cleaned up; task 1 runs on.
+        self.wait(0.3)
+        self.assertEqual((self.agent.stats.orphaned, self.cleanups), (1, [20_000]))
+        self.assertIn((1, "exec1"), [(k[1], k[0]) for k in self.agent._running])
+        self.assertNotIn(("exec1", 3), self.agent._running)
+        self.deliver(3, 0, wire.reattach())
+        task, seq, body = self.out.sent[-1]
+        self.assertEqual((task, seq, body["kind"], body["started"]), (3, 0, "unattached", True))
+        self.assertIn("aborted when its hold ended", body["reason"])
+        # Task 1 follows its sequence on: the executive's cancel, number 2, applies.
+        self.deliver(1, 2, wire.cancel())
+        self.wait(0.05)
+        self.assertEqual(self.agent.stats.cancelled, 1)
+        self.assertEqual(self.out.sent[-1], (1, 2, wire.cancelled()))
+
+    def test_an_executive_that_goes_again_ends_the_first_absence_only_with_the_second(self) -> None:
+        self.deliver(1, 1, wire.start(11, "slow", "command", 20_000))
+        self.wait(0.02)
+        self.agent._executive_gone("exec1")
+        self.wait(0.2)
+        # Back, re-attached, and gone again before the first hold would have ended.
+        self.agent._executive_up("exec1")
+        self.deliver(1, 0, wire.reattach())
+        self.agent._executive_gone("exec1")
+        self.wait(0.15)
+        # The first absence's hold has ended: it ends nothing, the second one's has not.
+        self.assertEqual(self.agent.stats.orphaned, 0)
+        self.wait(0.2)
+        self.assertEqual((self.agent.stats.orphaned, self.cleanups), (1, [20_000]))
+
+    def test_the_attached_answer_with_an_end_is_encoded_as_serde_writes_it(self) -> None:
+        self.assertEqual(
+            wire.encode(4, 0, wire.attached(1, 2, {"Ok": 50})),
+            b'{"task":4,"seq":0,"body":{"kind":"attached","received":1,"sent":2,"done":{"Ok":50}}}',
+        )
+
+
 class Bounds(unittest.TestCase):
     """Starts past a bound are refused with ``RemoteRefused``; publishers are kept only for live
     executives, at most so many, and released when their token goes."""

@@ -59,12 +59,27 @@ impl PythonAgent {
         ports: &[u16],
         tls: Option<&tcm_zenoh::config::Certs>,
     ) -> PythonAgent {
+        let env: Vec<(&str, String)> = tls
+            .map(|c| {
+                let files = [&c.authority, &c.certificate, &c.key].map(|p| p.display().to_string());
+                ("TDL_AGENT_TLS", files.join(":"))
+            })
+            .into_iter()
+            .collect();
+        PythonAgent::spawn_env(python, system, name, ports, &env)
+    }
+
+    /// As [`PythonAgent::spawn`], with `env` in its environment (see `python_agent.py`).
+    fn spawn_env(
+        python: &Path,
+        system: &str,
+        name: &str,
+        ports: &[u16],
+        env: &[(&str, String)],
+    ) -> PythonAgent {
         let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/it/python_agent.py");
         let mut command = Command::new(python);
-        if let Some(c) = tls {
-            let files = [&c.authority, &c.certificate, &c.key].map(|p| p.display().to_string());
-            command.env("TDL_AGENT_TLS", files.join(":"));
-        }
+        command.envs(env.iter().map(|(k, v)| (*k, v)));
         let mut child = command
             .arg(script)
             .args([system, name])
@@ -145,6 +160,13 @@ impl PythonAgent {
             }
         }
         lines.0.iter().find(|l| l.starts_with(prefix)).cloned()
+    }
+
+    /// How many lines printed so far start with `prefix`.
+    fn count(&self, prefix: &str) -> usize {
+        let _ = self.seen(prefix);
+        let lines = self.lines.lock().expect("lines");
+        lines.0.iter().filter(|l| l.starts_with(prefix)).count()
     }
 
     /// `kill -9`.
@@ -491,6 +513,51 @@ async fn killing_the_python_agent_mid_task_raises_agent_lost() {
         );
         assert_eq!(handler_choices(&trace), ["on_lost<-AgentLost"]);
         assert_eq!(net.exec.stats().agent_lost, 1);
+    })
+    .await;
+}
+
+/// An executive that comes back (docs/distributed.md, "An executive that comes back") to a
+/// Python agent with a hold: the executive journals its run and dies while the Python body runs;
+/// a new executive under the same id resumes the run and re-attaches. A body still running ends
+/// the node on time, a body that ended while the executive was away gives its kept end; either
+/// way the body ran once and was not cleaned up.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_python_agent_with_a_hold_is_reattached_by_an_executive_that_comes_back() {
+    use crate::resume::{Command, Crash, crash_and_resume_on};
+    let Some(python) = python() else { return };
+    bounded(async {
+        for (ms, after, dead_for) in [(3_000u32, 300, 300), (500, 100, 1_500)] {
+            let system = crate::util::system("py-resume");
+            let port = tcm_zenoh::config::free_port().expect("port");
+            let env = [
+                ("TDL_AGENT_LISTEN", port.to_string()),
+                ("TDL_AGENT_HOLD", "20".into()),
+            ];
+            let agent = PythonAgent::spawn_env(&python, &system, "py", &[], &env);
+            agent.expect("ready", READY).await;
+            let command = Command {
+                agent: "py",
+                task: "sleep",
+                args: json!(ms),
+                value: ms,
+            };
+            let crash = Crash {
+                after: Duration::from_millis(after),
+                dead_for: Duration::from_millis(dead_for),
+            };
+            let started = || agent.seen("start sleep").is_some();
+            let (report, events) =
+                crash_and_resume_on(&system, port, command, crash, started).await;
+            tcm::testing::assert_checked(&events);
+            assert!(report.is_clean(), "a body of {ms} ms: {report}");
+            assert_eq!(agent.count("start sleep"), 1, "a body of {ms} ms ran once");
+            assert_eq!(
+                agent.count("cleanup sleep"),
+                0,
+                "a body of {ms} ms was not cleaned up"
+            );
+        }
     })
     .await;
 }

@@ -1,8 +1,10 @@
 """A Python agent for the tests of crates/tcm-zenoh/tests/it/python.rs, built on tdl_agent.
 
-Usage: python_agent.py <system> <agent> <executive port> [<port>...] (other peers on 127.0.0.1 to
-connect to as well). With ``TDL_AGENT_TLS=<authority>:<certificate>:<key>`` (PEM files) in the
-environment, it connects over mutual TLS.
+Usage: python_agent.py <system> <agent> [<executive port>] [<port>...] (other peers on 127.0.0.1
+to connect to as well). With ``TDL_AGENT_TLS=<authority>:<certificate>:<key>`` (PEM files) in the
+environment, it connects over mutual TLS; with ``TDL_AGENT_LISTEN=<port>``, it listens on that
+port of 127.0.0.1 for executives to connect to; with ``TDL_AGENT_HOLD=<seconds>``, it holds the
+bodies of an executive that went for that long (``Agent(hold=...)``).
 
 It joins the system on 127.0.0.1 and prints one line per event on stdout (``ready``,
 ``start <task> <node>``, ``cleanup <task> <args>``) until it is killed or gets SIGTERM. Offered:
@@ -50,11 +52,12 @@ class NoGrasp(ArmFailure):
 
 
 def main(argv: List[str]) -> int:
-    if len(argv) < 3:
+    listen = os.environ.get("TDL_AGENT_LISTEN")
+    if len(argv) < 3 and not (len(argv) == 2 and listen):
         print("usage: python_agent.py <system> <agent> <executive port> [<port>...]", file=sys.stderr)
         return 2
     system, name, ports = argv[0], argv[1], [int(p) for p in argv[2:]]
-    agent = tdl_agent.Agent(system, name)
+    agent = tdl_agent.Agent(system, name, hold=float(os.environ.get("TDL_AGENT_HOLD", "0")))
 
     @agent.command("add")
     def add(ctx: tdl_agent.TaskContext, xs: List[float]) -> float:
@@ -110,7 +113,9 @@ def main(argv: List[str]) -> int:
             tdl_agent.peer_config([], [f"tls/127.0.0.1:{p}" for p in ports]), authority, certificate, key
         )
     else:
-        config = tdl_agent.peer_config([], [f"tcp/127.0.0.1:{p}" for p in ports])
+        config = tdl_agent.peer_config(
+            [f"tcp/127.0.0.1:{listen}"] if listen else [], [f"tcp/127.0.0.1:{p}" for p in ports]
+        )
     agent.start(config)
     say("ready")
     agent.run()

@@ -14,20 +14,39 @@ use tcm::{Recorder, Runtime, Task};
 use tcm_journal::{Durability, Writer};
 use tcm_zenoh::{Agent, At, Executive, RemoteOptions};
 
-/// The mission: one remote command `slow` on agent `arm`, its value read as a `u32`; the run
-/// fails unless it is 42.
-fn mission(exec: Executive) -> Task {
+/// The remote command a mission runs: `task` on `agent` with `args`, whose value must be `value`.
+#[derive(Clone)]
+pub(crate) struct Command {
+    pub(crate) agent: &'static str,
+    pub(crate) task: &'static str,
+    pub(crate) args: serde_json::Value,
+    pub(crate) value: u32,
+}
+
+/// The command of the Rust agent `arm`: `slow`, which returns 42.
+fn slow() -> Command {
+    Command {
+        agent: "arm",
+        task: "slow",
+        args: serde_json::Value::Null,
+        value: 42,
+    }
+}
+
+/// The mission: one remote command, its value read as a `u32`; the run fails unless it is the
+/// command's.
+fn mission(exec: Executive, command: Command) -> Task {
     Task::goal("mission", move |ctx| {
-        let exec = exec.clone();
+        let (exec, command) = (exec.clone(), command.clone());
         async move {
             let v: u32 = ctx
                 .spawn(
-                    exec.remote(At::agent("arm"), "slow", ())
+                    exec.remote(At::agent(command.agent), command.task, command.args)
                         .typed_task::<u32>(),
                 )
                 .wait_value()
                 .await?;
-            if v != 42 {
+            if v != command.value {
                 return Err(tcm::Failure::new("Wrong", format!("got {v}")));
             }
             Ok(())
@@ -42,6 +61,12 @@ struct Case {
     hold: Duration,
     crash_after: Duration,
     dead_for: Duration,
+}
+
+/// When the executive dies: a while after the body started, and for how long.
+pub(crate) struct Crash {
+    pub(crate) after: Duration,
+    pub(crate) dead_for: Duration,
 }
 
 /// The agent `arm` of `system`, listening on `port`, holding an absent executive's bodies for
@@ -68,15 +93,16 @@ async fn arm(
         .expect("the agent starts")
 }
 
-/// The executive `id` of `system`, connected to the agent's `port`, once it sees `arm`.
-async fn executive(system: &str, port: u16, id: &str) -> Executive {
+/// The executive `id` of `system`, connected to the agent's `port`, once it sees the agent offer
+/// `command`.
+async fn executive(system: &str, port: u16, id: &str, command: &Command) -> Executive {
     let config = tcm_zenoh::config::loopback_connect(port).expect("config");
     let exec = Executive::open_as(system, id, config, RemoteOptions::default())
         .await
         .expect("the executive opens");
-    exec.wait_for("arm", Some("slow"), Duration::from_secs(10))
+    exec.wait_for(command.agent, Some(command.task), Duration::from_secs(10))
         .await
-        .expect("arm joins");
+        .expect("the agent joins");
     exec
 }
 
@@ -95,14 +121,15 @@ async fn resume(
     port: u16,
     id: &str,
     journal: tcm_journal::Journal,
+    command: Command,
 ) -> (tcm::Report, Vec<tcm::TraceEvent>) {
-    let exec = executive(system, port, id).await;
+    let exec = executive(system, port, id, &command).await;
     exec.resume_from(&journal);
     let rec = Recorder::new();
     let report = Runtime::new()
         .with_sink(rec.clone())
         .resume(journal)
-        .run(mission(exec.clone()))
+        .run(mission(exec.clone(), command))
         .await
         .expect("the run resumes");
     exec.close().await;
@@ -122,7 +149,29 @@ async fn crash_and_resume(
     let port = tcm_zenoh::config::free_port().expect("port");
     let starts = Arc::new(AtomicU32::new(0));
     let arm = arm(&system, port, case.hold, case.body, &starts).await;
-    let path = journal_path(&system);
+    let crash = Crash {
+        after: case.crash_after,
+        dead_for: case.dead_for,
+    };
+    let counted = starts.clone();
+    let started = move || counted.load(Ordering::SeqCst) > 0;
+    let (report, events) = crash_and_resume_on(&system, port, slow(), crash, started).await;
+    let stats = arm.stats();
+    arm.close().await;
+    (report, events, starts.load(Ordering::SeqCst), stats)
+}
+
+/// Runs `command` on the agent listening on `port` from an executive `exec-a` of `system` that
+/// journals its run and dies `crash.after` the body `started`, then resumes it from its journal
+/// under the same id `crash.dead_for` later: what the resumed run reported, and its trace.
+pub(crate) async fn crash_and_resume_on(
+    system: &str,
+    port: u16,
+    command: Command,
+    crash: Crash,
+    started: impl Fn() -> bool,
+) -> (tcm::Report, Vec<tcm::TraceEvent>) {
+    let path = journal_path(system);
     let dir = path.parent().expect("its directory").to_path_buf();
 
     // The first executive, in a runtime of its own that dies with it.
@@ -131,24 +180,24 @@ async fn crash_and_resume(
         .enable_all()
         .build()
         .expect("runtime");
-    let (sys, p) = (system.clone(), path.clone());
+    let (sys, p, c) = (system.to_string(), path.clone(), command.clone());
     let (give, session) = tokio::sync::oneshot::channel();
     first.spawn(async move {
-        let exec = executive(&sys, port, "exec-a").await;
+        let exec = executive(&sys, port, "exec-a", &c).await;
         let _ = give.send(exec.session().clone());
         let writer = Writer::create(&p, "mission@1", Durability::EveryRecord).expect("journal");
-        let _ = Runtime::new().journal(writer).run(mission(exec)).await;
+        let _ = Runtime::new().journal(writer).run(mission(exec, c)).await;
     });
     // Until the body runs on the agent, then a while more.
     let deadline = tokio::time::Instant::now() + BOUND / 2;
-    while starts.load(Ordering::SeqCst) == 0 {
+    while !started() {
         assert!(
             tokio::time::Instant::now() < deadline,
             "the body never started"
         );
         tokio::time::sleep(Duration::from_millis(10)).await;
     }
-    tokio::time::sleep(case.crash_after).await;
+    tokio::time::sleep(crash.after).await;
     // The crash: the journal as it is now; nothing the first executive's tasks would still send
     // goes out, and its session's link breaks (its token goes).
     let crashed = dir.join("crashed.journal");
@@ -160,13 +209,10 @@ async fn crash_and_resume(
         .close()
         .await
         .expect("closed");
-    tokio::time::sleep(case.dead_for).await;
+    tokio::time::sleep(crash.dead_for).await;
 
     let journal = tcm_journal::read(&crashed, Some("mission@1")).expect("the journal reads");
-    let (report, events) = resume(&system, port, "exec-a", journal).await;
-    let stats = arm.stats();
-    arm.close().await;
-    (report, events, starts.load(Ordering::SeqCst), stats)
+    resume(system, port, "exec-a", journal, command).await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -235,11 +281,11 @@ async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
         let port = tcm_zenoh::config::free_port().expect("port");
         let first = Arc::new(AtomicU32::new(0));
         let agent = arm(&system, port, hold, body, &first).await;
-        let exec = executive(&system, port, "exec-b").await;
+        let exec = executive(&system, port, "exec-b", &slow()).await;
         let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("journal");
         let report = Runtime::new()
             .journal(writer)
-            .run(mission(exec.clone()))
+            .run(mission(exec.clone(), slow()))
             .await
             .expect("run");
         assert!(report.is_clean(), "{report}");
@@ -256,7 +302,7 @@ async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
         let port = tcm_zenoh::config::free_port().expect("port");
         let second = Arc::new(AtomicU32::new(0));
         let agent = arm(&system, port, hold, body, &second).await;
-        let (report, events) = resume(&system, port, "exec-b", journal).await;
+        let (report, events) = resume(&system, port, "exec-b", journal, slow()).await;
         agent.close().await;
         assert_checked(&events);
         assert!(report.is_clean(), "{report}");
