@@ -314,3 +314,41 @@ async fn a_command_whose_start_never_left_is_started_when_the_run_resumes() {
     })
     .await;
 }
+
+/// An executive that came back while the agent still saw its old token (a link that broke
+/// silently, whose token goes only when its lease runs out): the old token's deletion comes after
+/// the new executive holds the same token, and the executive is still live, so the agent leaves
+/// its bodies alone instead of holding them again and aborting them when the hold ends.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_old_token_going_after_the_executive_came_back_leaves_its_bodies_alone() {
+    bounded(async {
+        let system = system("late-token");
+        let port = tcm_zenoh::config::free_port().expect("port");
+        let starts = Arc::new(AtomicU32::new(0));
+        let hold = Duration::from_millis(300);
+        let agent = arm(&system, port, hold, Duration::from_secs(30), &starts).await;
+        let old = executive(&system, port, "exec-c", &slow()).await;
+        let running = tokio::spawn(Runtime::new().run(mission(old.clone(), slow())));
+        while starts.load(Ordering::SeqCst) == 0 {
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        // The executive comes back under the same id while its old token is still there; then
+        // the old one goes.
+        let new = executive(&system, port, "exec-c", &slow()).await;
+        old.session().clone().close().await.expect("closed");
+        running.abort();
+        tokio::time::sleep(hold * 3).await;
+        let stats = agent.stats();
+        assert_eq!(
+            (stats.started, stats.orphaned),
+            (1, 0),
+            "the body of a live executive is not aborted"
+        );
+        new.close().await;
+        // Its token gone for good: the body is held, and aborted when the hold ends.
+        tokio::time::sleep(hold * 3).await;
+        assert_eq!(agent.stats().orphaned, 1);
+        agent.close().await;
+    })
+    .await;
+}
