@@ -50,10 +50,10 @@ pub use constraint::{Constraint, Constraints, Event, NodeRef, Then, When};
 pub use driver::{Driver, Next, Shell};
 pub use engine::{
     Approval, ApprovalRefused, Blocked, BreakAt, Breakpoint, Canonical, EachActivation, Effect,
-    Engine, EngineError, Fault, FaultOutcome, FaultValue, HandlerSpec, InputRecord,
-    InvariantFailed, Job, Matcher, MonitorInfo, MonitorSpec, NodeInfo, OnTerminate, Overrun,
-    Purpose, ResourceDenied, ResourceDropped, ResourceInfo, Spawn, Stats, SteerId, Uses,
-    WatchOutcome,
+    Engine, EngineError, Fault, FaultOp, FaultOutcome, FaultValue, HandlerSpec, InputRecord,
+    InvariantFailed, Job, Matcher, MatcherOp, MonitorInfo, MonitorSpec, NodeInfo, OnTerminate,
+    Overrun, Purpose, ResourceDenied, ResourceDropped, ResourceInfo, Spawn, Stats, SteerId,
+    SteerOp, Uses, WatchOutcome,
 };
 pub use failure::{Failure, FailurePolicy, FatalFailure, PassedOn, short_type_name};
 pub use ids::{

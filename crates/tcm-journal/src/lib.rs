@@ -171,6 +171,11 @@ pub enum Input {
         what: String,
         /// Who asked.
         by: String,
+        /// The operation, as the engine records it (`tcm_core::SteerOp`), for a replay to carry
+        /// out again; none for one it cannot (a handler or a wiretap attached, a fault with a
+        /// value of the program's).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        op: Option<serde_json::Value>,
     },
 }
 

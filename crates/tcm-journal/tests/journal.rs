@@ -64,6 +64,7 @@ fn inputs() -> Vec<(u64, Input)> {
             Input::Control {
                 what: "pause".into(),
                 by: "operator".into(),
+                op: Some(serde_json::json!({"op": "pause"})),
             },
         ),
         (
@@ -349,6 +350,7 @@ fn a_full_disk_fails_the_append_and_every_one_after() {
             Input::Control {
                 what: "x".repeat(200),
                 by: "operator".into(),
+                op: None,
             },
         )
         .err()

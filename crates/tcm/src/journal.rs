@@ -185,7 +185,11 @@ fn entry(input: InputRecord) -> Input {
         },
         InputRecord::Time => Input::Time,
         InputRecord::Clock => Input::Clock,
-        InputRecord::Control { what, by } => Input::Control { what, by },
+        InputRecord::Control { what, by, op } => Input::Control {
+            what,
+            by,
+            op: op.and_then(|op| serde_json::to_value(op).ok()),
+        },
         InputRecord::Log { node, message } => Input::Log { node, message },
     }
 }

@@ -354,7 +354,7 @@ fn describe(input: &Input) -> String {
         Input::Time => "time passing".into(),
         Input::Clock => "a clock reading".into(),
         Input::Recorded { node, .. } => format!("a value node {node} read"),
-        Input::Control { what, by } => format!("the operation `{what}` by {by}"),
+        Input::Control { what, by, .. } => format!("the operation `{what}` by {by}"),
         Input::Log { node, .. } => format!("a line node {node} logged"),
     }
 }
@@ -513,13 +513,26 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
             Ok(true)
         }
         Input::Clock | Input::Recorded { .. } => Ok(true),
-        Input::Control { what, by } if by == RESUMED_BY => {
+        Input::Control { what, by, .. } if by == RESUMED_BY => {
             inner.engine.note_control(now, what, by);
             Ok(true)
         }
-        Input::Control { what, by } => Err(format!(
-            "the run took the operation `{what}` by {by}, and replaying an operation from outside \
-             the run is not supported yet"
+        Input::Control {
+            what,
+            by,
+            op: Some(op),
+        } => {
+            let op: tcm_core::SteerOp = serde_json::from_value(op.clone())
+                .map_err(|e| format!("the operation `{what}` by {by} cannot be read: {e}"))?;
+            inner
+                .engine
+                .apply_steer(now, &op, by)
+                .map_err(|e| format!("the operation `{what}` by {by} cannot be given: {e}"))?;
+            Ok(true)
+        }
+        Input::Control { what, by, op: None } => Err(format!(
+            "the run took the operation `{what}` by {by}, which a replay cannot carry out again \
+             (a handler or a wiretap attached, or a fault with a value only the program makes)"
         )),
     }
 }

@@ -414,6 +414,10 @@ impl Runtime {
         let shared = self.prepare(tokio::runtime::Handle::current())?;
         {
             let mut inner = shared.enter()?;
+            // As in `start`: what the journal's run took before its first task comes first.
+            if inner.replay.is_some() {
+                crate::replay::feed(&mut inner, &shared);
+            }
             inner.finishing = true;
             let now = inner.engine.at_clock();
             let root = inner.engine.root();
@@ -462,7 +466,15 @@ impl Runtime {
     pub fn start(mut self) -> Result<Session, Error> {
         let handle = tokio::runtime::Handle::try_current().map_err(|_| Error::NoRuntime)?;
         let shared = self.prepare(handle.clone())?;
-        let root = lock(&shared)?.engine.root();
+        let root = {
+            let mut inner = lock(&shared)?;
+            // What the journal's run took before its first task (an operation from outside, as
+            // `tdl run` steers before it spawns), the replay gives before the session's first.
+            if inner.replay.is_some() {
+                crate::replay::feed(&mut inner, &shared);
+            }
+            inner.engine.root()
+        };
         let timer = self.timer()?;
         let mut sinks = std::mem::take(&mut self.sinks);
         let driver = RunLoop::new(shared.clone(), timer);

@@ -57,11 +57,13 @@ impl Steer {
         Ok(rt)
     }
 
-    /// The breakpoints, set once the session started, and the command reader on a thread of its
-    /// own. When standard input ends, the run is released (breakpoints and approval rules gone,
-    /// held nodes approved), so that it cannot wait for nobody.
-    pub(crate) fn start(&self, control: &Control) -> anyhow::Result<()> {
-        for task in &self.breaks {
+    /// The breakpoints, set once the session started (not again in a resumed run: its journal
+    /// gives them), and the command reader on a thread of its own. When standard input ends, the
+    /// run is released (breakpoints and approval rules gone, held nodes approved), so that it
+    /// cannot wait for nobody.
+    pub(crate) fn start(&self, control: &Control, resumed: bool) -> anyhow::Result<()> {
+        let breaks: &[String] = if resumed { &[] } else { &self.breaks };
+        for task in breaks {
             let bp = Breakpoint {
                 at: BreakAt::Start,
                 on: Matcher::Task(task.clone().into()),

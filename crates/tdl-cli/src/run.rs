@@ -221,7 +221,7 @@ pub(crate) fn run(a: Args) -> anyhow::Result<u8> {
         eprintln!("running {name}");
         let report = if a.steer.interactive() {
             let session = runtime.start()?;
-            a.steer.start(&session.control())?;
+            a.steer.start(&session.control(), a.resume.is_some())?;
             session.spawn(task)?;
             session.finish().await?
         } else {

@@ -199,6 +199,9 @@ pub enum EngineError {
     /// The node is not held for approval (docs/semantics.md, "Steering a run").
     #[error("{0} is not held for approval")]
     NotHeld(NodeId),
+    /// No live node has this display number (an operation given again by a replay).
+    #[error("no live node is numbered {0}")]
+    NoNodeNumbered(u64),
     /// The handle names a node that no longer exists.
     #[error("{0} no longer exists (it completed or was terminated and was reclaimed)")]
     Gone(NodeId),

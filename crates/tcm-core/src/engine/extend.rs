@@ -144,6 +144,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.record(|_| super::InputRecord::Control {
             what: what.to_string(),
             by: by.to_string(),
+            op: None,
         });
         if self.tracing {
             self.push_trace(TraceKind::Control {

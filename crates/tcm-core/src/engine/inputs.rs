@@ -74,6 +74,9 @@ pub enum InputRecord {
         what: String,
         /// Who asked.
         by: String,
+        /// The operation, for a replay to carry out again (`None`: one it cannot: a handler or
+        /// a wiretap attached, a fault with a value of the program's).
+        op: Option<super::SteerOp>,
     },
 }
 

@@ -126,8 +126,8 @@ pub use resource::{ResourceDenied, ResourceDropped, ResourceInfo, Uses};
 pub use state::InvariantFailed;
 use std::collections::{BTreeMap, VecDeque};
 pub use steer::{
-    Approval, ApprovalRefused, BreakAt, Breakpoint, Fault, FaultOutcome, FaultValue, Matcher,
-    SteerId,
+    Approval, ApprovalRefused, BreakAt, Breakpoint, Fault, FaultOp, FaultOutcome, FaultValue,
+    Matcher, MatcherOp, SteerId, SteerOp,
 };
 use tcm_trace::{State, TRACE_FORMAT_VERSION, TraceEvent, TraceKind};
 use timers::Timers;

@@ -53,7 +53,8 @@ pub enum Matcher {
 }
 
 /// When a breakpoint pauses the run (rule 3).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum BreakAt {
     /// Before a matching node starts.
     Start,
@@ -222,7 +223,10 @@ impl Steering {
     }
 }
 
+mod op;
 mod path;
+
+pub use op::{FaultOp, MatcherOp, SteerOp};
 
 pub(crate) use path::path_matches;
 
@@ -250,11 +254,18 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         self.steer.as_ref().is_some_and(|s| s.paused.is_some())
     }
 
-    fn note(&mut self, what: String, by: &str) {
+    fn note(&mut self, what: String, by: &str, op: Option<SteerOp>) {
         self.record(|_| super::InputRecord::Control {
             what: what.clone(),
             by: by.to_string(),
+            op,
         });
+        self.trace_control(what, by);
+    }
+
+    /// The `control` record of an operation, or of a part of one (a release's resumption, which
+    /// the release's input stands for).
+    fn trace_control(&mut self, what: String, by: &str) {
         if self.tracing {
             self.push_trace(TraceKind::Control {
                 what,
@@ -269,7 +280,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if self.is_paused() {
             return false;
         }
-        self.note("pause".into(), by);
+        self.note("pause".into(), by, Some(SteerOp::Pause));
         self.pause_at(None, format!("asked by {by}"));
         true
     }
@@ -289,26 +300,44 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
 
     /// Resumes a paused run (rule 1), as `by` asked; `false` if it was not paused.
     pub fn resume(&mut self, now: Time, by: &str) -> bool {
-        self.go(now, by, "continue", None)
+        self.go(now, by, "continue", None, Some(SteerOp::Resume))
     }
 
     /// Lets one held thing happen, then pauses again (rule 2); `false` if the run was not paused.
     pub fn step(&mut self, now: Time, by: &str) -> bool {
-        self.go(now, by, "step", Some(Step::One))
+        self.go(now, by, "step", Some(Step::One), Some(SteerOp::Step))
     }
 
     /// Resumes until the next node's turn to start, and pauses before it (rule 2); `false` if the
     /// run was not paused.
     pub fn step_to_start(&mut self, now: Time, by: &str) -> bool {
-        self.go(now, by, "step to the next start", Some(Step::ToStart))
+        self.go(
+            now,
+            by,
+            "step to the next start",
+            Some(Step::ToStart),
+            Some(SteerOp::StepToStart),
+        )
     }
 
-    fn go(&mut self, now: Time, by: &str, what: &str, step: Option<Step>) -> bool {
+    /// Resumes (with `step`, to step); `op`: the operation it is, or `None` when it is part of
+    /// another, whose input stands for it.
+    fn go(
+        &mut self,
+        now: Time,
+        by: &str,
+        what: &str,
+        step: Option<Step>,
+        op: Option<SteerOp>,
+    ) -> bool {
         self.advance(now);
         let Some(since) = self.steer.as_ref().and_then(|s| s.paused) else {
             return false;
         };
-        self.note(what.into(), by);
+        match op {
+            Some(op) => self.note(what.into(), by, Some(op)),
+            None => self.trace_control(what.into(), by),
+        }
         let held = now.max(self.now) - since;
         let s = self.steering();
         s.paused = None;
@@ -358,10 +387,14 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             at_text(bp.at),
             self.matcher_text(&bp.on)
         );
+        let op = SteerOp::Breakpoint {
+            at: bp.at,
+            on: self.on_of(&bp.on),
+        };
         let s = self.steering();
         let id = s.next_id();
         s.breakpoints.push((id, bp));
-        self.note(format!("{what} (#{})", id.0), by);
+        self.note(format!("{what} (#{})", id.0), by, Some(op));
         id
     }
 
@@ -377,7 +410,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         s.approvals.retain(|(i, _)| *i != id);
         let removed = before != s.breakpoints.len() + s.faults.len() + s.approvals.len();
         if removed {
-            self.note(format!("removed #{}", id.0), by);
+            self.note(
+                format!("removed #{}", id.0),
+                by,
+                Some(SteerOp::Remove { id: id.0 }),
+            );
         }
         removed
     }
@@ -394,11 +431,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         s.approvals.clear();
         s.step = None;
         let held = std::mem::take(&mut s.held);
-        self.note("release breakpoints and holds".into(), by);
+        self.note(
+            "release breakpoints and holds".into(),
+            by,
+            Some(SteerOp::Release),
+        );
         for node in held {
             self.approve_held(node, by);
         }
-        self.go(now, by, "continue", None);
+        self.go(now, by, "continue", None, None);
         self.settle();
     }
 
@@ -411,10 +452,15 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             fault.times,
             self.matcher_text(&fault.on)
         );
+        let op = op::fault_op(&fault.outcome).map(|outcome| SteerOp::Fault {
+            on: self.on_of(&fault.on),
+            times: fault.times,
+            outcome,
+        });
         let s = self.steering();
         let id = s.next_id();
         s.faults.push((id, fault));
-        self.note(format!("{what} (#{})", id.0), by);
+        self.note(format!("{what} (#{})", id.0), by, op);
         id
     }
 
@@ -422,10 +468,16 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     pub fn require_approval(&mut self, now: Time, rule: Approval, by: &str) -> SteerId {
         self.advance(now);
         let what = format!("approval for {}", self.matcher_text(&rule.on));
+        let op = SteerOp::Approval {
+            on: self.on_of(&rule.on),
+            timeout_ns: rule
+                .timeout
+                .map(|t| u64::try_from(t.as_nanos()).unwrap_or(u64::MAX)),
+        };
         let s = self.steering();
         let id = s.next_id();
         s.approvals.push((id, rule));
-        self.note(format!("{what} (#{})", id.0), by);
+        self.note(format!("{what} (#{})", id.0), by, Some(op));
         id
     }
 
@@ -462,7 +514,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if !self.take_held(node) {
             return Err(EngineError::NotHeld(node));
         }
-        self.note(format!("approve {}", self.node_text(node)), by);
+        let op = SteerOp::Approve {
+            node: self.display_of(node),
+        };
+        self.note(format!("approve {}", self.node_text(node)), by, Some(op));
         self.approve_held(node, by);
         self.settle();
         Ok(())
@@ -482,7 +537,11 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         if !self.take_held(node) {
             return Err(EngineError::NotHeld(node));
         }
-        self.note(format!("refuse {}", self.node_text(node)), by);
+        let op = SteerOp::Refuse {
+            node: self.display_of(node),
+            reason: reason.to_string(),
+        };
+        self.note(format!("refuse {}", self.node_text(node)), by, Some(op));
         self.refuse_held(node, by, reason.to_string());
         self.settle();
         Ok(())

@@ -69,7 +69,8 @@ fn the_engine_records_its_inputs_in_order_with_their_times() {
                 40,
                 InputRecord::Control {
                     what: "pause".into(),
-                    by: "operator".into()
+                    by: "operator".into(),
+                    op: None,
                 }
             ),
             (50, InputRecord::Time),

@@ -590,3 +590,96 @@ async fn a_request_of_an_action_that_outlived_its_node_is_no_step_of_the_run() {
     };
     assert_eq!(without(&again), without(&recorded));
 }
+
+/// A steered run's operations from outside are journaled with what they did, and its replay
+/// carries each out again at the run's step: a breakpoint before `last`, an approval rule that
+/// holds `around` until the operator approves it, a fault that makes `go` succeed at once, the
+/// operator's resumption after the breakpoint and an operation the replay cannot carry out (none
+/// here: each of these can). The replay's trace is the run's, record for record.
+#[tokio::test(start_paused = true)]
+async fn a_steered_runs_replay_carries_out_its_operations_again() {
+    use tcm::{Approval, BreakAt, Breakpoint, Fault, FaultOutcome, Matcher};
+    let path = scratch("steered");
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let rec = Recorder::new();
+    let session = Runtime::new()
+        .with_sink(rec.clone())
+        .journal(writer)
+        .start()
+        .expect("start");
+    let control = session.control();
+    let by = "operator";
+    control
+        .add_breakpoint(
+            Breakpoint {
+                at: BreakAt::Start,
+                on: Matcher::Task("last".into()),
+            },
+            by,
+        )
+        .expect("breakpoint");
+    control
+        .require_approval(
+            Approval {
+                on: Matcher::Task("around".into()),
+                timeout: None,
+            },
+            by,
+        )
+        .expect("approval rule");
+    control
+        .inject(
+            Fault {
+                on: Matcher::Task("go".into()),
+                times: 1,
+                outcome: FaultOutcome::Succeed(None),
+            },
+            by,
+        )
+        .expect("fault");
+    let (events, operator) = (session.events(), control.clone());
+    tokio::spawn(async move {
+        tokio::time::sleep(Duration::from_millis(1700)).await;
+        events.raise("start").expect("raise");
+        tokio::time::sleep(Duration::from_millis(800)).await;
+        for node in operator.held().expect("held") {
+            operator.approve(node, "operator").expect("approve");
+        }
+        tokio::time::sleep(Duration::from_secs(3)).await;
+        assert!(
+            operator.is_paused().expect("paused"),
+            "the breakpoint paused"
+        );
+        operator.resume("operator").expect("resume");
+    });
+    session.spawn(mission(false, false)).expect("spawn");
+    let report = session.finish().await.expect("finish");
+    assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
+    let recorded = rec.events();
+    assert_checked(&recorded);
+    let controls: Vec<String> = recorded
+        .iter()
+        .filter_map(|e| match &e.kind {
+            tcm::TraceKind::Control { what, .. } => Some(what.clone()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(controls.len(), 5, "{controls:?}");
+    assert!(controls[3].starts_with("approve around"), "{controls:?}");
+    assert_eq!(controls[4], "continue");
+
+    let rec2 = Recorder::new();
+    let replay = Runtime::new()
+        .with_sink(rec2.clone())
+        .replay(read(&path))
+        .start()
+        .expect("start");
+    replay.spawn(mission(false, false)).expect("spawn");
+    let replayed = replay.finish().await.expect("finish");
+    assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
+    let (want, got) = (lines(&recorded), lines(&rec2.events()));
+    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+        assert_eq!(w, g, "record {i} differs");
+    }
+    assert_eq!(want.len(), got.len());
+}

@@ -78,6 +78,43 @@ fn a_replay_gives_the_recorded_trace_byte_for_byte() {
     );
 }
 
+/// A run steered from the terminal (a breakpoint before each `deliver`; standard input closed at
+/// once, which releases the run) journals its operations, and `tdl replay` carries them out
+/// again: the same trace, byte for byte, its `control` records among them.
+#[test]
+fn a_steered_run_replays_with_its_operations() {
+    let dir = scratch("steered");
+    let (journal, recorded, replayed) = (dir.join("j"), dir.join("t1"), dir.join("t2"));
+    let (code, out, err) = tdl(&[
+        "run",
+        ROUNDS,
+        "--args",
+        "3",
+        "--break",
+        "deliver",
+        "--journal",
+        &arg(&journal),
+        "--trace",
+        &arg(&recorded),
+    ]);
+    assert_eq!(code, 0, "{out}{err}");
+    let (code, out, err) = tdl(&["replay", &arg(&journal), ROUNDS, "--trace", &arg(&replayed)]);
+    assert_eq!(code, 0, "{out}{err}");
+    let (a, b) = (
+        std::fs::read_to_string(&recorded).expect("the recorded trace"),
+        std::fs::read_to_string(&replayed).expect("the replayed trace"),
+    );
+    let controls = a
+        .lines()
+        .filter(|l| l.contains("\"ev\":\"control\""))
+        .count();
+    assert!(controls >= 2, "the breakpoint and the release: {a}");
+    for (i, (x, y)) in a.lines().zip(b.lines()).enumerate() {
+        assert_eq!(x, y, "line {} differs", i + 1);
+    }
+    assert_eq!(a, b);
+}
+
 /// The report's first two lines without the times: outcome and counts.
 fn outcome(out: &str) -> (String, String) {
     let mut lines = out.lines();
