@@ -39,6 +39,25 @@ impl Control {
         Ok(f(&mut inner.engine, now))
     }
 
+    /// [`Control::engine`] for an operation from outside, which is an input of the run: refused
+    /// while the run replays its journal, whose inputs come first ([`Error::Replaying`]).
+    fn operate<T>(
+        &self,
+        f: impl FnOnce(&mut tcm_core::Engine<crate::task::Action, Factory>, tcm_core::Time) -> T,
+    ) -> Result<T, Error> {
+        if self.replaying()? {
+            return Err(Error::Replaying);
+        }
+        self.engine(f)
+    }
+
+    /// Whether the run is replaying its journal (a resumed run, before it goes on live), when an
+    /// operation from outside is refused ([`Error::Replaying`]).
+    pub fn replaying(&self) -> Result<bool, Error> {
+        let inner = crate::host::lock(&self.ctx.shared)?;
+        Ok(inner.replay.as_ref().is_some_and(|r| r.active()))
+    }
+
     /// The root node, the parent of every top-level task.
     pub fn root(&self) -> NodeId {
         self.ctx.node
@@ -141,7 +160,7 @@ impl Control {
 
     /// Records an operation from outside the run in its trace: `what` was done, `by` asked.
     pub fn note(&self, what: &str, by: &str) -> Result<(), Error> {
-        self.engine(|e, now| e.note_control(now, what, by))
+        self.operate(|e, now| e.note_control(now, what, by))
     }
 }
 

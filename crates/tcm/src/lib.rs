@@ -98,6 +98,11 @@ pub enum Error {
     /// The run ended before the awaited node finished.
     #[error("the run ended before the awaited node finished")]
     RunEnded,
+    /// The run is replaying its journal (a resumed run, before it goes on live): an operation from
+    /// outside would come among the journal's inputs, so it waits until the run goes live
+    /// (`Control::replaying`).
+    #[error("the run is replaying its journal: steer it once it goes on live")]
+    Replaying,
     /// A panic inside the engine poisoned the runtime; the run cannot go on.
     #[error("the runtime was poisoned by a panic inside the engine")]
     Poisoned,

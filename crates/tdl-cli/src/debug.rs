@@ -86,7 +86,12 @@ impl Steer {
                         Err(e) => eprintln!("> {e}"),
                     }
                 }
-                let _ = control.release("terminal (standard input closed)");
+                // A resumed run takes no operation before it goes on live: the release waits.
+                while let Err(tdl::Error::Replaying) =
+                    control.release("terminal (standard input closed)")
+                {
+                    std::thread::sleep(std::time::Duration::from_millis(20));
+                }
             })
             .context("cannot start the command reader")?;
         Ok(())

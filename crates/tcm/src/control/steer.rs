@@ -9,23 +9,23 @@ use tcm_core::{Approval, Breakpoint, Fault, NodeId, SteerId};
 impl Control {
     /// Pauses the run: `false` if it was paused already.
     pub fn pause(&self, by: &str) -> Result<bool, Error> {
-        self.engine(|e, now| e.pause(now, by))
+        self.operate(|e, now| e.pause(now, by))
     }
 
     /// Resumes a paused run: `false` if it was not paused.
     pub fn resume(&self, by: &str) -> Result<bool, Error> {
-        self.engine(|e, now| e.resume(now, by))
+        self.operate(|e, now| e.resume(now, by))
     }
 
     /// Lets one held start or timer happen, then pauses again: `false` if the run was not paused.
     pub fn step(&self, by: &str) -> Result<bool, Error> {
-        self.engine(|e, now| e.step(now, by))
+        self.operate(|e, now| e.step(now, by))
     }
 
     /// Resumes until the next node's turn to start and pauses before it: `false` if the run was
     /// not paused.
     pub fn step_to_start(&self, by: &str) -> Result<bool, Error> {
-        self.engine(|e, now| e.step_to_start(now, by))
+        self.operate(|e, now| e.step_to_start(now, by))
     }
 
     /// Whether the run is paused.
@@ -35,22 +35,22 @@ impl Control {
 
     /// Adds a breakpoint; returns its number, for [`Control::remove`].
     pub fn add_breakpoint(&self, bp: Breakpoint, by: &str) -> Result<SteerId, Error> {
-        self.engine(|e, now| e.add_breakpoint(now, bp, by))
+        self.operate(|e, now| e.add_breakpoint(now, bp, by))
     }
 
     /// Injects a fault for the next ends of the nodes it matches; returns its number.
     pub fn inject(&self, fault: Fault, by: &str) -> Result<SteerId, Error> {
-        self.engine(|e, now| e.inject(now, fault, by))
+        self.operate(|e, now| e.inject(now, fault, by))
     }
 
     /// Holds the nodes `rule` matches until an operator approves them; returns its number.
     pub fn require_approval(&self, rule: Approval, by: &str) -> Result<SteerId, Error> {
-        self.engine(|e, now| e.require_approval(now, rule, by))
+        self.operate(|e, now| e.require_approval(now, rule, by))
     }
 
     /// Removes a breakpoint, fault or approval rule: `false` if there is none of that number.
     pub fn remove(&self, id: SteerId, by: &str) -> Result<bool, Error> {
-        self.engine(|e, now| e.remove_steer(now, id, by))
+        self.operate(|e, now| e.remove_steer(now, id, by))
     }
 
     /// The nodes held for approval, in the order held.
@@ -60,20 +60,20 @@ impl Control {
 
     /// Approves a node held for approval.
     pub fn approve(&self, node: NodeId, by: &str) -> Result<(), Error> {
-        self.engine(|e, now| e.approve(now, node, by))?
+        self.operate(|e, now| e.approve(now, node, by))?
             .map_err(Error::from)
     }
 
     /// Refuses a node held for approval: it fails with `ApprovalRefused`.
     pub fn refuse(&self, node: NodeId, by: &str, reason: &str) -> Result<(), Error> {
-        self.engine(|e, now| e.refuse(now, node, by, reason))?
+        self.operate(|e, now| e.refuse(now, node, by, reason))?
             .map_err(Error::from)
     }
 
     /// Removes every breakpoint and approval rule, approves the held nodes and resumes: what a
     /// viewer does when its controlling page went silent.
     pub fn release(&self, by: &str) -> Result<(), Error> {
-        self.engine(|e, now| e.release(now, by))
+        self.operate(|e, now| e.release(now, by))
     }
 
     /// Suspends `node`'s subtree (docs/semantics.md, "Suspension"), as `by` asked.

@@ -674,6 +674,11 @@ async fn a_steered_runs_replay_carries_out_its_operations_again() {
         .replay(read(&path))
         .start()
         .expect("start");
+    // An operation from outside while the journal is replayed would come among its inputs: it
+    // is refused until the run goes on live.
+    let outside = replay.control();
+    assert!(outside.replaying().expect("replaying"));
+    assert!(matches!(outside.pause("late"), Err(tcm::Error::Replaying)));
     replay.spawn(mission(false, false)).expect("spawn");
     let replayed = replay.finish().await.expect("finish");
     assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");

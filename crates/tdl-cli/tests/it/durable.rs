@@ -134,9 +134,15 @@ fn a_killed_run_resumes_and_ends_as_an_uncrashed_one() {
     assert_eq!(code, 0, "{plain}{err}");
     // Killed while room `room` is handed over: 100 ms after its measure ended (its value is
     // `room + 1.5`), between its drive's end (30 ms) and its hand-over's (230 ms).
-    for room in [1u32, 4, 6] {
-        let journal = dir.join(format!("j{room}"));
-        let (before, after) = (dir.join(format!("a{room}")), dir.join(format!("b{room}")));
+    // The last one steered from the terminal (a breakpoint, standard input closed at once: the
+    // run released): resumed, the journal gives its operations again.
+    for (room, steer) in [(1u32, false), (4, false), (6, false), (4, true)] {
+        let steering: &[&str] = if steer { &["--break", "deliver"] } else { &[] };
+        let journal = dir.join(format!("j{room}{steer}"));
+        let (before, after) = (
+            dir.join(format!("a{room}{steer}")),
+            dir.join(format!("b{room}{steer}")),
+        );
         let mut child = Command::new(env!("CARGO_BIN_EXE_tdl"))
             .args([
                 "run",
@@ -150,7 +156,9 @@ fn a_killed_run_resumes_and_ends_as_an_uncrashed_one() {
                 "--trace",
                 &arg(&before),
             ])
+            .args(steering)
             .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -172,14 +180,10 @@ fn a_killed_run_resumes_and_ends_as_an_uncrashed_one() {
         std::thread::sleep(Duration::from_millis(100));
         child.kill().expect("SIGKILL");
         let _ = child.wait();
-        let (code, out, err) = tdl(&[
-            "run",
-            ROUNDS,
-            "--resume",
-            &arg(&journal),
-            "--trace",
-            &arg(&after),
-        ]);
+        let (journal, after_arg) = (arg(&journal), arg(&after));
+        let mut resume = vec!["run", ROUNDS, "--resume", &journal, "--trace", &after_arg];
+        resume.extend_from_slice(steering);
+        let (code, out, err) = tdl(&resume);
         assert_eq!(code, 0, "killed in room {room}: {out}{err}");
         assert_eq!(
             outcome(&out).0,
