@@ -362,6 +362,17 @@ fn describe(input: &Input) -> String {
 /// Gives the engine the journal's inputs, in order, as far as the run has come (rule 3); at the
 /// journal's end, stops or goes live (rule 5).
 pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
+    feed_with(inner, shared, false);
+}
+
+/// [`feed`] of the operations from outside the journal's run took before its first task (as
+/// `tdl run` sets `--break` before it spawns), and nothing else: called before the replay's first
+/// task, which comes before any other input.
+pub(crate) fn feed_operations(inner: &mut Inner, shared: &Arc<Shared>) {
+    feed_with(inner, shared, true);
+}
+
+fn feed_with(inner: &mut Inner, shared: &Arc<Shared>, operations_only: bool) {
     if inner.replay.as_ref().is_some_and(|r| r.active()) && in_action(shared) {
         return;
     }
@@ -374,6 +385,14 @@ pub(crate) fn feed(inner: &mut Inner, shared: &Arc<Shared>) {
             return;
         };
         let pos = r.feed.next_input();
+        if operations_only
+            && !r
+                .entries
+                .get(pos)
+                .is_some_and(|e| matches!(e.input, Input::Control { .. }))
+        {
+            return;
+        }
         let steps = inner.engine.steps();
         r.release_reads(steps);
         let Some(e) = r.entries.get(pos) else {

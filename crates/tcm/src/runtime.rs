@@ -416,7 +416,7 @@ impl Runtime {
             let mut inner = shared.enter()?;
             // As in `start`: what the journal's run took before its first task comes first.
             if inner.replay.is_some() {
-                crate::replay::feed(&mut inner, &shared);
+                crate::replay::feed_operations(&mut inner, &shared);
             }
             inner.finishing = true;
             let now = inner.engine.at_clock();
@@ -471,7 +471,7 @@ impl Runtime {
             // What the journal's run took before its first task (an operation from outside, as
             // `tdl run` steers before it spawns), the replay gives before the session's first.
             if inner.replay.is_some() {
-                crate::replay::feed(&mut inner, &shared);
+                crate::replay::feed_operations(&mut inner, &shared);
             }
             inner.engine.root()
         };
