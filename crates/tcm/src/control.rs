@@ -162,6 +162,13 @@ impl Control {
     pub fn note(&self, what: &str, by: &str) -> Result<(), Error> {
         self.operate(|e, now| e.note_control(now, what, by))
     }
+
+    /// [`Control::note`] for an operation whose effect is the input that comes next (an event
+    /// raised through this handle): a replay of the run's journal writes the record again and
+    /// gives that input, where it refuses an operation only noted.
+    pub fn note_input(&self, what: &str, by: &str) -> Result<(), Error> {
+        self.operate(|e, now| e.note_input(now, what, by))
+    }
 }
 
 /// Inserts `task` as a top-level task of the run.

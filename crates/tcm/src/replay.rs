@@ -540,6 +540,14 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
             what,
             by,
             op: Some(op),
+        } if op.get("op").and_then(serde_json::Value::as_str) == Some("noted") => {
+            inner.engine.note_control(now, what, by);
+            Ok(true)
+        }
+        Input::Control {
+            what,
+            by,
+            op: Some(op),
         } => {
             let op: tcm_core::SteerOp = serde_json::from_value(op.clone())
                 .map_err(|e| format!("the operation `{what}` by {by} cannot be read: {e}"))?;
@@ -551,7 +559,7 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
         }
         Input::Control { what, by, op: None } => Err(format!(
             "the run took the operation `{what}` by {by}, which a replay cannot carry out again \
-             (a handler or a wiretap attached, or a fault with a value only the program makes)"
+             (docs/semantics.md, \"Durable runs\", says which it can)"
         )),
     }
 }

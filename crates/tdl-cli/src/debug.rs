@@ -176,7 +176,7 @@ fn command(control: &Control, line: &str) -> anyhow::Result<Option<String>> {
             } else {
                 let data: serde_json::Value = serde_json::from_str(&data.join(" "))
                     .context("`ev EVENT JSON`: the data is not JSON")?;
-                control.note(&format!("raise {event} with {data}"), by)?;
+                control.note_input(&format!("raise {event} with {data}"), by)?;
                 control.raise_with(event, data)?;
             }
             format!("raised {event}")

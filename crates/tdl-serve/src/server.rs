@@ -479,7 +479,7 @@ impl Server {
 
     fn raise(&self, id: u64, event: &str, by: &str) -> Result<Reply, String> {
         let control = self.running(id)?;
-        let _ = control.note(&format!("raise {event}"), by);
+        let _ = control.note_input(&format!("raise {event}"), by);
         control.raise(event).map_err(|e| format!("run {id}: {e}"))?;
         Ok(Reply::Done)
     }

@@ -138,13 +138,23 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
         }
     }
 
-    /// Records an operation from outside the run (rule 4).
+    /// Records an operation from outside the run (rule 4), one a replay cannot carry out again.
     pub fn note_control(&mut self, now: Time, what: &str, by: &str) {
+        self.note_operation(now, what, by, None);
+    }
+
+    /// Records an operation from outside the run whose effect is an input of its own that comes
+    /// next (an event raised): a replay writes its record again and gives that input.
+    pub fn note_input(&mut self, now: Time, what: &str, by: &str) {
+        self.note_operation(now, what, by, Some(super::SteerOp::Noted));
+    }
+
+    fn note_operation(&mut self, now: Time, what: &str, by: &str, op: Option<super::SteerOp>) {
         self.advance(now);
         self.record(|_| super::InputRecord::Control {
             what: what.to_string(),
             by: by.to_string(),
-            op: None,
+            op,
         });
         if self.tracing {
             self.push_trace(TraceKind::Control {

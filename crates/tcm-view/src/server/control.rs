@@ -519,12 +519,12 @@ fn act(control: &Control, run: &Run, op: Op, by: &str) -> Result<Done, Refusal> 
             Done::default()
         }
         Op::Raise(event, None) => {
-            control.note(&format!("raise {event}"), by)?;
+            control.note_input(&format!("raise {event}"), by)?;
             control.raise(&event)?;
             Done::default()
         }
         Op::Raise(event, Some(data)) => {
-            control.note(&format!("raise {event} with {data}"), by)?;
+            control.note_input(&format!("raise {event} with {data}"), by)?;
             control.raise_with(&event, data)?;
             Done::default()
         }

@@ -593,9 +593,9 @@ async fn a_request_of_an_action_that_outlived_its_node_is_no_step_of_the_run() {
 
 /// A steered run's operations from outside are journaled with what they did, and its replay
 /// carries each out again at the run's step: a breakpoint before `last`, an approval rule that
-/// holds `around` until the operator approves it, a fault that makes `go` succeed at once, the
-/// operator's resumption after the breakpoint and an operation the replay cannot carry out (none
-/// here: each of these can). The replay's trace is the run's, record for record.
+/// holds `around` until the operator approves it, a fault that makes `go` succeed at once, an
+/// event the operator raised (noted, then given), and the operator's resumption after the
+/// breakpoint. The replay's trace is the run's, record for record.
 #[tokio::test(start_paused = true)]
 async fn a_steered_runs_replay_carries_out_its_operations_again() {
     use tcm::{Approval, BreakAt, Breakpoint, Fault, FaultOutcome, Matcher};
@@ -640,6 +640,8 @@ async fn a_steered_runs_replay_carries_out_its_operations_again() {
     let (events, operator) = (session.events(), control.clone());
     tokio::spawn(async move {
         tokio::time::sleep(Duration::from_millis(1700)).await;
+        // Noted as an operation, and given as the event it is.
+        operator.note_input("raise start", "operator").expect("note");
         events.raise("start").expect("raise");
         tokio::time::sleep(Duration::from_millis(800)).await;
         for node in operator.held().expect("held") {
@@ -664,9 +666,10 @@ async fn a_steered_runs_replay_carries_out_its_operations_again() {
             _ => None,
         })
         .collect();
-    assert_eq!(controls.len(), 5, "{controls:?}");
-    assert!(controls[3].starts_with("approve around"), "{controls:?}");
-    assert_eq!(controls[4], "continue");
+    assert_eq!(controls.len(), 6, "{controls:?}");
+    assert_eq!(controls[3], "raise start");
+    assert!(controls[4].starts_with("approve around"), "{controls:?}");
+    assert_eq!(controls[5], "continue");
 
     let rec2 = Recorder::new();
     let replay = Runtime::new()

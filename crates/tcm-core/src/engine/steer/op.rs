@@ -27,6 +27,8 @@ pub enum SteerOp {
     StepToStart,
     /// [`Engine::release`].
     Release,
+    /// [`Engine::note_input`]: only the record; what was done is the input that follows.
+    Noted,
     /// [`Engine::add_breakpoint`].
     Breakpoint {
         /// When it pauses.
@@ -148,6 +150,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 self.step_to_start(now, by);
             }
             SteerOp::Release => self.release(now, by),
+            SteerOp::Noted => {}
             SteerOp::Breakpoint { at, on } => {
                 let on = self.matcher_of(on)?;
                 self.add_breakpoint(now, Breakpoint { at: *at, on }, by);
