@@ -683,12 +683,8 @@ class Agent:
             return
         r.last_seq = msg.seq
         if msg.kind == "cancel":
-            self._end(key)
             self.stats.cancelled += 1
-            r.ctx.cancelled.set()
-            if r.task is not None:
-                r.task.cancel()
-            self._spawn(self._clean_up(key, r, confirm=True))
+            self._stop(key, r, confirm=True)
         # A `reply` answers a call; a Python body makes none.
 
     def _start(
@@ -882,10 +878,14 @@ class Agent:
         """Aborts and cleans up the bodies ``executive`` started (those still orphaned only)."""
         for key in [k for k, r in self._running.items()
                     if k[0] == executive and (r.orphaned or not orphaned_only)]:
-            r = self._running[key]
-            self._end(key)
             self.stats.orphaned += 1
-            r.ctx.cancelled.set()
-            if r.task is not None:
-                r.task.cancel()
-            self._spawn(self._clean_up(key, r, confirm=False))
+            self._stop(key, self._running[key], confirm=False)
+
+    def _stop(self, key: Tuple[str, int], r: _Running, confirm: bool) -> None:
+        """Ends the body of ``key``: cancelled, its cleanup run (then, with ``confirm``, the
+        executive told ``cancelled``)."""
+        self._end(key)
+        r.ctx.cancelled.set()
+        if r.task is not None:
+            r.task.cancel()
+        self._spawn(self._clean_up(key, r, confirm=confirm))

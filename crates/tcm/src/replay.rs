@@ -540,21 +540,18 @@ fn give(inner: &mut Inner, t: u64, input: &Input) -> Result<bool, String> {
             what,
             by,
             op: Some(op),
-        } if op.get("op").and_then(serde_json::Value::as_str) == Some("noted") => {
-            inner.engine.note_control(now, what, by);
-            Ok(true)
-        }
-        Input::Control {
-            what,
-            by,
-            op: Some(op),
         } => {
             let op: tcm_core::SteerOp = serde_json::from_value(op.clone())
                 .map_err(|e| format!("the operation `{what}` by {by} cannot be read: {e}"))?;
-            inner
-                .engine
-                .apply_steer(now, &op, by)
-                .map_err(|e| format!("the operation `{what}` by {by} cannot be given: {e}"))?;
+            if op == tcm_core::SteerOp::Noted {
+                // Its record only: the input that follows is what was done.
+                inner.engine.note_control(now, what, by);
+            } else {
+                inner
+                    .engine
+                    .apply_steer(now, &op, by)
+                    .map_err(|e| format!("the operation `{what}` by {by} cannot be given: {e}"))?;
+            }
             Ok(true)
         }
         Input::Control { what, by, op: None } => Err(format!(

@@ -641,7 +641,9 @@ async fn a_steered_runs_replay_carries_out_its_operations_again() {
     tokio::spawn(async move {
         tokio::time::sleep(Duration::from_millis(1700)).await;
         // Noted as an operation, and given as the event it is.
-        operator.note_input("raise start", "operator").expect("note");
+        operator
+            .note_input("raise start", "operator")
+            .expect("note");
         events.raise("start").expect("raise");
         tokio::time::sleep(Duration::from_millis(800)).await;
         for node in operator.held().expect("held") {

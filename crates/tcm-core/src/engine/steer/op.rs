@@ -150,6 +150,7 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
                 self.step_to_start(now, by);
             }
             SteerOp::Release => self.release(now, by),
+            // Its record is the caller's to write again (`Engine::note_control`).
             SteerOp::Noted => {}
             SteerOp::Breakpoint { at, on } => {
                 let on = self.matcher_of(on)?;
