@@ -170,7 +170,7 @@ pub(super) async fn control(
     };
     let by = format!("viewer {peer}");
     let sets = op.sets();
-    match act(&control, &run, op, &by) {
+    match act(&control, op, &by) {
         Ok(done) => {
             if sets {
                 if let Some(s) = run.steering().as_mut() {
@@ -462,14 +462,8 @@ fn matcher(control: &Control, target: Target) -> Result<Matcher, Refusal> {
     })
 }
 
-/// A node's name and number as the trace has them, for the `control` record of an op the
-/// handle does not name itself.
-fn label(run: &Run, n: u64) -> String {
-    run.lock().label(n)
-}
-
 /// Carries out `op` as `by` asked.
-fn act(control: &Control, run: &Run, op: Op, by: &str) -> Result<Done, Refusal> {
+fn act(control: &Control, op: Op, by: &str) -> Result<Done, Refusal> {
     let changed = |c: bool| Done {
         id: None,
         changed: Some(c),
@@ -530,8 +524,7 @@ fn act(control: &Control, run: &Run, op: Op, by: &str) -> Result<Done, Refusal> 
         }
         Op::Terminate(n) => {
             let id = node(control, n)?;
-            control.note(&format!("terminate {}", label(run, n)), by)?;
-            control.terminate(id)?;
+            control.terminate_as(id, by)?;
             Done::default()
         }
         Op::Suspend(n) => {

@@ -78,14 +78,22 @@ impl Control {
 
     /// Suspends `node`'s subtree (docs/semantics.md, "Suspension"), as `by` asked.
     pub fn suspend(&self, node: NodeId, by: &str) -> Result<(), Error> {
-        self.note(&format!("suspend {node}"), by)?;
-        self.ctx.suspend(node)
+        self.operate(|e, now| e.suspend_as(now, node, true, by))?
+            .map_err(Error::from)
     }
 
     /// Ends the suspension of `node`'s subtree, as `by` asked.
     pub fn unsuspend(&self, node: NodeId, by: &str) -> Result<(), Error> {
-        self.note(&format!("resume {node}"), by)?;
-        self.ctx.unsuspend(node)
+        self.operate(|e, now| e.suspend_as(now, node, false, by))?
+            .map_err(Error::from)
+    }
+
+    /// Terminates `node`'s subtree as `by`, an operator, asked: an operation from outside the
+    /// run, which its journal keeps and a replay carries out again (the program's own
+    /// termination is [`Control::terminate`]).
+    pub fn terminate_as(&self, node: NodeId, by: &str) -> Result<(), Error> {
+        self.operate(|e, now| e.terminate_as(now, node, by))?
+            .map_err(Error::from)
     }
 
     /// What `node` is now (`None` once it is gone).

@@ -693,3 +693,60 @@ async fn a_steered_runs_replay_carries_out_its_operations_again() {
     }
     assert_eq!(want.len(), got.len());
 }
+
+/// An operator's suspension, its end and a termination from outside (`Control::suspend`,
+/// `Control::unsuspend`, `Control::terminate_as`, as the viewer asks them) are journaled as
+/// operations, and the replay carries them out again: the same trace, record for record.
+#[tokio::test(start_paused = true)]
+async fn an_operators_suspension_and_termination_replay() {
+    let task = || {
+        Task::goal("pair", |ctx| async move {
+            ctx.spawn(takes("slow", 2.0, json!(null))).start()?;
+            ctx.spawn(takes("long", 10.0, json!(null))).start()?;
+            Ok(())
+        })
+    };
+    let path = scratch("operator");
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let rec = Recorder::new();
+    let session = Runtime::new()
+        .with_sink(rec.clone())
+        .journal(writer)
+        .start()
+        .expect("start");
+    let top = session.spawn(task()).expect("spawn");
+    let control = session.control();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    control.suspend(top, "operator").expect("suspend");
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    control.unsuspend(top, "operator").expect("unsuspend");
+    let long = control
+        .node_by_number(spawned(&rec.events(), "long"))
+        .expect("query")
+        .expect("`long` is alive");
+    control.terminate_as(long, "operator").expect("terminate");
+    let report = session.finish().await.expect("finish");
+    assert_eq!(report.outcome, RunOutcome::Completed, "{report}");
+    let recorded = rec.events();
+    assert_checked(&recorded);
+    let controls = recorded
+        .iter()
+        .filter(|e| matches!(e.kind, tcm::TraceKind::Control { .. }))
+        .count();
+    assert_eq!(controls, 3);
+
+    let rec2 = Recorder::new();
+    let replay = Runtime::new()
+        .with_sink(rec2.clone())
+        .replay(read(&path))
+        .start()
+        .expect("start");
+    replay.spawn(task()).expect("spawn");
+    let replayed = replay.finish().await.expect("finish");
+    assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
+    let (want, got) = (lines(&recorded), lines(&rec2.events()));
+    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+        assert_eq!(w, g, "record {i} differs");
+    }
+    assert_eq!(want.len(), got.len());
+}

@@ -29,6 +29,18 @@ pub enum SteerOp {
     Release,
     /// [`Engine::note_input`]: only the record; what was done is the input that follows.
     Noted,
+    /// [`Engine::terminate_as`].
+    Terminate {
+        /// The node's display number.
+        node: u64,
+    },
+    /// [`Engine::suspend_as`], suspending (`on`) or ending a suspension.
+    Suspend {
+        /// The node's display number.
+        node: u64,
+        /// Suspends, or ends the suspension.
+        on: bool,
+    },
     /// [`Engine::add_breakpoint`].
     Breakpoint {
         /// When it pauses.
@@ -152,6 +164,10 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             SteerOp::Release => self.release(now, by),
             // Its record is the caller's to write again (`Engine::note_control`).
             SteerOp::Noted => {}
+            SteerOp::Terminate { node } => self.terminate_as(now, self.numbered(*node)?, by)?,
+            SteerOp::Suspend { node, on } => {
+                self.suspend_as(now, self.numbered(*node)?, *on, by)?;
+            }
             SteerOp::Breakpoint { at, on } => {
                 let on = self.matcher_of(on)?;
                 self.add_breakpoint(now, Breakpoint { at: *at, on }, by);
@@ -187,6 +203,53 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
         }
         Ok(())
+    }
+}
+
+impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
+    /// Terminates `node`'s subtree, as `by` asked from outside the run: an operation, with its
+    /// `control` record (a body's termination is [`Engine::terminate`]).
+    pub fn terminate_as(
+        &mut self,
+        now: Time,
+        node: crate::ids::NodeId,
+        by: &str,
+    ) -> Result<(), EngineError> {
+        self.advance(now);
+        self.check_run(node)?;
+        let op = SteerOp::Terminate {
+            node: self.display_of(node),
+        };
+        self.note(format!("terminate {}", self.node_text(node)), by, Some(op));
+        self.terminate(now, node)
+    }
+
+    /// Suspends `node`'s subtree (`on`), or ends its suspension, as `by` asked from outside the
+    /// run: an operation, with its `control` record.
+    pub fn suspend_as(
+        &mut self,
+        now: Time,
+        node: crate::ids::NodeId,
+        on: bool,
+        by: &str,
+    ) -> Result<(), EngineError> {
+        self.advance(now);
+        self.check_run(node)?;
+        let op = SteerOp::Suspend {
+            node: self.display_of(node),
+            on,
+        };
+        let what = if on {
+            "suspend"
+        } else {
+            "end the suspension of"
+        };
+        self.note(format!("{what} {}", self.node_text(node)), by, Some(op));
+        if on {
+            self.suspend(now, node)
+        } else {
+            self.unsuspend(now, node)
+        }
     }
 }
 
