@@ -225,10 +225,12 @@ impl Steering {
 
 mod op;
 mod path;
+mod text;
 
 pub use op::{FaultOp, MatcherOp, SteerOp};
 
 pub(crate) use path::path_matches;
+use text::{at_text, outcome_text};
 
 impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
     fn steering(&mut self) -> &mut Steering {
@@ -780,40 +782,5 @@ impl<A, F: Clone, S: Keep<Node<A, F>>> Engine<A, F, S> {
             }
             FaultOutcome::Never => self.node_mut(node).cold_mut().never_ends = true,
         }
-    }
-
-    fn node_text(&self, node: NodeId) -> String {
-        self.nodes.get(node).map_or_else(
-            || "a node gone".into(),
-            |n| format!("{} {{{}}}", n.name, n.display),
-        )
-    }
-
-    fn matcher_text(&self, m: &Matcher) -> String {
-        match m {
-            Matcher::Any => "every node".into(),
-            Matcher::Task(t) => format!("task {t}"),
-            Matcher::Path(p) => format!("path {p}"),
-            Matcher::Node(n) => self.node_text(*n),
-            Matcher::Exception(e) => format!("exception {e}"),
-        }
-    }
-}
-
-fn at_text(at: BreakAt) -> &'static str {
-    match at {
-        BreakAt::Start => "before the start of",
-        BreakAt::End => "after the end of",
-        BreakAt::Raised => "on an exception of",
-        BreakAt::Handler => "on a handler chosen for",
-    }
-}
-
-fn outcome_text(o: &FaultOutcome) -> String {
-    match o {
-        FaultOutcome::Fail(f) => format!("fail {}: {}", f.exception, f.message),
-        FaultOutcome::Succeed(None) => "succeed".into(),
-        FaultOutcome::Succeed(Some(v)) => format!("succeed with {}", v.text()),
-        FaultOutcome::Never => "never ends".into(),
     }
 }
