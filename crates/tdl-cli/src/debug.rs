@@ -73,25 +73,37 @@ impl Steer {
                 .context("cannot set the breakpoint")?;
         }
         eprintln!("{HELP}");
+        // The lines are read on a thread of their own and carried out by a task of the run's
+        // runtime: between the polls of the run's actions, never in the middle of one, so that a
+        // journal of the run gives each operation where a replay can give it again.
+        let (lines, mut read) = tokio::sync::mpsc::unbounded_channel::<Option<String>>();
         let control = control.clone();
+        tokio::spawn(async move {
+            while let Some(Some(line)) = read.recv().await {
+                match command(&control, line.trim()) {
+                    Ok(Some(said)) => eprintln!("> {said}"),
+                    Ok(None) => {}
+                    Err(e) => eprintln!("> {e}"),
+                }
+            }
+            // A resumed run takes no operation before it goes on live: the release waits.
+            while let Err(tdl::Error::Replaying) =
+                control.release("terminal (standard input closed)")
+            {
+                tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+            }
+        });
         std::thread::Builder::new()
             .name("tdl-steer".into())
             .spawn(move || {
                 let stdin = std::io::stdin();
                 for line in stdin.lock().lines() {
                     let Ok(line) = line else { break };
-                    match command(&control, line.trim()) {
-                        Ok(Some(said)) => eprintln!("> {said}"),
-                        Ok(None) => {}
-                        Err(e) => eprintln!("> {e}"),
+                    if lines.send(Some(line)).is_err() {
+                        return;
                     }
                 }
-                // A resumed run takes no operation before it goes on live: the release waits.
-                while let Err(tdl::Error::Replaying) =
-                    control.release("terminal (standard input closed)")
-                {
-                    std::thread::sleep(std::time::Duration::from_millis(20));
-                }
+                let _ = lines.send(None);
             })
             .context("cannot start the command reader")?;
         Ok(())
