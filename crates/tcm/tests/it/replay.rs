@@ -94,6 +94,28 @@ fn lines(events: &[TraceEvent]) -> Vec<String> {
         .collect()
 }
 
+/// The two traces hold the same records, in the same order (the run's number left out).
+fn assert_same_records(want: &[TraceEvent], got: &[TraceEvent]) {
+    let (want, got) = (lines(want), lines(got));
+    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+        assert_eq!(w, g, "record {i} differs");
+    }
+    assert_eq!(want.len(), got.len());
+}
+
+/// The replay of the journal at `path` in a session that spawns `task`: its report and trace.
+async fn replayed_session(path: &std::path::Path, task: Task) -> (tcm::Report, Vec<TraceEvent>) {
+    let rec = Recorder::new();
+    let replay = Runtime::new()
+        .with_sink(rec.clone())
+        .replay(read(path))
+        .start()
+        .expect("start");
+    replay.spawn(task).expect("spawn");
+    let report = replay.finish().await.expect("finish");
+    (report, rec.events())
+}
+
 /// The number of the node `name` was spawned as.
 fn spawned(events: &[TraceEvent], name: &str) -> u64 {
     events
@@ -142,11 +164,7 @@ async fn a_replay_gives_the_runs_trace_record_for_record() {
         .expect("replay");
     assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
     assert_eq!(replayed.elapsed, report.elapsed);
-    let (want, got) = (lines(&recorded), lines(&rec.events()));
-    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
-        assert_eq!(w, g, "record {i} differs");
-    }
-    assert_eq!(want.len(), got.len());
+    assert_same_records(&recorded, &rec.events());
 }
 
 #[tokio::test(start_paused = true)]
@@ -272,11 +290,7 @@ async fn a_resumed_run_journals_on_and_its_journal_replays() {
         .await
         .expect("replay");
     assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
-    let (want, got) = (lines(&rec.events()), lines(&again.events()));
-    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
-        assert_eq!(w, g, "record {i} differs");
-    }
-    assert_eq!(want.len(), got.len());
+    assert_same_records(&rec.events(), &again.events());
 }
 
 /// A body that reads the world (here a counter) through `Ctx::record` reads, in a replay, what
@@ -687,11 +701,7 @@ async fn a_steered_runs_replay_carries_out_its_operations_again() {
     replay.spawn(mission(false, false)).expect("spawn");
     let replayed = replay.finish().await.expect("finish");
     assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
-    let (want, got) = (lines(&recorded), lines(&rec2.events()));
-    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
-        assert_eq!(w, g, "record {i} differs");
-    }
-    assert_eq!(want.len(), got.len());
+    assert_same_records(&recorded, &rec2.events());
 }
 
 /// An operator's suspension, its end and a termination from outside (`Control::suspend`,
@@ -735,18 +745,7 @@ async fn an_operators_suspension_and_termination_replay() {
         .count();
     assert_eq!(controls, 3);
 
-    let rec2 = Recorder::new();
-    let replay = Runtime::new()
-        .with_sink(rec2.clone())
-        .replay(read(&path))
-        .start()
-        .expect("start");
-    replay.spawn(task()).expect("spawn");
-    let replayed = replay.finish().await.expect("finish");
+    let (replayed, events) = replayed_session(&path, task()).await;
     assert_eq!(replayed.outcome, RunOutcome::Completed, "{replayed}");
-    let (want, got) = (lines(&recorded), lines(&rec2.events()));
-    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
-        assert_eq!(w, g, "record {i} differs");
-    }
-    assert_eq!(want.len(), got.len());
+    assert_same_records(&recorded, &events);
 }
