@@ -103,6 +103,19 @@ fn assert_same_records(want: &[TraceEvent], got: &[TraceEvent]) {
     assert_eq!(want.len(), got.len());
 }
 
+/// A session journaled to a scratch file named after `name`, traced to its recorder.
+fn journaled_session(name: &str) -> (std::path::PathBuf, tcm::Session, Recorder) {
+    let path = scratch(name);
+    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
+    let rec = Recorder::new();
+    let session = Runtime::new()
+        .with_sink(rec.clone())
+        .journal(writer)
+        .start()
+        .expect("start");
+    (path, session, rec)
+}
+
 /// The replay of the journal at `path` in a session that spawns `task`: its report and trace.
 async fn replayed_session(path: &std::path::Path, task: Task) -> (tcm::Report, Vec<TraceEvent>) {
     let rec = Recorder::new();
@@ -613,14 +626,7 @@ async fn a_request_of_an_action_that_outlived_its_node_is_no_step_of_the_run() {
 #[tokio::test(start_paused = true)]
 async fn a_steered_runs_replay_carries_out_its_operations_again() {
     use tcm::{Approval, BreakAt, Breakpoint, Fault, FaultOutcome, Matcher};
-    let path = scratch("steered");
-    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
-    let rec = Recorder::new();
-    let session = Runtime::new()
-        .with_sink(rec.clone())
-        .journal(writer)
-        .start()
-        .expect("start");
+    let (path, session, rec) = journaled_session("steered");
     let control = session.control();
     let by = "operator";
     control
@@ -716,14 +722,7 @@ async fn an_operators_suspension_and_termination_replay() {
             Ok(())
         })
     };
-    let path = scratch("operator");
-    let writer = Writer::create(&path, "mission@1", Durability::EveryRecord).expect("create");
-    let rec = Recorder::new();
-    let session = Runtime::new()
-        .with_sink(rec.clone())
-        .journal(writer)
-        .start()
-        .expect("start");
+    let (path, session, rec) = journaled_session("operator");
     let top = session.spawn(task()).expect("spawn");
     let control = session.control();
     tokio::time::sleep(Duration::from_millis(500)).await;
